@@ -1,0 +1,1 @@
+"""baslip: periodic running gaits of the Body-Attached SLIP and their stability."""
