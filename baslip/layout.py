@@ -31,12 +31,14 @@ class Layout:
             raise KeyError(f"{name!r} is not one of {self.names}") from None
 
     def get(self, vec: Any, name: str) -> Any:
-        """Entry ``name`` of ``vec`` (CasADi or numpy)."""
-        return vec[self.index(name)]
+        """Entry ``name`` of ``vec`` (CasADi or numpy); a row when ``vec`` has many columns."""
+        i = self.index(name)
+        shape = getattr(vec, "shape", ())
+        return vec[i, :] if len(shape) == 2 and shape[1] > 1 else vec[i]
 
     def unpack(self, vec: Any) -> dict[str, Any]:
-        """All entries of ``vec`` keyed by name."""
-        return {name: vec[i] for i, name in enumerate(self.names)}
+        """All entries (rows) of ``vec`` keyed by name."""
+        return {name: self.get(vec, name) for name in self.names}
 
     def pack(self, values: Mapping[str, Any]) -> Any:
         """Stack ``values`` in layout order: a CasADi column if any entry is symbolic."""

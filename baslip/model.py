@@ -17,11 +17,36 @@ This module knows nothing of control laws, files or optimisers.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
+from functools import lru_cache, wraps
 
 import casadi as ca
 import numpy as np
 
 from .layout import Layout
+
+
+def _sx_function(*sizes: int):
+    """Evaluate an expression builder through an SX Function derived once on fresh symbols.
+
+    Derivatives inside the builder need purely symbolic arguments, and a linear solve must
+    stay symbolic (SX) so that MX problems can be expanded. The wrapped builder accepts
+    numbers, SX or MX of the given column sizes.
+    """
+
+    def decorate(builder):
+        @lru_cache(maxsize=None)
+        def function() -> ca.Function:
+            args = [ca.SX.sym(f"arg{i}", n) for i, n in enumerate(sizes)]
+            return ca.Function(builder.__name__.lstrip("_"), args, [builder(*args)])
+
+        @wraps(builder)
+        def call(*args):
+            return function()(*args)
+
+        call.function = function
+        return call
+
+    return decorate
 
 PARAMS = Layout(("m", "I", "k", "rho0", "d", "g"))
 STANCE = Layout(("rho", "theta1", "theta2", "rhodot", "theta1_dot", "theta2_dot"))
@@ -91,11 +116,12 @@ def _coordinates(x):
 # --- Lagrangian mechanics of stance -------------------------------------------------------
 
 
+@_sx_function(3, 3, 6)
 def stance_kinetic_energy(q, qdot, p):
     """T = m/2 |v_CoM|^2 + I/2 theta_h_dot^2 [J]."""
+    v_com = ca.mtimes(stance_velocity_jacobian(q, p)[:2, :], qdot)
+    theta_h_dot = qdot[1] + qdot[2]  # theta_h = theta1 + theta2 - pi/2
     m, inertia = PARAMS.get(p, "m"), PARAMS.get(p, "I")
-    v_com = ca.jtimes(stance_com_position(q, p), q, qdot)
-    theta_h_dot = qdot[1] + qdot[2]
     return 0.5 * m * ca.dot(v_com, v_com) + 0.5 * inertia * theta_h_dot**2
 
 
@@ -106,41 +132,40 @@ def stance_potential_energy(q, p):
     return m * g * z_com + 0.5 * k * (STANCE.get(q, "rho") - rho0) ** 2
 
 
-def stance_lagrangian(q, qdot, p):
-    """L = T - V, eq. 3.25."""
-    return stance_kinetic_energy(q, qdot, p) - stance_potential_energy(q, p)
+@_sx_function(3, 6)
+def stance_velocity_jacobian(q, p):
+    """J(q) with (ydot, zdot, theta_h_dot) = J(q) qdot, eqs. 3.19-3.21; det J = rho."""
+    return ca.jacobian(stance_pose(q, p), q)
 
 
-def stance_equations(q, qdot, tau, p):
-    """Mass matrix M(q) and right-hand side f with M qddot = f, from Euler-Lagrange.
+@_sx_function(3, 3, 1, 6)
+def _euler_lagrange(q, qdot, tau, p):
+    """[M | f] with M qddot = f, derived from L = T - V (eq. 3.25).
 
-    f = dL/dq - d/dq(dL/dqdot) qdot + Q with generalised force Q = (0, 0, tau): the hip
-    torque does virtual work only through theta2.
+    M = d2L/dqdot2 and f = dL/dq - d/dq(dL/dqdot) qdot + Q, with generalised force
+    Q = (0, 0, tau): the hip torque does virtual work only through theta2.
     """
-    lagrangian = stance_lagrangian(q, qdot, p)
+    lagrangian = stance_kinetic_energy(q, qdot, p) - stance_potential_energy(q, p)
     momentum = ca.gradient(lagrangian, qdot)
     mass = ca.jacobian(momentum, qdot)
     momentum_rate_from_q = ca.jtimes(momentum, q, qdot)
     generalised_force = ca.vertcat(0, 0, tau)
     rhs = ca.gradient(lagrangian, q) - momentum_rate_from_q + generalised_force
-    return mass, rhs
+    return ca.horzcat(mass, rhs)
 
 
+def stance_equations(q, qdot, tau, p):
+    """Mass matrix M(q) [kg, kg m, kg m^2] and right-hand side f, with M qddot = f."""
+    mass_and_rhs = _euler_lagrange(q, qdot, tau, p)
+    return mass_and_rhs[:, :3], mass_and_rhs[:, 3]
+
+
+@_sx_function(6, 1, 6)
 def stance_dynamics(x, tau, p):
     """Time derivative of the stance state for hip torque ``tau`` [N m]."""
     q, qdot = _coordinates(x)
     mass, rhs = stance_equations(q, qdot, tau, p)
     return ca.vertcat(qdot, ca.solve(mass, rhs))
-
-
-def stance_velocity_jacobian(q, p):
-    """J(q) with (ydot, zdot, theta_h_dot) = J(q) qdot, eqs. 3.19-3.21; det J = rho.
-
-    Differentiated with respect to fresh symbols so that ``q`` may be any expression.
-    """
-    q_sym, p_sym = ca.SX.sym("q", 3), PARAMS.sym("p")
-    jac = ca.Function("J", [q_sym, p_sym], [ca.jacobian(stance_pose(q_sym, p_sym), q_sym)])
-    return jac(q, p)
 
 
 # --- energy -------------------------------------------------------------------------------
@@ -220,6 +245,12 @@ def touchdown_guard(xf, theta_td, p):
     return flight_foot_position(xf, theta_td, p)[1]
 
 
+def touchdown_guard_rate(xf, p):
+    """Time derivative of the foot height [m/s] in flight (negative at a valid touchdown)."""
+    f = FLIGHT.unpack(xf)
+    return f["zdot"] - PARAMS.get(p, "d") * ca.cos(f["theta_h"]) * f["theta_h_dot"]
+
+
 def bottom_guard(x):
     """rhodot [m/s]; bottom when it rises through zero (compression -> decompression)."""
     return STANCE.get(x, "rhodot")
@@ -238,6 +269,7 @@ def apex_guard(xf):
 # --- touchdown and liftoff maps -----------------------------------------------------------
 
 
+@_sx_function(6, 1, 6)
 def touchdown_map(xf, theta_td, p):
     """Stance state at touchdown from the flight state there.
 
@@ -251,12 +283,16 @@ def touchdown_map(xf, theta_td, p):
     return ca.vertcat(q, qdot)
 
 
-def liftoff_map(x, p, foot_y=0.0):
-    """Flight state at liftoff from the stance state there (eqs. 3.16-3.21 read forwards)."""
+@_sx_function(6, 6)
+def liftoff_map(x, p):
+    """Flight state at liftoff (y relative to the foot) from the stance state there.
+
+    Eqs. 3.16-3.21 read forwards.
+    """
     q, qdot = _coordinates(x)
     pose = stance_pose(q, p)
     velocity = ca.mtimes(stance_velocity_jacobian(q, p), qdot)
-    return ca.vertcat(pose[0] + foot_y, pose[1], pose[2], velocity)
+    return ca.vertcat(pose, velocity)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,256 @@
+"""Problem files: YAML validated into frozen dataclasses, with errors that name the key.
+
+A problem file says *what* to solve::
+
+    name: downward
+    params: {m: 1.0, I: 0.0033, k: 1000, rho0: 0.2, d: 0.04, g: 9.81}
+    fix: {ydot: 0.5, z: 0.4}
+    guess: {theta_h: "-90 deg", Kp: 1.0, theta_td: "8 deg"}
+    bounds: {theta_h: ["-120 deg", "-60 deg"]}
+    objective: nearest_guess
+    solver: {nodes: 20, substeps: 1, max_iter: 300, tol: 1.0e-10, print_level: 0}
+
+Values are SI units and radians. Angles (``theta_h``, ``theta2_des``, ``theta_td``) may be
+written ``"-90 deg"`` and rates (``theta_h_dot``, ``theta2_dot_des``) ``"30 deg/s"``.
+Every problem in a file raises :class:`ProblemError` carrying the offending key.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any, Mapping
+
+import yaml
+
+from .model import PARAMS, Params
+from .shooting import DESIGN, OBJECTIVES, QUANTITIES
+
+ANGLES = ("theta_h", "theta2_des", "theta_td")
+RATES = ("theta_h_dot", "theta2_dot_des")
+POSITIVE_PARAMS = ("m", "I", "k", "rho0", "g")
+TOP_LEVEL_KEYS = ("name", "params", "fix", "guess", "bounds", "objective", "solver")
+
+#: Starting values for design quantities that a problem neither fixes nor guesses.
+DEFAULT_GUESS = {
+    "z": 0.4,
+    "theta_h": math.pi / 2,
+    "ydot": 0.5,
+    "theta_h_dot": 0.0,
+    "Kp": 0.0,
+    "Kd": 0.0,
+    "theta2_des": math.pi - 0.1,
+    "theta2_dot_des": 0.0,
+    "theta_td": 0.1,
+}
+
+
+class ProblemError(ValueError):
+    """An invalid problem; ``key`` is the dotted path of the offending entry."""
+
+    def __init__(self, key: str, message: str):
+        super().__init__(f"{key}: {message}" if key else message)
+        self.key = key
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """Discretisation and IPOPT settings.
+
+    nodes: shooting intervals per stance phase; substeps: RK4 steps per interval;
+    max_iter: IPOPT iteration limit; tol: IPOPT tolerance; print_level: IPOPT verbosity.
+    """
+
+    nodes: int = 20
+    substeps: int = 1
+    max_iter: int = 300
+    tol: float = 1e-10
+    print_level: int = 0
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A validated fixed-point problem (values in SI units and radians)."""
+
+    name: str
+    params: Params = Params()
+    fix: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
+    guess: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
+    bounds: Mapping[str, tuple[float, float]] = field(default_factory=lambda: MappingProxyType({}))
+    objective: str = "nearest_guess"
+    solver: SolverSettings = SolverSettings()
+
+    def full_guess(self) -> dict[str, float]:
+        """Starting value of every design quantity that is not fixed."""
+        return {n: self.guess.get(n, DEFAULT_GUESS[n]) for n in DESIGN if n not in self.fix}
+
+    def start_value(self, name: str) -> float:
+        """The fixed value of ``name`` if fixed, else its starting value."""
+        return self.fix[name] if name in self.fix else self.guess.get(name, DEFAULT_GUESS[name])
+
+
+def load_problem(path: str | Path) -> Problem:
+    """Read and validate a YAML problem file."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ProblemError("", f"no such problem file: {path}") from None
+    except OSError as err:
+        raise ProblemError("", f"cannot read problem file {path}: {err.strerror}") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        mark = getattr(err, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(err, "problem", None) or "cannot parse"
+        raise ProblemError("", f"malformed YAML{where}: {problem}") from None
+    return parse_problem(data, default_name=path.stem)
+
+
+def parse_problem(data: Any, default_name: str = "problem") -> Problem:
+    """Validate a problem given as plain data (as read from YAML)."""
+    if data is None:
+        data = {}
+    top = _mapping(data, "", TOP_LEVEL_KEYS)
+    name = top.get("name", default_name)
+    if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9_.-]+", name):
+        raise ProblemError("name", f"expected a name of letters, digits, '_', '-' or '.', got {name!r}")
+    params = _params(top.get("params", {}))
+    fix = _quantities(top.get("fix", {}), "fix", QUANTITIES)
+    guess = _quantities(top.get("guess", {}), "guess", DESIGN)
+    bounds = _bounds(top.get("bounds", {}))
+    objective = top.get("objective", "nearest_guess")
+    if objective not in OBJECTIVES:
+        raise ProblemError("objective", f"expected one of {', '.join(OBJECTIVES)}, got {objective!r}")
+    problem = Problem(
+        name=name,
+        params=params,
+        fix=MappingProxyType(fix),
+        guess=MappingProxyType(guess),
+        bounds=MappingProxyType(bounds),
+        objective=objective,
+        solver=_solver(top.get("solver", {})),
+    )
+    _check_consistency(problem)
+    return problem
+
+
+# --- pieces -------------------------------------------------------------------------------
+
+
+def _mapping(value: Any, key: str, allowed: tuple[str, ...]) -> dict[str, Any]:
+    where = key or "the problem file"
+    if not isinstance(value, dict):
+        raise ProblemError(key, f"expected a mapping for {where}, got {type(value).__name__}")
+    for name in value:
+        if name not in allowed:
+            dotted = f"{key}.{name}" if key else str(name)
+            raise ProblemError(dotted, f"unknown key (expected one of {', '.join(allowed)})")
+    return value
+
+
+def _number(value: Any, key: str) -> float:
+    """A finite float; angles and rates may carry 'deg', 'rad', 'deg/s' or 'rad/s'."""
+    quantity = key.rsplit(".", 1)[-1]
+    if isinstance(value, str):
+        value = _with_unit(value, key, quantity)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ProblemError(key, f"expected a number, got {type(value).__name__} {value!r}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise ProblemError(key, f"expected a finite number, got {value}")
+    return value
+
+
+def _with_unit(text: str, key: str, quantity: str) -> float:
+    match = re.fullmatch(r"\s*([-+]?[0-9.]+(?:[eE][-+]?[0-9]+)?)\s*([a-z/]+)\s*", text)
+    units = {"deg": math.pi / 180, "rad": 1.0} if quantity in ANGLES else {}
+    if quantity in RATES:
+        units = {"deg/s": math.pi / 180, "rad/s": 1.0}
+    if not match or match.group(2) not in units:
+        accepted = f" or a string with unit {' / '.join(units)}" if units else ""
+        raise ProblemError(key, f"expected a number{accepted}, got {text!r}")
+    try:
+        return float(match.group(1)) * units[match.group(2)]
+    except ValueError:
+        raise ProblemError(key, f"expected a number, got {text!r}") from None
+
+
+def _params(value: Any) -> Params:
+    raw = _mapping(value, "params", PARAMS.names)
+    values = {name: _number(v, f"params.{name}") for name, v in raw.items()}
+    for name, v in values.items():
+        if name in POSITIVE_PARAMS and v <= 0:
+            raise ProblemError(f"params.{name}", f"must be positive, got {v}")
+        if name == "d" and v < 0:
+            raise ProblemError("params.d", f"must be zero or positive, got {v}")
+    return Params(**values)
+
+
+def _quantities(value: Any, key: str, allowed: tuple[str, ...]) -> dict[str, float]:
+    raw = _mapping(value, key, allowed)
+    return {name: _number(v, f"{key}.{name}") for name, v in raw.items()}
+
+
+def _bounds(value: Any) -> dict[str, tuple[float, float]]:
+    raw = _mapping(value, "bounds", QUANTITIES)
+    bounds = {}
+    for name, pair in raw.items():
+        key = f"bounds.{name}"
+        if not isinstance(pair, (list, tuple)) or len(pair) != 2:
+            raise ProblemError(key, f"expected [lo, hi], got {pair!r}")
+        lo = -math.inf if pair[0] is None else _number(pair[0], key)
+        hi = math.inf if pair[1] is None else _number(pair[1], key)
+        if lo > hi:
+            raise ProblemError(key, f"lower bound {lo:g} exceeds upper bound {hi:g}")
+        bounds[name] = (lo, hi)
+    return bounds
+
+
+def _solver(value: Any) -> SolverSettings:
+    raw = _mapping(value, "solver", ("nodes", "substeps", "max_iter", "tol", "print_level"))
+    limits = {"nodes": (2, 200), "substeps": (1, 20), "max_iter": (1, 100000), "print_level": (0, 12)}
+    settings = {}
+    for name, v in raw.items():
+        key = f"solver.{name}"
+        if name == "tol":
+            settings[name] = _number(v, key)
+            if settings[name] <= 0:
+                raise ProblemError(key, f"must be positive, got {settings[name]}")
+            continue
+        lo, hi = limits[name]
+        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+            raise ProblemError(key, f"expected an integer in [{lo}, {hi}], got {v!r}")
+        settings[name] = v
+    return SolverSettings(**settings)
+
+
+def _check_consistency(problem: Problem) -> None:
+    for name, value in problem.fix.items():
+        if name in problem.guess:
+            raise ProblemError(f"guess.{name}", f"{name} is fixed at {value:g}; remove it from guess")
+        lo, hi = problem.bounds.get(name, (-math.inf, math.inf))
+        if not lo <= value <= hi:
+            raise ProblemError(f"fix.{name}", f"{value:g} lies outside bounds.{name} = [{lo:g}, {hi:g}]")
+    for name, value in problem.guess.items():
+        lo, hi = problem.bounds.get(name, (-math.inf, math.inf))
+        if not lo <= value <= hi:
+            raise ProblemError(f"guess.{name}", f"{value:g} lies outside bounds.{name} = [{lo:g}, {hi:g}]")
+    theta_td = problem.start_value("theta_td")
+    if not abs(theta_td) < math.pi / 2:
+        key = "fix.theta_td" if "theta_td" in problem.fix else "guess.theta_td"
+        raise ProblemError(key, f"touchdown angle {theta_td:g} rad must lie within (-pi/2, pi/2)")
+    z, theta_h = problem.start_value("z"), problem.start_value("theta_h")
+    p = problem.params
+    foot_height = z - p.d * math.sin(theta_h) - p.rho0 * math.cos(theta_td)
+    if foot_height < 0:
+        key = "fix.z" if "z" in problem.fix else "guess.z"
+        raise ProblemError(
+            key,
+            f"apex height {z:g} m puts the foot below ground at apex (foot at {foot_height:.4g} m "
+            f"with theta_h = {theta_h:.4g} rad, theta_td = {theta_td:.4g} rad)",
+        )

@@ -1,0 +1,331 @@
+"""The periodic-stride NLP: multiple shooting in stance, solved by IPOPT.
+
+Decision variables (all in SI units and radians):
+
+* the apex state ``X`` (4) and the control ``u`` (5); fixed quantities have equal bounds;
+* the four phase durations ``T = (descent, compression, decompression, ascent)``;
+* shooting-node states in compression and decompression, ``nodes`` intervals each, every
+  interval integrated by ``substeps`` classical RK4 steps of length ``T_phase/(nodes*substeps)``.
+
+Constraints:
+
+* continuity at the nodes; the touchdown map at the start of stance;
+* each guard zero at its phase end, with its crossing direction as an inequality
+  (transversality, by ``margin``);
+* periodicity ``r(X, u) = X``; optionally the apex energy;
+* sanity: the foot above ground through descent, the leg compressing in compression and
+  compressed in decompression, ``rho`` above a floor, CoM and hip above ground, rising
+  liftoff, durations bounded away from zero.
+
+The objective picks one point on the fixed-point manifold (see :data:`OBJECTIVES`).
+The NLP is built once per discretisation; parameters, guess, fixed values, bounds and the
+objective's weights enter as numbers, so one built solver serves every problem.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import casadi as ca
+import numpy as np
+
+from .control import CONTROL, hip_torque, touchdown_angle
+from .model import (
+    APEX,
+    FLIGHT,
+    PARAMS,
+    STANCE,
+    Params,
+    apex_energy,
+    apex_to_flight,
+    ballistic_flight,
+    bottom_guard,
+    liftoff_guard,
+    liftoff_map,
+    stance_com_position,
+    stance_dynamics,
+    stance_hip_position,
+    touchdown_guard,
+    touchdown_guard_rate,
+    touchdown_map,
+)
+from .returnmap import COLLAPSE_FRACTION, PHASES, ReturnMap
+
+#: Quantities of a fixed-point problem that can be fixed, bounded or guessed.
+DESIGN = APEX.names + CONTROL.names
+QUANTITIES = DESIGN + ("energy",)
+
+#: Scale of each design quantity for the ``nearest_guess`` distance [its unit].
+NOMINAL = {
+    "z": 0.1, "theta_h": 0.1, "ydot": 0.1, "theta_h_dot": 1.0,
+    "Kp": 1.0, "Kd": 0.1, "theta2_des": 0.1, "theta2_dot_des": 1.0, "theta_td": 0.1,
+}
+
+#: Physical bounds of each design quantity, intersected with a problem's own bounds.
+DEFAULT_BOUNDS = {
+    "z": (0.0, 10.0),
+    "theta_h": (-2 * np.pi, 2 * np.pi),
+    "ydot": (-20.0, 20.0),
+    "theta_h_dot": (-100.0, 100.0),
+    "Kp": (-1e3, 1e3),
+    "Kd": (-1e2, 1e2),
+    "theta2_des": (-2 * np.pi, 2 * np.pi),
+    "theta2_dot_des": (-100.0, 100.0),
+    "theta_td": (-1.5, 1.5),
+}
+
+#: Objectives: ``nearest_guess`` (scaled distance to the guess), ``min_torque`` (integral
+#: of tau^2 dt over stance, with a 1e-6 nearest-guess term to make the minimiser unique),
+#: ``feasibility`` (no objective).
+OBJECTIVES = {
+    "nearest_guess": (1.0, 0.0),
+    "min_torque": (1e-6, 1.0),
+    "feasibility": (0.0, 0.0),
+}
+
+
+@dataclass(frozen=True)
+class ShootingOptions:
+    """Discretisation and solver settings of the NLP."""
+
+    nodes: int = 20  # shooting intervals per stance phase
+    substeps: int = 1  # RK4 steps per interval
+    margin: float = 1e-3  # transversality margin on guard rates [SI]
+    min_duration: float = 1e-3  # [s]
+    max_duration: float = 5.0  # [s]
+    ipopt: Mapping[str, object] = field(
+        default_factory=lambda: {"max_iter": 300, "tol": 1e-10, "acceptable_tol": 1e-8}
+    )
+
+
+@dataclass(frozen=True)
+class FixedPointSpec:
+    """What to solve: parameters, fixed values, guess, bounds and objective."""
+
+    params: Params
+    fixed: Mapping[str, float]  # subset of QUANTITIES
+    guess: Mapping[str, float]  # every design quantity that is not fixed
+    bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    objective: str = "nearest_guess"
+
+
+@dataclass(frozen=True)
+class NlpSolution:
+    """IPOPT's answer: design values, durations and solver statistics."""
+
+    X: np.ndarray
+    u: np.ndarray
+    durations: np.ndarray
+    success: bool
+    return_status: str
+    iterations: int
+    time_s: float
+
+
+def _rk4_interval(substeps: int) -> ca.Function:
+    """One shooting interval: ``substeps`` RK4 steps of the closed-loop stance ODE.
+
+    Returns the end state and the integral of tau^2 [N^2 m^2 s] over the interval.
+    """
+    x, u, p, h = STANCE.sym("x"), CONTROL.sym("u"), PARAMS.sym("p"), ca.SX.sym("h")
+    aug = ca.vertcat(x, 0)
+
+    def rhs(a):
+        xs = a[: STANCE.size]
+        tau = hip_torque(xs, u)
+        return ca.vertcat(stance_dynamics(xs, tau, p), tau**2)
+
+    dt = h / substeps
+    for _ in range(substeps):
+        k1 = rhs(aug)
+        k2 = rhs(aug + dt / 2 * k1)
+        k3 = rhs(aug + dt / 2 * k2)
+        k4 = rhs(aug + dt * k3)
+        aug = aug + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return ca.Function("rk4_interval", [x, u, p, h], [aug[: STANCE.size], aug[-1]])
+
+
+class ShootingNLP:
+    """The periodic-stride NLP for one discretisation, built once and solved many times."""
+
+    def __init__(self, options: ShootingOptions = ShootingOptions()):
+        self.options = options
+        self._build()
+
+    # -- construction ------------------------------------------------------------------
+
+    def _build(self) -> None:
+        opt = self.options
+        n = opt.nodes
+        # MX keeps one copy of the mapped RK4 interval (and of its derivatives) instead of
+        # inlining it at every node; the small SX pieces are expanded when called.
+        X, u = APEX.sym("X", ca.MX), CONTROL.sym("u", ca.MX)
+        t_descent, t_compression, t_decompression, t_ascent = (ca.MX.sym(f"T_{ph}") for ph in PHASES)
+        T = ca.vertcat(t_descent, t_compression, t_decompression, t_ascent)
+        comp_nodes = ca.MX.sym("compression_nodes", STANCE.size, n)
+        decomp_nodes = ca.MX.sym("decompression_nodes", STANCE.size, n)
+        p = PARAMS.sym("p", ca.MX)
+        guess, weights = ca.MX.sym("guess", len(DESIGN)), ca.MX.sym("weights", 2)
+
+        constraints: list[tuple[ca.MX, float, float]] = []
+
+        def constrain(expr, lo, hi):
+            constraints.append((ca.vec(expr), lo, hi))
+
+        theta_td = touchdown_angle(u)
+        apex_flight = apex_to_flight(X)
+        # Descent: the foot stays above ground until it crosses zero, falling.
+        for fraction in (0.0, 0.25, 0.5, 0.75):
+            constrain(touchdown_guard(ballistic_flight(apex_flight, fraction * t_descent, p), theta_td, p), 0, ca.inf)
+        at_touchdown = ballistic_flight(apex_flight, t_descent, p)
+        foot_height = touchdown_guard(at_touchdown, theta_td, p)
+        constrain(foot_height, 0, 0)
+        constrain(touchdown_guard_rate(at_touchdown, p), -ca.inf, -opt.margin)
+        x_td = touchdown_map(at_touchdown, theta_td, p)
+
+        interval = _rk4_interval(opt.substeps)
+        starts_c = ca.horzcat(x_td, comp_nodes[:, :-1])
+        ends_c, effort_c = interval.map(n)(starts_c, u, p, t_compression / n)
+        constrain(comp_nodes - ends_c, 0, 0)
+        bottom = comp_nodes[:, -1]
+        constrain(bottom_guard(bottom), 0, 0)
+        rho_accel = STANCE.get(stance_dynamics(bottom, hip_torque(bottom, u), p), "rhodot")
+        constrain(rho_accel, opt.margin, ca.inf)
+        # The leg shortens until the bottom: rhodot <= 0 at touchdown and interior nodes.
+        constrain(bottom_guard(starts_c), -ca.inf, 0)
+
+        starts_d = ca.horzcat(bottom, decomp_nodes[:, :-1])
+        ends_d, effort_d = interval.map(n)(starts_d, u, p, t_decompression / n)
+        constrain(decomp_nodes - ends_d, 0, 0)
+        x_lo = decomp_nodes[:, -1]
+        constrain(liftoff_guard(x_lo, p), 0, 0)
+        constrain(STANCE.get(x_lo, "rhodot"), opt.margin, ca.inf)
+        # The leg stays compressed until liftoff.
+        constrain(liftoff_guard(starts_d[:, 1:], p), -ca.inf, 0)
+
+        rho0 = PARAMS.get(p, "rho0")
+        for nodes in (comp_nodes, decomp_nodes):
+            for k in range(n):
+                q = nodes[:3, k]
+                constrain(STANCE.get(q, "rho") - COLLAPSE_FRACTION * rho0, 0, ca.inf)
+                constrain(stance_com_position(q, p)[1], 0, ca.inf)
+                constrain(stance_hip_position(q)[1], 0, ca.inf)
+
+        at_liftoff = liftoff_map(x_lo, p)
+        zdot_lo = FLIGHT.get(at_liftoff, "zdot")
+        constrain(zdot_lo, opt.margin, ca.inf)
+        at_apex = ballistic_flight(at_liftoff, t_ascent, p)
+        constrain(FLIGHT.get(at_apex, "zdot"), 0, 0)  # apex guard
+        apex_next = ca.vertcat(*(FLIGHT.get(at_apex, name) for name in ("z", "theta_h", "ydot", "theta_h_dot")))
+        constrain(apex_next - X, 0, 0)  # periodicity
+        self._energy_row = sum(c[0].numel() for c in constraints)
+        constrain(apex_energy(X, p), -ca.inf, ca.inf)  # bounded or fixed per problem
+
+        design = ca.vertcat(X, u)
+        scale = ca.DM([NOMINAL[name] for name in DESIGN])
+        distance = ca.sumsqr((design - guess) / scale)
+        effort = ca.sum2(effort_c) + ca.sum2(effort_d)
+        objective = weights[0] * distance + weights[1] * effort
+
+        w = ca.vertcat(X, u, T, ca.vec(comp_nodes), ca.vec(decomp_nodes))
+        self._n_w = w.numel()
+        params = ca.vertcat(p, guess, weights)
+        g = ca.vertcat(*(c[0] for c in constraints))
+        self._lbg = np.concatenate([np.full(c[0].numel(), c[1], dtype=float) for c in constraints])
+        self._ubg = np.concatenate([np.full(c[0].numel(), c[2], dtype=float) for c in constraints])
+        ipopt = {"print_level": 0, "sb": "yes", **dict(opt.ipopt)}
+        self._solver = ca.nlpsol(
+            "periodic_stride", "ipopt", {"x": w, "p": params, "f": objective, "g": g},
+            # Expanding to SX makes each IPOPT iteration several times cheaper than MX.
+            {"ipopt": ipopt, "print_time": False, "error_on_fail": False, "expand": True},
+        )
+        self._interval = interval
+        self._effort = ca.Function("effort", [w, params], [effort])
+
+    # -- solving -----------------------------------------------------------------------
+
+    def _bounds(self, spec: FixedPointSpec) -> tuple[np.ndarray, np.ndarray]:
+        lbx = np.full(self._n_w, -np.inf)
+        ubx = np.full(self._n_w, np.inf)
+        for i, name in enumerate(DESIGN):
+            lo, hi = DEFAULT_BOUNDS[name]
+            if name in spec.bounds:
+                lo, hi = max(lo, spec.bounds[name][0]), min(hi, spec.bounds[name][1])
+            if name in spec.fixed:
+                lo = hi = spec.fixed[name]
+            lbx[i], ubx[i] = lo, hi
+        t0 = len(DESIGN)
+        lbx[t0 : t0 + len(PHASES)] = self.options.min_duration
+        ubx[t0 : t0 + len(PHASES)] = self.options.max_duration
+        return lbx, ubx
+
+    def initial_guess(self, spec: FixedPointSpec, rmap: ReturnMap | None = None) -> np.ndarray:
+        """Initial point: the guess's design, its simulated durations, RK4-propagated nodes."""
+        design = np.array([spec.fixed.get(name, spec.guess.get(name, 0.0)) for name in DESIGN])
+        X, u = design[: APEX.size], design[APEX.size :]
+        p = spec.params.vector()
+        durations = _guess_durations(X, u, spec.params, rmap)
+        n = self.options.nodes
+        model_td = ca.Function("x_td", [], [_touchdown_state(X, u, p, durations[0])])()["o0"]
+        nodes_c = _propagate(self._interval, np.asarray(model_td).ravel(), u, p, durations[1], n)
+        nodes_d = _propagate(self._interval, nodes_c[:, -1], u, p, durations[2], n)
+        return np.concatenate([design, durations, nodes_c.T.ravel(), nodes_d.T.ravel()])
+
+    def solve(self, spec: FixedPointSpec, w0: np.ndarray | None = None, rmap: ReturnMap | None = None) -> NlpSolution:
+        """Solve the NLP from ``w0`` (default: :meth:`initial_guess`)."""
+        if w0 is None:
+            w0 = self.initial_guess(spec, rmap)
+        lbx, ubx = self._bounds(spec)
+        w0 = np.clip(w0, lbx, ubx)
+        guess = np.array([spec.fixed.get(name, spec.guess.get(name, 0.0)) for name in DESIGN])
+        weights = np.array(OBJECTIVES[spec.objective])
+        lbg, ubg = self._lbg.copy(), self._ubg.copy()
+        energy_bounds = spec.bounds.get("energy", (-np.inf, np.inf))
+        if "energy" in spec.fixed:
+            energy_bounds = (spec.fixed["energy"], spec.fixed["energy"])
+        lbg[self._energy_row], ubg[self._energy_row] = energy_bounds
+        params = np.concatenate([spec.params.vector(), guess, weights])
+        start = time.perf_counter()
+        sol = self._solver(x0=w0, p=params, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        elapsed = time.perf_counter() - start
+        stats = self._solver.stats()
+        w = np.asarray(sol["x"]).ravel()
+        self.last_w = w
+        n_design = len(DESIGN)
+        return NlpSolution(
+            X=w[: APEX.size],
+            u=w[APEX.size : n_design],
+            durations=w[n_design : n_design + len(PHASES)],
+            success=bool(stats["success"]),
+            return_status=str(stats["return_status"]),
+            iterations=int(stats["iter_count"]),
+            time_s=elapsed,
+        )
+
+
+def _touchdown_state(X, u, p, t_descent):
+    X, u, p = ca.DM(X), ca.DM(u), ca.DM(p)
+    return touchdown_map(ballistic_flight(apex_to_flight(X), t_descent, p), touchdown_angle(u), p)
+
+
+def _propagate(interval: ca.Function, x0, u, p, duration, n) -> np.ndarray:
+    """States at the ends of ``n`` equal intervals of ``duration`` from ``x0`` (6 x n)."""
+    states, x = [], np.asarray(x0, dtype=float)
+    for _ in range(n):
+        x = np.asarray(interval(x, u, p, duration / n)[0]).ravel()
+        states.append(x)
+    return np.array(states).T
+
+
+def _guess_durations(X, u, params: Params, rmap: ReturnMap | None) -> np.ndarray:
+    """Phase durations of the guess's stride, or spring-based estimates if it falls."""
+    if rmap is not None:
+        stride = rmap.stride(X, u, params)
+        if stride.ok:
+            return np.array([stride.durations[ph] for ph in PHASES])
+    p = params.vector()
+    t_down = ReturnMap.touchdown_guess(X, u, p) or 0.1
+    quarter = 0.5 * np.pi * np.sqrt(params.m / params.k)
+    return np.array([t_down, quarter, quarter, t_down])

@@ -1,0 +1,67 @@
+"""Stability of a fixed point from the eigenvalues of the return-map Jacobian dr/dX.
+
+Some multipliers equal 1 by structure, whatever the gait:
+
+* ``energy``: with no hip torque (Kp = Kd = 0) the total energy is conserved, so the
+  energy gradient is a left eigenvector of dr/dX with eigenvalue 1;
+* ``spin`` (two, a Jordan pair): with d = 0 and no torque the trunk decouples and spins
+  freely, so (theta_h, theta_h_dot) map as [[1, T], [0, 1]].
+
+They are labelled and left out of ``spectral_radius`` and ``stable``: stability then means
+asymptotic stability transverse to those neutral directions (e.g. on the energy level).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .control import CONTROL
+from .model import Params
+
+
+@dataclass(frozen=True)
+class Multiplier:
+    """One eigenvalue of dr/dX, with ``label`` naming it if it is trivial by structure."""
+
+    value: complex
+    label: str | None = None  # None, "energy" or "spin"
+
+    @property
+    def trivial(self) -> bool:
+        return self.label is not None
+
+
+@dataclass(frozen=True)
+class Stability:
+    """Multipliers of a fixed point; radius and verdict over the non-trivial ones."""
+
+    jacobian: np.ndarray  # dr/dX, 4 x 4
+    multipliers: tuple[Multiplier, ...]
+    spectral_radius: float
+    stable: bool
+
+
+def trivial_labels(params: Params, u) -> list[str]:
+    """Labels of the multipliers that equal 1 by the structure of the problem."""
+    control = CONTROL.unpack(np.asarray(u, dtype=float))
+    torque_free = control["Kp"] == 0.0 and control["Kd"] == 0.0
+    labels = []
+    if torque_free:
+        labels.append("energy")
+        if params.d == 0.0:
+            labels += ["spin", "spin"]
+    return labels
+
+
+def classify(jacobian: np.ndarray, params: Params, u) -> Stability:
+    """Eigenvalues of ``jacobian``; the trivial ones are the nearest to 1."""
+    eigenvalues = np.linalg.eigvals(np.asarray(jacobian, dtype=float))
+    labels = trivial_labels(params, u)
+    order = np.argsort(np.abs(eigenvalues - 1.0))
+    label_of = {int(i): label for i, label in zip(order, labels)}
+    multipliers = tuple(Multiplier(complex(ev), label_of.get(i)) for i, ev in enumerate(eigenvalues))
+    nontrivial = [abs(m.value) for m in multipliers if not m.trivial]
+    radius = max(nontrivial) if nontrivial else 0.0
+    return Stability(np.asarray(jacobian), multipliers, float(radius), bool(radius < 1.0))
