@@ -19,7 +19,10 @@ whose ``fall`` names the reason, and :meth:`ReturnMap.simulate` stops there.
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
+import sys
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -168,18 +171,19 @@ class ReturnMap:
     def __init__(self, tolerances: Tolerances = Tolerances(), plugin: str = "erk"):
         self.tolerances = tolerances
         self.plugin = plugin
-        self._touchdown_time = self._build_touchdown_rootfinder()
-        self._stance = self._build_stance_integrator()
-        self._stride_fn = self._build_stride_function()
-        X, u, p, t_guess = self._stride_fn.mx_in()
-        apex_next = self._stride_fn(X, u, p, t_guess)[0]
-        self._jacobian_fn = ca.Function(
-            "return_map_jacobians",
-            [X, u, p, t_guess],
-            [ca.jacobian(apex_next, X), ca.jacobian(apex_next, u)],
-            ["X", "u", "p", "t_touchdown_guess"],
-            ["dr_dX", "dr_du"],
-        )
+        with _native_stderr_silenced():
+            self._touchdown_time = self._build_touchdown_rootfinder()
+            self._stance = self._build_stance_integrator()
+            self._stride_fn = self._build_stride_function()
+            X, u, p, t_guess = self._stride_fn.mx_in()
+            apex_next = self._stride_fn(X, u, p, t_guess)[0]
+            self._jacobian_fn = ca.Function(
+                "return_map_jacobians",
+                [X, u, p, t_guess],
+                [ca.jacobian(apex_next, X), ca.jacobian(apex_next, u)],
+                ["X", "u", "p", "t_touchdown_guess"],
+                ["dr_dX", "dr_du"],
+            )
 
     # -- construction ------------------------------------------------------------------
 
@@ -325,6 +329,25 @@ class RunnerFell(RuntimeError):
     def __init__(self, fall: Fall):
         super().__init__(fall.value)
         self.fall = fall
+
+
+@contextlib.contextmanager
+def _native_stderr_silenced():
+    """Silence CasADi's native stderr while building event integrators.
+
+    CasADi 3.8 prints 'Event support is experimental' for every integrator with events;
+    the event handling is what we rely on and test, so the notice is only noise to users.
+    Errors still surface as Python exceptions.
+    """
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "w") as devnull:
+            os.dup2(devnull.fileno(), 2)
+            yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
 
 
 def _vec(v) -> np.ndarray:

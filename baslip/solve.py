@@ -1,0 +1,97 @@
+"""Command line: ``python -m baslip.solve PROBLEM.yaml [--out DIR]``.
+
+Exit codes: 0 for a verified fixed point, 1 when the solver fails or the answer does not
+verify, 2 for bad input (one line on stderr naming the key; nothing is written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+from .fixedpoint import VERIFY_EPS, FixedPointResult
+from .problem import ProblemError, load_problem
+
+EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m baslip.solve",
+        description=(
+            "Find a periodic running gait (a fixed point of the apex return map) of the "
+            "BA-SLIP runner described by a YAML problem file, verify it by an independent "
+            f"re-simulation (eps <= {VERIFY_EPS:g}) and report its stability."
+        ),
+        epilog=(
+            "Writes DIR/result.json and DIR/multipliers.csv. Exit status: 0 verified fixed "
+            "point, 1 solver failure or not verified, 2 bad input."
+        ),
+    )
+    parser.add_argument("problem", type=Path, help="YAML problem file (see README: Problem files)")
+    parser.add_argument("--out", type=Path, metavar="DIR", help="output folder (default: results/<name>/)")
+    parser.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    return parser
+
+
+def summary(result: FixedPointResult) -> str:
+    """A short human-readable account of a result."""
+    a, c = result.apex, result.control
+    deg = 180 / math.pi
+    lines = [
+        f"{result.name}: {result.status} ({result.message})",
+        f"  IPOPT {result.solver.return_status} in {result.solver.iterations} iterations, "
+        f"Newton polish {result.polish_iterations} steps, {result.solver.time_s:.2f} s",
+        f"  apex     z = {a['z']:.6f} m, theta_h = {a['theta_h'] * deg:.4f} deg, "
+        f"ydot = {a['ydot']:.6f} m/s, theta_h_dot = {a['theta_h_dot']:.6f} rad/s",
+        f"  control  Kp = {c['Kp']:.6g} N m/rad, Kd = {c['Kd']:.6g} N m s/rad, "
+        f"theta2_des = {c['theta2_des'] * deg:.4f} deg, theta2_dot_des = {c['theta2_dot_des']:.6g} rad/s, "
+        f"theta_td = {c['theta_td'] * deg:.4f} deg",
+        f"  energy   {result.energy:.9g} J",
+    ]
+    if result.residual is not None:
+        lines.append(f"  residual eps = {result.residual:.3e} (independent re-simulation, rtol = atol = 1e-12)")
+    if result.stability is not None:
+        parts = []
+        for m in result.stability.multipliers:
+            text = f"{m.value.real:.6g}{m.value.imag:+.6g}j" if m.value.imag else f"{m.value.real:.6g}"
+            parts.append(f"{text} [{m.label}]" if m.label else text)
+        verdict = "stable" if result.stable else "unstable"
+        lines.append(f"  multipliers {', '.join(parts)}")
+        lines.append(f"  spectral radius {result.spectral_radius:.6g} -> {verdict}")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        problem = load_problem(args.problem)
+    except ProblemError as err:
+        print(f"error: {args.problem}: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    out_dir = args.out if args.out is not None else Path("results") / problem.name
+    if out_dir.exists() and not out_dir.is_dir():
+        print(f"error: --out {out_dir}: exists and is not a folder", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    from .api import shooting_options, solve_problem
+    from .fixedpoint import FixedPointSolver
+    from .output import write_result
+
+    if not args.quiet:
+        s = problem.solver
+        print(f"{problem.name}: building the model and NLP ({s.nodes} nodes x {s.substeps} RK4 steps per stance phase)...", file=sys.stderr)
+    solver = FixedPointSolver(shooting_options(problem))
+    if not args.quiet:
+        print(f"{problem.name}: solving ({problem.objective}) and verifying...", file=sys.stderr)
+    result = solve_problem(problem, solver)
+    written = write_result(result, out_dir)
+    if not args.quiet:
+        print(summary(result))
+        print(f"  wrote {', '.join(str(p) for p in written)}")
+    return EXIT_OK if result.converged else EXIT_NOT_CONVERGED
+
+
+if __name__ == "__main__":
+    sys.exit(main())

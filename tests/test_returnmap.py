@@ -1,0 +1,131 @@
+"""Specification of baslip.returnmap: the event-located apex return map r(X, u).
+
+Checked against closed forms (vertical hopping), invariants (energy without torque,
+mirror symmetry), finite differences of the tight map, and the named ways to fall.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from baslip import Fall, Params, ReturnMap, Tolerances
+from baslip.model import build_model
+
+MODEL = build_model()
+
+
+def apex_energy(X, params):
+    return float(MODEL.apex_energy(X, params.vector()))
+
+
+@pytest.mark.parametrize(
+    "X, theta_td",
+    [
+        ([0.4, -math.pi / 2 + 0.02, 0.5, 0.1], 0.15),
+        ([0.35, math.pi / 2 - 0.1, 0.8, -0.4], 0.2),
+        ([0.5, 0.3, 0.2, 1.5], 0.05),  # trunk far from vertical, spinning
+    ],
+)
+def test_energy_is_conserved_without_torque(tight_map, params, X, theta_td):
+    u = [0.0, 0.0, 0.3, 0.0, theta_td]  # Kp = Kd = 0: no hip torque
+    stride = tight_map.stride(X, u, params)
+    assert stride.ok, stride.fall
+    before, after = apex_energy(X, params), apex_energy(stride.apex, params)
+    assert abs(after - before) / before <= 1e-9
+
+
+@pytest.mark.parametrize("z", [0.26, 0.4, 0.7])
+@pytest.mark.parametrize("theta_h", [math.pi / 2, -math.pi / 2])
+def test_hopping_in_place_is_a_fixed_point(tight_map, params, z, theta_h):
+    X = np.array([z, theta_h, 0.0, 0.0])
+    apex = tight_map(X, [0.0, 0.0, 0.0, 0.0, 0.0], params)
+    assert np.linalg.norm(apex - X) / np.linalg.norm(X) <= 1e-11
+
+
+def test_event_times_match_the_vertical_hop_closed_form(tight_map, params):
+    """Vertical hopping: stance is a linear spring-mass oscillation about rho0 - m g / k."""
+    z = 0.4
+    X = [z, math.pi / 2, 0.0, 0.0]
+    stride = tight_map.stride(X, [0.0, 0.0, 0.0, 0.0, 0.0], params)
+    drop = z - params.d - params.rho0  # CoM fall from apex to touchdown
+    v_touchdown = -math.sqrt(2 * params.g * drop)
+    omega = math.sqrt(params.k / params.m)
+    offset = params.m * params.g / params.k  # rho0 - rho at static equilibrium
+    phase = math.atan2(v_touchdown / omega, offset)
+    t_bottom = (math.pi + phase) / omega
+    assert stride.durations["descent"] == pytest.approx(math.sqrt(2 * drop / params.g), abs=1e-14)
+    assert abs(stride.durations["compression"] - t_bottom) <= 1e-12
+    assert abs(stride.durations["decompression"] - t_bottom) <= 1e-12
+    assert abs(stride.durations["ascent"] - stride.durations["descent"]) <= 1e-12
+
+
+def mirror_apex(X):
+    z, th, ydot, thdot = X
+    return np.array([z, math.pi - th, -ydot, -thdot])
+
+
+def mirror_control(u):
+    """theta2 maps to 2 pi - theta2 (= -theta2 modulo 2 pi). The PD law uses the plain
+    difference theta2 - theta2_des, so the mirrored set point must be on the same branch."""
+    kp, kd, th2, th2dot, td = u
+    return np.array([kp, kd, 2 * math.pi - th2, -th2dot, -td])
+
+
+def test_return_map_commutes_with_the_mirror(tight_map, params, running_point):
+    X, u = running_point
+    direct = mirror_apex(tight_map(X, u, params))
+    mirrored = tight_map(mirror_apex(X), mirror_control(u), params)
+    angle_gap = (direct[1] - mirrored[1] + math.pi) % (2 * math.pi) - math.pi
+    assert abs(angle_gap) <= 1e-11
+    np.testing.assert_allclose(np.delete(direct, 1), np.delete(mirrored, 1), atol=1e-11)
+
+
+def test_ad_jacobians_match_central_differences(tight_map, params, running_point):
+    X, u = running_point
+    dr_dX, dr_du = tight_map.jacobians(X, u, params)
+    h = 1e-6
+    for jac, base, which in ((dr_dX, X, "X"), (dr_du, u, "u")):
+        for j in range(len(base)):
+            step = np.zeros(len(base))
+            step[j] = h
+            args_plus = (X + step, u) if which == "X" else (X, u + step)
+            args_minus = (X - step, u) if which == "X" else (X, u - step)
+            column = (tight_map(*args_plus, params) - tight_map(*args_minus, params)) / (2 * h)
+            np.testing.assert_allclose(jac[:, j], column, atol=1e-6, err_msg=f"d r / d {which}[{j}]")
+
+
+def test_event_location_is_independent_of_the_integrator(params, running_point):
+    """erk and rosenbrock at 1e-12 agree on the next apex to 1e-11."""
+    X, u = running_point
+    erk = ReturnMap(Tolerances(1e-12, 1e-12), plugin="erk")(X, u, params)
+    rosenbrock = ReturnMap(Tolerances(1e-12, 1e-12), plugin="rosenbrock")(X, u, params)
+    np.testing.assert_allclose(erk, rosenbrock, atol=1e-11)
+
+
+@pytest.mark.parametrize(
+    "X, u, fall",
+    [
+        ([0.1, math.pi / 2, 0.5, 0.0], [0, 0, 0, 0, 0.1], Fall.FOOT_BELOW_GROUND),
+        ([0.4, math.pi / 2, 0.5, 0.0], [0, 0, 0, 0, math.pi / 2], Fall.NO_TOUCHDOWN),
+        ([3.0, math.pi / 2, 0.0, 0.0], [0, 0, 0, 0, 0.0], Fall.LEG_COLLAPSES),
+        ([0.4, math.pi / 2, 3.0, 0.0], [0, 0, 0, 0, -0.6], Fall.LEG_EXTENDING_AT_TOUCHDOWN),
+        ([0.4, -math.pi / 2, 0.0, 0.0], [0, 0, 0, 0, 0.6], Fall.COM_HITS_GROUND),
+        ([0.4, math.pi / 2, 0.5, 0.0], [-50, 0, 0, 0, 0.1], Fall.LIFTOFF_DESCENDING),
+        ([float("nan"), math.pi / 2, 0.5, 0.0], [0, 0, 0, 0, 0.1], Fall.NOT_FINITE),
+    ],
+)
+def test_falls_are_named_outcomes(tight_map, params, X, u, fall):
+    stride = tight_map.stride(X, u, params)
+    assert stride.fall is fall and stride.apex is None
+
+
+def test_simulate_returns_the_apex_sequence_or_the_fall(tight_map, params):
+    # Hopping in place is unstable (round-off grows about 20x a stride), so only 3 strides.
+    hop = tight_map.simulate([0.4, -math.pi / 2, 0.0, 0.0], [0, 0, 0, 0, 0], params, strides=3)
+    assert hop.fall is None and hop.apexes.shape == (4, 4)
+    np.testing.assert_allclose(hop.apexes, np.tile(hop.apexes[0], (4, 1)), atol=1e-12)
+    # A forward runner whose leg is planted too steeply: speed drains away until it falls.
+    run = tight_map.simulate([0.4, math.pi / 2, 0.5, 0.0], [0, 0, 0, 0, 0.3], params, strides=50)
+    assert run.fall is not None and run.fall_stride is not None
+    assert run.apexes.shape == (run.fall_stride + 1, 4)
