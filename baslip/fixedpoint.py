@@ -24,7 +24,7 @@ import numpy as np
 from .control import CONTROL
 from .model import APEX, PARAMS, Params, apex_energy
 from .returnmap import PHASES, ReturnMap, Tolerances
-from .shooting import DESIGN, NOMINAL, FixedPointSpec, NlpSolution, ShootingNLP, ShootingOptions
+from .shooting import DESIGN, NOMINAL, FixedPointSpec, NlpSolution, ShootingNLP, ShootingOptions, torque_effort
 from .stability import Stability, classify
 
 #: A fixed point is reported only if the independent re-simulation gives eps below this.
@@ -152,6 +152,10 @@ class FixedPointSolver:
     def _polish(self, spec: FixedPointSpec, sol: NlpSolution) -> tuple[np.ndarray, np.ndarray, int, str]:
         """Gauss-Newton on r(X, u) - X (and the energy) over the free, inactive quantities."""
         design = np.concatenate([sol.X, sol.u])
+        # IPOPT relaxes bounds by ~1e-8, so fixed quantities come back slightly off: reset them.
+        for i, name in enumerate(DESIGN):
+            if name in spec.fixed:
+                design[i] = spec.fixed[name]
         movable = self._movable(spec, design)
         scale = np.array([NOMINAL[n] for n in DESIGN])[movable]
         nx = APEX.size
@@ -187,6 +191,11 @@ class FixedPointSolver:
             on_bound = min(abs(design[i] - lo), abs(design[i] - hi)) <= 1e-7 * NOMINAL[name]
             movable[i] = name not in spec.fixed and not on_bound
         return movable
+
+    def torque_effort(self, result: FixedPointResult) -> float:
+        """Integral of tau^2 dt over the stance of a result's stride [N^2 m^2 s]."""
+        durations = [result.durations[ph] for ph in PHASES]
+        return torque_effort(self.nlp.interval, result.X, result.u, durations, result.params)
 
     def _energy_residual(self, spec: FixedPointSpec, X, signed: bool = False) -> float:
         if "energy" not in spec.fixed:

@@ -20,9 +20,8 @@ whose ``fall`` names the reason, and :meth:`ReturnMap.simulate` stops there.
 from __future__ import annotations
 
 import contextlib
+import io
 import math
-import os
-import sys
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -171,7 +170,7 @@ class ReturnMap:
     def __init__(self, tolerances: Tolerances = Tolerances(), plugin: str = "erk"):
         self.tolerances = tolerances
         self.plugin = plugin
-        with _native_stderr_silenced():
+        with _event_notice_silenced():
             self._touchdown_time = self._build_touchdown_rootfinder()
             self._stance = self._build_stance_integrator()
             self._stride_fn = self._build_stride_function()
@@ -332,22 +331,15 @@ class RunnerFell(RuntimeError):
 
 
 @contextlib.contextmanager
-def _native_stderr_silenced():
-    """Silence CasADi's native stderr while building event integrators.
+def _event_notice_silenced():
+    """Silence CasADi's 'Event support is experimental' notice while building integrators.
 
-    CasADi 3.8 prints 'Event support is experimental' for every integrator with events;
+    CasADi 3.8 prints it (through Python's sys.stderr) for every integrator with events;
     the event handling is what we rely on and test, so the notice is only noise to users.
     Errors still surface as Python exceptions.
     """
-    sys.stderr.flush()
-    saved = os.dup(2)
-    try:
-        with open(os.devnull, "w") as devnull:
-            os.dup2(devnull.fileno(), 2)
-            yield
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
+    with contextlib.redirect_stderr(io.StringIO()):
+        yield
 
 
 def _vec(v) -> np.ndarray:

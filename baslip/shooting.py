@@ -241,7 +241,7 @@ class ShootingNLP:
             # Expanding to SX makes each IPOPT iteration several times cheaper than MX.
             {"ipopt": ipopt, "print_time": False, "error_on_fail": False, "expand": True},
         )
-        self._interval = interval
+        self.interval = interval
         self._effort = ca.Function("effort", [w, params], [effort])
 
     # -- solving -----------------------------------------------------------------------
@@ -268,9 +268,9 @@ class ShootingNLP:
         p = spec.params.vector()
         durations = _guess_durations(X, u, spec.params, rmap)
         n = self.options.nodes
-        model_td = ca.Function("x_td", [], [_touchdown_state(X, u, p, durations[0])])()["o0"]
-        nodes_c = _propagate(self._interval, np.asarray(model_td).ravel(), u, p, durations[1], n)
-        nodes_d = _propagate(self._interval, nodes_c[:, -1], u, p, durations[2], n)
+        x_td = np.asarray(_touchdown_state(X, u, p, durations[0])).ravel()
+        nodes_c = _propagate(self.interval, x_td, u, p, durations[1], n)
+        nodes_d = _propagate(self.interval, nodes_c[:, -1], u, p, durations[2], n)
         return np.concatenate([design, durations, nodes_c.T.ravel(), nodes_d.T.ravel()])
 
     def solve(self, spec: FixedPointSpec, w0: np.ndarray | None = None, rmap: ReturnMap | None = None) -> NlpSolution:
@@ -305,9 +305,23 @@ class ShootingNLP:
         )
 
 
-def _touchdown_state(X, u, p, t_descent):
+def torque_effort(interval: ca.Function, X, u, durations, params: Params, n: int = 200) -> float:
+    """Integral of tau^2 over stance [N^2 m^2 s] for phase ``durations``, by RK4 quadrature."""
+    p = params.vector()
+    x = np.asarray(_touchdown_state(X, u, p, durations[0])).ravel()
+    total = 0.0
+    for duration in durations[1:3]:
+        for _ in range(n):
+            x_next, effort = interval(x, u, p, duration / n)
+            x, total = np.asarray(x_next).ravel(), total + float(effort)
+    return total
+
+
+def _touchdown_state(X, u, p, t_descent) -> ca.DM:
+    """Stance state at touchdown after ``t_descent`` seconds of descent from apex ``X``."""
     X, u, p = ca.DM(X), ca.DM(u), ca.DM(p)
-    return touchdown_map(ballistic_flight(apex_to_flight(X), t_descent, p), touchdown_angle(u), p)
+    xf = ca.evalf(ballistic_flight(apex_to_flight(X), t_descent, p))
+    return touchdown_map(xf, float(CONTROL.get(u, "theta_td")), p)
 
 
 def _propagate(interval: ca.Function, x0, u, p, duration, n) -> np.ndarray:

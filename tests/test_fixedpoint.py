@@ -1,0 +1,103 @@
+"""Specification of baslip.fixedpoint (with baslip.shooting): verified fixed points.
+
+Every converged result must survive an independent re-simulation at rtol = atol = 1e-12
+with eps (thesis eq. 4.1) <= 1e-10; anything else is reported as not verified or failed.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from baslip import Params, ReturnMap, Tolerances
+from baslip.shooting import FixedPointSpec
+
+DOWNWARD_GUESS = {
+    "theta_h": -math.pi / 2, "theta_h_dot": 0.0, "Kp": 2.0, "Kd": 0.5,
+    "theta2_des": 0.0, "theta2_dot_des": 2.0, "theta_td": 0.113,
+}
+HANGING = {"theta_h": (-100 * math.pi / 180, -80 * math.pi / 180)}
+
+
+def eps(X, apex):
+    return np.linalg.norm(apex - X) / np.linalg.norm(X)
+
+
+def recheck(result):
+    """Re-simulate with a map the solver did not use (erk at 1e-12, freshly built)."""
+    apex = ReturnMap(Tolerances(1e-12, 1e-12))(result.X, result.u, result.params)
+    return eps(result.X, apex)
+
+
+@pytest.fixture(scope="module")
+def downward(solver):
+    spec = FixedPointSpec(Params(), fixed={"z": 0.4, "ydot": 0.5}, guess=DOWNWARD_GUESS, bounds=HANGING)
+    return solver.solve(spec, name="downward")
+
+
+def test_downward_fixed_point_is_verified(downward):
+    assert downward.status == "converged", downward.message
+    assert downward.residual <= 1e-10
+    assert recheck(downward) <= 1e-10
+    assert downward.apex["z"] == 0.4 and downward.apex["ydot"] == 0.5  # fixed values held exactly
+    assert -100 <= math.degrees(downward.apex["theta_h"]) <= -80
+    assert all(t > 0 for t in downward.durations.values())
+
+
+def test_result_record_has_exactly_the_documented_keys(downward):
+    record = downward.to_json_dict()
+    assert list(record) == [
+        "name", "status", "solver", "params", "apex", "control", "durations",
+        "energy", "residual", "eigenvalues", "spectral_radius", "stable",
+    ]
+    assert set(record["solver"]) == {"return_status", "iterations", "time_s"}
+    assert set(record["durations"]) == {"descent", "compression", "decompression", "ascent"}
+    assert len(record["eigenvalues"]) == 4 and all(len(pair) == 2 for pair in record["eigenvalues"])
+    radius = max(math.hypot(*pair) for pair in record["eigenvalues"])
+    assert record["spectral_radius"] == pytest.approx(radius)  # no trivial multipliers here
+    assert record["stable"] == (radius < 1)
+
+
+def test_fixed_energy_is_held(solver):
+    spec = FixedPointSpec(Params(), fixed={"energy": 4.1, "ydot": 0.5}, guess={**DOWNWARD_GUESS, "z": 0.4}, bounds=HANGING)
+    result = solver.solve(spec)
+    assert result.status == "converged", result.message
+    assert result.energy == pytest.approx(4.1, abs=1e-10)
+    assert recheck(result) <= 1e-10
+
+
+@pytest.mark.parametrize("objective", ["min_torque", "feasibility"])
+def test_other_objectives_give_verified_points(solver, objective):
+    spec = FixedPointSpec(Params(), fixed={"z": 0.4, "ydot": 0.5}, guess=DOWNWARD_GUESS, bounds=HANGING, objective=objective)
+    result = solver.solve(spec)
+    assert result.status == "converged", result.message
+    assert recheck(result) <= 1e-10
+
+
+def test_min_torque_needs_no_more_torque_than_nearest_guess(solver, downward):
+    spec = FixedPointSpec(Params(), fixed={"z": 0.4, "ydot": 0.5}, guess=DOWNWARD_GUESS, bounds=HANGING, objective="min_torque")
+    least = solver.solve(spec)
+    assert solver.torque_effort(least) <= solver.torque_effort(downward) + 1e-9
+
+
+def test_torque_free_gait_is_rank_deficient_but_verified(solver):
+    """Kp = Kd = 0: energy is conserved, so the periodicity equations are dependent."""
+    spec = FixedPointSpec(
+        Params(),
+        fixed={"z": 0.4, "ydot": 0.5, "Kp": 0.0, "Kd": 0.0, "theta2_des": 0.0, "theta2_dot_des": 0.0},
+        guess={"theta_h": -math.pi / 2, "theta_h_dot": 0.0, "theta_td": 0.11},
+        bounds=HANGING,
+    )
+    result = solver.solve(spec)
+    assert result.status == "converged", result.message
+    assert recheck(result) <= 1e-10
+    assert [m.label for m in result.stability.multipliers if m.trivial] == ["energy"]
+
+
+def test_ipopt_failure_is_reported_not_raised(solver):
+    # 1 J cannot lift 1 kg to 0.4 m: the fixed values are inconsistent.
+    spec = FixedPointSpec(Params(), fixed={"z": 0.4, "ydot": 0.5, "energy": 1.0}, guess=DOWNWARD_GUESS, bounds=HANGING)
+    result = solver.solve(spec)
+    assert result.status == "failed"
+    assert result.solver.return_status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+    assert result.stability is None and result.to_json_dict()["eigenvalues"] is None

@@ -1,0 +1,103 @@
+"""Specification of baslip.problem: YAML problem files and their validation.
+
+Every bad input raises ProblemError naming the offending key; the CLI turns it into one
+line on stderr and exit code 2 (see test_solve.py).
+"""
+
+import math
+
+import pytest
+
+from baslip.problem import DEFAULT_GUESS, ProblemError, load_problem, parse_problem
+
+VALID = {
+    "name": "ok",
+    "params": {"m": 1.0, "I": 0.0033, "k": 1000.0, "rho0": 0.2, "d": 0.04, "g": 9.81},
+    "fix": {"z": 0.4, "ydot": 0.5},
+    "guess": {"theta_h": "-90 deg", "theta_td": 0.1},
+}
+
+
+def with_(**sections):
+    data = {key: (dict(value) if isinstance(value, dict) else value) for key, value in VALID.items()}
+    for key, value in sections.items():
+        if isinstance(value, dict) and isinstance(data.get(key), dict):
+            data[key].update(value)
+        else:
+            data[key] = value
+    return data
+
+
+def test_valid_problem_is_parsed_into_si_and_radians():
+    problem = parse_problem(with_(bounds={"theta_h": ["-100 deg", "-80 deg"]}, guess={"theta_h_dot": "30 deg/s"}))
+    assert problem.fix == {"z": 0.4, "ydot": 0.5}
+    assert problem.guess["theta_h"] == pytest.approx(-math.pi / 2)
+    assert problem.guess["theta_h_dot"] == pytest.approx(math.pi / 6)
+    assert problem.bounds["theta_h"] == pytest.approx((-100 * math.pi / 180, -80 * math.pi / 180))
+    assert problem.full_guess()["Kp"] == DEFAULT_GUESS["Kp"]
+    assert "z" not in problem.full_guess()
+
+
+def test_shipped_problems_load():
+    for name in ("downward", "upward"):
+        problem = load_problem(f"problems/{name}.yaml")
+        assert problem.name == name and problem.fix["ydot"] == 0.5 and problem.fix["z"] == 0.4
+
+
+@pytest.mark.parametrize(
+    "data, key, words",
+    [
+        (with_(speed=1.0), "speed", "unknown key"),
+        (with_(fix={"zz": 0.4}), "fix.zz", "unknown key"),
+        (with_(params={"mass": 1.0}), "params.mass", "unknown key"),
+        (with_(solver={"iterations": 3}), "solver.iterations", "unknown key"),
+        (with_(fix={"z": "high"}), "fix.z", "expected a number"),
+        (with_(fix={"z": True}), "fix.z", "expected a number"),
+        (with_(fix={"z": "0.4 deg"}), "fix.z", "expected a number"),
+        (with_(guess={"theta_h": "90 furlongs"}), "guess.theta_h", "deg"),
+        (with_(params=[1, 2]), "params", "expected a mapping"),
+        (with_(fix={"z": float("nan")}), "fix.z", "finite"),
+        (with_(guess={"Kp": float("inf")}), "guess.Kp", "finite"),
+        (with_(params={"m": 0.0}), "params.m", "positive"),
+        (with_(params={"I": -0.1}), "params.I", "positive"),
+        (with_(params={"k": 0}), "params.k", "positive"),
+        (with_(params={"rho0": -0.2}), "params.rho0", "positive"),
+        (with_(params={"g": 0.0}), "params.g", "positive"),
+        (with_(params={"d": -0.01}), "params.d", "zero or positive"),
+        (with_(fix={"z": 0.15}), "fix.z", "foot below ground"),
+        (with_(fix={"z": 0.9}, bounds={"z": [0.3, 0.7]}), "fix.z", "outside bounds"),
+        (with_(bounds={"z": [0.7, 0.3]}), "bounds.z", "exceeds"),
+        (with_(bounds={"z": [0.3]}), "bounds.z", "[lo, hi]"),
+        (with_(guess={"z": 0.5}), "guess.z", "fixed"),
+        (with_(guess={"theta_td": 2.0}), "guess.theta_td", "(-pi/2, pi/2)"),
+        (with_(objective="fastest"), "objective", "expected one of"),
+        (with_(solver={"nodes": 1}), "solver.nodes", "integer"),
+        (with_(solver={"tol": -1.0}), "solver.tol", "positive"),
+        (with_(name="a b/c"), "name", "name"),
+    ],
+)
+def test_bad_input_names_the_key(data, key, words):
+    with pytest.raises(ProblemError) as err:
+        parse_problem(data)
+    assert err.value.key == key
+    assert words in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(ProblemError, match="no such problem file"):
+        load_problem(tmp_path / "absent.yaml")
+
+
+def test_malformed_yaml_reports_the_line(tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_text("name: bad\nfix: {z: 0.4\n")
+    with pytest.raises(ProblemError, match=r"malformed YAML at line \d+"):
+        load_problem(path)
+
+
+def test_top_level_must_be_a_mapping(tmp_path):
+    path = tmp_path / "list.yaml"
+    path.write_text("- 1\n- 2\n")
+    with pytest.raises(ProblemError, match="expected a mapping"):
+        load_problem(path)

@@ -1,0 +1,102 @@
+"""Specification of the command line, ``python -m baslip.solve PROBLEM.yaml [--out DIR]``.
+
+Exit 0 and a verified result.json for a good problem; exit 1 with status "failed" when the
+solver fails; exit 2, one line on stderr naming the key and nothing written for bad input.
+"""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from baslip.solve import main
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULT_KEYS = [
+    "name", "status", "solver", "params", "apex", "control", "durations",
+    "energy", "residual", "eigenvalues", "spectral_radius", "stable",
+]
+
+
+def run_cli(*args, cwd=ROOT):
+    return subprocess.run(
+        [sys.executable, "-m", "baslip.solve", *map(str, args)], cwd=cwd, capture_output=True, text=True, timeout=600
+    )
+
+
+def test_downward_end_to_end(tmp_path):
+    out = tmp_path / "downward"
+    proc = run_cli("problems/downward.yaml", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    record = json.loads((out / "result.json").read_text())
+    assert list(record) == RESULT_KEYS
+    assert record["status"] == "converged" and record["residual"] <= 1e-10
+    assert record["apex"]["z"] == 0.4 and record["apex"]["ydot"] == 0.5
+    assert "converged" in proc.stdout and "spectral radius" in proc.stdout
+    assert (out / "multipliers.csv").read_text().startswith("re,im,abs,label\n")
+    assert "Traceback" not in proc.stderr and "WARNING" not in proc.stderr
+
+
+def test_default_output_folder_is_results_name(tmp_path):
+    problem = tmp_path / "p.yaml"
+    problem.write_text((ROOT / "problems" / "upward.yaml").read_text().replace("name: upward", "name: up_copy"))
+    proc = run_cli(problem, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads((tmp_path / "results" / "up_copy" / "result.json").read_text())["status"] == "converged"
+
+
+def test_solver_failure_exits_1_with_status_failed(tmp_path, capsys):
+    problem = tmp_path / "infeasible.yaml"
+    problem.write_text("name: infeasible\nfix: {z: 0.4, ydot: 0.5, energy: 1.0}\nguess: {theta_h: -1.57}\n")
+    assert main([str(problem), "--out", str(tmp_path / "out"), "--quiet"]) == 1
+    record = json.loads((tmp_path / "out" / "result.json").read_text())
+    assert record["status"] == "failed" and record["solver"]["return_status"] == "Infeasible_Problem_Detected"
+    assert record["eigenvalues"] is None
+
+
+BAD_INPUTS = {
+    "unknown_key": ("name: x\nspeed: 3\n", "speed"),
+    "wrong_type": ("fix: {z: high}\n", "fix.z"),
+    "nan": ("fix: {z: .nan}\n", "fix.z"),
+    "inf": ("guess: {Kp: .inf}\n", "guess.Kp"),
+    "mass": ("params: {m: 0}\n", "params.m"),
+    "inertia": ("params: {I: -1}\n", "params.I"),
+    "stiffness": ("params: {k: 0}\n", "params.k"),
+    "rest_length": ("params: {rho0: 0}\n", "params.rho0"),
+    "gravity": ("params: {g: -9.81}\n", "params.g"),
+    "foot_below_ground": ("fix: {z: 0.1}\n", "fix.z"),
+    "fixed_outside_bounds": ("fix: {z: 0.9}\nbounds: {z: [0.3, 0.7]}\n", "fix.z"),
+    "malformed": ("fix: {z: 0.4\n", "malformed YAML"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_INPUTS))
+def test_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys, case):
+    text, key = BAD_INPUTS[case]
+    problem = tmp_path / "bad.yaml"
+    problem.write_text(text)
+    out = tmp_path / "out"
+    assert main([str(problem), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("error: ") and key in err
+    assert not out.exists()
+
+
+def test_missing_file_exits_2(tmp_path, capsys):
+    assert main([str(tmp_path / "nope.yaml")]) == 2
+    assert "no such problem file" in capsys.readouterr().err
+
+
+def test_bad_input_from_the_shell_has_no_traceback(tmp_path):
+    problem = tmp_path / "bad.yaml"
+    problem.write_text("params: {m: -1}\n")
+    proc = run_cli(problem, "--out", tmp_path / "out")
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0 and "params.m" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_help_documents_the_options():
+    proc = run_cli("--help")
+    assert proc.returncode == 0 and "--out" in proc.stdout and "result.json" in proc.stdout
