@@ -36,7 +36,9 @@ POLISH_EPS = 1e-12
 POLISH_MAX_ITER = 10
 #: Relative singular-value cutoff of the polish step (rank-deficient fixed-point equations).
 POLISH_RCOND = 1e-9
-ACCEPTED_IPOPT = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+#: IPOPT outcomes whose point goes on to polish and verification ("Feasible_Point_Found"
+#: is IPOPT's success for square problems, e.g. the SLIP limit at fixed energy).
+ACCEPTED_IPOPT = ("Solve_Succeeded", "Solved_To_Acceptable_Level", "Feasible_Point_Found")
 
 
 @dataclass(frozen=True)

@@ -219,6 +219,7 @@ class ShootingNLP:
         at_apex = ballistic_flight(at_liftoff, t_ascent, p)
         constrain(FLIGHT.get(at_apex, "zdot"), 0, 0)  # apex guard
         apex_next = ca.vertcat(*(FLIGHT.get(at_apex, name) for name in ("z", "theta_h", "ydot", "theta_h_dot")))
+        self._periodicity_row = sum(c[0].numel() for c in constraints)
         constrain(apex_next - X, 0, 0)  # periodicity
         self._energy_row = sum(c[0].numel() for c in constraints)
         constrain(apex_energy(X, p), -ca.inf, ca.inf)  # bounded or fixed per problem
@@ -286,6 +287,9 @@ class ShootingNLP:
         if "energy" in spec.fixed:
             energy_bounds = (spec.fixed["energy"], spec.fixed["energy"])
         lbg[self._energy_row], ubg[self._energy_row] = energy_bounds
+        for name in implied_periodicity(spec):
+            row = self._periodicity_row + APEX.index(name)
+            lbg[row], ubg[row] = -np.inf, np.inf
         params = np.concatenate([spec.params.vector(), guess, weights])
         start = time.perf_counter()
         sol = self._solver(x0=w0, p=params, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
@@ -303,6 +307,27 @@ class ShootingNLP:
             iterations=int(stats["iter_count"]),
             time_s=elapsed,
         )
+
+
+def implied_periodicity(spec: FixedPointSpec) -> tuple[str, ...]:
+    """Apex coordinates whose periodicity follows from the others by structure.
+
+    Without hip torque (Kp = Kd = 0 fixed) energy is conserved, so a periodic ydot and
+    theta_h_dot make z periodic. With d = 0 as well, the trunk spins freely: theta_h_dot is
+    always periodic, and theta_h is too when theta_h_dot is fixed at zero. These rows are
+    exactly dependent on the others; the RK4 discretisation breaks the dependence by its
+    truncation error, which makes IPOPT declare the problem infeasible. So the NLP leaves
+    them out; the Newton polish and the verification still check all four on the exact map.
+    """
+    torque_free = spec.fixed.get("Kp") == 0.0 and spec.fixed.get("Kd") == 0.0
+    if not torque_free:
+        return ()
+    implied = ["z"]
+    if spec.params.d == 0.0:
+        implied.append("theta_h_dot")
+        if spec.fixed.get("theta_h_dot") == 0.0:
+            implied.append("theta_h")
+    return tuple(implied)
 
 
 def torque_effort(interval: ca.Function, X, u, durations, params: Params, n: int = 200) -> float:
