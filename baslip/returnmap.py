@@ -176,12 +176,13 @@ class ReturnMap:
             self._stride_fn = self._build_stride_function()
             X, u, p, t_guess = self._stride_fn.mx_in()
             apex_next = self._stride_fn(X, u, p, t_guess)[0]
+            # One Jacobian in (X, u) together: one sensitivity sweep instead of two.
             self._jacobian_fn = ca.Function(
-                "return_map_jacobians",
+                "return_map_jacobian",
                 [X, u, p, t_guess],
-                [ca.jacobian(apex_next, X), ca.jacobian(apex_next, u)],
+                [ca.jacobian(apex_next, ca.vertcat(X, u))],
                 ["X", "u", "p", "t_touchdown_guess"],
-                ["dr_dX", "dr_du"],
+                ["dr_dXu"],
             )
 
     # -- construction ------------------------------------------------------------------
@@ -307,8 +308,8 @@ class ReturnMap:
         t_guess = self.touchdown_guess(X, u, p)
         if t_guess is None:
             raise RunnerFell(Fall.NO_TOUCHDOWN)
-        dX, du = self._jacobian_fn(X, u, p, t_guess)
-        return np.asarray(dX), np.asarray(du)
+        jac = np.asarray(self._jacobian_fn(X, u, p, t_guess))
+        return jac[:, : APEX.size], jac[:, APEX.size :]
 
     def simulate(self, X0, u, params, strides: int) -> Simulation:
         """Apply ``u`` for up to ``strides`` strides from apex ``X0``."""

@@ -102,3 +102,16 @@ def test_ipopt_failure_is_reported_not_raised(solver):
     assert result.status == "failed"
     assert result.solver.return_status not in ACCEPTED_IPOPT
     assert result.stability is None and result.to_json_dict()["eigenvalues"] is None
+
+
+def test_disagreeing_re_simulation_is_not_verified(solver):
+    """If the independent map disagrees (here: a deliberately loose one), nothing converges."""
+    spec = FixedPointSpec(Params(), fixed={"z": 0.4, "ydot": 0.5}, guess=DOWNWARD_GUESS, bounds=HANGING)
+    strict = solver.verify_map
+    solver.verify_map = ReturnMap(Tolerances(1e-3, 1e-3), plugin="rosenbrock")
+    try:
+        result = solver.solve(spec)
+    finally:
+        solver.verify_map = strict
+    assert result.status == "not_verified" and "eps" in result.message
+    assert result.residual > 1e-10 and result.stability is None
