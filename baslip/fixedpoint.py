@@ -24,7 +24,8 @@ import numpy as np
 from .control import CONTROL
 from .model import APEX, PARAMS, Params, apex_energy
 from .returnmap import PHASES, ReturnMap, Tolerances
-from .shooting import DESIGN, NOMINAL, FixedPointSpec, NlpSolution, ShootingNLP, ShootingOptions, torque_effort
+from .quantities import DESIGN, NOMINAL
+from .shooting import FixedPointSpec, NlpSolution, ShootingNLP, ShootingOptions, torque_effort
 from .stability import Stability, classify
 
 #: A fixed point is reported only if the independent re-simulation gives eps below this.
@@ -71,6 +72,7 @@ class FixedPointResult:
     residual: float | None
     stability: Stability | None
     polish_iterations: int = 0
+    residual_source: str = ""  # which map measured ``residual``
 
     @property
     def converged(self) -> bool:
@@ -134,7 +136,11 @@ class FixedPointSolver:
     def solve(self, spec: FixedPointSpec, name: str = "problem", w0: np.ndarray | None = None) -> FixedPointResult:
         """Solve ``spec`` from its guess (or from the NLP point ``w0``) and verify the answer."""
         start = time.perf_counter()
-        sol = self.nlp.solve(spec, w0=w0, rmap=self.residual_map)
+        try:
+            sol = self.nlp.solve(spec, w0=w0, rmap=self.residual_map)
+        except RuntimeError as err:  # CasADi could not even run IPOPT
+            sol = NlpSolution(spec.start_design()[: APEX.size], spec.start_design()[APEX.size :],
+                              np.full(len(PHASES), np.nan), f"Error: {_first_line(err)}", 0, 0.0)
         if sol.return_status not in ACCEPTED_IPOPT:
             return self._result(spec, name, "failed", f"IPOPT: {sol.return_status}", sol, start, sol.X, sol.u)
         X, u, iterations, note = self._polish(spec, sol)
@@ -142,9 +148,9 @@ class FixedPointSolver:
         if not check.ok:
             return self._result(spec, name, "not_verified", f"re-simulation falls: {check.fall.value}", sol, start, X, u, iterations)
         eps = _eps(check.apex, X)
-        energy_ok = self._energy_residual(spec, X) <= VERIFY_EPS * max(1.0, abs(spec.fixed.get("energy", 1.0)))
-        if eps > VERIFY_EPS or not energy_ok:
-            what = f"eps = {eps:.2e} > {VERIFY_EPS:g}" if eps > VERIFY_EPS else "apex energy off its fixed value"
+        problem = self._violation(spec, X, u)
+        if eps > VERIFY_EPS or problem:
+            what = f"eps = {eps:.2e} > {VERIFY_EPS:g}" if eps > VERIFY_EPS else problem
             return self._result(spec, name, "not_verified", f"re-simulation: {what}{note}", sol, start, X, u, iterations, check)
         stability = classify(self.jacobian_map.jacobians(X, u, spec.params)[0], spec.params, u)
         return self._result(spec, name, "converged", "verified fixed point", sol, start, X, u, iterations, check, stability)
@@ -159,6 +165,7 @@ class FixedPointSolver:
             if name in spec.fixed:
                 design[i] = spec.fixed[name]
         movable = self._movable(spec, design)
+        energy_target = self._energy_target(spec, design[: APEX.size])
         scale = np.array([NOMINAL[n] for n in DESIGN])[movable]
         nx = APEX.size
         for iteration in range(POLISH_MAX_ITER + 1):
@@ -167,7 +174,7 @@ class FixedPointSolver:
             if not stride.ok:
                 return X, u, iteration, f" (polish stopped: {stride.fall.value})"
             residual = stride.apex - X
-            energy_row = self._energy_residual(spec, X, signed=True)
+            energy_row = 0.0 if energy_target is None else self.energy(X, spec.params) - energy_target
             if _eps(stride.apex, X) <= POLISH_EPS and abs(energy_row) <= POLISH_EPS:
                 return X, u, iteration, ""
             if iteration == POLISH_MAX_ITER or not movable.any():
@@ -175,7 +182,7 @@ class FixedPointSolver:
             dr_dX, dr_du = self.jacobian_map.jacobians(X, u, spec.params)
             jac = np.hstack([dr_dX - np.eye(nx), dr_du])
             rows = [residual]
-            if "energy" in spec.fixed:
+            if energy_target is not None:
                 gradient = np.asarray(self._energy_gradient(X, spec.params.vector())).ravel()
                 jac = np.vstack([jac, np.concatenate([gradient, np.zeros(CONTROL.size)])])
                 rows.append([energy_row])
@@ -184,12 +191,38 @@ class FixedPointSolver:
             design[movable] += step * scale
         return design[:nx], design[nx:], POLISH_MAX_ITER, f" (polish reached {POLISH_MAX_ITER} iterations)"
 
+    def _energy_target(self, spec: FixedPointSpec, X) -> float | None:
+        """The apex energy the polish must hold: the fixed value, or a bound IPOPT ended on."""
+        if "energy" in spec.fixed:
+            return spec.fixed["energy"]
+        energy = self.energy(X, spec.params)
+        for bound in spec.bounds.get("energy", ()):
+            if np.isfinite(bound) and abs(energy - bound) <= 1e-7 * max(1.0, abs(bound)):
+                return bound
+        return None
+
+    def _violation(self, spec: FixedPointSpec, X, u) -> str | None:
+        """What the polished point breaks, if anything: a fixed energy or any bound."""
+        energy = self.energy(X, spec.params)
+        tolerance = VERIFY_EPS * max(1.0, abs(energy))
+        if "energy" in spec.fixed and abs(energy - spec.fixed["energy"]) > tolerance:
+            return f"apex energy {energy:.12g} J is off its fixed value {spec.fixed['energy']:g} J"
+        lo, hi = spec.bounds.get("energy", (-np.inf, np.inf))
+        if not lo - tolerance <= energy <= hi + tolerance:
+            return f"apex energy {energy:.12g} J lies outside bounds [{lo:g}, {hi:g}] J"
+        for name, value in zip(DESIGN, np.concatenate([X, u])):
+            lo, hi = spec.bounds_of(name)
+            slack = 1e-9 * NOMINAL[name]
+            if not lo - slack <= value <= hi + slack:
+                return f"{name} = {value:.12g} lies outside its bounds [{lo:g}, {hi:g}]"
+        return None
+
     @staticmethod
     def _movable(spec: FixedPointSpec, design: np.ndarray) -> np.ndarray:
         """Free design quantities not sitting on one of their bounds."""
         movable = np.ones(len(DESIGN), dtype=bool)
         for i, name in enumerate(DESIGN):
-            lo, hi = spec.bounds.get(name, (-np.inf, np.inf))
+            lo, hi = spec.bounds_of(name)
             on_bound = min(abs(design[i] - lo), abs(design[i] - hi)) <= 1e-7 * NOMINAL[name]
             movable[i] = name not in spec.fixed and not on_bound
         return movable
@@ -199,12 +232,6 @@ class FixedPointSolver:
         durations = [result.durations[ph] for ph in PHASES]
         return torque_effort(self.nlp.interval, result.X, result.u, durations, result.params)
 
-    def _energy_residual(self, spec: FixedPointSpec, X, signed: bool = False) -> float:
-        if "energy" not in spec.fixed:
-            return 0.0
-        value = self.energy(X, spec.params) - spec.fixed["energy"]
-        return value if signed else abs(value)
-
     def energy(self, X, params: Params) -> float:
         """Total mechanical energy at apex ``X`` [J]."""
         return float(self._energy(X, params.vector()))
@@ -212,11 +239,12 @@ class FixedPointSolver:
     def _result(self, spec, name, status, message, sol, start, X, u, polish_iterations=0, check=None, stability=None):
         if check is not None and check.ok:
             durations = {ph: check.durations[ph] for ph in PHASES}
-            residual = _eps(check.apex, X)
+            residual, source = _eps(check.apex, X), f"independent re-simulation ({_describe(self.verify_map)})"
         else:
             durations = dict(zip(PHASES, map(float, sol.durations)))
             probe = self.residual_map.stride(X, u, spec.params)
             residual = _eps(probe.apex, X) if probe.ok else None
+            source = f"return map ({_describe(self.residual_map)})" if probe.ok else ""
         return FixedPointResult(
             name=name,
             status=status,
@@ -230,7 +258,17 @@ class FixedPointSolver:
             residual=residual,
             stability=stability,
             polish_iterations=polish_iterations,
+            residual_source=source,
         )
+
+
+def _describe(rmap: ReturnMap) -> str:
+    return f"{rmap.plugin}, rtol = {rmap.tolerances.rtol:g}, atol = {rmap.tolerances.atol:g}"
+
+
+def _first_line(err: Exception) -> str:
+    lines = str(err).strip().splitlines()
+    return lines[-1] if lines else type(err).__name__
 
 
 def _eps(apex_next, X) -> float:

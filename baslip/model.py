@@ -224,6 +224,16 @@ def flight_to_apex(xf, p):
     return ca.vertcat(FLIGHT.get(top, "z"), FLIGHT.get(top, "theta_h"), f["ydot"], f["theta_h_dot"])
 
 
+def descent_foot_height(t, z, theta_h, theta_h_dot, theta_td, d, rho0, g):
+    """Foot height [m] ``t`` seconds after an apex, numerically (numpy, vectorised in t).
+
+    The same quantity as :func:`touchdown_guard` along the descent, for bracketing the
+    touchdown and checking an apex before any symbolic work.
+    """
+    t = np.asarray(t, dtype=float)
+    return z - 0.5 * g * t**2 - d * np.sin(theta_h + theta_h_dot * t) - rho0 * np.cos(theta_td)
+
+
 def flight_hip_position(xf, p):
     """Hip position [m] in flight."""
     f = FLIGHT.unpack(xf)

@@ -1,29 +1,55 @@
-"""Writing results: plain JSON and CSV, each file written whole or not at all."""
+"""Writing results: plain JSON and CSV, each set of files written whole or not at all."""
 
 from __future__ import annotations
 
 import csv
 import io
 import json
+import math
 import os
 import tempfile
 from pathlib import Path
+from typing import Mapping
 
 from .fixedpoint import FixedPointResult
 
+RESULT_FILES = ("result.json", "multipliers.csv")
 
-def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` via a temporary file and a rename, so readers never see
-    a half-written file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+
+def write_files_atomically(files: Mapping[Path, str]) -> None:
+    """Write every file to a temporary sibling first, then rename them all into place.
+
+    Readers never see a half-written file, and a failure while writing leaves the old
+    files (if any) untouched. Files get the usual permissions (0666 less the umask).
+    """
+    umask = os.umask(0)
+    os.umask(umask)
+    temporaries: dict[Path, str] = {}
     try:
-        with os.fdopen(fd, "w") as handle:
-            handle.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
+        for path, text in files.items():
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+            temporaries[path] = tmp
+            with os.fdopen(fd, "w") as handle:
+                handle.write(text)
+            os.chmod(tmp, 0o666 & ~umask)
+        for path, tmp in temporaries.items():
+            os.replace(tmp, path)
+    finally:
+        for tmp in temporaries.values():
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+
+
+def finite_or_none(value):
+    """JSON has no NaN or infinity: map them to null, recursively."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: finite_or_none(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [finite_or_none(v) for v in value]
+    return value
 
 
 def multipliers_csv(result: FixedPointResult) -> str:
@@ -38,10 +64,10 @@ def multipliers_csv(result: FixedPointResult) -> str:
 
 def write_result(result: FixedPointResult, out_dir: Path) -> list[Path]:
     """Write ``result.json`` and ``multipliers.csv`` into ``out_dir``; return their paths."""
+    record = finite_or_none(result.to_json_dict())
     files = {
-        out_dir / "result.json": json.dumps(result.to_json_dict(), indent=2) + "\n",
+        out_dir / "result.json": json.dumps(record, indent=2, allow_nan=False) + "\n",
         out_dir / "multipliers.csv": multipliers_csv(result),
     }
-    for path, text in files.items():
-        write_atomic(path, text)
+    write_files_atomically(files)
     return list(files)

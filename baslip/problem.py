@@ -27,32 +27,20 @@ from typing import Any, Mapping
 import yaml
 
 from .model import PARAMS, Params
-from .shooting import DESIGN, OBJECTIVES, QUANTITIES
+from .quantities import DEFAULT_BOUNDS, DESIGN, OBJECTIVES, QUANTITIES, start_value
 
 ANGLES = ("theta_h", "theta2_des", "theta_td")
 RATES = ("theta_h_dot", "theta2_dot_des")
 POSITIVE_PARAMS = ("m", "I", "k", "rho0", "g")
 TOP_LEVEL_KEYS = ("name", "params", "fix", "guess", "bounds", "objective", "solver")
 
-#: Starting values for design quantities that a problem neither fixes nor guesses.
-DEFAULT_GUESS = {
-    "z": 0.4,
-    "theta_h": math.pi / 2,
-    "ydot": 0.5,
-    "theta_h_dot": 0.0,
-    "Kp": 0.0,
-    "Kd": 0.0,
-    "theta2_des": math.pi - 0.1,
-    "theta2_dot_des": 0.0,
-    "theta_td": 0.1,
-}
-
-
 class ProblemError(ValueError):
     """An invalid problem; ``key`` is the dotted path of the offending entry."""
 
     def __init__(self, key: str, message: str):
-        super().__init__(f"{key}: {message}" if key else message)
+        text = f"{key}: {message}" if key else message
+        # One line, whatever the file contained (keys or values may hold newlines).
+        super().__init__(text.replace("\r", "\\r").replace("\n", "\\n"))
         self.key = key
 
 
@@ -85,30 +73,51 @@ class Problem:
 
     def full_guess(self) -> dict[str, float]:
         """Starting value of every design quantity that is not fixed."""
-        return {n: self.guess.get(n, DEFAULT_GUESS[n]) for n in DESIGN if n not in self.fix}
+        return {n: self.start_value(n) for n in DESIGN if n not in self.fix}
 
     def start_value(self, name: str) -> float:
         """The fixed value of ``name`` if fixed, else its starting value."""
-        return self.fix[name] if name in self.fix else self.guess.get(name, DEFAULT_GUESS[name])
+        return start_value(name, self.fix, self.guess, self.bounds)
 
 
 def load_problem(path: str | Path) -> Problem:
     """Read and validate a YAML problem file."""
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise ProblemError("", f"no such problem file: {path}") from None
+    except UnicodeDecodeError:
+        raise ProblemError("", f"problem file {path} is not UTF-8 text") from None
     except OSError as err:
         raise ProblemError("", f"cannot read problem file {path}: {err.strerror}") from None
+    if not text.strip():
+        raise ProblemError("", f"problem file {path} is empty")
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_StrictLoader)
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
         problem = getattr(err, "problem", None) or "cannot parse"
         raise ProblemError("", f"malformed YAML{where}: {problem}") from None
-    return parse_problem(data, default_name=path.stem)
+    except RecursionError:
+        raise ProblemError("", "malformed YAML: nested too deeply") from None
+    return parse_problem(data, default_name=re.sub(r"[^A-Za-z0-9_.-]", "_", path.stem))
+
+
+class _StrictLoader(yaml.SafeLoader):
+    """YAML's safe loader, but a repeated key is an error instead of silently last-wins."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"duplicate key {key!r}", key_node.start_mark
+                )
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
 
 
 def parse_problem(data: Any, default_name: str = "problem") -> Problem:
@@ -117,14 +126,14 @@ def parse_problem(data: Any, default_name: str = "problem") -> Problem:
         data = {}
     top = _mapping(data, "", TOP_LEVEL_KEYS)
     name = top.get("name", default_name)
-    if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9_.-]+", name):
+    if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9_.-]+", name) or set(name) == {"."}:
         raise ProblemError("name", f"expected a name of letters, digits, '_', '-' or '.', got {name!r}")
     params = _params(top.get("params", {}))
     fix = _quantities(top.get("fix", {}), "fix", QUANTITIES)
     guess = _quantities(top.get("guess", {}), "guess", DESIGN)
     bounds = _bounds(top.get("bounds", {}))
     objective = top.get("objective", "nearest_guess")
-    if objective not in OBJECTIVES:
+    if not isinstance(objective, str) or objective not in OBJECTIVES:
         raise ProblemError("objective", f"expected one of {', '.join(OBJECTIVES)}, got {objective!r}")
     problem = Problem(
         name=name,
@@ -157,13 +166,23 @@ def _number(value: Any, key: str) -> float:
     """A finite float; angles and rates may carry 'deg', 'rad', 'deg/s' or 'rad/s'."""
     quantity = key.rsplit(".", 1)[-1]
     if isinstance(value, str):
-        value = _with_unit(value, key, quantity)
+        value = _plain_or_with_unit(value, key, quantity)
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ProblemError(key, f"expected a number, got {type(value).__name__} {value!r}")
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:
+        raise ProblemError(key, "number too large") from None
     if not math.isfinite(value):
         raise ProblemError(key, f"expected a finite number, got {value}")
     return value
+
+
+def _plain_or_with_unit(text: str, key: str, quantity: str) -> float:
+    """A number YAML left as a string: '1e-8' (YAML 1.1 wants '1.0e-8') or '-90 deg'."""
+    if re.fullmatch(r"\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*", text):
+        return float(text)
+    return _with_unit(text, key, quantity)
 
 
 def _with_unit(text: str, key: str, quantity: str) -> float:
@@ -207,6 +226,10 @@ def _bounds(value: Any) -> dict[str, tuple[float, float]]:
         hi = math.inf if pair[1] is None else _number(pair[1], key)
         if lo > hi:
             raise ProblemError(key, f"lower bound {lo:g} exceeds upper bound {hi:g}")
+        if name in DEFAULT_BOUNDS:
+            physical_lo, physical_hi = DEFAULT_BOUNDS[name]
+            if max(lo, physical_lo) > min(hi, physical_hi):
+                raise ProblemError(key, f"[{lo:g}, {hi:g}] lies outside the physical range [{physical_lo:g}, {physical_hi:g}]")
         bounds[name] = (lo, hi)
     return bounds
 
@@ -240,6 +263,7 @@ def _check_consistency(problem: Problem) -> None:
         lo, hi = problem.bounds.get(name, (-math.inf, math.inf))
         if not lo <= value <= hi:
             raise ProblemError(f"guess.{name}", f"{value:g} lies outside bounds.{name} = [{lo:g}, {hi:g}]")
+    _check_energy(problem)
     theta_td = problem.start_value("theta_td")
     if not abs(theta_td) < math.pi / 2:
         key = "fix.theta_td" if "theta_td" in problem.fix else "guess.theta_td"
@@ -253,4 +277,30 @@ def _check_consistency(problem: Problem) -> None:
             key,
             f"apex height {z:g} m puts the foot below ground at apex (foot at {foot_height:.4g} m "
             f"with theta_h = {theta_h:.4g} rad, theta_td = {theta_td:.4g} rad)",
+        )
+
+
+def _check_energy(problem: Problem) -> None:
+    """A fixed apex energy must be reachable: E = m g z + m ydot^2/2 + I theta_h_dot^2/2."""
+    if "energy" not in problem.fix:
+        return
+    p, fix = problem.params, problem.fix
+    energy = fix["energy"]
+
+    def least(name: str) -> float:
+        """Smallest value of name (if fixed, its value) allowed by the bounds, in its term."""
+        if name in fix:
+            return fix[name] if name == "z" else fix[name] ** 2
+        lo, hi = problem.bounds.get(name, DEFAULT_BOUNDS[name])
+        lo, hi = max(lo, DEFAULT_BOUNDS[name][0]), min(hi, DEFAULT_BOUNDS[name][1])
+        return lo if name == "z" else (0.0 if lo <= 0.0 <= hi else min(lo * lo, hi * hi))
+
+    lowest = p.m * p.g * least("z") + 0.5 * p.m * least("ydot") + 0.5 * p.I * least("theta_h_dot")
+    tolerance = 1e-9 * max(1.0, abs(energy))
+    if energy < lowest - tolerance:
+        raise ProblemError("fix.energy", f"{energy:g} J is below the least apex energy {lowest:.6g} J that the other values allow")
+    if all(n in fix for n in ("z", "ydot", "theta_h_dot")) and energy > lowest + tolerance:
+        raise ProblemError(
+            "fix.energy",
+            f"{energy:g} J contradicts fix.z, fix.ydot and fix.theta_h_dot, which make it {lowest:.12g} J",
         )

@@ -38,6 +38,7 @@ from .model import (
     apex_to_flight,
     ballistic_flight,
     bottom_guard,
+    descent_foot_height,
     flight_to_apex,
     liftoff_guard,
     liftoff_map,
@@ -69,12 +70,15 @@ class Fall(str, Enum):
     STANCE_NEVER_ENDS = "stance never ends"
     LIFTOFF_DESCENDING = "liftoff with zdot <= 0"
     NOT_FINITE = "non-finite state"
+    INTEGRATION_FAILED = "integration failed"
 
 
 # Augmented stance state: the mechanical state, a clock, the bottom time and a phase flag.
 STANCE_RUN = Layout(STANCE.names + ("clock", "t_bottom", "phase"))
 # Phase flag values; falls are frozen with their own flag.
 COMPRESSION, DECOMPRESSION, LIFTED_OFF = 0.0, 1.0, 2.0
+# Scalar outputs of the stride function that decide whether and how it fell.
+DIAGNOSTICS = ("phase", "rhodot_td", "zdot_lo", "foot_height_td", "com_height_td")
 # Event indicators, in this order; each becomes negative at its event.
 EVENTS = ("bottom", "liftoff", "com_ground", "hip_ground", "collapse")
 _FALL_OF_PHASE = {
@@ -180,9 +184,9 @@ class ReturnMap:
             self._jacobian_fn = ca.Function(
                 "return_map_jacobian",
                 [X, u, p, t_guess],
-                [ca.jacobian(apex_next, ca.vertcat(X, u))],
+                [ca.jacobian(apex_next, ca.vertcat(X, u)), *self._stride_fn(X, u, p, t_guess)],
                 ["X", "u", "p", "t_touchdown_guess"],
-                ["dr_dXu"],
+                ["dr_dXu", "apex", "durations", "diagnostics"],
             )
 
     # -- construction ------------------------------------------------------------------
@@ -193,7 +197,8 @@ class ReturnMap:
         foot_height = touchdown_guard(ballistic_flight(apex_to_flight(X), t, p), touchdown_angle(u), p)
         residual = ca.Function("touchdown_residual", [t, ca.vertcat(X, u, p)], [foot_height])
         return ca.rootfinder(
-            "touchdown_time", "newton", residual, {"abstol": 1e-15, "max_iter": 50, "error_on_fail": False}
+            "touchdown_time", "newton", residual,
+            {"abstol": 1e-15, "abstolStep": 1e-16, "max_iter": 50, "error_on_fail": False},
         )
 
     def _build_stance_integrator(self) -> ca.Function:
@@ -232,7 +237,7 @@ class ReturnMap:
         durations = ca.vertcat(t_descent, t_bottom, t_stance - t_bottom, zdot_lo / PARAMS.get(p, "g"))
         diagnostics = ca.vertcat(
             STANCE_RUN.get(s_end, "phase"), bottom_guard(x_td), zdot_lo,
-            touchdown_guard(at_touchdown, theta_td, p),
+            touchdown_guard(at_touchdown, theta_td, p), FLIGHT.get(at_touchdown, "z"),
         )
         return ca.Function(
             "stride", [X, u, p, t_guess], [apex_next, durations, diagnostics],
@@ -247,53 +252,57 @@ class ReturnMap:
 
         Returns None when the foot cannot reach the ground. The foot height is
         h(t) = c - g t^2/2 - d sin(theta_h + w t) with c = z - rho0 cos(theta_td), so
-        h < 0 for all t > sqrt(2 (c + d) / g): the first root lies in that bracket.
+        h < 0 for all t > sqrt(2 (c + d) / g): the first root lies in that bracket. The
+        rootfinder then converges on it from this guess.
         """
-        a, c_, pr = APEX.unpack(X), CONTROL.unpack(u), PARAMS.unpack(p)
-        if not abs(c_["theta_td"]) < math.pi / 2:
+        a, pr = APEX.unpack(X), PARAMS.unpack(p)
+        theta_td = CONTROL.get(u, "theta_td")
+        if not abs(theta_td) < math.pi / 2:
             return None
-        clearance = a["z"] - pr["rho0"] * math.cos(c_["theta_td"])
 
-        def foot_height(t):
-            return clearance - 0.5 * pr["g"] * t * t - pr["d"] * math.sin(a["theta_h"] + a["theta_h_dot"] * t)
+        def height(t):
+            return descent_foot_height(
+                t, a["z"], a["theta_h"], a["theta_h_dot"], theta_td, pr["d"], pr["rho0"], pr["g"]
+            )
 
+        clearance = a["z"] - pr["rho0"] * math.cos(theta_td)
         t_max = math.sqrt(2.0 * max(clearance + pr["d"], 0.0) / pr["g"]) + 1e-9
         grid = np.linspace(0.0, t_max, 257)
-        heights = np.array([foot_height(t) for t in grid])
-        below = np.nonzero(heights[1:] <= 0.0)[0]
+        below = np.nonzero(height(grid[1:]) <= 0.0)[0]
         if len(below) == 0:
             return None
         lo, hi = grid[below[0]], grid[below[0] + 1]
-        for _ in range(60):
+        while hi - lo > 1e-15 * hi:  # to round-off: the rootfinder then only confirms it
             mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if foot_height(mid) > 0 else (lo, mid)
+            if not lo < mid < hi:
+                break
+            lo, hi = (mid, hi) if height(mid) > 0 else (lo, mid)
         return 0.5 * (lo + hi)
+
+    def _start(self, X, u, p) -> tuple[Stride | None, float | None]:
+        """Checks before any integration: a fall found already, or the touchdown guess."""
+        if not (np.all(np.isfinite(X)) and np.all(np.isfinite(u)) and np.all(np.isfinite(p))):
+            return Stride(None, {}, Fall.NOT_FINITE), None
+        a, pr = APEX.unpack(X), PARAMS.unpack(p)
+        theta_td = CONTROL.get(u, "theta_td")
+        if descent_foot_height(0.0, a["z"], a["theta_h"], 0.0, theta_td, pr["d"], pr["rho0"], pr["g"]) < 0.0:
+            return Stride(None, {}, Fall.FOOT_BELOW_GROUND), None
+        t_guess = self.touchdown_guess(X, u, p)
+        if t_guess is None:
+            return Stride(None, {}, Fall.NO_TOUCHDOWN), None
+        return None, t_guess
 
     def stride(self, X, u, params) -> Stride:
         """One apex-to-apex stride from apex ``X`` under control ``u`` with ``params``."""
         X, u, p = _vec(X), _vec(u), _param_vector(params)
-        foot_height = X[0] - p[PARAMS.index("d")] * math.sin(X[1]) - p[PARAMS.index("rho0")] * math.cos(u[4])
-        if not np.all(np.isfinite(X)) or not np.all(np.isfinite(u)):
-            return Stride(None, {}, Fall.NOT_FINITE)
-        if foot_height < 0.0:
-            return Stride(None, {}, Fall.FOOT_BELOW_GROUND)
-        t_guess = self.touchdown_guess(X, u, p)
-        if t_guess is None:
-            return Stride(None, {}, Fall.NO_TOUCHDOWN)
-        apex, durations, diagnostics = (np.asarray(v).ravel() for v in self._stride_fn(X, u, p, t_guess))
-        phase, rhodot_td, zdot_lo, _ = diagnostics
-        reached = dict(zip(PHASES, durations.tolist()))
-        if rhodot_td >= 0.0:
-            return Stride(None, {"descent": reached["descent"]}, Fall.LEG_EXTENDING_AT_TOUCHDOWN)
-        if phase in _FALL_OF_PHASE:
-            return Stride(None, {"descent": reached["descent"]}, _FALL_OF_PHASE[phase])
-        if phase != LIFTED_OFF:
-            return Stride(None, {"descent": reached["descent"]}, Fall.STANCE_NEVER_ENDS)
-        if zdot_lo <= 0.0:
-            return Stride(None, {k: reached[k] for k in PHASES[:3]}, Fall.LIFTOFF_DESCENDING)
-        if not np.all(np.isfinite(apex)):
-            return Stride(None, reached, Fall.NOT_FINITE)
-        return Stride(apex, reached, None)
+        fallen, t_guess = self._start(X, u, p)
+        if fallen is not None:
+            return fallen
+        try:
+            outputs = self._stride_fn(X, u, p, t_guess)
+        except RuntimeError:  # CasADi reports an integrator or rootfinder failure
+            return Stride(None, {}, Fall.INTEGRATION_FAILED)
+        return _outcome(*(np.asarray(v).ravel() for v in outputs))
 
     def __call__(self, X, u, params) -> np.ndarray:
         """r(X, u): the next apex; raises :class:`RunnerFell` if the stride falls."""
@@ -303,12 +312,22 @@ class ReturnMap:
         return result.apex
 
     def jacobians(self, X, u, params) -> tuple[np.ndarray, np.ndarray]:
-        """(dr/dX, dr/du) by algorithmic differentiation through the event times."""
+        """(dr/dX, dr/du) by algorithmic differentiation through the event times.
+
+        Raises :class:`RunnerFell` if the stride falls: there is no Jacobian then.
+        """
         X, u, p = _vec(X), _vec(u), _param_vector(params)
-        t_guess = self.touchdown_guess(X, u, p)
-        if t_guess is None:
-            raise RunnerFell(Fall.NO_TOUCHDOWN)
-        jac = np.asarray(self._jacobian_fn(X, u, p, t_guess))
+        fallen, t_guess = self._start(X, u, p)
+        if fallen is not None:
+            raise RunnerFell(fallen.fall)
+        try:
+            jac, *outputs = self._jacobian_fn(X, u, p, t_guess)
+        except RuntimeError:
+            raise RunnerFell(Fall.INTEGRATION_FAILED) from None
+        outcome = _outcome(*(np.asarray(v).ravel() for v in outputs))
+        if outcome.fall is not None:
+            raise RunnerFell(outcome.fall)
+        jac = np.asarray(jac)
         return jac[:, : APEX.size], jac[:, APEX.size :]
 
     def simulate(self, X0, u, params, strides: int) -> Simulation:
@@ -321,6 +340,30 @@ class ReturnMap:
             apexes.append(result.apex)
             durations.append(result.durations)
         return Simulation(np.array(apexes), durations)
+
+
+def _outcome(apex, durations, diagnostics) -> Stride:
+    """Classify a stride's outputs: the next apex, or the reason the runner fell."""
+    d = dict(zip(DIAGNOSTICS, diagnostics))
+    reached = dict(zip(PHASES, durations.tolist()))
+    descent_only = {"descent": reached["descent"]}
+    if not abs(d["foot_height_td"]) <= 1e-10 or not reached["descent"] > 0.0:
+        return Stride(None, {}, Fall.NO_TOUCHDOWN)
+    # Descent lowers the CoM monotonically, so touchdown is its lowest point in flight;
+    # an underground start would never trigger the stance's crossing events.
+    if d["com_height_td"] <= 0.0:
+        return Stride(None, descent_only, Fall.COM_HITS_GROUND)
+    if d["rhodot_td"] >= 0.0:
+        return Stride(None, descent_only, Fall.LEG_EXTENDING_AT_TOUCHDOWN)
+    if d["phase"] in _FALL_OF_PHASE:
+        return Stride(None, descent_only, _FALL_OF_PHASE[d["phase"]])
+    if d["phase"] != LIFTED_OFF:
+        return Stride(None, descent_only, Fall.STANCE_NEVER_ENDS)
+    if d["zdot_lo"] <= 0.0:
+        return Stride(None, {k: reached[k] for k in PHASES[:3]}, Fall.LIFTOFF_DESCENDING)
+    if not np.all(np.isfinite(apex)):
+        return Stride(None, reached, Fall.NOT_FINITE)
+    return Stride(apex, reached, None)
 
 
 class RunnerFell(RuntimeError):

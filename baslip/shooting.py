@@ -51,40 +51,8 @@ from .model import (
     touchdown_guard_rate,
     touchdown_map,
 )
+from .quantities import DEFAULT_BOUNDS, DESIGN, NOMINAL, OBJECTIVES, start_value
 from .returnmap import COLLAPSE_FRACTION, PHASES, ReturnMap
-
-#: Quantities of a fixed-point problem that can be fixed, bounded or guessed.
-DESIGN = APEX.names + CONTROL.names
-QUANTITIES = DESIGN + ("energy",)
-
-#: Scale of each design quantity for the ``nearest_guess`` distance [its unit].
-NOMINAL = {
-    "z": 0.1, "theta_h": 0.1, "ydot": 0.1, "theta_h_dot": 1.0,
-    "Kp": 1.0, "Kd": 0.1, "theta2_des": 0.1, "theta2_dot_des": 1.0, "theta_td": 0.1,
-}
-
-#: Physical bounds of each design quantity, intersected with a problem's own bounds.
-DEFAULT_BOUNDS = {
-    "z": (0.0, 10.0),
-    "theta_h": (-2 * np.pi, 2 * np.pi),
-    "ydot": (-20.0, 20.0),
-    "theta_h_dot": (-100.0, 100.0),
-    "Kp": (-1e3, 1e3),
-    "Kd": (-1e2, 1e2),
-    "theta2_des": (-2 * np.pi, 2 * np.pi),
-    "theta2_dot_des": (-100.0, 100.0),
-    "theta_td": (-1.5, 1.5),
-}
-
-#: Objectives: ``nearest_guess`` (scaled distance to the guess), ``min_torque`` (integral
-#: of tau^2 dt over stance, with a 1e-6 nearest-guess term to make the minimiser unique),
-#: ``feasibility`` (no objective).
-OBJECTIVES = {
-    "nearest_guess": (1.0, 0.0),
-    "min_torque": (1e-6, 1.0),
-    "feasibility": (0.0, 0.0),
-}
-
 
 @dataclass(frozen=True)
 class ShootingOptions:
@@ -110,6 +78,17 @@ class FixedPointSpec:
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     objective: str = "nearest_guess"
 
+    def bounds_of(self, name: str) -> tuple[float, float]:
+        """Bounds of a design quantity: the problem's, inside the physical ones."""
+        lo, hi = DEFAULT_BOUNDS[name]
+        if name in self.bounds:
+            lo, hi = max(lo, self.bounds[name][0]), min(hi, self.bounds[name][1])
+        return lo, hi
+
+    def start_design(self) -> np.ndarray:
+        """Starting value of each design quantity (fixed, guessed, or default in bounds)."""
+        return np.array([start_value(n, self.fixed, self.guess, self.bounds) for n in DESIGN])
+
 
 @dataclass(frozen=True)
 class NlpSolution:
@@ -118,7 +97,6 @@ class NlpSolution:
     X: np.ndarray
     u: np.ndarray
     durations: np.ndarray
-    success: bool
     return_status: str
     iterations: int
     time_s: float
@@ -193,8 +171,9 @@ class ShootingNLP:
         constrain(bottom_guard(bottom), 0, 0)
         rho_accel = STANCE.get(stance_dynamics(bottom, hip_torque(bottom, u), p), "rhodot")
         constrain(rho_accel, opt.margin, ca.inf)
-        # The leg shortens until the bottom: rhodot <= 0 at touchdown and interior nodes.
-        constrain(bottom_guard(starts_c), -ca.inf, 0)
+        # The leg shortens from touchdown (transversally) until the bottom.
+        constrain(bottom_guard(x_td), -ca.inf, -opt.margin)
+        constrain(bottom_guard(comp_nodes[:, :-1]), -ca.inf, 0)
 
         starts_d = ca.horzcat(bottom, decomp_nodes[:, :-1])
         ends_d, effort_d = interval.map(n)(starts_d, u, p, t_decompression / n)
@@ -243,7 +222,6 @@ class ShootingNLP:
             {"ipopt": ipopt, "print_time": False, "error_on_fail": False, "expand": True},
         )
         self.interval = interval
-        self._effort = ca.Function("effort", [w, params], [effort])
 
     # -- solving -----------------------------------------------------------------------
 
@@ -251,9 +229,7 @@ class ShootingNLP:
         lbx = np.full(self._n_w, -np.inf)
         ubx = np.full(self._n_w, np.inf)
         for i, name in enumerate(DESIGN):
-            lo, hi = DEFAULT_BOUNDS[name]
-            if name in spec.bounds:
-                lo, hi = max(lo, spec.bounds[name][0]), min(hi, spec.bounds[name][1])
+            lo, hi = spec.bounds_of(name)
             if name in spec.fixed:
                 lo = hi = spec.fixed[name]
             lbx[i], ubx[i] = lo, hi
@@ -264,7 +240,7 @@ class ShootingNLP:
 
     def initial_guess(self, spec: FixedPointSpec, rmap: ReturnMap | None = None) -> np.ndarray:
         """Initial point: the guess's design, its simulated durations, RK4-propagated nodes."""
-        design = np.array([spec.fixed.get(name, spec.guess.get(name, 0.0)) for name in DESIGN])
+        design = spec.start_design()
         X, u = design[: APEX.size], design[APEX.size :]
         p = spec.params.vector()
         durations = _guess_durations(X, u, spec.params, rmap)
@@ -280,7 +256,7 @@ class ShootingNLP:
             w0 = self.initial_guess(spec, rmap)
         lbx, ubx = self._bounds(spec)
         w0 = np.clip(w0, lbx, ubx)
-        guess = np.array([spec.fixed.get(name, spec.guess.get(name, 0.0)) for name in DESIGN])
+        guess = spec.start_design()
         weights = np.array(OBJECTIVES[spec.objective])
         lbg, ubg = self._lbg.copy(), self._ubg.copy()
         energy_bounds = spec.bounds.get("energy", (-np.inf, np.inf))
@@ -296,13 +272,11 @@ class ShootingNLP:
         elapsed = time.perf_counter() - start
         stats = self._solver.stats()
         w = np.asarray(sol["x"]).ravel()
-        self.last_w = w
         n_design = len(DESIGN)
         return NlpSolution(
             X=w[: APEX.size],
             u=w[APEX.size : n_design],
             durations=w[n_design : n_design + len(PHASES)],
-            success=bool(stats["success"]),
             return_status=str(stats["return_status"]),
             iterations=int(stats["iter_count"]),
             time_s=elapsed,

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+import tempfile
 from pathlib import Path
 
 from .fixedpoint import VERIFY_EPS, FixedPointResult
@@ -17,8 +18,15 @@ from .problem import ProblemError, load_problem
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
 
 
+class _OneLineParser(argparse.ArgumentParser):
+    """Usage errors as one line on stderr and exit code 2, like every other bad input."""
+
+    def error(self, message: str):
+        self.exit(EXIT_BAD_INPUT, f"error: {message} (see --help)\n")
+
+
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _OneLineParser(
         prog="python -m baslip.solve",
         description=(
             "Find a periodic running gait (a fixed point of the apex return map) of the "
@@ -52,7 +60,7 @@ def summary(result: FixedPointResult) -> str:
         f"  energy   {result.energy:.9g} J",
     ]
     if result.residual is not None:
-        lines.append(f"  residual eps = {result.residual:.3e} (independent re-simulation, rtol = atol = 1e-12)")
+        lines.append(f"  residual eps = {result.residual:.3e} ({result.residual_source})")
     if result.stability is not None:
         parts = []
         for m in result.stability.multipliers:
@@ -72,22 +80,45 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {args.problem}: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
     out_dir = args.out if args.out is not None else Path("results") / problem.name
-    if out_dir.exists() and not out_dir.is_dir():
-        print(f"error: --out {out_dir}: exists and is not a folder", file=sys.stderr)
+    unwritable = _unwritable(out_dir)
+    if unwritable:
+        print(f"error: output folder {out_dir}: {unwritable}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    try:
+        return _solve_and_write(problem, out_dir, args.quiet)
+    except Exception as err:  # a bug, not a result: say so in one line, write nothing
+        print(f"error: {problem.name}: internal error: {type(err).__name__}: {err}".splitlines()[0], file=sys.stderr)
+        return EXIT_NOT_CONVERGED
+
+
+def _unwritable(out_dir: Path) -> str | None:
+    """Why results could not be written to ``out_dir``, checked before the solve."""
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out_dir):
+            pass
+    except OSError as err:
+        return err.strerror or str(err)
+    return None
+
+
+def _solve_and_write(problem, out_dir: Path, quiet: bool) -> int:
     from .api import shooting_options, solve_problem
     from .fixedpoint import FixedPointSolver
-    from .output import write_result
+    from .output import RESULT_FILES, write_result
 
-    if not args.quiet:
+    for stale in RESULT_FILES:  # never leave an older run's result beside this one
+        (out_dir / stale).unlink(missing_ok=True)
+
+    if not quiet:
         s = problem.solver
         print(f"{problem.name}: building the model and NLP ({s.nodes} nodes x {s.substeps} RK4 steps per stance phase)...", file=sys.stderr)
     solver = FixedPointSolver(shooting_options(problem))
-    if not args.quiet:
+    if not quiet:
         print(f"{problem.name}: solving ({problem.objective}) and verifying...", file=sys.stderr)
     result = solve_problem(problem, solver)
     written = write_result(result, out_dir)
-    if not args.quiet:
+    if not quiet:
         print(summary(result))
         print(f"  wrote {', '.join(str(p) for p in written)}")
     return EXIT_OK if result.converged else EXIT_NOT_CONVERGED

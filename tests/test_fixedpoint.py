@@ -24,10 +24,12 @@ def eps(X, apex):
     return np.linalg.norm(apex - X) / np.linalg.norm(X)
 
 
+RECHECK_MAP = ReturnMap(Tolerances(1e-13, 1e-13))
+
+
 def recheck(result):
-    """Re-simulate with a map the solver did not use (erk at 1e-12, freshly built)."""
-    apex = ReturnMap(Tolerances(1e-12, 1e-12))(result.X, result.u, result.params)
-    return eps(result.X, apex)
+    """Re-simulate with settings the solver uses nowhere (erk at rtol = atol = 1e-13)."""
+    return eps(result.X, RECHECK_MAP(result.X, result.u, result.params))
 
 
 @pytest.fixture(scope="module")
@@ -115,3 +117,14 @@ def test_disagreeing_re_simulation_is_not_verified(solver):
         solver.verify_map = strict
     assert result.status == "not_verified" and "eps" in result.message
     assert result.residual > 1e-10 and result.stability is None
+
+
+def test_an_energy_bound_holds_after_the_polish(solver):
+    spec = FixedPointSpec(
+        Params(), fixed={"ydot": 0.5}, guess={**DOWNWARD_GUESS, "z": 0.4},
+        bounds={**HANGING, "energy": (-math.inf, 4.0)},
+    )
+    result = solver.solve(spec)
+    assert result.status == "converged", result.message
+    assert result.energy <= 4.0 + 1e-10
+    assert recheck(result) <= 1e-10

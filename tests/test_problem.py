@@ -8,7 +8,8 @@ import math
 
 import pytest
 
-from baslip.problem import DEFAULT_GUESS, ProblemError, load_problem, parse_problem
+from baslip.problem import ProblemError, load_problem, parse_problem
+from baslip.quantities import DEFAULT_GUESS
 
 VALID = {
     "name": "ok",
@@ -74,12 +75,20 @@ def test_shipped_problems_load():
         (with_(solver={"nodes": 1}), "solver.nodes", "integer"),
         (with_(solver={"tol": -1.0}), "solver.tol", "positive"),
         (with_(name="a b/c"), "name", "name"),
+        (with_(name=".."), "name", "name"),
+        (with_(objective=["min_torque"]), "objective", "expected one of"),
+        (with_(fix={"z": 10**400}), "fix.z", "too large"),
+        (with_(fix={"z\nq": 0.4}), "fix.z\\nq", "unknown key"),
+        (with_(bounds={"z": [12, 20]}), "bounds.z", "physical range"),
+        (with_(bounds={"theta_td": [1.52, 1.56]}), "bounds.theta_td", "physical range"),
+        (with_(fix={"energy": 1.0}), "fix.energy", "below the least apex energy"),
+        (with_(fix={"energy": 5.0, "theta_h_dot": 0.0}), "fix.energy", "contradicts"),
     ],
 )
 def test_bad_input_names_the_key(data, key, words):
     with pytest.raises(ProblemError) as err:
         parse_problem(data)
-    assert err.value.key == key
+    assert err.value.key.replace("\n", "\\n") == key
     assert words in str(err.value)
     assert "\n" not in str(err.value)
 
@@ -101,3 +110,40 @@ def test_top_level_must_be_a_mapping(tmp_path):
     path.write_text("- 1\n- 2\n")
     with pytest.raises(ProblemError, match="expected a mapping"):
         load_problem(path)
+
+
+def test_numbers_yaml_leaves_as_strings_are_read(tmp_path):
+    """YAML 1.1 reads 1e-8 (no dot) as a string; it is still a number here."""
+    path = tmp_path / "p.yaml"
+    path.write_text("solver: {tol: 1e-8}\nfix: {z: 4e-1, ydot: 0.5}\n")
+    problem = load_problem(path)
+    assert problem.solver.tol == 1e-8 and problem.fix["z"] == 0.4
+
+
+def test_defaults_are_clipped_into_the_bounds():
+    """theta_h defaults to +90 deg; with bounds around -90 deg it starts inside them."""
+    problem = parse_problem({"fix": {"z": 0.23, "ydot": 0.5}, "bounds": {"theta_h": ["-100 deg", "-80 deg"]}})
+    assert problem.start_value("theta_h") == pytest.approx(math.radians(-80))
+
+
+@pytest.mark.parametrize(
+    "content, words",
+    [
+        (b"", "empty"),
+        (b"\xff\xfe fix", "not UTF-8"),
+        (b"[" * 5000, "malformed YAML"),
+        (b"fix: {z: 0.4}\nfix: {z: 0.5}\n", "duplicate key"),
+    ],
+)
+def test_unreadable_files_are_one_line_errors(tmp_path, content, words):
+    path = tmp_path / "p.yaml"
+    path.write_bytes(content)
+    with pytest.raises(ProblemError) as err:
+        load_problem(path)
+    assert words in str(err.value) and "\n" not in str(err.value)
+
+
+def test_default_name_comes_from_a_sanitised_file_name(tmp_path):
+    path = tmp_path / "sp ace.yaml"
+    path.write_text("fix: {z: 0.4}\n")
+    assert load_problem(path).name == "sp_ace"

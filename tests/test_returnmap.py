@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from baslip import Fall, Params, ReturnMap, Tolerances
+from baslip.returnmap import RunnerFell
 from baslip.model import build_model
 
 MODEL = build_model()
@@ -118,6 +119,20 @@ def test_event_location_is_independent_of_the_integrator(params, running_point):
 def test_falls_are_named_outcomes(tight_map, params, X, u, fall):
     stride = tight_map.stride(X, u, params)
     assert stride.fall is fall and stride.apex is None
+
+
+def test_a_com_already_underground_at_touchdown_is_a_fall(tight_map):
+    """A long hip offset hangs the CoM below the foot: no crossing event would see it."""
+    stride = tight_map.stride([0.3, -math.pi / 2, 0.0, 0.0], [0, 0, 0, 0, 0], Params(d=0.25))
+    assert stride.fall is Fall.COM_HITS_GROUND
+
+
+def test_integrator_failure_is_a_named_outcome(tight_map):
+    """A nearly massless trunk under a stiff PD law makes the integrator give up."""
+    X, u, params = [0.4, math.pi / 2, 0.5, 0.0], [2, 0.1, 0, 0, 0.1], Params(I=1e-9)
+    assert tight_map.stride(X, u, params).fall is Fall.INTEGRATION_FAILED
+    with pytest.raises(RunnerFell):
+        tight_map.jacobians(X, u, params)
 
 
 def test_simulate_returns_the_apex_sequence_or_the_fall(tight_map, params):

@@ -47,13 +47,14 @@ def test_default_output_folder_is_results_name(tmp_path):
     assert json.loads((tmp_path / "results" / "up_copy" / "result.json").read_text())["status"] == "converged"
 
 
-def test_solver_failure_exits_1_with_status_failed(tmp_path, capsys):
-    problem = tmp_path / "infeasible.yaml"
-    problem.write_text("name: infeasible\nfix: {z: 0.4, ydot: 0.5, energy: 1.0}\nguess: {theta_h: -1.57}\n")
+def test_solver_failure_exits_1_with_status_failed(tmp_path):
+    problem = tmp_path / "short.yaml"
+    text = (ROOT / "problems" / "downward.yaml").read_text().replace("max_iter: 300", "max_iter: 1")
+    problem.write_text(text)
     assert main([str(problem), "--out", str(tmp_path / "out"), "--quiet"]) == 1
     record = json.loads((tmp_path / "out" / "result.json").read_text())
-    assert record["status"] == "failed" and record["solver"]["return_status"] == "Infeasible_Problem_Detected"
-    assert record["eigenvalues"] is None
+    assert record["status"] == "failed" and record["solver"]["return_status"] == "Maximum_Iterations_Exceeded"
+    assert record["eigenvalues"] is None and record["stable"] is None
 
 
 BAD_INPUTS = {
@@ -69,6 +70,8 @@ BAD_INPUTS = {
     "foot_below_ground": ("fix: {z: 0.1}\n", "fix.z"),
     "fixed_outside_bounds": ("fix: {z: 0.9}\nbounds: {z: [0.3, 0.7]}\n", "fix.z"),
     "malformed": ("fix: {z: 0.4\n", "malformed YAML"),
+    "energy_too_low": ("fix: {z: 0.4, ydot: 0.5, energy: 1.0}\n", "fix.energy"),
+    "objective_list": ("objective: [min_torque]\n", "objective"),
 }
 
 
@@ -82,6 +85,20 @@ def test_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, capsys, ca
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("error: ") and key in err
     assert not out.exists()
+
+
+def test_unwritable_output_folder_exits_2_before_solving(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert main([str(ROOT / "problems" / "downward.yaml"), "--out", str(blocker / "sub")]) == 2
+    assert capsys.readouterr().err.startswith("error: output folder")
+
+
+def test_usage_errors_are_one_line(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main([str(ROOT / "problems" / "downward.yaml"), "--bogus"])
+    assert exit_info.value.code == 2
+    assert capsys.readouterr().err.count("\n") == 1
 
 
 def test_missing_file_exits_2(tmp_path, capsys):

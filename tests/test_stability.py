@@ -13,7 +13,7 @@ PD = [2.0, 0.5, 0.3, 0.0, 0.1]
 def test_trivial_multipliers_follow_from_structure():
     assert trivial_labels(Params(), PD) == []
     assert trivial_labels(Params(), NO_TORQUE) == ["energy"]
-    assert trivial_labels(Params(d=0.0), NO_TORQUE) == ["energy", "spin", "spin"]
+    assert trivial_labels(Params(d=0.0), NO_TORQUE) == ["spin", "spin", "energy"]
     assert trivial_labels(Params(d=0.0), PD) == []
 
 
@@ -34,15 +34,28 @@ def test_complex_pair_radius():
     assert sum(1 for m in result.multipliers if m.value.imag != 0) == 2
 
 
-def test_slip_limit_hop_has_three_unit_multipliers(tight_map):
-    """d = 0, no torque: energy and the free spin (a Jordan pair) give three multipliers at 1."""
+def test_free_spin_gives_a_unit_jordan_pair_at_any_apex(tight_map):
+    """d = 0, no torque: (theta_h, theta_h_dot) map as [[1, T], [0, 1]] at every apex.
+
+    The energy multiplier is 1 only at a fixed point (see test_slip_limit.py); here, away
+    from one, it is not, and so it is not labelled.
+    """
     params = Params(d=0.0)
     X, u = np.array([0.35, np.pi / 2, 0.6, 0.0]), np.array(NO_TORQUE)
-    # Not a fixed point, but the unit multipliers are structural, present at any apex.
     jac = tight_map.jacobians(X, u, params)[0]
     np.testing.assert_allclose(jac[:, 1], [0, 1, 0, 0], atol=1e-10)  # theta_h only shifts itself
     np.testing.assert_allclose(jac[3, :], [0, 0, 0, 1], atol=1e-10)  # the spin rate is kept
     assert jac[1, 3] > 0  # ... and turns theta_h by the stride time
-    result = classify(jac, params, u)
-    labelled = sorted(m.label for m in result.multipliers if m.trivial)
-    assert labelled == ["energy", "spin", "spin"]
+    labels = sorted(m.label for m in classify(jac, params, u).multipliers if m.trivial)
+    assert labels == ["spin", "spin"]
+
+
+def test_a_structural_label_needs_a_multiplier_near_one():
+    far = classify(np.diag([1.3, 0.5, 0.2, 0.1]), Params(), NO_TORQUE)
+    assert not any(m.trivial for m in far.multipliers)
+    assert far.spectral_radius == pytest.approx(1.3) and not far.stable
+
+
+def test_a_radius_within_the_margin_of_one_is_not_stable():
+    neutral = classify(np.diag([1.0 - 1e-9, 0.5, 0.2, 0.1]), Params(), PD)
+    assert not neutral.stable
