@@ -73,6 +73,7 @@ class FixedPointResult:
     stability: Stability | None
     polish_iterations: int = 0
     residual_source: str = ""  # which map measured ``residual``
+    nlp_w: np.ndarray | None = None  # IPOPT's point, to warm-start a neighbouring solve
 
     @property
     def converged(self) -> bool:
@@ -259,6 +260,7 @@ class FixedPointSolver:
             stability=stability,
             polish_iterations=polish_iterations,
             residual_source=source,
+            nlp_w=sol.w,
         )
 
 

@@ -28,11 +28,12 @@ import yaml
 
 from .model import PARAMS, Params
 from .quantities import DEFAULT_BOUNDS, DESIGN, OBJECTIVES, QUANTITIES, start_value
+from .studies.schema import Study, StudyError, parse_study
 
 ANGLES = ("theta_h", "theta2_des", "theta_td")
 RATES = ("theta_h_dot", "theta2_dot_des")
 POSITIVE_PARAMS = ("m", "I", "k", "rho0", "g")
-TOP_LEVEL_KEYS = ("name", "params", "fix", "guess", "bounds", "objective", "solver")
+TOP_LEVEL_KEYS = ("name", "params", "fix", "guess", "bounds", "objective", "solver", "study")
 
 class ProblemError(ValueError):
     """An invalid problem; ``key`` is the dotted path of the offending entry."""
@@ -70,6 +71,7 @@ class Problem:
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=lambda: MappingProxyType({}))
     objective: str = "nearest_guess"
     solver: SolverSettings = SolverSettings()
+    study: Study | None = None  # many solves or simulations instead of one fixed point
 
     def full_guess(self) -> dict[str, float]:
         """Starting value of every design quantity that is not fixed."""
@@ -143,6 +145,7 @@ def parse_problem(data: Any, default_name: str = "problem") -> Problem:
         bounds=MappingProxyType(bounds),
         objective=objective,
         solver=_solver(top.get("solver", {})),
+        study=_study(top["study"]) if "study" in top else None,
     )
     _check_consistency(problem)
     return problem
@@ -232,6 +235,13 @@ def _bounds(value: Any) -> dict[str, tuple[float, float]]:
                 raise ProblemError(key, f"[{lo:g}, {hi:g}] lies outside the physical range [{physical_lo:g}, {physical_hi:g}]")
         bounds[name] = (lo, hi)
     return bounds
+
+
+def _study(value: Any) -> Study:
+    try:
+        return parse_study(value, _number)
+    except StudyError as err:
+        raise ProblemError(err.key, str(err).split(": ", 1)[1]) from None
 
 
 def _solver(value: Any) -> SolverSettings:

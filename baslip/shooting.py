@@ -24,6 +24,8 @@ objective's weights enter as numbers, so one built solver serves every problem.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import time
 from dataclasses import dataclass, field
 from typing import Mapping
@@ -100,6 +102,7 @@ class NlpSolution:
     return_status: str
     iterations: int
     time_s: float
+    w: np.ndarray | None = None  # every NLP variable, to warm-start a neighbouring solve
 
 
 def _rk4_interval(substeps: int) -> ca.Function:
@@ -268,7 +271,10 @@ class ShootingNLP:
             lbg[row], ubg[row] = -np.inf, np.inf
         params = np.concatenate([spec.params.vector(), guess, weights])
         start = time.perf_counter()
-        sol = self._solver(x0=w0, p=params, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        # CasADi warns on stderr when a trial point gives NaN; IPOPT recovers or reports a
+        # failure status, which is what the caller sees.
+        with contextlib.redirect_stderr(io.StringIO()):
+            sol = self._solver(x0=w0, p=params, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
         elapsed = time.perf_counter() - start
         stats = self._solver.stats()
         w = np.asarray(sol["x"]).ravel()
@@ -280,6 +286,7 @@ class ShootingNLP:
             return_status=str(stats["return_status"]),
             iterations=int(stats["iter_count"]),
             time_s=elapsed,
+            w=w,
         )
 
 

@@ -1,0 +1,62 @@
+"""Convergence regions (thesis sec. 4.5, figs. 4.13-4.16), by simulation.
+
+For a stable fixed point (X*, u*), an apex state converges to it if, run with u*, it comes
+within ``tolerance`` of X* (relative, eq. 4.1) within ``strides`` strides. The region is
+mapped over a grid of (ydot, z), the other apex coordinates at X*'s values, for every
+stable point of a finished sweep; the union over them is thesis fig. 4.16.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..model import APEX, Params
+from ..returnmap import ReturnMap, Tolerances
+from .schema import Basin
+from .sweep import key_column
+
+#: Simulation accuracy: convergence is judged at 1e-6, far above the map's error.
+SIMULATION_TOLERANCES = Tolerances(1e-9, 1e-9)
+BASIN_COLUMNS = ["point", "outcome", "strides_run", "final_eps"]
+
+
+def basin_tasks(study: Basin, n_points: int) -> list[dict]:
+    """Every grid state for every stable point (snake order within a point)."""
+    ydots, zs = study.grid[0].values, study.grid[1].values
+    tasks = []
+    for point in range(n_points):
+        for i, ydot in enumerate(ydots):
+            for z in zs if i % 2 == 0 else reversed(zs):
+                tasks.append({"point": point, key_column("ydot"): ydot, key_column("z"): z})
+    return tasks
+
+
+def run_from(rmap: ReturnMap, X0, X_star, u_star, params: Params, strides: int, tolerance: float):
+    """Run u* from X0: ('converged' | 'fell' | 'bounded', strides run, final eps, apexes)."""
+    X_star = np.asarray(X_star, dtype=float)
+    apexes = [np.asarray(X0, dtype=float)]
+    for n in range(strides):
+        stride = rmap.stride(apexes[-1], u_star, params)
+        if not stride.ok:
+            return "fell", n, float("nan"), np.array(apexes)
+        apexes.append(stride.apex)
+        eps = float(np.linalg.norm(stride.apex - X_star) / np.linalg.norm(X_star))
+        if eps <= tolerance:
+            return "converged", n + 1, eps, np.array(apexes)
+    return "bounded", strides, eps, np.array(apexes)
+
+
+def basin_worker(chunk: list[dict], context: tuple, queue) -> None:
+    """Worker process: simulate each (point, ydot, z) task and put its row on the queue."""
+    points, params, strides, tolerance = context
+    try:
+        rmap = ReturnMap(SIMULATION_TOLERANCES)
+        for task in chunk:
+            X_star, u_star = points[int(task["point"])]
+            X0 = np.array(X_star, dtype=float)
+            X0[APEX.index("ydot")] = task[key_column("ydot")]
+            X0[APEX.index("z")] = task[key_column("z")]
+            outcome, n, eps, _ = run_from(rmap, X0, X_star, u_star, params, strides, tolerance)
+            queue.put({**task, "outcome": outcome, "strides_run": n, "final_eps": eps})
+    finally:
+        queue.put(None)

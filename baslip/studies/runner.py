@@ -1,0 +1,146 @@
+"""Running many independent tasks on both cores, resumably, with progress.
+
+* Each finished task becomes one CSV row, appended, flushed and synced at once, so an
+  interruption (Ctrl-C, a kill) loses only tasks that were still running.
+* On a rerun, rows already in the CSV are skipped: a finished study does no new work. A
+  last line cut short by a kill is dropped before appending.
+* Tasks are split into contiguous chunks, one per worker process, so that each worker can
+  warm-start a task from its previous one (the order of the tasks matters).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import multiprocessing
+import os
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Iterable, Sequence
+
+#: Number of worker processes (the machines this runs on have two cores).
+WORKERS = min(2, os.cpu_count() or 1)
+
+
+class ResumableCsv:
+    """A CSV file of result rows, keyed by some columns, that can be appended to safely."""
+
+    def __init__(self, path: Path, columns: Sequence[str], key_columns: Sequence[str]):
+        self.path, self.columns, self.key_columns = Path(path), list(columns), list(key_columns)
+        self.rows: list[dict[str, str]] = []
+        if self.path.exists():
+            self._load()
+        else:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._write_text(",".join(self.columns) + "\n", mode="w")
+
+    def _load(self) -> None:
+        raw = self.path.read_bytes()
+        if raw and not raw.endswith(b"\n"):  # a row cut short by a kill: drop it
+            raw = raw[: raw.rfind(b"\n") + 1]
+            with open(self.path, "r+b") as handle:
+                handle.truncate(len(raw))
+        reader = csv.DictReader(io.StringIO(raw.decode()))
+        if reader.fieldnames != self.columns:
+            raise ValueError(f"{self.path} has columns {reader.fieldnames}, expected {self.columns}; move it away to start afresh")
+        self.rows = list(reader)
+
+    def key(self, row: dict) -> tuple[str, ...]:
+        return tuple(format_value(row[c]) for c in self.key_columns)
+
+    def done(self) -> set[tuple[str, ...]]:
+        return {self.key(row) for row in self.rows}
+
+    def append(self, row: dict) -> None:
+        line = io.StringIO()
+        csv.writer(line, lineterminator="\n").writerow([format_value(row.get(c, "")) for c in self.columns])
+        self._write_text(line.getvalue(), mode="a")
+        self.rows.append({c: format_value(row.get(c, "")) for c in self.columns})
+
+    def _write_text(self, text: str, mode: str) -> None:
+        with open(self.path, mode) as handle:
+            handle.write(text)
+            handle.flush()
+            os.fsync(handle.fileno())
+
+
+def format_value(value) -> str:
+    """A CSV cell: floats with full precision, booleans as true/false, None as empty."""
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(round(value, 12)) if abs(value) < 1e12 else repr(value)
+    return str(value)
+
+
+@dataclass(frozen=True)
+class RunReport:
+    """How a run went: tasks in total, already done before, run now, and its wall time."""
+
+    total: int
+    skipped: int
+    ran: int
+    wall_time_s: float
+    interrupted: bool
+
+
+def run_tasks(
+    tasks: Sequence[dict],
+    worker: Callable[[list[dict], object, "multiprocessing.Queue"], None],
+    context: object,
+    table: ResumableCsv,
+    label: str,
+    workers: int = WORKERS,
+    quiet: bool = False,
+) -> RunReport:
+    """Run the tasks not yet in ``table`` with ``worker(chunk, context, queue)`` in
+    ``workers`` processes; each worker puts one row per task, then None, on the queue."""
+    done = table.done()
+    todo = [t for t in tasks if table.key(t) not in done]
+    skipped = len(tasks) - len(todo)
+    start = time.perf_counter()
+    if not todo:
+        return RunReport(len(tasks), skipped, 0, 0.0, False)
+    chunks = [c for c in _chunks(todo, workers) if c]
+    ctx = multiprocessing.get_context("spawn")
+    queue = ctx.Queue()
+    processes = [ctx.Process(target=worker, args=(chunk, context, queue), daemon=True) for chunk in chunks]
+    for process in processes:
+        process.start()
+    finished, ran = 0, 0
+    try:
+        while finished < len(processes):
+            row = queue.get()
+            if row is None:
+                finished += 1
+                continue
+            table.append(row)
+            ran += 1
+            if not quiet:
+                _progress(label, skipped + ran, len(tasks), ran, time.perf_counter() - start)
+    except KeyboardInterrupt:
+        for process in processes:
+            process.terminate()
+        if not quiet:
+            print(f"\n{label}: interrupted; {skipped + ran} of {len(tasks)} rows are saved", file=sys.stderr)
+        return RunReport(len(tasks), skipped, ran, time.perf_counter() - start, True)
+    for process in processes:
+        process.join()
+    if not quiet:
+        print(file=sys.stderr)
+    return RunReport(len(tasks), skipped, ran, time.perf_counter() - start, False)
+
+
+def _chunks(items: Sequence, n: int) -> Iterable[list]:
+    size = -(-len(items) // n)
+    return [list(items[i : i + size]) for i in range(0, len(items), size)]
+
+
+def _progress(label: str, done: int, total: int, ran: int, elapsed: float) -> None:
+    rate = ran / elapsed if elapsed > 0 else 0.0
+    eta = (total - done) / rate if rate > 0 else float("inf")
+    print(f"\r{label}: {done}/{total} done, {rate:.2f}/s, about {eta:.0f} s left   ", end="", file=sys.stderr, flush=True)

@@ -1,0 +1,163 @@
+"""The ``study:`` section of a problem file, validated into frozen dataclasses.
+
+Kinds:
+
+* ``sweep``: fixed points over a grid of one or two quantities,
+  ``vary: {ydot: [start, stop, step], z: [start, stop, step]}`` (both ends included);
+* ``random``: ``count`` fixed points at random values of the two quantities of a finished
+  sweep (``region``), inside its stable region; ``seed`` makes the draw repeatable;
+* ``basin``: convergence regions, by simulation, of the stable fixed points of a finished
+  sweep (``source``) over a ``grid`` of (ydot, z) apex states; ``stable_at`` and
+  ``unstable_at`` pick the example points; ``strides`` and ``tolerance`` decide convergence;
+* ``adaptive``: re-solve the control at every apex for ``strides`` strides from the
+  problem's fixed point, then hold the last control for at most ``frozen_strides``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..quantities import DESIGN
+
+
+class StudyError(ValueError):
+    """An invalid study section; ``key`` is the dotted path of the offending entry."""
+
+    def __init__(self, key: str, message: str):
+        super().__init__(f"{key}: {message}".replace("\n", "\\n"))
+        self.key = key
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One swept quantity and its values (SI units and radians)."""
+
+    name: str
+    values: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Sweep:
+    axes: tuple[Axis, ...]
+    kind: str = "sweep"
+
+
+@dataclass(frozen=True)
+class RandomSample:
+    region: str  # name of a finished two-quantity sweep
+    count: int
+    seed: int = 0
+    kind: str = "random"
+
+
+@dataclass(frozen=True)
+class Basin:
+    source: str  # name of a finished (ydot, z) sweep
+    grid: tuple[Axis, Axis]  # ydot and z of the initial apex states
+    stable_at: tuple[float, float]  # (ydot, z) near the stable example
+    unstable_at: tuple[float, float]  # (ydot, z) near the unstable example
+    strides: int = 40
+    tolerance: float = 1e-6
+    kind: str = "basin"
+
+
+@dataclass(frozen=True)
+class Adaptive:
+    strides: int = 2048
+    frozen_strides: int = 1000
+    kind: str = "adaptive"
+
+
+Study = Sweep | RandomSample | Basin | Adaptive
+KINDS = ("sweep", "random", "basin", "adaptive")
+
+
+def parse_study(data, number) -> Study:
+    """Validate a ``study`` mapping; ``number(value, key)`` parses one number with units."""
+    if not isinstance(data, dict):
+        raise StudyError("study", f"expected a mapping, got {type(data).__name__}")
+    kind = data.get("kind")
+    if kind not in KINDS:
+        raise StudyError("study.kind", f"expected one of {', '.join(KINDS)}, got {kind!r}")
+    allowed = {
+        "sweep": ("kind", "vary"),
+        "random": ("kind", "region", "count", "seed"),
+        "basin": ("kind", "source", "grid", "stable_at", "unstable_at", "strides", "tolerance"),
+        "adaptive": ("kind", "strides", "frozen_strides"),
+    }[kind]
+    for key in data:
+        if key not in allowed:
+            raise StudyError(f"study.{key}", f"unknown key for a {kind} study (expected one of {', '.join(allowed)})")
+    if kind == "sweep":
+        axes = _axes(data.get("vary"), "study.vary", number, DESIGN)
+        if not 1 <= len(axes) <= 2:
+            raise StudyError("study.vary", f"expected one or two quantities, got {len(axes)}")
+        return Sweep(axes)
+    if kind == "random":
+        return RandomSample(
+            region=_name(data.get("region"), "study.region"),
+            count=_integer(data.get("count"), "study.count", 1, 100000),
+            seed=_integer(data.get("seed", 0), "study.seed", 0, 2**31 - 1),
+        )
+    if kind == "basin":
+        grid = _axes(data.get("grid"), "study.grid", number, ("ydot", "z"))
+        if tuple(a.name for a in grid) != ("ydot", "z"):
+            raise StudyError("study.grid", "expected ydot and z, in that order")
+        return Basin(
+            source=_name(data.get("source"), "study.source"),
+            grid=(grid[0], grid[1]),
+            stable_at=_pair(data.get("stable_at"), "study.stable_at", number),
+            unstable_at=_pair(data.get("unstable_at"), "study.unstable_at", number),
+            strides=_integer(data.get("strides", 40), "study.strides", 1, 100000),
+            tolerance=_positive(data.get("tolerance", 1e-6), "study.tolerance", number),
+        )
+    return Adaptive(
+        strides=_integer(data.get("strides", 2048), "study.strides", 1, 1000000),
+        frozen_strides=_integer(data.get("frozen_strides", 1000), "study.frozen_strides", 1, 1000000),
+    )
+
+
+def _axes(data, key, number, allowed) -> tuple[Axis, ...]:
+    if not isinstance(data, dict) or not data:
+        raise StudyError(key, "expected a mapping of quantity to [start, stop, step]")
+    axes = []
+    for name, spec in data.items():
+        where = f"{key}.{name}"
+        if name not in allowed:
+            raise StudyError(where, f"unknown quantity (expected one of {', '.join(allowed)})")
+        if not isinstance(spec, (list, tuple)) or len(spec) != 3:
+            raise StudyError(where, f"expected [start, stop, step], got {spec!r}")
+        start, stop, step = (number(v, where) for v in spec)
+        if step <= 0 or stop < start:
+            raise StudyError(where, "expected start <= stop and a positive step")
+        count = math.floor((stop - start) / step + 1e-9) + 1
+        if count > 100000:
+            raise StudyError(where, f"{count} values is too many")
+        axes.append(Axis(name, tuple(round(start + i * step, 12) for i in range(count))))
+    return tuple(axes)
+
+
+def _pair(data, key, number) -> tuple[float, float]:
+    if not isinstance(data, dict) or set(data) != {"ydot", "z"}:
+        raise StudyError(key, "expected {ydot: ..., z: ...}")
+    return number(data["ydot"], f"{key}.ydot"), number(data["z"], f"{key}.z")
+
+
+def _name(value, key) -> str:
+    if not isinstance(value, str) or not value or "/" in value or set(value) == {"."}:
+        raise StudyError(key, f"expected the name of another study, got {value!r}")
+    return value
+
+
+def _integer(value, key, lo, hi) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+        raise StudyError(key, f"expected an integer in [{lo}, {hi}], got {value!r}")
+    return value
+
+
+def _positive(value, key, number) -> float:
+    value = number(value, key)
+    if value <= 0:
+        raise StudyError(key, f"must be positive, got {value}")
+    return value

@@ -1,0 +1,138 @@
+"""Fixed points over many values: grid sweeps, body-angle scans and random samples.
+
+Each point fixes the swept quantities at its values on top of the problem's own fixed
+values; everything else (guess, bounds, objective) is the problem's. Within a worker, a
+point is warm-started from IPOPT's answer at the previous point when that one converged
+(the tasks come in snake order, so neighbours follow each other).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import random
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from ..control import CONTROL
+from ..fixedpoint import FixedPointResult
+from ..model import APEX
+from ..returnmap import PHASES
+from .schema import RandomSample, Sweep
+
+RESULT_COLUMNS = [
+    *APEX.names, *CONTROL.names, *PHASES,
+    "energy", "residual", "spectral_radius", "stable", "status", "time_s",
+]
+
+
+def key_column(name: str) -> str:
+    """CSV column of a swept quantity (the apex/control columns hold the solved values)."""
+    return f"sweep_{name}"
+
+
+def sweep_tasks(study: Sweep) -> list[dict]:
+    """Grid points in snake order: consecutive points are neighbours."""
+    if len(study.axes) == 1:
+        (axis,) = study.axes
+        return [{key_column(axis.name): v} for v in axis.values]
+    outer, inner = study.axes
+    tasks = []
+    for i, a in enumerate(outer.values):
+        values = inner.values if i % 2 == 0 else tuple(reversed(inner.values))
+        tasks += [{key_column(outer.name): a, key_column(inner.name): b} for b in values]
+    return tasks
+
+
+def read_points(path: Path) -> list[dict]:
+    """Rows of a points.csv as dicts of floats (status and empty cells kept as strings)."""
+    with open(path) as handle:
+        return [{k: _number_or_text(v) for k, v in row.items()} for row in csv.DictReader(handle)]
+
+
+def _number_or_text(text: str):
+    if text in ("true", "false"):
+        return text == "true"
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
+def radius_grid(rows: list[dict], names: tuple[str, str]):
+    """Axis values and a (len(a) x len(b)) array of spectral radii, NaN where not converged."""
+    a_name, b_name = (key_column(n) for n in names)
+    a_values = sorted({r[a_name] for r in rows})
+    b_values = sorted({r[b_name] for r in rows})
+    radius = np.full((len(a_values), len(b_values)), np.nan)
+    for r in rows:
+        if r["status"] == "converged" and isinstance(r["spectral_radius"], float):
+            radius[a_values.index(r[a_name]), b_values.index(r[b_name])] = r["spectral_radius"]
+    return np.array(a_values), np.array(b_values), radius
+
+
+def interpolated_radius(a, b, radius, x: float, y: float) -> float:
+    """Bilinear interpolation of the radius grid; NaN outside it or next to a gap."""
+    i, j = np.searchsorted(a, x) - 1, np.searchsorted(b, y) - 1
+    i, j = min(max(i, 0), len(a) - 2), min(max(j, 0), len(b) - 2)
+    if not (a[0] <= x <= a[-1] and b[0] <= y <= b[-1]):
+        return math.nan
+    s, t = (x - a[i]) / (a[i + 1] - a[i]), (y - b[j]) / (b[j + 1] - b[j])
+    corners = radius[i : i + 2, j : j + 2]
+    weights = np.array([[(1 - s) * (1 - t), (1 - s) * t], [s * (1 - t), s * t]])
+    return float(np.sum(corners * weights))
+
+
+def random_tasks(study: RandomSample, region_rows: list[dict], names: tuple[str, str]) -> list[dict]:
+    """``count`` uniform draws inside the region's stable set (interpolated radius < 1),
+    ordered along the first axis so that a worker's consecutive points are close."""
+    a, b, radius = radius_grid(region_rows, names)
+    rng = random.Random(study.seed)
+    draws = []
+    for _ in range(1000 * study.count):
+        if len(draws) == study.count:
+            break
+        x, y = rng.uniform(a[0], a[-1]), rng.uniform(b[0], b[-1])
+        if interpolated_radius(a, b, radius, x, y) < 1.0:
+            draws.append((round(x, 12), round(y, 12)))
+    draws.sort()
+    return [{key_column(names[0]): x, key_column(names[1]): y} for x, y in draws]
+
+
+def result_row(task: dict, result: FixedPointResult) -> dict:
+    """One CSV row: the task's swept values, then the solved point."""
+    row = dict(task)
+    row.update(zip(APEX.names, result.X.tolist()))
+    row.update(zip(CONTROL.names, result.u.tolist()))
+    row.update(result.durations or {})
+    row.update(
+        energy=result.energy,
+        residual=result.residual,
+        spectral_radius=result.spectral_radius,
+        stable=result.stable,
+        status=result.status,
+        time_s=result.solver.time_s,
+    )
+    return row
+
+
+def solve_worker(chunk: list[dict], problem_path: str, queue) -> None:
+    """Worker process: build the solver once, solve each task, put its row on the queue."""
+    from ..api import fixed_point_spec, shooting_options
+    from ..fixedpoint import FixedPointSolver
+    from ..problem import load_problem
+
+    try:
+        problem = load_problem(problem_path)
+        solver = FixedPointSolver(shooting_options(problem))
+        base = fixed_point_spec(problem)
+        warm = None
+        for task in chunk:
+            fixed = {**base.fixed, **{name[len("sweep_"):]: value for name, value in task.items()}}
+            result = solver.solve(replace(base, fixed=fixed), name=problem.name, w0=warm)
+            warm = result.nlp_w if result.converged else warm
+            queue.put(result_row(task, result))
+    finally:
+        queue.put(None)
