@@ -15,7 +15,7 @@ from pathlib import Path
 from .fixedpoint import VERIFY_EPS, FixedPointResult
 from .problem import ProblemError, load_problem
 
-EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 
 class _OneLineParser(argparse.ArgumentParser):
@@ -85,7 +85,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: output folder {out_dir}: {unwritable}", file=sys.stderr)
         return EXIT_BAD_INPUT
     try:
+        if problem.study is not None:
+            return _run_study(problem, args.problem, out_dir, args.quiet)
         return _solve_and_write(problem, out_dir, args.quiet)
+    except KeyboardInterrupt:
+        print(f"{problem.name}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     except Exception as err:  # a bug, not a result: say so in one line, write nothing
         print(f"error: {problem.name}: internal error: {type(err).__name__}: {err}".splitlines()[0], file=sys.stderr)
         return EXIT_NOT_CONVERGED
@@ -100,6 +105,21 @@ def _unwritable(out_dir: Path) -> str | None:
     except OSError as err:
         return err.strerror or str(err)
     return None
+
+
+def _run_study(problem, problem_path: Path, out_dir: Path, quiet: bool) -> int:
+    from .studies.run import StudyInputError, run_study
+
+    try:
+        summary = run_study(problem, problem_path, out_dir, quiet)
+    except StudyInputError as err:
+        print(f"error: {problem_path}: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if not quiet:
+        counts = ", ".join(f"{k} {v}" for k, v in summary.items() if isinstance(v, int) and not isinstance(v, bool))
+        print(f"{problem.name}: {problem.study.kind} study {'complete' if summary.get('complete', True) else 'incomplete'}: {counts}")
+        print(f"  wrote {out_dir}/ (result.json, CSV and PNG figures), {summary['wall_time_s']:.1f} s")
+    return EXIT_OK if summary.get("complete", True) else EXIT_INTERRUPTED
 
 
 def _solve_and_write(problem, out_dir: Path, quiet: bool) -> int:

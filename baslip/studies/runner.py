@@ -67,13 +67,14 @@ class ResumableCsv:
 
 
 def format_value(value) -> str:
-    """A CSV cell: floats with full precision, booleans as true/false, None as empty."""
+    """A CSV cell: floats with full precision (task values come pre-rounded, so keys
+    compare equal across runs), booleans as true/false, None as empty."""
     if value is None:
         return ""
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, float):
-        return repr(round(value, 12)) if abs(value) < 1e12 else repr(value)
+        return repr(value)
     return str(value)
 
 

@@ -1,0 +1,271 @@
+"""Figures of the studies, as PNG files with labelled axes and units.
+
+Angles are shown in degrees. Stable fixed points are drawn as filled blue circles,
+unstable ones as red crosses, and points without a verified fixed point as grey dots.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.colors import LogNorm  # noqa: E402
+
+DEG = 180 / math.pi
+ANGLES = ("theta_h", "theta2_des", "theta_td")
+LABELS = {
+    "z": "apex height z [m]",
+    "ydot": "forward speed ydot [m/s]",
+    "theta_h": "body angle theta_h [deg]",
+    "theta_h_dot": "body rate theta_h_dot [rad/s]",
+    "Kp": "Kp [N m/rad]",
+    "Kd": "Kd [N m s/rad]",
+    "theta2_des": "theta2_des [deg]",
+    "theta2_dot_des": "theta2_dot_des [rad/s]",
+    "theta_td": "touchdown angle theta_td [deg]",
+    "spectral_radius": "largest |multiplier| (non-trivial)",
+    "residual": "residual eps (eq. 4.1)",
+    "eps": "eps between consecutive apexes",
+}
+
+
+def shown(name: str, values):
+    """Values as plotted: angles in degrees."""
+    values = np.asarray(values, dtype=float)
+    return values * DEG if name in ANGLES else values
+
+
+def _save(fig, path: Path) -> None:
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _column(rows, name):
+    return np.array([r[name] if isinstance(r[name], float) else np.nan for r in rows], dtype=float)
+
+
+def _classes(rows):
+    converged = np.array([r["status"] == "converged" for r in rows])
+    stable = np.array([r["status"] == "converged" and r["stable"] is True for r in rows])
+    return stable, converged & ~stable, ~converged
+
+
+# --- sweeps -------------------------------------------------------------------------------
+
+
+def sweep_figures(rows: list[dict], names: list[str], out_dir: Path) -> list[Path]:
+    """1-D sweeps: z, theta_h, spectral radius and residual against the swept quantity.
+    2-D sweeps: maps of theta_h and of the spectral radius, with the stable region."""
+    if not rows:
+        return []
+    if len(names) == 1:
+        return [_sweep_line(rows, names[0], y, out_dir) for y in ("z", "theta_h", "spectral_radius", "residual")]
+    return [_sweep_map(rows, names, value, out_dir) for value in ("theta_h", "spectral_radius")]
+
+
+def _sweep_line(rows, name, quantity, out_dir) -> Path:
+    x = shown(name, _column(rows, f"sweep_{name}"))
+    y = _column(rows, quantity)
+    y = y if quantity in ("spectral_radius", "residual") else shown(quantity, y)
+    stable, unstable, missing = _classes(rows)
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    ax.plot(x[stable], y[stable], "o", color="tab:blue", ms=4, label="stable")
+    ax.plot(x[unstable], y[unstable], "x", color="tab:red", ms=4, label="unstable")
+    if quantity in ("z", "theta_h", "residual"):
+        ax.plot(x[missing], y[missing], ".", color="0.6", ms=4, label="not verified / failed")
+    elif missing.any():
+        for xv in x[missing]:
+            ax.axvline(xv, color="0.85", lw=0.8, zorder=0)
+        ax.plot([], [], "-", color="0.85", label="no verified fixed point")
+    if quantity == "spectral_radius":
+        ax.axhline(1.0, color="k", lw=0.8, ls="--")
+        ax.set_yscale("log")
+    if quantity == "residual":
+        ax.axhline(1e-10, color="k", lw=0.8, ls="--", label="verification threshold")
+        ax.set_yscale("log")
+    ax.set_xlabel(LABELS.get(name, name))
+    ax.set_ylabel(LABELS[quantity])
+    ax.legend(fontsize=8)
+    path = out_dir / f"{quantity}.png"
+    _save(fig, path)
+    return path
+
+
+def _grid(rows, names, quantity):
+    a = sorted({r[f"sweep_{names[0]}"] for r in rows})
+    b = sorted({r[f"sweep_{names[1]}"] for r in rows})
+    values = np.full((len(b), len(a)), np.nan)
+    stable = np.zeros_like(values, dtype=bool)
+    for r in rows:
+        i, j = b.index(r[f"sweep_{names[1]}"]), a.index(r[f"sweep_{names[0]}"])
+        if r["status"] == "converged" and isinstance(r[quantity], float):
+            values[i, j] = r[quantity]
+            stable[i, j] = r["stable"] is True
+    return np.array(a), np.array(b), values, stable
+
+
+def _sweep_map(rows, names, quantity, out_dir) -> Path:
+    a, b, values, stable = _grid(rows, names, quantity)
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    cmap = plt.get_cmap("viridis" if quantity == "theta_h" else "coolwarm").copy()
+    cmap.set_bad("0.85")
+    extent = _extent(shown(names[0], a), shown(names[1], b))
+    if quantity == "spectral_radius":
+        finite = values[np.isfinite(values) & (values > 0)]
+        # Symmetric in log10 about 1, so that white is the stability boundary.
+        span = max(np.abs(np.log10(finite)).max(), np.log10(2.0)) if finite.size else 1.0
+        norm = LogNorm(vmin=10**-span, vmax=10**span)
+        image = ax.imshow(values, origin="lower", aspect="auto", extent=extent, cmap=cmap, norm=norm)
+        label = LABELS[quantity] + " (log scale)"
+    else:
+        image = ax.imshow(shown(quantity, values), origin="lower", aspect="auto", extent=extent, cmap=cmap)
+        label = LABELS[quantity]
+    fig.colorbar(image, ax=ax, label=label)
+    A, B = np.meshgrid(shown(names[0], a), shown(names[1], b))
+    ax.plot(A[stable], B[stable], "o", mfc="none", mec="k", ms=7, label="stable")
+    if np.isnan(values).any():
+        ax.plot(A[np.isnan(values)], B[np.isnan(values)], "s", color="0.5", ms=3, label="no verified fixed point")
+    ax.set_xlabel(LABELS.get(names[0], names[0]))
+    ax.set_ylabel(LABELS.get(names[1], names[1]))
+    ax.legend(fontsize=8, loc="upper right")
+    path = out_dir / f"{quantity}_map.png"
+    _save(fig, path)
+    return path
+
+
+def _extent(a, b):
+    da = (a[1] - a[0]) / 2 if len(a) > 1 else 0.5
+    db = (b[1] - b[0]) / 2 if len(b) > 1 else 0.5
+    return (a[0] - da, a[-1] + da, b[0] - db, b[-1] + db)
+
+
+def random_figure(rows: list[dict], region_rows: list[dict], names, out_dir: Path) -> Path:
+    """The random points over the region's stable grid points."""
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    _, _, _, stable_grid = _grid(region_rows, list(names), "spectral_radius")
+    a, b, _, _ = _grid(region_rows, list(names), "spectral_radius")
+    A, B = np.meshgrid(a, b)
+    ax.plot(A[stable_grid], B[stable_grid], "s", color="tab:blue", alpha=0.25, ms=12, label="stable grid point (study 2)")
+    stable, unstable, missing = _classes(rows)
+    x, y = _column(rows, f"sweep_{names[0]}"), _column(rows, f"sweep_{names[1]}")
+    ax.plot(x[stable], y[stable], "o", color="tab:blue", ms=4, label=f"stable ({stable.sum()})")
+    ax.plot(x[unstable], y[unstable], "x", color="tab:red", ms=5, label=f"unstable ({unstable.sum()})")
+    ax.plot(x[missing], y[missing], ".", color="0.5", ms=5, label=f"not verified / failed ({missing.sum()})")
+    ax.set_xlabel(LABELS.get(names[0], names[0]))
+    ax.set_ylabel(LABELS.get(names[1], names[1]))
+    ax.legend(fontsize=8)
+    path = out_dir / "samples.png"
+    _save(fig, path)
+    return path
+
+
+# --- convergence regions --------------------------------------------------------------------
+
+
+def basin_figures(basin_rows, stable, unstable, example_index, example_unstable, trajectories, study, out_dir) -> list[Path]:
+    paths = []
+    ydots, zs = np.array(study.grid[0].values), np.array(study.grid[1].values)
+    converged_by_point: dict[int, set] = {}
+    for r in basin_rows:
+        if r["outcome"] == "converged":
+            converged_by_point.setdefault(int(r["point"]), set()).add((r["sweep_ydot"], r["sweep_z"]))
+    union = set().union(*converged_by_point.values()) if converged_by_point else set()
+    panels = [("region.png", converged_by_point.get(example_index, set()), "convergence region of one stable point"),
+              ("union.png", union, "union of the convergence regions of all stable points")]
+    for name, cells, title in panels:
+        fig, ax = plt.subplots(figsize=(6.4, 4.8))
+        mask = np.array([[(y, z) in cells for y in ydots] for z in zs])
+        ax.imshow(mask, origin="lower", aspect="auto", extent=_extent(ydots, zs), cmap="Blues", vmin=0, vmax=1.6)
+        if mask.any():
+            ax.contour(ydots, zs, mask.astype(float), levels=[0.5], colors="tab:blue")
+        xs = [r["ydot"] for r in stable]
+        ax.plot(xs, [r["z"] for r in stable], "o", color="tab:blue", ms=4, label="stable fixed points")
+        if name == "region.png" and example_index is not None:
+            ax.plot(stable[example_index]["ydot"], stable[example_index]["z"], "o", mfc="none", mec="k", ms=12, label="this stable point")
+        if example_unstable is not None:
+            ax.plot(example_unstable["ydot"], example_unstable["z"], "x", color="tab:red", ms=10, mew=2, label="unstable example")
+        ax.set_xlabel(LABELS["ydot"])
+        ax.set_ylabel(LABELS["z"])
+        ax.set_title(title, fontsize=10)
+        ax.legend(fontsize=8, loc="upper right")
+        path = out_dir / name
+        _save(fig, path)
+        paths.append(path)
+    for case, (outcome, n, _, apexes) in trajectories.items():
+        fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4))
+        z, ydot = apexes[:, 0], apexes[:, 2]
+        left.plot(ydot, z, "--.", color="tab:blue")
+        left.plot(ydot[0], z[0], "x", color="tab:red", ms=10, mew=2, label="start (unstable fixed point)")
+        left.set_xlabel(LABELS["ydot"])
+        left.set_ylabel(LABELS["z"])
+        left.legend(fontsize=8)
+        steps = np.arange(len(z))
+        right.plot(steps, ydot, "-o", ms=3, label="ydot [m/s]")
+        right.plot(steps, z, "-s", ms=3, label="z [m]")
+        right.set_xlabel("stride n")
+        right.set_ylabel("apex value [m/s, m]")
+        right.set_title(f"{case.replace('_', ' ')}: {outcome} after {n} strides", fontsize=10)
+        right.legend(fontsize=8)
+        path = out_dir / f"{case}.png"
+        _save(fig, path)
+        paths.append(path)
+    return paths
+
+
+# --- time-varying control -------------------------------------------------------------------
+
+
+def adaptive_figures(rows: list[dict], out_dir: Path) -> list[Path]:
+    adaptive = [r for r in rows if r["phase"] == "adaptive"]
+    frozen = [r for r in rows if r["phase"] == "frozen"]
+    if not adaptive:
+        return []
+
+    def col(rs, name):
+        return np.array([float(r[name]) for r in rs])
+
+    n = col(adaptive, "n")
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.8))
+    axes[0].plot(col(adaptive, "ydot"), col(adaptive, "z"), "-", lw=0.8)
+    axes[0].set_xlabel(LABELS["ydot"])
+    axes[0].set_ylabel(LABELS["z"])
+    axes[0].ticklabel_format(useOffset=False)
+    for ax, name in zip(axes[1:], ("ydot", "z")):
+        ax.plot(n, col(adaptive, name), "-", lw=0.8)
+        ax.set_xlabel("stride n")
+        ax.set_ylabel(LABELS[name])
+        ax.ticklabel_format(useOffset=False)
+    path_states = out_dir / "adaptive_states.png"
+    _save(fig, path_states)
+
+    fig, axes = plt.subplots(2, 3, figsize=(12, 6.5))
+    for ax, name in zip(axes.ravel(), ("Kp", "Kd", "theta_td", "theta2_des", "theta2_dot_des", "eps")):
+        values = col(adaptive, name)
+        ax.plot(n, values if name == "eps" else shown(name, values), "-", lw=0.8)
+        ax.set_xlabel("stride n")
+        ax.set_ylabel(LABELS[name])
+        if name == "eps":
+            ax.set_yscale("log")
+        else:
+            ax.ticklabel_format(useOffset=False)
+    path_controls = out_dir / "adaptive_controls.png"
+    _save(fig, path_controls)
+
+    paths = [path_states, path_controls]
+    if frozen:
+        fig, ax = plt.subplots(figsize=(6.4, 4.0))
+        m = col(frozen, "n")
+        ax.semilogy(m, col(frozen, "eps"), "-o", ms=3)
+        ax.set_xlabel("stride after freezing the control")
+        ax.set_ylabel("|X_n - X_2048| / |X_2048|")
+        ax.set_title(f"last control held fixed: {len(frozen)} strides before the fall", fontsize=10)
+        path = out_dir / "frozen_control.png"
+        _save(fig, path)
+        paths.append(path)
+    return paths
