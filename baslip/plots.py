@@ -113,8 +113,7 @@ def _grid(rows, names, quantity):
 def _sweep_map(rows, names, quantity, out_dir) -> Path:
     a, b, values, stable = _grid(rows, names, quantity)
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
-    cmap = plt.get_cmap("viridis" if quantity == "theta_h" else "coolwarm").copy()
-    cmap.set_bad("0.85")
+    cmap = plt.get_cmap("viridis" if quantity == "theta_h" else "coolwarm").with_extremes(bad="0.85")
     extent = _extent(shown(names[0], a), shown(names[1], b))
     if quantity == "spectral_radius":
         finite = values[np.isfinite(values) & (values > 0)]

@@ -174,6 +174,7 @@ class ReturnMap:
     def __init__(self, tolerances: Tolerances = Tolerances(), plugin: str = "erk"):
         self.tolerances = tolerances
         self.plugin = plugin
+        self._samplers: dict = {}  # sampling integrators for drawing, built on first use
         with _event_notice_silenced():
             self._touchdown_time = self._build_touchdown_rootfinder()
             self._stance = self._build_stance_integrator()
@@ -201,7 +202,8 @@ class ReturnMap:
             {"abstol": 1e-15, "abstolStep": 1e-16, "max_iter": 50, "error_on_fail": False},
         )
 
-    def _build_stance_integrator(self) -> ca.Function:
+    def _build_stance_integrator(self, output_times=(1.0,)) -> ca.Function:
+        """Stance over the time-scaled horizon [0, 1], with outputs at ``output_times``."""
         s = STANCE_RUN.sym("s")
         u, p, horizon = CONTROL.sym("u"), PARAMS.sym("p"), ca.SX.sym("horizon")
         dae = {
@@ -217,7 +219,7 @@ class ReturnMap:
             "max_events": 8,
             "max_num_steps": 100000,
         }
-        return ca.integrator("stance", self.plugin, dae, 0.0, 1.0, opts)
+        return ca.integrator("stance", self.plugin, dae, 0.0, list(output_times), opts)
 
     def _build_stride_function(self) -> ca.Function:
         X, u, p = APEX.sym("X", ca.MX), CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
@@ -329,6 +331,17 @@ class ReturnMap:
             raise RunnerFell(outcome.fall)
         jac = np.asarray(jac)
         return jac[:, : APEX.size], jac[:, APEX.size :]
+
+    def stance_samples(self, x_touchdown, u, params, duration: float, n: int) -> np.ndarray:
+        """Stance states (6 x n) at n equal steps up to ``duration`` [s] after touchdown,
+        for drawing; ``duration`` is normally the stride's stance time."""
+        key = ("stance_samples", n)
+        if key not in self._samplers:
+            with _event_notice_silenced():
+                self._samplers[key] = self._build_stance_integrator(np.linspace(0.0, 1.0, n + 1)[1:])
+        s0 = np.concatenate([_vec(x_touchdown), [0.0, 0.0, COMPRESSION]])
+        p = np.concatenate([_vec(u), _param_vector(params), [duration]])
+        return np.asarray(self._samplers[key](x0=s0, p=p)["xf"])[: STANCE.size, :]
 
     def simulate(self, X0, u, params, strides: int) -> Simulation:
         """Apply ``u`` for up to ``strides`` strides from apex ``X0``."""

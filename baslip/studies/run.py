@@ -24,9 +24,9 @@ from ..output import finite_or_none, write_files_atomically
 from ..problem import Problem
 from .. import plots
 from .basin import BASIN_COLUMNS, basin_tasks, basin_worker, run_from, SIMULATION_TOLERANCES
-from .runner import ResumableCsv, RunReport, run_tasks
+from .runner import ResumableCsv, RunReport, run_tasks, split_lanes
 from .schema import Adaptive, Basin, RandomSample, Sweep
-from .sweep import RESULT_COLUMNS, key_column, random_tasks, read_points, solve_worker, sweep_tasks
+from .sweep import RESULT_COLUMNS, key_column, random_tasks, read_points, solve_worker, sweep_lanes
 
 
 class StudyInputError(ValueError):
@@ -42,11 +42,13 @@ def run_study(problem: Problem, problem_path: Path, out_dir: Path, quiet: bool =
     study = problem.study
     start = time.perf_counter()
     if isinstance(study, Sweep):
-        summary = _run_points(problem, problem_path, out_dir, sweep_tasks(study), [a.name for a in study.axes], quiet)
+        origin = {a.name: problem.start_value(a.name) for a in study.axes}
+        summary = _run_points(problem, problem_path, out_dir, sweep_lanes(study, origin), [a.name for a in study.axes], quiet)
         plots.sweep_figures(read_points(out_dir / "points.csv"), [a.name for a in study.axes], out_dir)
     elif isinstance(study, RandomSample):
         region_rows, names = _source_points(out_dir, study.region, "study.region")
-        summary = _run_points(problem, problem_path, out_dir, random_tasks(study, region_rows, names), list(names), quiet)
+        lanes = split_lanes(random_tasks(study, region_rows, names))
+        summary = _run_points(problem, problem_path, out_dir, lanes, list(names), quiet)
         summary["region"] = study.region
         plots.random_figure(read_points(out_dir / "points.csv"), region_rows, names, out_dir)
     elif isinstance(study, Basin):
@@ -82,10 +84,10 @@ def _counts(rows: list[dict]) -> dict:
     }
 
 
-def _run_points(problem, problem_path, out_dir, tasks, names, quiet) -> dict:
+def _run_points(problem, problem_path, out_dir, lanes, names, quiet) -> dict:
     keys = [key_column(n) for n in names]
     table = ResumableCsv(out_dir / "points.csv", keys + RESULT_COLUMNS, keys)
-    report = run_tasks(tasks, solve_worker, str(problem_path), table, problem.name, quiet=quiet)
+    report = run_tasks(lanes, solve_worker, str(problem_path), table, problem.name, quiet=quiet)
     rows = read_points(out_dir / "points.csv")
     return {**_counts(rows), **_run_info(report), "swept": names}
 
@@ -122,17 +124,20 @@ def _run_basin(problem: Problem, study: Basin, out_dir: Path, quiet: bool) -> di
     table = ResumableCsv(out_dir / "basin.csv", ["point", key_column("ydot"), key_column("z"), *BASIN_COLUMNS[1:]],
                          ["point", key_column("ydot"), key_column("z")])
     context = (points, problem.params, study.strides, study.tolerance)
-    report = run_tasks(basin_tasks(study, len(points)), basin_worker, context, table, problem.name, quiet=quiet)
+    lanes = split_lanes(basin_tasks(study, len(points)))
+    report = run_tasks(lanes, basin_worker, context, table, problem.name, quiet=quiet)
 
     example_stable, example_unstable = _nearest(stable, study.stable_at), _nearest(unstable, study.unstable_at)
     rmap = ReturnMap(SIMULATION_TOLERANCES)
     trajectories = {}
     if example_unstable is not None:
         X_u, u_u = _point(example_unstable)
-        trajectories["unstable_own_control"] = run_from(rmap, X_u, X_u, u_u, problem.params, study.strides, study.tolerance)
+        trajectories["unstable_own_control"] = run_from(
+            rmap, X_u, X_u, u_u, problem.params, study.strides, study.tolerance, stop_on_arrival=False
+        )
         if example_stable is not None:
             X_s, u_s = _point(example_stable)
-            trajectories["unstable_with_stable_control"] = run_from(rmap, X_u, X_s, u_s, problem.params, 4 * study.strides, study.tolerance)
+            trajectories["unstable_with_stable_control"] = run_from(rmap, X_u, X_s, u_s, problem.params, study.strides, study.tolerance)
     _write_trajectories(out_dir / "trajectories.csv", trajectories)
 
     basin_rows = read_points(out_dir / "basin.csv")

@@ -4,8 +4,8 @@
   interruption (Ctrl-C, a kill) loses only tasks that were still running.
 * On a rerun, rows already in the CSV are skipped: a finished study does no new work. A
   last line cut short by a kill is dropped before appending.
-* Tasks are split into contiguous chunks, one per worker process, so that each worker can
-  warm-start a task from its previous one (the order of the tasks matters).
+* Tasks come in lanes, one per worker process, so that each worker can warm-start a task
+  from the one before it in its lane.
 """
 
 from __future__ import annotations
@@ -18,7 +18,9 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterable, Sequence
+from typing import Callable, Sequence
+
+import numpy as np
 
 #: Number of worker processes (the machines this runs on have two cores).
 WORKERS = min(2, os.cpu_count() or 1)
@@ -71,10 +73,12 @@ def format_value(value) -> str:
     compare equal across runs), booleans as true/false, None as empty."""
     if value is None:
         return ""
-    if isinstance(value, bool):
+    if isinstance(value, (bool, np.bool_)):
         return "true" if value else "false"
-    if isinstance(value, float):
-        return repr(value)
+    if isinstance(value, (float, np.floating)):
+        return repr(float(value))
+    if isinstance(value, np.integer):
+        return str(int(value))
     return str(value)
 
 
@@ -90,26 +94,30 @@ class RunReport:
 
 
 def run_tasks(
-    tasks: Sequence[dict],
+    lanes: Sequence[Sequence[dict]],
     worker: Callable[[list[dict], object, "multiprocessing.Queue"], None],
     context: object,
     table: ResumableCsv,
     label: str,
-    workers: int = WORKERS,
     quiet: bool = False,
 ) -> RunReport:
-    """Run the tasks not yet in ``table`` with ``worker(chunk, context, queue)`` in
-    ``workers`` processes; each worker puts one row per task, then None, on the queue."""
+    """Run the tasks not yet in ``table``, one worker process per lane.
+
+    A lane is an ordered list of tasks that one worker takes in turn (so it can warm-start
+    each from the one before). ``worker(lane, context, queue)`` puts one row per task, and
+    then None, on the queue.
+    """
     done = table.done()
-    todo = [t for t in tasks if table.key(t) not in done]
-    skipped = len(tasks) - len(todo)
+    total = sum(len(lane) for lane in lanes)
+    todo = [[t for t in lane if table.key(t) not in done] for lane in lanes]
+    todo = [lane for lane in todo if lane]
+    skipped = total - sum(len(lane) for lane in todo)
     start = time.perf_counter()
     if not todo:
-        return RunReport(len(tasks), skipped, 0, 0.0, False)
-    chunks = [c for c in _chunks(todo, workers) if c]
+        return RunReport(total, skipped, 0, 0.0, False)
     ctx = multiprocessing.get_context("spawn")
     queue = ctx.Queue()
-    processes = [ctx.Process(target=worker, args=(chunk, context, queue), daemon=True) for chunk in chunks]
+    processes = [ctx.Process(target=worker, args=(lane, context, queue), daemon=True) for lane in todo]
     for process in processes:
         process.start()
     finished, ran = 0, 0
@@ -122,23 +130,24 @@ def run_tasks(
             table.append(row)
             ran += 1
             if not quiet:
-                _progress(label, skipped + ran, len(tasks), ran, time.perf_counter() - start)
+                _progress(label, skipped + ran, total, ran, time.perf_counter() - start)
     except KeyboardInterrupt:
         for process in processes:
             process.terminate()
         if not quiet:
-            print(f"\n{label}: interrupted; {skipped + ran} of {len(tasks)} rows are saved", file=sys.stderr)
-        return RunReport(len(tasks), skipped, ran, time.perf_counter() - start, True)
+            print(f"\n{label}: interrupted; {skipped + ran} of {total} rows are saved", file=sys.stderr)
+        return RunReport(total, skipped, ran, time.perf_counter() - start, True)
     for process in processes:
         process.join()
     if not quiet:
         print(file=sys.stderr)
-    return RunReport(len(tasks), skipped, ran, time.perf_counter() - start, False)
+    return RunReport(total, skipped, ran, time.perf_counter() - start, False)
 
 
-def _chunks(items: Sequence, n: int) -> Iterable[list]:
-    size = -(-len(items) // n)
-    return [list(items[i : i + size]) for i in range(0, len(items), size)]
+def split_lanes(tasks: Sequence[dict], n: int = WORKERS) -> list[list[dict]]:
+    """``n`` contiguous lanes of nearly equal length, in order."""
+    size = -(-len(tasks) // n) if tasks else 1
+    return [list(tasks[i : i + size]) for i in range(0, len(tasks), size)]
 
 
 def _progress(label: str, done: int, total: int, ran: int, elapsed: float) -> None:

@@ -20,6 +20,7 @@ from ..control import CONTROL
 from ..fixedpoint import FixedPointResult
 from ..model import APEX
 from ..returnmap import PHASES
+from .runner import split_lanes
 from .schema import RandomSample, Sweep
 
 RESULT_COLUMNS = [
@@ -31,6 +32,22 @@ RESULT_COLUMNS = [
 def key_column(name: str) -> str:
     """CSV column of a swept quantity (the apex/control columns hold the solved values)."""
     return f"sweep_{name}"
+
+
+def sweep_lanes(study: Sweep, start: dict) -> list[list[dict]]:
+    """Lanes of neighbouring points, one per worker.
+
+    One quantity: two lanes walking outwards from the value nearest its starting value
+    (``start[name]``), like a continuation in each direction. Two quantities: the grid in
+    snake order, cut in two.
+    """
+    if len(study.axes) == 1:
+        (axis,) = study.axes
+        values = list(axis.values)
+        centre = min(range(len(values)), key=lambda i: abs(values[i] - start[axis.name]))
+        up, down = values[centre:], values[:centre][::-1]
+        return [[{key_column(axis.name): v} for v in lane] for lane in (up, down) if lane]
+    return split_lanes(sweep_tasks(study))
 
 
 def sweep_tasks(study: Sweep) -> list[dict]:
@@ -96,7 +113,7 @@ def random_tasks(study: RandomSample, region_rows: list[dict], names: tuple[str,
             break
         x, y = rng.uniform(a[0], a[-1]), rng.uniform(b[0], b[-1])
         if interpolated_radius(a, b, radius, x, y) < 1.0:
-            draws.append((round(x, 12), round(y, 12)))
+            draws.append((round(float(x), 12), round(float(y), 12)))
     draws.sort()
     return [{key_column(names[0]): x, key_column(names[1]): y} for x, y in draws]
 

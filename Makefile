@@ -1,0 +1,18 @@
+# Regenerate every study of the thesis's chapter 4, the animations and the report.
+#   make studies        (resumes: finished points are not solved again)
+#   make clean-studies  (removes the study results, to start afresh)
+PY ?= .venv/bin/python
+STUDIES = grid_downward grid_upward speed_sweep stable_region_random convergence_regions \
+          body_angle_scan body_angle_fine_scan adaptive_upright
+
+.PHONY: studies clean-studies
+
+studies:
+	@for s in $(STUDIES); do $(PY) -m baslip.solve problems/$$s.yaml || exit 1; done
+	$(PY) -m baslip.solve problems/downward.yaml
+	$(PY) -m baslip.solve problems/upward.yaml
+	$(PY) -m baslip.animate problems/downward.yaml problems/upward.yaml --out results/animation
+	$(PY) -m baslip.report
+
+clean-studies:
+	rm -rf $(addprefix results/,$(STUDIES)) results/animation results/REPORT.md

@@ -1,0 +1,109 @@
+"""Animated GIFs of gaits: trunk, hip, spring leg, ground and foot contact.
+
+    python -m baslip.animate problems/downward.yaml problems/upward.yaml --out results/animation
+
+Each problem is solved (and verified) first; its gait is drawn for two strides in slow
+motion.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
+
+from .api import solve_problem  # noqa: E402
+from .model import Params  # noqa: E402
+from .problem import ProblemError, load_problem  # noqa: E402
+from .returnmap import ReturnMap, Tolerances  # noqa: E402
+from .trajectory import Trajectory, stride_trajectory  # noqa: E402
+
+SLOW_MOTION = 4.0  # animation seconds per simulated second
+FPS = 20
+
+
+def spring_points(hip, foot, coils: int = 6, width: float = 0.012):
+    """A zig-zag from hip to foot: the spring leg."""
+    hip, foot = np.asarray(hip), np.asarray(foot)
+    axis = foot - hip
+    length = np.hypot(*axis)
+    normal = np.array([-axis[1], axis[0]]) / max(length, 1e-12)
+    s = np.linspace(0, 1, 2 * coils + 3)
+    offsets = np.zeros_like(s)
+    offsets[2:-2] = width * np.where(np.arange(len(s) - 4) % 2 == 0, 1, -1)
+    points = hip[None, :] + s[:, None] * axis[None, :] + offsets[:, None] * normal[None, :]
+    return points[:, 0], points[:, 1]
+
+
+def animate(trajectory: Trajectory, params: Params, title: str, path: Path) -> Path:
+    """Write a GIF of ``trajectory`` to ``path``."""
+    frames = np.arange(0.0, trajectory.t[-1], 1.0 / (FPS * SLOW_MOTION))
+    motion = trajectory.at(frames)
+    fig, ax = plt.subplots(figsize=(5.0, 3.2), dpi=70)
+    y_lo, y_hi = motion.y.min() - 0.2, motion.y.max() + 0.2
+    ax.set_xlim(y_lo, y_hi)
+    ax.set_ylim(-0.03, max(motion.z.max(), 0.3) + 0.1)
+    ax.set_aspect("equal")
+    ax.axhline(0.0, color="k", lw=1.5)
+    ax.set_xlabel("y [m]")
+    ax.set_ylabel("z [m]")
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    (leg,) = ax.plot([], [], color="tab:gray", lw=1.2)
+    (trunk,) = ax.plot([], [], color="tab:blue", lw=5, solid_capstyle="round")
+    (com,) = ax.plot([], [], "o", color="k", ms=4)
+    (hip,) = ax.plot([], [], "o", color="tab:orange", ms=5)
+    (contact,) = ax.plot([], [], "^", color="tab:red", ms=8)
+    trunk_length = 3 * params.d + 0.04
+
+    def draw(k):
+        c = np.array([motion.y[k], motion.z[k]])
+        direction = np.array([np.cos(motion.theta_h[k]), np.sin(motion.theta_h[k])])
+        h = c - params.d * direction
+        trunk.set_data(*np.column_stack([h - 0.01 * direction, h + trunk_length * direction]))
+        com.set_data([c[0]], [c[1]])
+        hip.set_data([h[0]], [h[1]])
+        leg.set_data(*spring_points(h, (motion.foot_y[k], motion.foot_z[k])))
+        contact.set_data(([motion.foot_y[k]], [0.0]) if motion.stance[k] else ([], []))
+        return leg, trunk, com, hip, contact
+
+    FuncAnimation(fig, draw, frames=len(frames), blit=True).save(path, writer=PillowWriter(fps=FPS))
+    plt.close(fig)
+    return path
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m baslip.animate", description=__doc__.splitlines()[0])
+    parser.add_argument("problems", nargs="+", type=Path, help="single fixed-point problem files")
+    parser.add_argument("--out", type=Path, default=Path("results/animation"), metavar="DIR")
+    args = parser.parse_args(argv)
+    rmap = ReturnMap(Tolerances(1e-10, 1e-10))
+    args.out.mkdir(parents=True, exist_ok=True)
+    for path in args.problems:
+        try:
+            problem = load_problem(path)
+        except ProblemError as err:
+            print(f"error: {path}: {err}", file=sys.stderr)
+            return 2
+        result = solve_problem(problem)
+        if not result.converged:
+            print(f"error: {path}: no verified fixed point to animate ({result.message})", file=sys.stderr)
+            return 1
+        trajectory = stride_trajectory(rmap, result.X, result.u, problem.params)
+        verdict = "stable" if result.stable else "unstable"
+        title = (f"{problem.name}: theta_h = {np.degrees(result.apex['theta_h']):.1f} deg, "
+                 f"ydot = {result.apex['ydot']:.2f} m/s, {verdict} (x{SLOW_MOTION:g} slow)")
+        out = animate(trajectory, problem.params, title, args.out / f"{problem.name}.gif")
+        print(f"wrote {out} ({out.stat().st_size // 1024} KB)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,181 @@
+"""Specification of baslip.studies: resumable, parallel sweeps with CSV and JSON output.
+
+A study writes one CSV row per finished point, appended as it finishes; rerunning skips
+the rows already there, and a row cut short by a kill is dropped and redone.
+"""
+
+import csv
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from baslip.problem import ProblemError, load_problem, parse_problem
+from baslip.studies.run import run_study
+from baslip.studies.runner import ResumableCsv
+from baslip.studies.schema import Sweep
+from baslip.studies.sweep import RESULT_COLUMNS, interpolated_radius, radius_grid, sweep_tasks
+
+GRID = """\
+name: tiny_grid
+guess: {theta_h: "-90 deg", theta_h_dot: 0.16, Kp: -0.75, Kd: 1.5, theta2_des: "-3 deg", theta2_dot_des: 1.4, theta_td: "6.6 deg"}
+bounds: {theta_h: ["-100 deg", "-80 deg"]}
+study:
+  kind: sweep
+  vary: {ydot: [0.4, 0.5, 0.1], z: [0.4, 0.45, 0.05]}
+"""
+
+
+def test_sweep_tasks_come_in_snake_order():
+    problem = parse_problem({"study": {"kind": "sweep", "vary": {"ydot": [0.1, 0.3, 0.1], "z": [0.3, 0.4, 0.05]}}})
+    assert isinstance(problem.study, Sweep)
+    order = [(t["sweep_ydot"], t["sweep_z"]) for t in sweep_tasks(problem.study)]
+    assert order == [(0.1, 0.3), (0.1, 0.35), (0.1, 0.4), (0.2, 0.4), (0.2, 0.35), (0.2, 0.3),
+                     (0.3, 0.3), (0.3, 0.35), (0.3, 0.4)]
+
+
+@pytest.mark.parametrize(
+    "study, key",
+    [
+        ({"kind": "orbit"}, "study.kind"),
+        ({"kind": "sweep", "vary": {"speed": [0, 1, 0.1]}}, "study.vary.speed"),
+        ({"kind": "sweep", "vary": {"ydot": [1, 0, 0.1]}}, "study.vary.ydot"),
+        ({"kind": "sweep", "vary": {"ydot": [0, 1, 0.1]}, "extra": 1}, "study.extra"),
+        ({"kind": "random", "region": "grid", "count": 0}, "study.count"),
+        ({"kind": "basin", "source": "g", "grid": {"z": [0.3, 0.4, 0.1], "ydot": [0.1, 0.2, 0.1]},
+          "stable_at": {"ydot": 0.5, "z": 0.4}, "unstable_at": {"ydot": 0.5, "z": 0.3}}, "study.grid"),
+    ],
+)
+def test_bad_study_sections_name_the_key(study, key):
+    with pytest.raises(ProblemError) as err:
+        parse_problem({"study": study})
+    assert err.value.key == key
+
+
+def test_resumable_csv_drops_a_row_cut_short(tmp_path):
+    path = tmp_path / "points.csv"
+    table = ResumableCsv(path, ["a", "b"], ["a"])
+    table.append({"a": 0.1, "b": 1.0})
+    with open(path, "a") as handle:
+        handle.write("0.2,2.")  # a kill in mid-row
+    reopened = ResumableCsv(path, ["a", "b"], ["a"])
+    assert reopened.done() == {("0.1",)}
+    assert path.read_text() == "a,b\n0.1,1.0\n"
+
+
+def test_interpolated_radius_marks_the_region():
+    rows = [{"sweep_ydot": y, "sweep_z": z, "status": "converged", "spectral_radius": r}
+            for (y, z, r) in [(0.1, 0.3, 0.5), (0.2, 0.3, 1.5), (0.1, 0.4, 0.5), (0.2, 0.4, 1.5)]]
+    a, b, radius = radius_grid(rows, ("ydot", "z"))
+    assert interpolated_radius(a, b, radius, 0.15, 0.35) == pytest.approx(1.0)
+    assert interpolated_radius(a, b, radius, 0.12, 0.35) < 1.0
+    assert math.isnan(interpolated_radius(a, b, radius, 0.25, 0.35))
+
+
+@pytest.fixture(scope="module")
+def tiny_grid(tmp_path_factory):
+    """A 2 x 2 grid run once in full; the tests below interrupt and resume copies of it."""
+    folder = tmp_path_factory.mktemp("studies")
+    problem_path = folder / "tiny_grid.yaml"
+    problem_path.write_text(GRID)
+    out = folder / "results" / "tiny_grid"
+    summary = run_study(load_problem(problem_path), problem_path, out, quiet=True)
+    return problem_path, out, summary
+
+
+def test_small_grid_end_to_end(tiny_grid):
+    _, out, summary = tiny_grid
+    assert summary["points"] == 4 and summary["complete"]
+    assert summary["solved"] + summary["not_verified"] + summary["failed"] == 4
+    with open(out / "points.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    assert list(rows[0]) == ["sweep_ydot", "sweep_z", *RESULT_COLUMNS]
+    for row in rows:
+        assert row["status"] in ("converged", "not_verified", "failed")
+        if row["status"] == "converged":
+            assert float(row["residual"]) <= 1e-10
+            assert float(row["ydot"]) == float(row["sweep_ydot"]) and float(row["z"]) == float(row["sweep_z"])
+            assert row["stable"] == ("true" if float(row["spectral_radius"]) < 1 - 1e-6 else "false")
+    record = json.loads((out / "result.json").read_text())
+    for key in ("name", "kind", "points", "solved", "failed", "stable", "wall_time_s", "complete"):
+        assert key in record
+    assert (out / "spectral_radius_map.png").stat().st_size > 0
+    assert (out / "theta_h_map.png").stat().st_size > 0
+
+
+def test_rerunning_a_finished_study_solves_nothing(tiny_grid):
+    problem_path, out, _ = tiny_grid
+    again = run_study(load_problem(problem_path), problem_path, out, quiet=True)
+    assert again["done_in_this_run"] == 0 and again["done_before_this_run"] == 4
+    assert len((out / "points.csv").read_text().splitlines()) == 5
+
+
+def test_an_interrupted_study_resumes_where_it_stopped(tiny_grid):
+    problem_path, out, _ = tiny_grid
+    lines = (out / "points.csv").read_text().splitlines(keepends=True)
+    # As if killed while writing the third row: two rows kept, the third cut short.
+    (out / "points.csv").write_text("".join(lines[:3]) + lines[3][:20])
+    resumed = run_study(load_problem(problem_path), problem_path, out, quiet=True)
+    assert resumed["done_before_this_run"] == 2 and resumed["done_in_this_run"] == 2
+    keys = [tuple(line.split(",")[:2]) for line in (out / "points.csv").read_text().splitlines()[1:]]
+    assert len(keys) == len(set(keys)) == 4
+
+
+def test_a_random_study_needs_its_region(tmp_path):
+    problem_path = tmp_path / "r.yaml"
+    problem_path.write_text("name: r\nstudy: {kind: random, region: nowhere, count: 3}\n")
+    from baslip.solve import main
+
+    assert main([str(problem_path), "--out", str(tmp_path / "results" / "r")]) == 2
+
+
+def test_csv_cells_are_plain_numbers():
+    import numpy as np
+
+    from baslip.studies.runner import format_value
+
+    assert format_value(np.float64(0.25)) == "0.25" and format_value(np.int64(3)) == "3"
+    assert format_value(np.bool_(True)) == "true" and format_value(None) == ""
+
+
+def test_basin_study_on_a_finished_grid(tiny_grid):
+    problem_path, out, _ = tiny_grid
+    basin_path = problem_path.parent / "tiny_basin.yaml"
+    basin_path.write_text(
+        "name: tiny_basin\nstudy: {kind: basin, source: tiny_grid, stable_at: {ydot: 0.4, z: 0.4},"
+        " unstable_at: {ydot: 0.4, z: 0.45}, grid: {ydot: [0.4, 0.5, 0.1], z: [0.4, 0.45, 0.05]},"
+        " strides: 3, tolerance: 1.0e-3}\n"
+    )
+    basin_out = out.parent / "tiny_basin"
+    summary = run_study(load_problem(basin_path), basin_path, basin_out, quiet=True)
+    stable = sum(1 for r in csv.DictReader(open(out / "points.csv")) if r["stable"] == "true")
+    assert summary["stable_points"] == stable and summary["simulations"] == 4 * stable
+    with open(basin_out / "basin.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    assert list(rows[0]) == ["point", "sweep_ydot", "sweep_z", "outcome", "strides_run", "final_eps"]
+    assert {r["outcome"] for r in rows} <= {"converged", "fell", "bounded"}
+    assert json.loads((basin_out / "result.json").read_text())["complete"]
+
+
+def test_adaptive_study_resolves_the_control_each_stride(tmp_path):
+    problem_path = tmp_path / "adaptive.yaml"
+    text = (Path(__file__).resolve().parents[1] / "problems" / "adaptive_upright.yaml").read_text()
+    problem_path.write_text(text.replace("strides: 2048", "strides: 3").replace("frozen_strides: 1000", "frozen_strides: 200"))
+    out = tmp_path / "results" / "adaptive_upright"
+    summary = run_study(load_problem(problem_path), problem_path, out, quiet=True)
+    assert summary["adaptive_strides"] == 3 and summary["max_eps"] <= 1e-12
+    assert summary["frozen_strides_before_fall"] is not None  # an unstable gait falls once frozen
+    with open(out / "strides.csv") as handle:
+        phases = [r["phase"] for r in csv.DictReader(handle)]
+    assert phases[:3] == ["adaptive"] * 3 and phases[-1] == "fall"
+    again = run_study(load_problem(problem_path), problem_path, out, quiet=True)
+    assert again["adaptive_strides"] == 3 and len(open(out / "strides.csv").read().splitlines()) == len(phases) + 1
+
+
+def test_one_quantity_sweeps_walk_outwards_from_the_start():
+    from baslip.studies.sweep import sweep_lanes
+
+    problem = parse_problem({"study": {"kind": "sweep", "vary": {"ydot": [0.0, 1.0, 0.25]}}})
+    lanes = sweep_lanes(problem.study, {"ydot": 0.5})
+    assert [[t["sweep_ydot"] for t in lane] for lane in lanes] == [[0.5, 0.75, 1.0], [0.25, 0.0]]
