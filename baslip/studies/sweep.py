@@ -19,6 +19,7 @@ import numpy as np
 from ..control import CONTROL
 from ..fixedpoint import FixedPointResult
 from ..model import APEX
+from ..quantities import DESIGN
 from ..returnmap import PHASES
 from .runner import split_lanes
 from .schema import RandomSample, Sweep
@@ -104,7 +105,9 @@ def interpolated_radius(a, b, radius, x: float, y: float) -> float:
 
 def random_tasks(study: RandomSample, region_rows: list[dict], names: tuple[str, str]) -> list[dict]:
     """``count`` uniform draws inside the region's stable set (interpolated radius < 1),
-    ordered along the first axis so that a worker's consecutive points are close."""
+    ordered along the first axis. Each starts from, and is picked nearest to, the nearest
+    stable fixed point of the region: the fixed point at a given (ydot, z) is not unique,
+    and this follows the stable family that defines the region."""
     a, b, radius = radius_grid(region_rows, names)
     rng = random.Random(study.seed)
     draws = []
@@ -115,12 +118,23 @@ def random_tasks(study: RandomSample, region_rows: list[dict], names: tuple[str,
         if interpolated_radius(a, b, radius, x, y) < 1.0:
             draws.append((round(float(x), 12), round(float(y), 12)))
     draws.sort()
-    return [{key_column(names[0]): x, key_column(names[1]): y} for x, y in draws]
+    stable = [r for r in region_rows if r["status"] == "converged" and r["stable"] is True]
+    spans = [np.ptp(a) or 1.0, np.ptp(b) or 1.0]
+
+    def nearest(x, y):
+        return min(stable, key=lambda r: ((r[names[0]] - x) / spans[0]) ** 2 + ((r[names[1]] - y) / spans[1]) ** 2)
+
+    tasks = []
+    for x, y in draws:
+        start = nearest(x, y)
+        guess = {n: start[n] for n in DESIGN if n not in names}
+        tasks.append({key_column(names[0]): x, key_column(names[1]): y, "guess": guess})
+    return tasks
 
 
 def result_row(task: dict, result: FixedPointResult) -> dict:
     """One CSV row: the task's swept values, then the solved point."""
-    row = dict(task)
+    row = {k: v for k, v in task.items() if k.startswith("sweep_")}
     row.update(zip(APEX.names, result.X.tolist()))
     row.update(zip(CONTROL.names, result.u.tolist()))
     row.update(result.durations or {})
@@ -147,8 +161,10 @@ def solve_worker(chunk: list[dict], problem_path: str, queue) -> None:
         base = fixed_point_spec(problem)
         warm = None
         for task in chunk:
-            fixed = {**base.fixed, **{name[len("sweep_"):]: value for name, value in task.items()}}
-            result = solver.solve(replace(base, fixed=fixed), name=problem.name, w0=warm)
+            swept = {k[len("sweep_"):]: v for k, v in task.items() if k.startswith("sweep_")}
+            spec = replace(base, fixed={**base.fixed, **swept}, guess={**base.guess, **task.get("guess", {})})
+            # A task with its own guess starts from it; the others from their predecessor.
+            result = solver.solve(spec, name=problem.name, w0=None if "guess" in task else warm)
             warm = result.nlp_w if result.converged else warm
             queue.put(result_row(task, result))
     finally:
