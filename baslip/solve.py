@@ -80,6 +80,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {args.problem}: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
     out_dir = args.out if args.out is not None else Path("results") / problem.name
+    if problem.study is not None:
+        from .studies.run import StudyInputError, check_study_inputs
+
+        try:
+            check_study_inputs(problem, out_dir)
+        except StudyInputError as err:
+            print(f"error: {args.problem}: {err}", file=sys.stderr)
+            return EXIT_BAD_INPUT
     unwritable = _unwritable(out_dir)
     if unwritable:
         print(f"error: output folder {out_dir}: {unwritable}", file=sys.stderr)
@@ -108,13 +116,13 @@ def _unwritable(out_dir: Path) -> str | None:
 
 
 def _run_study(problem, problem_path: Path, out_dir: Path, quiet: bool) -> int:
-    from .studies.run import StudyInputError, run_study
+    from .studies.run import StudyFailed, run_study
 
     try:
         summary = run_study(problem, problem_path, out_dir, quiet)
-    except StudyInputError as err:
-        print(f"error: {problem_path}: {err}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+    except StudyFailed as err:
+        print(f"error: {problem.name}: {err}", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
     if not quiet:
         counts = ", ".join(f"{k} {v}" for k, v in summary.items() if isinstance(v, int) and not isinstance(v, bool))
         print(f"{problem.name}: {problem.study.kind} study {'complete' if summary.get('complete', True) else 'incomplete'}: {counts}")

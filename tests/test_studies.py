@@ -128,6 +128,7 @@ def test_a_random_study_needs_its_region(tmp_path):
     from baslip.solve import main
 
     assert main([str(problem_path), "--out", str(tmp_path / "results" / "r")]) == 2
+    assert not (tmp_path / "results").exists()  # nothing written
 
 
 def test_csv_cells_are_plain_numbers():

@@ -37,6 +37,19 @@ class StudyInputError(ValueError):
         self.key = key
 
 
+class StudyFailed(RuntimeError):
+    """A study could not start: e.g. its starting fixed point did not converge."""
+
+
+def check_study_inputs(problem: Problem, out_dir: Path) -> None:
+    """Raise :class:`StudyInputError` if a study it depends on has not been run."""
+    study = problem.study
+    if isinstance(study, RandomSample):
+        _source_points(out_dir, study.region, "study.region")
+    elif isinstance(study, Basin):
+        _source_points(out_dir, study.source, "study.source")
+
+
 def run_study(problem: Problem, problem_path: Path, out_dir: Path, quiet: bool = False) -> dict:
     """Run (or resume) the study of ``problem``; return its summary (also in result.json)."""
     study = problem.study
@@ -175,7 +188,7 @@ def _run_adaptive(problem: Problem, study: Adaptive, out_dir: Path, quiet: bool)
     solver = FixedPointSolver(shooting_options(problem))
     result = solve_problem(problem, solver)
     if not result.converged:
-        raise StudyInputError("fix", f"the starting fixed point did not converge ({result.message})")
+        raise StudyFailed(f"the starting fixed point did not converge: {result.status} ({result.message})")
     table = ResumableCsv(out_dir / "strides.csv", STRIDE_COLUMNS, ["phase", "n"])
     summary = run_adaptive(solver, result.X, result.u, problem.params, study.strides, study.frozen_strides, table, quiet)
     plots.adaptive_figures(table.rows, out_dir)
