@@ -4,15 +4,16 @@
 PY ?= .venv/bin/python
 STUDIES = grid_downward grid_upward speed_sweep stable_region_random convergence_regions \
           body_angle_scan body_angle_fine_scan adaptive_upright
+BRANCHES = continuation_slip_attack continuation_downward_speed continuation_downward_height
 
 .PHONY: studies clean-studies
 
 studies:
-	@for s in $(STUDIES); do $(PY) -m baslip.solve problems/$$s.yaml || exit 1; done
+	@for s in $(STUDIES) $(BRANCHES); do $(PY) -m baslip.solve problems/$$s.yaml || exit 1; done
 	$(PY) -m baslip.solve problems/downward.yaml
 	$(PY) -m baslip.solve problems/upward.yaml
 	$(PY) -m baslip.animate problems/downward.yaml problems/upward.yaml --out results/animation
 	$(PY) -m baslip.report
 
 clean-studies:
-	rm -rf $(addprefix results/,$(STUDIES)) results/animation results/REPORT.md
+	rm -rf $(addprefix results/,$(STUDIES) $(BRANCHES)) results/animation results/REPORT.md

@@ -31,6 +31,9 @@ LABELS = {
     "spectral_radius": "largest |multiplier| (non-trivial)",
     "residual": "residual eps (eq. 4.1)",
     "eps": "eps between consecutive apexes",
+    "energy": "apex energy [J]",
+    "m": "mass m [kg]", "I": "inertia I [kg m^2]", "k": "leg stiffness k [N/m]",
+    "rho0": "leg rest length rho0 [m]", "d": "hip offset d [m]", "g": "gravity g [m/s^2]",
 }
 
 
@@ -268,3 +271,31 @@ def adaptive_figures(rows: list[dict], out_dir: Path) -> list[Path]:
         _save(fig, path)
         paths.append(path)
     return paths
+
+
+# --- continuation ---------------------------------------------------------------------------
+
+
+def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path: Path) -> Path:
+    """Branch diagram: stable segments solid, unstable dashed, special points labelled."""
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    x = shown(parameter, [r[parameter] for r in rows])
+    y = shown(quantity, [r[quantity] for r in rows])
+    stable = np.array([r["stable"] for r in rows])
+    for k in range(len(rows) - 1):
+        ax.plot(x[k : k + 2], y[k : k + 2], "-" if stable[k] and stable[k + 1] else "--", color="tab:blue")
+    ax.plot([], [], "-", color="tab:blue", label="stable")
+    ax.plot([], [], "--", color="tab:blue", label="unstable")
+    markers = {"fold": ("s", "tab:red"), "period_doubling": ("D", "tab:green"),
+               "neimark_sacker": ("^", "tab:purple"), "branch_point": ("o", "tab:orange")}
+    for r, xv, yv in zip(rows, x, y):
+        if r["special"]:
+            marker, color = markers[r["special"]]
+            ax.plot(xv, yv, marker, color=color, ms=8)
+            ax.annotate(f"{r['special'].replace('_', ' ')}\n{r[parameter] if parameter not in ANGLES else r[parameter] * DEG:.6g}",
+                        (xv, yv), textcoords="offset points", xytext=(6, 6), fontsize=8)
+    ax.set_xlabel(LABELS.get(parameter, f"{parameter}"))
+    ax.set_ylabel(LABELS.get(quantity, quantity))
+    ax.legend(fontsize=8)
+    _save(fig, path)
+    return path

@@ -33,7 +33,7 @@ from .studies.schema import Study, StudyError, parse_study
 ANGLES = ("theta_h", "theta2_des", "theta_td")
 RATES = ("theta_h_dot", "theta2_dot_des")
 POSITIVE_PARAMS = ("m", "I", "k", "rho0", "g")
-TOP_LEVEL_KEYS = ("name", "params", "fix", "guess", "bounds", "objective", "solver", "study")
+TOP_LEVEL_KEYS = ("name", "params", "fix", "guess", "bounds", "objective", "solver", "study", "continuation")
 
 class ProblemError(ValueError):
     """An invalid problem; ``key`` is the dotted path of the offending entry."""
@@ -72,6 +72,7 @@ class Problem:
     objective: str = "nearest_guess"
     solver: SolverSettings = SolverSettings()
     study: Study | None = None  # many solves or simulations instead of one fixed point
+    continuation: "ContinuationSpec | None" = None  # trace a branch instead
 
     def full_guess(self) -> dict[str, float]:
         """Starting value of every design quantity that is not fixed."""
@@ -146,7 +147,10 @@ def parse_problem(data: Any, default_name: str = "problem") -> Problem:
         objective=objective,
         solver=_solver(top.get("solver", {})),
         study=_study(top["study"]) if "study" in top else None,
+        continuation=_continuation(top["continuation"]) if "continuation" in top else None,
     )
+    if problem.study is not None and problem.continuation is not None:
+        raise ProblemError("continuation", "a problem has either a study or a continuation, not both")
     _check_consistency(problem)
     return problem
 
@@ -235,6 +239,50 @@ def _bounds(value: Any) -> dict[str, tuple[float, float]]:
                 raise ProblemError(key, f"[{lo:g}, {hi:g}] lies outside the physical range [{physical_lo:g}, {physical_hi:g}]")
         bounds[name] = (lo, hi)
     return bounds
+
+
+@dataclass(frozen=True)
+class ContinuationSpec:
+    """Trace the branch of fixed points as ``parameter`` varies over [lo, hi].
+
+    parameter: a fixed quantity (or energy) or a model parameter; step: first arclength
+    step (scaled units); max_points: limit on the points; direction: +1 or -1, the way
+    lambda first moves; plot: apex quantity on the diagram's vertical axis.
+    """
+
+    parameter: str
+    lo: float
+    hi: float
+    step: float = 0.05
+    max_points: int = 300
+    direction: int = 1
+    plot: str = "z"
+
+
+def _continuation(value: Any) -> ContinuationSpec:
+    raw = _mapping(value, "continuation", ("parameter", "range", "step", "max_points", "direction", "plot"))
+    parameter = raw.get("parameter")
+    if parameter not in QUANTITIES + PARAMS.names:
+        raise ProblemError("continuation.parameter", f"expected a quantity or a model parameter, got {parameter!r}")
+    bounds = raw.get("range")
+    if not isinstance(bounds, (list, tuple)) or len(bounds) != 2:
+        raise ProblemError("continuation.range", f"expected [lo, hi], got {bounds!r}")
+    lo, hi = (_number(b, f"continuation.range.{parameter}") for b in bounds)
+    if lo >= hi:
+        raise ProblemError("continuation.range", f"expected lo < hi, got [{lo:g}, {hi:g}]")
+    step = _number(raw.get("step", 0.05), "continuation.step")
+    if step <= 0:
+        raise ProblemError("continuation.step", f"must be positive, got {step}")
+    max_points = raw.get("max_points", 300)
+    if isinstance(max_points, bool) or not isinstance(max_points, int) or not 2 <= max_points <= 100000:
+        raise ProblemError("continuation.max_points", f"expected an integer in [2, 100000], got {max_points!r}")
+    direction = raw.get("direction", 1)
+    if direction not in (1, -1) or isinstance(direction, bool):
+        raise ProblemError("continuation.direction", f"expected 1 or -1, got {direction!r}")
+    plot = raw.get("plot", "z")
+    if plot not in DESIGN:
+        raise ProblemError("continuation.plot", f"expected a design quantity, got {plot!r}")
+    return ContinuationSpec(parameter, lo, hi, step, max_points, direction, plot)
 
 
 def _study(value: Any) -> Study:

@@ -174,7 +174,7 @@ class ReturnMap:
     def __init__(self, tolerances: Tolerances = Tolerances(), plugin: str = "erk"):
         self.tolerances = tolerances
         self.plugin = plugin
-        self._samplers: dict = {}  # sampling integrators for drawing, built on first use
+        self._samplers: dict = {}  # functions needed only by some users, built on first use
         with _event_notice_silenced():
             self._touchdown_time = self._build_touchdown_rootfinder()
             self._stance = self._build_stance_integrator()
@@ -331,6 +331,24 @@ class ReturnMap:
             raise RunnerFell(outcome.fall)
         jac = np.asarray(jac)
         return jac[:, : APEX.size], jac[:, APEX.size :]
+
+    def parameter_jacobian(self, X, u, params) -> np.ndarray:
+        """dr/dp (4 x 6) with respect to the model parameters (m, I, k, rho0, d, g)."""
+        if "parameter_jacobian" not in self._samplers:
+            Xs, us, ps, tg = self._stride_fn.mx_in()
+            with _event_notice_silenced():
+                self._samplers["parameter_jacobian"] = ca.Function(
+                    "return_map_parameter_jacobian", [Xs, us, ps, tg],
+                    [ca.jacobian(self._stride_fn(Xs, us, ps, tg)[0], ps)],
+                )
+        X, u, p = _vec(X), _vec(u), _param_vector(params)
+        fallen, t_guess = self._start(X, u, p)
+        if fallen is not None:
+            raise RunnerFell(fallen.fall)
+        try:
+            return np.asarray(self._samplers["parameter_jacobian"](X, u, p, t_guess))
+        except RuntimeError:
+            raise RunnerFell(Fall.INTEGRATION_FAILED) from None
 
     def stance_samples(self, x_touchdown, u, params, duration: float, n: int) -> np.ndarray:
         """Stance states (6 x n) at n equal steps up to ``duration`` [s] after touchdown,

@@ -88,6 +88,15 @@ def main(argv: list[str] | None = None) -> int:
         except StudyInputError as err:
             print(f"error: {args.problem}: {err}", file=sys.stderr)
             return EXIT_BAD_INPUT
+    if problem.continuation is not None:
+        from .api import fixed_point_spec
+        from .branches import BranchError, check_branch
+
+        try:
+            check_branch(fixed_point_spec(problem), problem.continuation.parameter)
+        except BranchError as err:
+            print(f"error: {args.problem}: {err}", file=sys.stderr)
+            return EXIT_BAD_INPUT
     unwritable = _unwritable(out_dir)
     if unwritable:
         print(f"error: output folder {out_dir}: {unwritable}", file=sys.stderr)
@@ -95,6 +104,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if problem.study is not None:
             return _run_study(problem, args.problem, out_dir, args.quiet)
+        if problem.continuation is not None:
+            return _run_continuation(problem, out_dir, args.quiet)
         return _solve_and_write(problem, out_dir, args.quiet)
     except KeyboardInterrupt:
         print(f"{problem.name}: interrupted", file=sys.stderr)
@@ -128,6 +139,23 @@ def _run_study(problem, problem_path: Path, out_dir: Path, quiet: bool) -> int:
         print(f"{problem.name}: {problem.study.kind} study {'complete' if summary.get('complete', True) else 'incomplete'}: {counts}")
         print(f"  wrote {out_dir}/ (result.json, CSV and PNG figures), {summary['wall_time_s']:.1f} s")
     return EXIT_OK if summary.get("complete", True) else EXIT_INTERRUPTED
+
+
+def _run_continuation(problem, out_dir: Path, quiet: bool) -> int:
+    from .studies.branch import BranchStartFailed, run_continuation, write_summary
+
+    try:
+        summary = run_continuation(problem, out_dir, quiet)
+    except BranchStartFailed as err:
+        print(f"error: {problem.name}: {err}", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
+    write_summary(summary, out_dir)
+    if not quiet:
+        special = ", ".join(f"{p['type']} at {summary['parameter']} = {p[summary['parameter']]:.7g}" for p in summary["special_points"])
+        print(f"{problem.name}: {summary['points']} verified points, stopped: {summary['stop_reason']}")
+        print(f"  special points: {special or 'none'}")
+        print(f"  wrote {out_dir}/ (branch.csv, result.json, diagram.png), {summary['wall_time_s']:.1f} s")
+    return EXIT_OK
 
 
 def _solve_and_write(problem, out_dir: Path, quiet: bool) -> int:

@@ -1,0 +1,206 @@
+"""Pseudo-arclength continuation of fixed points, with detection of special points.
+
+The engine is generic: a :class:`System` gives n equations F(v) = 0 in n + 1 scaled
+unknowns v = (w, lambda), their Jacobian, and the return-map multipliers at a point. From
+a solution, each step predicts along the unit tangent t (the null vector of dF/dv,
+oriented like the previous one) and corrects with Newton on [F(v); t.(v - v_pred)] = 0.
+Steps grow after easy corrections and halve after failed ones, so the branch passes
+through folds, where lambda turns back.
+
+Special points, found by sign changes of test functions between consecutive points, and
+then located by the secant method on the arclength until lambda is known to 1e-7:
+
+* ``fold``: the lambda component of the tangent;
+* ``period_doubling``: det(I + dr/dX) (a multiplier crosses -1);
+* ``neimark_sacker``: the product of (|mu|^2 - 1) over the complex pairs;
+* ``branch_point``: det of the bordered Jacobian [dF/dv; t].
+
+Multipliers that are 1 by structure (energy, free spin) are never tested for crossing 1
+(folds come from the tangent, not from det(dr/dX - I)), so they raise no false alarms.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Protocol
+
+import numpy as np
+
+SPECIAL_TYPES = ("fold", "period_doubling", "neimark_sacker", "branch_point")
+LOCATE_TOLERANCE = 1e-7  # on lambda (scaled units)
+
+
+class CorrectionFailed(RuntimeError):
+    """Newton did not converge (or the runner fell) at a trial point."""
+
+
+class System(Protocol):
+    def residual(self, v: np.ndarray) -> np.ndarray: ...
+    def jacobian(self, v: np.ndarray) -> np.ndarray: ...  # n x (n + 1)
+    def multipliers(self, v: np.ndarray) -> tuple[np.ndarray, list[bool]]: ...  # values, trivial?
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Step control (scaled arclength) and limits of a continuation run."""
+
+    step: float = 0.05
+    min_step: float = 1e-6
+    max_step: float = 0.5
+    max_points: int = 200
+    lam_range: tuple[float, float] = (-math.inf, math.inf)  # scaled lambda
+    tolerance: float = 1e-10  # on |F|
+    max_newton: int = 8
+
+
+@dataclass
+class Point:
+    """An accepted point of the branch (scaled v), its tangent and test functions."""
+
+    v: np.ndarray
+    tangent: np.ndarray
+    multipliers: np.ndarray
+    trivial: list[bool]
+    tests: dict[str, float]
+    special: str = ""
+
+
+@dataclass
+class Branch:
+    points: list[Point] = field(default_factory=list)
+    stop_reason: str = ""
+
+    @property
+    def special(self) -> list[Point]:
+        return [p for p in self.points if p.special]
+
+
+def tangent_of(jac: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
+    """Unit null vector of the n x (n + 1) Jacobian, oriented along ``previous``."""
+    _, _, vt = np.linalg.svd(jac)
+    t = vt[-1]
+    if previous is not None and np.dot(t, previous) < 0:
+        t = -t
+    return t / np.linalg.norm(t)
+
+
+def test_functions(jac: np.ndarray, tangent: np.ndarray, multipliers: np.ndarray, trivial: list[bool]) -> dict[str, float]:
+    nontrivial = np.array([m for m, t in zip(multipliers, trivial) if not t])
+    complex_pairs = [m for m in nontrivial if m.imag > 1e-9]
+    return {
+        "fold": float(tangent[-1]),
+        "period_doubling": float(np.real(np.prod(1.0 + multipliers))),
+        "neimark_sacker": float(np.prod([abs(m) ** 2 - 1.0 for m in complex_pairs])) if complex_pairs else math.nan,
+        "branch_point": float(np.linalg.det(np.vstack([jac, tangent]))),
+        "complex_pairs": float(len(complex_pairs)),
+    }
+
+
+def correct(system: System, v_pred: np.ndarray, tangent: np.ndarray, settings: Settings) -> tuple[np.ndarray, int]:
+    """Newton on the bordered system from ``v_pred``; returns the point and iterations."""
+    v = v_pred.copy()
+    for iteration in range(1, settings.max_newton + 1):
+        f = system.residual(v)
+        g = np.concatenate([f, [np.dot(tangent, v - v_pred)]])
+        jac = np.vstack([system.jacobian(v), tangent])
+        dv = np.linalg.solve(jac, -g)
+        v = v + dv
+        if np.linalg.norm(dv) < 1e-10 and np.linalg.norm(system.residual(v)) <= settings.tolerance:
+            return v, iteration
+    if np.linalg.norm(system.residual(v)) <= settings.tolerance:
+        return v, settings.max_newton
+    raise CorrectionFailed("Newton did not converge")
+
+
+def make_point(system: System, v: np.ndarray, previous_tangent: np.ndarray | None) -> Point:
+    jac = system.jacobian(v)
+    t = tangent_of(jac, previous_tangent)
+    multipliers, trivial = system.multipliers(v)
+    return Point(v, t, multipliers, trivial, test_functions(jac, t, multipliers, trivial))
+
+
+def continue_branch(
+    system: System,
+    v0: np.ndarray,
+    direction: float,
+    settings: Settings,
+    accept: Callable[[np.ndarray], str | None] = lambda v: None,
+    progress: Callable[[int, Point], None] = lambda n, p: None,
+) -> Branch:
+    """Trace the branch from the solution ``v0`` towards increasing (direction > 0) or
+    decreasing lambda. ``accept(v)`` may veto a point with a reason (e.g. not verified)."""
+    first = make_point(system, v0, None)
+    if np.sign(first.tangent[-1]) != np.sign(direction) and first.tangent[-1] != 0:
+        first.tangent = -first.tangent
+        first.tests["fold"] = float(first.tangent[-1])
+    branch = Branch([first])
+    h = settings.step
+    lo, hi = settings.lam_range
+    while True:
+        if len(branch.points) >= settings.max_points:
+            branch.stop_reason = "maximum number of points"
+            return branch
+        here = branch.points[-1]
+        try:
+            v, iterations = correct(system, here.v + h * here.tangent, here.tangent, settings)
+            point = make_point(system, v, here.tangent)
+        except CorrectionFailed as err:
+            if h / 2 < settings.min_step:
+                branch.stop_reason = f"step too small ({err})"
+                return branch
+            h /= 2
+            continue
+        veto = accept(point.v)
+        if veto:
+            if h / 2 < settings.min_step:
+                branch.stop_reason = veto
+                return branch
+            h /= 2
+            continue
+        for kind in _crossings(here, point):
+            branch.points.append(locate(system, here, point, kind, settings))
+        branch.points.append(point)
+        progress(len(branch.points), point)
+        if not lo <= point.v[-1] <= hi:
+            branch.stop_reason = "end of range"
+            return branch
+        h = min(h * 1.5, settings.max_step) if iterations <= 3 else max(h * 0.7, settings.min_step)
+
+
+def _crossings(a: Point, b: Point) -> list[str]:
+    kinds = []
+    for kind in SPECIAL_TYPES:
+        x, y = a.tests[kind], b.tests[kind]
+        if kind == "neimark_sacker" and a.tests["complex_pairs"] != b.tests["complex_pairs"]:
+            continue  # a pair turned real: not a crossing of the unit circle
+        if math.isfinite(x) and math.isfinite(y) and x * y < 0:
+            kinds.append(kind)
+    return kinds
+
+
+def locate(system: System, a: Point, b: Point, kind: str, settings: Settings) -> Point:
+    """The point between a and b where test function ``kind`` vanishes (secant on the
+    arclength from a, each trial corrected onto the branch)."""
+    span = float(np.dot(b.v - a.v, a.tangent))
+    s_lo, s_hi, f_lo, f_hi = 0.0, span, a.tests[kind], b.tests[kind]
+    best, lam_lo, lam_hi = b, a.v[-1], b.v[-1]
+    for _ in range(60):
+        s = s_lo - f_lo * (s_hi - s_lo) / (f_hi - f_lo)
+        if not min(s_lo, s_hi) < s < max(s_lo, s_hi):
+            s = 0.5 * (s_lo + s_hi)
+        try:
+            v, _ = correct(system, a.v + s * a.tangent, a.tangent, settings)
+        except CorrectionFailed:
+            break
+        best = make_point(system, v, a.tangent)
+        value = best.tests[kind]
+        if value * f_lo < 0:
+            s_hi, f_hi, lam_hi = s, value, best.v[-1]
+        else:
+            s_lo, f_lo, lam_lo = s, value, best.v[-1]
+        # At a fold lambda is extremal, so it settles long before s does: both must.
+        if (abs(lam_hi - lam_lo) < LOCATE_TOLERANCE and abs(s_hi - s_lo) < 1e-5) or value == 0.0:
+            break
+    best.special = kind
+    return best

@@ -1,0 +1,81 @@
+"""Specification of baslip.branches with baslip.continuation on the BA-SLIP itself.
+
+The SLIP limit (d = 0, no torque) at the energy of Seyfarth, Geyer & Herr (2003),
+J. Exp. Biol. 206:2547 (see test_slip_limit.py), continued in the touchdown angle: the
+self-stable band is bounded by a period doubling and a fold. Rummel & Seyfarth (2008),
+Int. J. Robot. Res. 27:919, give the band as about 2 deg wide at 5 m/s. The period
+doubling is cross-checked with the independent SLIP implementation of test_slip_limit.py.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from baslip.api import fixed_point_spec
+from baslip.branches import BranchError, FixedPointSystem, check_branch
+from baslip.continuation import Settings, continue_branch
+from baslip.problem import load_problem
+from baslip.shooting import FixedPointSpec
+
+from test_slip_limit import slip_fixed_point  # an independent SLIP (tests/ is on sys.path)
+
+
+@pytest.fixture(scope="module")
+def slip_branch(solver):
+    problem = load_problem("problems/continuation_slip_attack.yaml")
+    start = solver.solve(fixed_point_spec(problem))
+    assert start.converged, start.message
+    system = FixedPointSystem(fixed_point_spec(problem), "theta_td", solver.residual_map, solver.jacobian_map)
+    v0 = system.pack(start.X, start.u, system.start_value())
+    settings = Settings(step=0.05, lam_range=(math.radians(20) / system.lam_scale, math.radians(25) / system.lam_scale))
+    branch = continue_branch(system, v0, +1, settings)
+    return system, branch
+
+
+def _attack_deg(system, point):
+    return 90.0 - math.degrees(system.unpack(point.v)[3])
+
+
+def test_the_stable_band_is_bounded_by_a_period_doubling_and_a_fold(slip_branch):
+    system, branch = slip_branch
+    kinds = [p.special for p in branch.special]
+    assert kinds == ["period_doubling", "fold"]  # no false alarms from the three unit multipliers
+    pd, fold = branch.special
+    (pd_multiplier,) = [m for m, t in zip(pd.multipliers, pd.trivial) if not t]
+    (fold_multiplier,) = [m for m, t in zip(fold.multipliers, fold.trivial) if not t]
+    assert abs(pd_multiplier + 1) < 1e-5 and abs(fold_multiplier - 1) < 1e-3
+    width = _attack_deg(system, pd) - _attack_deg(system, fold)
+    assert 2.0 < width < 3.0  # "about 2 deg" (Rummel & Seyfarth 2008)
+    stable = [p for p in branch.points if not p.special and max(abs(m) for m, t in zip(p.multipliers, p.trivial) if not t) < 1]
+    lams = [system.unpack(p.v)[3] for p in stable]
+    assert min(lams) > system.unpack(pd.v)[3] - 1e-9 and max(lams) < system.unpack(fold.v)[3] + 1e-9
+
+
+def test_the_period_doubling_agrees_with_an_independent_slip(slip_branch):
+    system, branch = slip_branch
+    pd = branch.special[0]
+    X, _, _, _ = system.unpack(pd.v)
+    height, slope = slip_fixed_point(_attack_deg(system, pd), X[0])
+    assert height == pytest.approx(X[0], abs=1e-6)
+    assert slope == pytest.approx(-1.0, abs=1e-3)
+
+
+def test_the_branch_turns_back_at_the_fold_and_stays_verified(slip_branch, solver):
+    system, branch = slip_branch
+    lams = np.array([system.unpack(p.v)[3] for p in branch.points if not p.special])
+    turn = int(np.argmax(lams))
+    assert 0 < turn < len(lams) - 1 and np.all(np.diff(lams[: turn + 1]) > 0) and np.all(np.diff(lams[turn:]) < 0)
+    assert branch.stop_reason == "end of range"
+    for point in branch.points[::5]:
+        X, u, params, _ = system.unpack(point.v)
+        check = solver.verify_map.stride(X, u, params)
+        assert check.ok and np.linalg.norm(check.apex - X) / np.linalg.norm(X) <= 1e-10
+
+
+def test_a_branch_needs_as_many_free_quantities_as_equations():
+    problem = load_problem("problems/downward.yaml")
+    with pytest.raises(BranchError, match="as many free quantities as equations"):
+        check_branch(fixed_point_spec(problem), "ydot")
+    with pytest.raises(BranchError, match="must be fixed"):
+        check_branch(FixedPointSpec(problem.params, fixed={}, guess={}), "z")

@@ -1,0 +1,58 @@
+"""Specification of baslip.continuation: pseudo-arclength continuation and special points.
+
+A smooth test map with known bifurcations: x -> mu - x^2. Its fixed points solve
+x^2 + x - mu = 0, with a fold at mu = -1/4 (x = -1/2) and, on the upper branch, a
+multiplier -2x that crosses -1 at x = 1/2, mu = 3/4 (period doubling).
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from baslip.continuation import Settings, continue_branch
+
+
+class QuadraticMap:
+    def residual(self, v):
+        x, mu = v
+        return np.array([mu - x * x - x])
+
+    def jacobian(self, v):
+        x, _ = v
+        return np.array([[-2 * x - 1, 1.0]])
+
+    def multipliers(self, v):
+        return np.array([complex(-2 * v[0])]), [False]
+
+
+def run(direction, lam_range=(-1.0, 1.0), step=0.05):
+    return continue_branch(QuadraticMap(), np.array([0.0, 0.0]), direction, Settings(step=step, lam_range=lam_range))
+
+
+def test_period_doubling_is_located_to_1e_6():
+    branch = run(+1)
+    (pd,) = [p for p in branch.special if p.special == "period_doubling"]
+    assert abs(pd.v[1] - 0.75) < 1e-6 and abs(pd.v[0] - 0.5) < 1e-6
+    assert branch.stop_reason == "end of range"
+
+
+def test_the_branch_passes_through_the_fold():
+    branch = run(-1)
+    (fold,) = [p for p in branch.special if p.special == "fold"]
+    assert abs(fold.v[1] + 0.25) < 1e-6 and abs(fold.v[0] + 0.5) < 1e-4
+    # Past the fold, lambda grows again along the lower branch x = (-1 - sqrt(1 + 4 mu)) / 2.
+    after = [p.v for p in branch.points if p.v[0] < -0.6]
+    assert after and all(abs(x - (-1 - math.sqrt(1 + 4 * mu)) / 2) < 1e-9 for x, mu in after)
+    assert branch.stop_reason == "end of range"
+
+
+def test_every_point_solves_the_equations():
+    for point in run(+1).points + run(-1).points:
+        assert abs(QuadraticMap().residual(point.v)[0]) <= 1e-10
+
+
+def test_limits_stop_the_run():
+    assert run(+1, step=0.01, lam_range=(-1, 1)).stop_reason == "end of range"
+    short = continue_branch(QuadraticMap(), np.zeros(2), 1, Settings(step=0.01, max_points=5))
+    assert short.stop_reason == "maximum number of points" and len(short.points) == 5
