@@ -67,8 +67,9 @@ class FixedPointSystem:
             self.lam_scale = 0.1 * abs(value) if value else 0.01
         self.scale = np.array([NOMINAL[n] for n in self.free] + [self.lam_scale])
         X, p = APEX.sym("X"), PARAMS.sym("p")
-        self._energy = ca.Function("E", [X, p], [apex_energy(X, p)])
-        self._energy_gradient = ca.Function("dE", [X, p], [ca.gradient(apex_energy(X, p), X)])
+        energy = apex_energy(X, p)
+        self._energy = ca.Function("E", [X, p], [energy])
+        self._energy_gradient = ca.Function("dE", [X, p], [ca.gradient(energy, X), ca.gradient(energy, p)])
         self._cache: tuple[bytes, tuple] | None = None
 
     # -- unknowns -------------------------------------------------------------------------
@@ -97,6 +98,10 @@ class FixedPointSystem:
 
     # -- equations ------------------------------------------------------------------------
 
+    def energy(self, X, params: Params) -> float:
+        """Apex energy [J]."""
+        return float(self._energy(X, params.vector()))
+
     def _energy_target(self, lam: float) -> float:
         return lam if self.parameter == "energy" else self.spec.fixed.get("energy", 0.0)
 
@@ -108,7 +113,7 @@ class FixedPointSystem:
         periodic = stride.apex - X
         rows = [periodic[APEX.index(n)] for n in self.rows]
         if self.energy_row:
-            rows.append(float(self._energy(X, params.vector())) - self._energy_target(lam))
+            rows.append(self.energy(X, params) - self._energy_target(lam))
         return np.array(rows)
 
     def _jacobians(self, v: np.ndarray):
@@ -137,14 +142,14 @@ class FixedPointSystem:
             lam_column = full[rows, DESIGN.index(self.parameter)]
         jac = np.column_stack([jac, lam_column])
         if self.energy_row:
-            gradient = np.asarray(self._energy_gradient(X, params.vector())).ravel()
-            energy = np.concatenate([gradient, np.zeros(CONTROL.size)])
-            lam_energy = -1.0 if self.parameter == "energy" else (
-                energy[DESIGN.index(self.parameter)] if self.parameter in DESIGN else 0.0)
-            if self.parameter in PARAMS.names:  # E = m g z + m ydot^2/2 + I w^2/2
-                h = 1e-7 * max(abs(getattr(params, self.parameter)), 1e-3)
-                shifted = replace(params, **{self.parameter: getattr(params, self.parameter) + h})
-                lam_energy = (float(self._energy(X, shifted.vector())) - float(self._energy(X, params.vector()))) / h
+            by_X, by_p = (np.asarray(g).ravel() for g in self._energy_gradient(X, params.vector()))
+            energy = np.concatenate([by_X, np.zeros(CONTROL.size)])
+            if self.parameter == "energy":
+                lam_energy = -1.0
+            elif self.parameter in PARAMS.names:
+                lam_energy = by_p[PARAMS.index(self.parameter)]
+            else:
+                lam_energy = energy[DESIGN.index(self.parameter)]
             jac = np.vstack([jac, np.concatenate([energy[columns], [lam_energy]])])
         return jac * self.scale
 

@@ -79,3 +79,17 @@ def test_a_branch_needs_as_many_free_quantities_as_equations():
         check_branch(fixed_point_spec(problem), "ydot")
     with pytest.raises(BranchError, match="must be fixed"):
         check_branch(FixedPointSpec(problem.params, fixed={}, guess={}), "z")
+
+
+def test_a_model_parameter_can_be_varied(solver):
+    """Continuation in the leg stiffness k uses dr/dp by AD; each point stays periodic."""
+    problem = load_problem("problems/continuation_slip_attack.yaml")
+    spec = fixed_point_spec(problem)
+    start = solver.solve(spec)
+    system = FixedPointSystem(spec, "k", solver.residual_map, solver.jacobian_map)
+    v0 = system.pack(start.X, start.u, system.start_value())
+    branch = continue_branch(system, v0, +1, Settings(step=0.5, max_points=4))
+    ks = [system.unpack(p.v)[2].k for p in branch.points]
+    assert len(ks) == 4 and all(b > a for a, b in zip(ks, ks[1:]))
+    for point in branch.points:
+        assert np.linalg.norm(system.residual(point.v)) <= 1e-10

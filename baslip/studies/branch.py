@@ -85,7 +85,7 @@ def run_continuation(problem, out_dir: Path, quiet: bool = False) -> dict:
 def _row(system, point: Point) -> dict:
     X, u, params, lam = system.unpack(point.v)
     row = {system.parameter: lam, **APEX.to_dict(X), **CONTROL.to_dict(u)}
-    row["energy"] = float(system._energy(X, params.vector()))
+    row["energy"] = system.energy(X, params)
     for i, m in enumerate(point.multipliers, start=1):
         row[f"mult{i}_re"], row[f"mult{i}_im"] = float(m.real), float(m.imag)
     nontrivial = [abs(m) for m, t in zip(point.multipliers, point.trivial) if not t]
