@@ -52,6 +52,11 @@ def finite_or_none(value):
     return value
 
 
+def json_text(record) -> str:
+    """A record as strict JSON (non-finite numbers become null), indented, one trailing newline."""
+    return json.dumps(finite_or_none(record), indent=2, allow_nan=False) + "\n"
+
+
 def multipliers_csv(result: FixedPointResult) -> str:
     """One row per eigenvalue of dr/dX: re, im, abs, label ('' if non-trivial)."""
     buffer = io.StringIO()
@@ -64,9 +69,8 @@ def multipliers_csv(result: FixedPointResult) -> str:
 
 def write_result(result: FixedPointResult, out_dir: Path) -> list[Path]:
     """Write ``result.json`` and ``multipliers.csv`` into ``out_dir``; return their paths."""
-    record = finite_or_none(result.to_json_dict())
     files = {
-        out_dir / "result.json": json.dumps(record, indent=2, allow_nan=False) + "\n",
+        out_dir / "result.json": json_text(result.to_json_dict()),
         out_dir / "multipliers.csv": multipliers_csv(result),
     }
     write_files_atomically(files)

@@ -8,7 +8,6 @@ multiplier -2x that crosses -1 at x = 1/2, mu = 3/4 (period doubling).
 import math
 
 import numpy as np
-import pytest
 
 from baslip.continuation import Settings, continue_branch
 

@@ -7,9 +7,8 @@ multipliers, spectral radius, stability and the special-point label), ``result.j
 
 from __future__ import annotations
 
-import io
 import csv
-import json
+import io
 import sys
 import time
 from pathlib import Path
@@ -19,7 +18,7 @@ import numpy as np
 from ..continuation import Point, Settings, continue_branch
 from ..control import CONTROL
 from ..model import APEX
-from ..output import finite_or_none, write_files_atomically
+from ..output import json_text, write_files_atomically
 from ..stability import STABILITY_MARGIN
 
 
@@ -108,4 +107,4 @@ def _csv(rows: list[dict], parameter: str) -> str:
 
 
 def write_summary(summary: dict, out_dir: Path) -> None:
-    write_files_atomically({out_dir / "result.json": json.dumps(finite_or_none(summary), indent=2, allow_nan=False) + "\n"})
+    write_files_atomically({out_dir / "result.json": json_text(summary)})

@@ -12,7 +12,6 @@ Rerunning a finished study does no new solves; an interrupted one resumes.
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
@@ -20,7 +19,7 @@ import numpy as np
 
 from ..control import CONTROL
 from ..model import APEX
-from ..output import finite_or_none, write_files_atomically
+from ..output import json_text, write_files_atomically
 from ..problem import Problem
 from .. import plots
 from .basin import BASIN_COLUMNS, basin_tasks, basin_worker, run_from, SIMULATION_TOLERANCES
@@ -71,7 +70,7 @@ def run_study(problem: Problem, problem_path: Path, out_dir: Path, quiet: bool =
     else:  # pragma: no cover - the schema admits no other kind
         raise TypeError(study)
     summary = {"name": problem.name, "kind": study.kind, **summary, "wall_time_s": time.perf_counter() - start}
-    write_files_atomically({out_dir / "result.json": json.dumps(finite_or_none(summary), indent=2, allow_nan=False) + "\n"})
+    write_files_atomically({out_dir / "result.json": json_text(summary)})
     return summary
 
 
