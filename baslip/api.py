@@ -30,6 +30,7 @@ def fixed_point_spec(problem: Problem) -> FixedPointSpec:
         guess=problem.full_guess(),
         bounds=dict(problem.bounds),
         objective=problem.objective,
+        strides=problem.strides,
     )
 
 

@@ -1,5 +1,8 @@
 """Branches of BA-SLIP fixed points: the fixed-point equations as a continuation system.
 
+A fixed point here is one of the N-stride map r^N when the problem asks for orbits of
+N strides (``FixedPointSpec.strides``); its multipliers are those of r^N.
+
 The unknowns are the free design quantities and the continuation parameter lambda, which
 is a fixed quantity of the problem (a state, a control, the apex energy) or a model
 parameter (m, I, k, rho0, d, g). The equations are the periodicity rows r(X, u) - X that
@@ -107,10 +110,10 @@ class FixedPointSystem:
 
     def residual(self, v: np.ndarray) -> np.ndarray:
         X, u, params, lam = self.unpack(v)
-        stride = self.residual_map.stride(X, u, params)
-        if not stride.ok:
-            raise CorrectionFailed(f"the runner falls ({stride.fall.value})")
-        periodic = stride.apex - X
+        orbit = self.residual_map.simulate(X, u, params, self.spec.strides)
+        if orbit.fall is not None:
+            raise CorrectionFailed(f"the runner falls ({orbit.fall.value})")
+        periodic = orbit.apexes[-1] - X
         rows = [periodic[APEX.index(n)] for n in self.rows]
         if self.energy_row:
             rows.append(self.energy(X, params) - self._energy_target(lam))
@@ -121,8 +124,9 @@ class FixedPointSystem:
         if self._cache is None or self._cache[0] != key:
             X, u, params, _ = self.unpack(v)
             try:
-                dr_dX, dr_du = self.jacobian_map.jacobians(X, u, params)
-                dr_dp = self.jacobian_map.parameter_jacobian(X, u, params) if self.parameter in PARAMS.names else None
+                strides = self.spec.strides
+                dr_dX, dr_du = self.jacobian_map.jacobians(X, u, params, strides)
+                dr_dp = self.jacobian_map.parameter_jacobian(X, u, params, strides) if self.parameter in PARAMS.names else None
             except RunnerFell as err:
                 raise CorrectionFailed(f"the runner falls ({err.fall.value})") from None
             self._cache = (key, (X, u, params, dr_dX, dr_du, dr_dp))

@@ -123,17 +123,19 @@ def make_point(system: System, v: np.ndarray, previous_tangent: np.ndarray | Non
 def continue_branch(
     system: System,
     v0: np.ndarray,
-    direction: float,
+    direction: float | np.ndarray,
     settings: Settings,
     accept: Callable[[np.ndarray], str | None] = lambda v: None,
     progress: Callable[[int, Point], None] = lambda n, p: None,
 ) -> Branch:
     """Trace the branch from the solution ``v0`` towards increasing (direction > 0) or
-    decreasing lambda. ``accept(v)`` may veto a point with a reason (e.g. not verified)."""
-    first = make_point(system, v0, None)
-    if np.sign(first.tangent[-1]) != np.sign(direction) and first.tangent[-1] != 0:
-        first.tangent = -first.tangent
-        first.tests["fold"] = float(first.tangent[-1])
+    decreasing lambda, or, if ``direction`` is a vector, along the tangent that points
+    with it. ``accept(v)`` may veto a point with a reason (e.g. not verified)."""
+    if np.isscalar(direction):
+        direction = np.concatenate([np.zeros(len(v0) - 1), [direction]])
+    # The test functions depend on the tangent's sign, so it is oriented before they are
+    # evaluated (a flip afterwards would fake a branch point at the first step).
+    first = make_point(system, v0, np.asarray(direction, dtype=float))
     branch = Branch([first])
     h = settings.step
     lo, hi = settings.lam_range
@@ -166,6 +168,29 @@ def continue_branch(
             branch.stop_reason = "end of range"
             return branch
         h = min(h * 1.5, settings.max_step) if iterations <= 3 else max(h * 0.7, settings.min_step)
+
+
+def switch_direction(system: System, point: Point) -> np.ndarray:
+    """Unit direction of the branch that crosses ``point``'s branch at ``point``, a branch
+    point of ``system``.
+
+    There dF/dv has a two-dimensional null space, spanned by the known branch's tangent
+    and the new branch's; the new direction is the null vector orthogonal to the known
+    tangent. (At a period doubling of r, the branch of orbits of twice the period crosses
+    the old branch this way in the equations of r^2.)
+    """
+    null = np.linalg.svd(system.jacobian(point.v))[2][-2:]
+    along_known = null @ point.tangent
+    direction = null.T @ np.array([-along_known[1], along_known[0]])
+    return direction / np.linalg.norm(direction)
+
+
+def switch_branch(system: System, point: Point, amplitude: float, settings: Settings) -> tuple[np.ndarray, np.ndarray]:
+    """First solution on the branch that crosses at ``point``, ``amplitude`` (scaled
+    arclength) along :func:`switch_direction`; returns it and that direction."""
+    direction = switch_direction(system, point)
+    v, _ = correct(system, point.v + amplitude * direction, direction, settings)
+    return v, direction
 
 
 def _crossings(a: Point, b: Point) -> list[str]:

@@ -74,6 +74,11 @@ class FixedPointResult:
     polish_iterations: int = 0
     residual_source: str = ""  # which map measured ``residual``
     nlp_w: np.ndarray | None = None  # IPOPT's point, to warm-start a neighbouring solve
+    orbit: np.ndarray | None = None  # strides x 4: the apexes of a multi-stride orbit, X first
+
+    @property
+    def strides(self) -> int:
+        return 1 if self.orbit is None else len(self.orbit)
 
     @property
     def converged(self) -> bool:
@@ -119,6 +124,16 @@ class FixedPointResult:
             "eigenvalues": None if eigenvalues is None else [[ev.real, ev.imag] for ev in eigenvalues],
             "spectral_radius": self.spectral_radius,
             "stable": self.stable,
+        } | self._orbit_json()
+
+    def _orbit_json(self) -> dict:
+        """Extra keys of a multi-stride orbit: its stride count, apexes and minimal period."""
+        if self.strides == 1:
+            return {}
+        return {
+            "strides": self.strides,
+            "orbit": [APEX.to_dict(apex) for apex in self.orbit],
+            "minimal_period": minimal_period(np.vstack([self.orbit, self.orbit[:1]])),
         }
 
 
@@ -126,7 +141,9 @@ class FixedPointSolver:
     """Builds the NLP and the return maps once; solves and verifies many problems."""
 
     def __init__(self, options: ShootingOptions = ShootingOptions()):
+        self.options = options
         self.nlp = ShootingNLP(options)
+        self._multi_stride_nlps: dict[int, ShootingNLP] = {}
         self.residual_map = ReturnMap(Tolerances(1e-12, 1e-12))
         self.jacobian_map = ReturnMap(Tolerances(1e-10, 1e-10))
         self.verify_map = ReturnMap(VERIFY_TOLERANCES, plugin="rosenbrock")
@@ -138,28 +155,40 @@ class FixedPointSolver:
         """Solve ``spec`` from its guess (or from the NLP point ``w0``) and verify the answer."""
         start = time.perf_counter()
         try:
-            sol = self.nlp.solve(spec, w0=w0, rmap=self.residual_map)
+            sol = self.nlp_for(spec.strides).solve(spec, w0=w0, rmap=self.residual_map)
         except RuntimeError as err:  # CasADi could not even run IPOPT
             sol = NlpSolution(spec.start_design()[: APEX.size], spec.start_design()[APEX.size :],
                               np.full(len(PHASES), np.nan), f"Error: {_first_line(err)}", 0, 0.0)
         if sol.return_status not in ACCEPTED_IPOPT:
             return self._result(spec, name, "failed", f"IPOPT: {sol.return_status}", sol, start, sol.X, sol.u)
         X, u, iterations, note = self._polish(spec, sol)
-        check = self.verify_map.stride(X, u, spec.params)
-        if not check.ok:
+        check = self.verify_map.simulate(X, u, spec.params, spec.strides)
+        if check.fall is not None:
             return self._result(spec, name, "not_verified", f"re-simulation falls: {check.fall.value}", sol, start, X, u, iterations)
-        eps = _eps(check.apex, X)
+        eps = _eps(check.apexes[-1], X)
         problem = self._violation(spec, X, u)
         if eps > VERIFY_EPS or problem:
             what = f"eps = {eps:.2e} > {VERIFY_EPS:g}" if eps > VERIFY_EPS else problem
             return self._result(spec, name, "not_verified", f"re-simulation: {what}{note}", sol, start, X, u, iterations, check)
-        stability = classify(self.jacobian_map.jacobians(X, u, spec.params)[0], spec.params, u)
-        return self._result(spec, name, "converged", "verified fixed point", sol, start, X, u, iterations, check, stability)
+        stability = classify(self.jacobian_map.jacobians(X, u, spec.params, spec.strides)[0], spec.params, u)
+        message = "verified fixed point" if spec.strides == 1 else f"verified {spec.strides}-stride orbit"
+        period = minimal_period(check.apexes)
+        if period < spec.strides:
+            message += f"; it repeats after {period} stride{'s' if period > 1 else ''}"
+        return self._result(spec, name, "converged", message, sol, start, X, u, iterations, check, stability)
+
+    def nlp_for(self, strides: int) -> ShootingNLP:
+        """The NLP for orbits of ``strides`` strides, built on first use."""
+        if strides == 1:
+            return self.nlp
+        if strides not in self._multi_stride_nlps:
+            self._multi_stride_nlps[strides] = ShootingNLP(self.options, strides)
+        return self._multi_stride_nlps[strides]
 
     # -- pieces --------------------------------------------------------------------------
 
     def _polish(self, spec: FixedPointSpec, sol: NlpSolution) -> tuple[np.ndarray, np.ndarray, int, str]:
-        """Gauss-Newton on r(X, u) - X (and the energy) over the free, inactive quantities."""
+        """Gauss-Newton on r^N(X, u) - X (and the energy) over the free, inactive quantities."""
         design = np.concatenate([sol.X, sol.u])
         # IPOPT relaxes bounds by ~1e-8, so fixed quantities come back slightly off: reset them.
         for i, name in enumerate(DESIGN):
@@ -171,16 +200,16 @@ class FixedPointSolver:
         nx = APEX.size
         for iteration in range(POLISH_MAX_ITER + 1):
             X, u = design[:nx], design[nx:]
-            stride = self.residual_map.stride(X, u, spec.params)
-            if not stride.ok:
-                return X, u, iteration, f" (polish stopped: {stride.fall.value})"
-            residual = stride.apex - X
+            orbit = self.residual_map.simulate(X, u, spec.params, spec.strides)
+            if orbit.fall is not None:
+                return X, u, iteration, f" (polish stopped: {orbit.fall.value})"
+            residual = orbit.apexes[-1] - X
             energy_row = 0.0 if energy_target is None else self.energy(X, spec.params) - energy_target
-            if _eps(stride.apex, X) <= POLISH_EPS and abs(energy_row) <= POLISH_EPS:
+            if _eps(orbit.apexes[-1], X) <= POLISH_EPS and abs(energy_row) <= POLISH_EPS:
                 return X, u, iteration, ""
             if iteration == POLISH_MAX_ITER or not movable.any():
                 break
-            dr_dX, dr_du = self.jacobian_map.jacobians(X, u, spec.params)
+            dr_dX, dr_du = self.jacobian_map.jacobians(X, u, spec.params, spec.strides)
             jac = np.hstack([dr_dX - np.eye(nx), dr_du])
             rows = [residual]
             if energy_target is not None:
@@ -229,7 +258,7 @@ class FixedPointSolver:
         return movable
 
     def torque_effort(self, result: FixedPointResult) -> float:
-        """Integral of tau^2 dt over the stance of a result's stride [N^2 m^2 s]."""
+        """Integral of tau^2 dt over the stance of a result's (first) stride [N^2 m^2 s]."""
         durations = [result.durations[ph] for ph in PHASES]
         return torque_effort(self.nlp.interval, result.X, result.u, durations, result.params)
 
@@ -238,14 +267,16 @@ class FixedPointSolver:
         return float(self._energy(X, params.vector()))
 
     def _result(self, spec, name, status, message, sol, start, X, u, polish_iterations=0, check=None, stability=None):
-        if check is not None and check.ok:
-            durations = {ph: check.durations[ph] for ph in PHASES}
-            residual, source = _eps(check.apex, X), f"independent re-simulation ({_describe(self.verify_map)})"
+        if check is not None and check.fall is None:
+            durations = {ph: check.durations[0][ph] for ph in PHASES}
+            residual, source = _eps(check.apexes[-1], X), f"independent re-simulation ({_describe(self.verify_map)})"
+            orbit = check.apexes[:-1] if spec.strides > 1 else None
         else:
             durations = dict(zip(PHASES, map(float, sol.durations)))
-            probe = self.residual_map.stride(X, u, spec.params)
-            residual = _eps(probe.apex, X) if probe.ok else None
-            source = f"return map ({_describe(self.residual_map)})" if probe.ok else ""
+            probe = self.residual_map.simulate(X, u, spec.params, spec.strides)
+            residual = _eps(probe.apexes[-1], X) if probe.fall is None else None
+            source = f"return map ({_describe(self.residual_map)})" if probe.fall is None else ""
+            orbit = probe.apexes[:-1] if spec.strides > 1 and probe.fall is None else None
         return FixedPointResult(
             name=name,
             status=status,
@@ -261,7 +292,22 @@ class FixedPointSolver:
             polish_iterations=polish_iterations,
             residual_source=source,
             nlp_w=sol.w,
+            orbit=orbit,
         )
+
+
+#: Relative distance below which two apexes of an orbit count as the same.
+SAME_APEX = 1e-8
+
+
+def minimal_period(apexes: np.ndarray) -> int:
+    """Smallest k with apex k equal to apex 0, for the apexes X_0..X_N of a closed N-stride
+    orbit (X_N = X_0); k divides N."""
+    n = len(apexes) - 1
+    for k in range(1, n):
+        if n % k == 0 and _eps(apexes[k], apexes[0]) <= SAME_APEX:
+            return k
+    return n
 
 
 def _describe(rmap: ReturnMap) -> str:

@@ -277,25 +277,45 @@ def adaptive_figures(rows: list[dict], out_dir: Path) -> list[Path]:
 
 
 def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path: Path) -> Path:
-    """Branch diagram: stable segments solid, unstable dashed, special points labelled."""
+    """Branch diagram: stable segments solid, unstable dashed, special points labelled.
+
+    Rows carry ``branch``, ``strides`` and ``orbit`` (the apexes of the orbit): an orbit
+    of N strides is drawn at each of its N apexes, so a period-2 branch shows both.
+    """
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
-    x = shown(parameter, [r[parameter] for r in rows])
-    y = shown(quantity, [r[quantity] for r in rows])
-    stable = np.array([r["stable"] for r in rows])
-    for k in range(len(rows) - 1):
-        ax.plot(x[k : k + 2], y[k : k + 2], "-" if stable[k] and stable[k + 1] else "--", color="tab:blue")
-    ax.plot([], [], "-", color="tab:blue", label="stable")
-    ax.plot([], [], "--", color="tab:blue", label="unstable")
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for number in sorted({r["branch"] for r in rows}):
+        branch = [r for r in rows if r["branch"] == number]
+        color = colors[number % len(colors)]
+        stable = [r["stable"] for r in branch]
+        for k in range(len(branch[0]["orbit"])):
+            x = shown(parameter, [_orbit_value(r, k, parameter) for r in branch])
+            y = shown(quantity, [_orbit_value(r, k, quantity) for r in branch])
+            for i in range(len(branch) - 1):
+                style = "-" if stable[i] and stable[i + 1] else "--"
+                ax.plot(x[i : i + 2], y[i : i + 2], style, color=color)
+        strides = branch[0]["strides"]
+        for style, word, present in (("-", "stable", any(stable)), ("--", "unstable", not all(stable))):
+            if present:  # only the styles drawn get a legend entry
+                ax.plot([], [], style, color=color, label=f"{strides}-stride orbits, {word}")
     markers = {"fold": ("s", "tab:red"), "period_doubling": ("D", "tab:green"),
                "neimark_sacker": ("^", "tab:purple"), "branch_point": ("o", "tab:orange")}
-    for r, xv, yv in zip(rows, x, y):
+    for r in rows:
         if r["special"]:
             marker, color = markers[r["special"]]
+            xv, yv = shown(parameter, [r[parameter]])[0], shown(quantity, [_orbit_value(r, 0, quantity)])[0]
             ax.plot(xv, yv, marker, color=color, ms=8)
-            ax.annotate(f"{r['special'].replace('_', ' ')}\n{r[parameter] if parameter not in ANGLES else r[parameter] * DEG:.6g}",
-                        (xv, yv), textcoords="offset points", xytext=(6, 6), fontsize=8)
+            value = r[parameter] * DEG if parameter in ANGLES else r[parameter]
+            ax.annotate(f"{r['special'].replace('_', ' ')}\n{value:.6g}", (xv, yv), textcoords="offset points",
+                        xytext=(6, 6), fontsize=8)
     ax.set_xlabel(LABELS.get(parameter, f"{parameter}"))
     ax.set_ylabel(LABELS.get(quantity, quantity))
     ax.legend(fontsize=8)
     _save(fig, path)
     return path
+
+
+def _orbit_value(row: dict, k: int, quantity: str) -> float:
+    """``quantity`` at apex k of the row's orbit (controls and model parameters are the
+    same at every apex)."""
+    return row["orbit"][k][quantity] if quantity in row["orbit"][k] else row[quantity]

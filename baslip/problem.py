@@ -33,7 +33,9 @@ from .studies.schema import Study, StudyError, parse_study
 ANGLES = ("theta_h", "theta2_des", "theta_td")
 RATES = ("theta_h_dot", "theta2_dot_des")
 POSITIVE_PARAMS = ("m", "I", "k", "rho0", "g")
-TOP_LEVEL_KEYS = ("name", "params", "fix", "guess", "bounds", "objective", "solver", "study", "continuation")
+TOP_LEVEL_KEYS = ("name", "params", "fix", "guess", "bounds", "objective", "strides", "solver", "study", "continuation")
+#: Longest orbit, in strides, that a problem may ask for.
+MAX_STRIDES = 16
 
 class ProblemError(ValueError):
     """An invalid problem; ``key`` is the dotted path of the offending entry."""
@@ -70,6 +72,7 @@ class Problem:
     guess: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=lambda: MappingProxyType({}))
     objective: str = "nearest_guess"
+    strides: int = 1  # period of the orbit in strides; fix and guess refer to its first apex
     solver: SolverSettings = SolverSettings()
     study: Study | None = None  # many solves or simulations instead of one fixed point
     continuation: "ContinuationSpec | None" = None  # trace a branch instead
@@ -145,12 +148,15 @@ def parse_problem(data: Any, default_name: str = "problem") -> Problem:
         guess=MappingProxyType(guess),
         bounds=MappingProxyType(bounds),
         objective=objective,
+        strides=_strides(top.get("strides", 1)),
         solver=_solver(top.get("solver", {})),
         study=_study(top["study"]) if "study" in top else None,
         continuation=_continuation(top["continuation"]) if "continuation" in top else None,
     )
     if problem.study is not None and problem.continuation is not None:
         raise ProblemError("continuation", "a problem has either a study or a continuation, not both")
+    if problem.study is not None and problem.strides != 1:
+        raise ProblemError("strides", "studies solve one-stride gaits; remove strides or the study")
     _check_consistency(problem)
     return problem
 
@@ -247,7 +253,9 @@ class ContinuationSpec:
 
     parameter: a fixed quantity (or energy) or a model parameter; step: first arclength
     step (scaled units); max_points: limit on the points; direction: +1 or -1, the way
-    lambda first moves; plot: apex quantity on the diagram's vertical axis.
+    lambda first moves; plot: apex quantity on the diagram's vertical axis; switch:
+    ``period_doubling`` to also trace, from each period doubling found, the branch of
+    orbits of twice the period.
     """
 
     parameter: str
@@ -257,10 +265,15 @@ class ContinuationSpec:
     max_points: int = 300
     direction: int = 1
     plot: str = "z"
+    switch: str | None = None  # "period_doubling": also trace the doubled-period branches
+
+
+#: Branch switches a continuation can make at its special points.
+SWITCHES = ("period_doubling",)
 
 
 def _continuation(value: Any) -> ContinuationSpec:
-    raw = _mapping(value, "continuation", ("parameter", "range", "step", "max_points", "direction", "plot"))
+    raw = _mapping(value, "continuation", ("parameter", "range", "step", "max_points", "direction", "plot", "switch"))
     parameter = raw.get("parameter")
     if parameter not in QUANTITIES + PARAMS.names:
         raise ProblemError("continuation.parameter", f"expected a quantity or a model parameter, got {parameter!r}")
@@ -282,7 +295,16 @@ def _continuation(value: Any) -> ContinuationSpec:
     plot = raw.get("plot", "z")
     if plot not in DESIGN:
         raise ProblemError("continuation.plot", f"expected a design quantity, got {plot!r}")
-    return ContinuationSpec(parameter, lo, hi, step, max_points, direction, plot)
+    switch = raw.get("switch")
+    if switch is not None and switch not in SWITCHES:
+        raise ProblemError("continuation.switch", f"expected one of {', '.join(SWITCHES)}, got {switch!r}")
+    return ContinuationSpec(parameter, lo, hi, step, max_points, direction, plot, switch)
+
+
+def _strides(value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_STRIDES:
+        raise ProblemError("strides", f"expected an integer in [1, {MAX_STRIDES}], got {value!r}")
+    return value
 
 
 def _study(value: Any) -> Study:

@@ -169,6 +169,7 @@ class ReturnMap:
     >>> rmap = ReturnMap()
     >>> stride = rmap.stride(X, u, Params())     # numeric, with fall detection
     >>> A, B = rmap.jacobians(X, u, Params())    # dr/dX (4x4) and dr/du (4x5)
+    >>> A2, B2 = rmap.jacobians(X, u, Params(), strides=2)   # of r(r(X, u), u)
     """
 
     def __init__(self, tolerances: Tolerances = Tolerances(), plugin: str = "erk"):
@@ -313,15 +314,42 @@ class ReturnMap:
             raise RunnerFell(result.fall)
         return result.apex
 
-    def jacobians(self, X, u, params) -> tuple[np.ndarray, np.ndarray]:
+    def jacobians(self, X, u, params, strides: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """(dr/dX, dr/du) by algorithmic differentiation through the event times.
 
-        Raises :class:`RunnerFell` if the stride falls: there is no Jacobian then.
+        With ``strides = n`` these are the Jacobians of the n-stride map r^n (the same
+        control every stride), by the chain rule: dr^n/dX is the product of the strides'
+        dr/dX. Raises :class:`RunnerFell` if a stride falls: there is no Jacobian then.
         """
+        dX, du, _ = self._chained_jacobians(X, u, params, strides, with_parameters=False)
+        return dX, du
+
+    def parameter_jacobian(self, X, u, params, strides: int = 1) -> np.ndarray:
+        """dr^n/dp (4 x 6) with respect to the model parameters (m, I, k, rho0, d, g)."""
+        return self._chained_jacobians(X, u, params, strides, with_parameters=True)[2]
+
+    def _chained_jacobians(self, X, u, params, strides: int, with_parameters: bool):
+        """Jacobians of r^n in (X, u), and in p if asked, accumulated stride by stride."""
         X, u, p = _vec(X), _vec(u), _param_vector(params)
+        dX, du = np.eye(APEX.size), np.zeros((APEX.size, CONTROL.size))
+        dp = np.zeros((APEX.size, PARAMS.size))
+        for _ in range(strides):
+            t_guess = self._touchdown_guess_or_fall(X, u, p)
+            step_X, step_u, apex_next = self._stride_jacobians(X, u, p, t_guess)
+            if with_parameters:
+                dp = step_X @ dp + self._stride_parameter_jacobian(X, u, p, t_guess)
+            dX, du = step_X @ dX, step_X @ du + step_u
+            X = apex_next
+        return dX, du, dp if with_parameters else None
+
+    def _touchdown_guess_or_fall(self, X, u, p) -> float:
         fallen, t_guess = self._start(X, u, p)
         if fallen is not None:
             raise RunnerFell(fallen.fall)
+        return t_guess
+
+    def _stride_jacobians(self, X, u, p, t_guess) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One stride's dr/dX, dr/du and next apex."""
         try:
             jac, *outputs = self._jacobian_fn(X, u, p, t_guess)
         except RuntimeError:
@@ -330,10 +358,10 @@ class ReturnMap:
         if outcome.fall is not None:
             raise RunnerFell(outcome.fall)
         jac = np.asarray(jac)
-        return jac[:, : APEX.size], jac[:, APEX.size :]
+        return jac[:, : APEX.size], jac[:, APEX.size :], outcome.apex
 
-    def parameter_jacobian(self, X, u, params) -> np.ndarray:
-        """dr/dp (4 x 6) with respect to the model parameters (m, I, k, rho0, d, g)."""
+    def _stride_parameter_jacobian(self, X, u, p, t_guess) -> np.ndarray:
+        """One stride's dr/dp; its function is built on first use."""
         if "parameter_jacobian" not in self._samplers:
             Xs, us, ps, tg = self._stride_fn.mx_in()
             with _event_notice_silenced():
@@ -341,10 +369,6 @@ class ReturnMap:
                     "return_map_parameter_jacobian", [Xs, us, ps, tg],
                     [ca.jacobian(self._stride_fn(Xs, us, ps, tg)[0], ps)],
                 )
-        X, u, p = _vec(X), _vec(u), _param_vector(params)
-        fallen, t_guess = self._start(X, u, p)
-        if fallen is not None:
-            raise RunnerFell(fallen.fall)
         try:
             return np.asarray(self._samplers["parameter_jacobian"](X, u, p, t_guess))
         except RuntimeError:

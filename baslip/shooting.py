@@ -12,7 +12,8 @@ Constraints:
 * continuity at the nodes; the touchdown map at the start of stance;
 * each guard zero at its phase end, with its crossing direction as an inequality
   (transversality, by ``margin``);
-* periodicity ``r(X, u) = X``; optionally the apex energy;
+* periodicity ``r(X, u) = X``, or for an orbit of N strides ``r^N(X, u) = X`` with the
+  intermediate apexes as variables; optionally the apex energy;
 * sanity: the foot above ground through descent, the leg compressing in compression and
   compressed in decompression, ``rho`` above a floor, CoM and hip above ground, rising
   liftoff, durations bounded away from zero.
@@ -79,6 +80,7 @@ class FixedPointSpec:
     guess: Mapping[str, float]  # every design quantity that is not fixed
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     objective: str = "nearest_guess"
+    strides: int = 1  # the orbit's period in strides; fixed values and guess are its first apex
 
     def bounds_of(self, name: str) -> tuple[float, float]:
         """Bounds of a design quantity: the problem's, inside the physical ones."""
@@ -129,10 +131,21 @@ def _rk4_interval(substeps: int) -> ca.Function:
 
 
 class ShootingNLP:
-    """The periodic-stride NLP for one discretisation, built once and solved many times."""
+    """The periodic-orbit NLP for one discretisation and stride count, built once and
+    solved many times.
 
-    def __init__(self, options: ShootingOptions = ShootingOptions()):
+    With ``strides = N`` the orbit has N strides under the same control: the apexes
+    X_1..X_{N-1} after the first are decision variables too, each stride is shot as
+    above, consecutive strides are joined (X_{k+1} = r(X_k)) and the last one closes the
+    orbit (r(X_{N-1}) = X_0). The problem's fixed values, guess and objective refer to
+    the first apex X_0.
+    """
+
+    def __init__(self, options: ShootingOptions = ShootingOptions(), strides: int = 1):
+        if strides < 1:
+            raise ValueError(f"strides must be at least 1, got {strides}")
         self.options = options
+        self.strides = strides
         self._build()
 
     # -- construction ------------------------------------------------------------------
@@ -142,33 +155,69 @@ class ShootingNLP:
         n = opt.nodes
         # MX keeps one copy of the mapped RK4 interval (and of its derivatives) instead of
         # inlining it at every node; the small SX pieces are expanded when called.
-        X, u = APEX.sym("X", ca.MX), CONTROL.sym("u", ca.MX)
-        t_descent, t_compression, t_decompression, t_ascent = (ca.MX.sym(f"T_{ph}") for ph in PHASES)
-        T = ca.vertcat(t_descent, t_compression, t_decompression, t_ascent)
-        comp_nodes = ca.MX.sym("compression_nodes", STANCE.size, n)
-        decomp_nodes = ca.MX.sym("decompression_nodes", STANCE.size, n)
-        p = PARAMS.sym("p", ca.MX)
+        u, p = CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
         guess, weights = ca.MX.sym("guess", len(DESIGN)), ca.MX.sym("weights", 2)
+        self.interval = _rk4_interval(opt.substeps)
 
         constraints: list[tuple[ca.MX, float, float]] = []
 
         def constrain(expr, lo, hi):
             constraints.append((ca.vec(expr), lo, hi))
 
+        apexes, blocks, effort, apex_next = [], [], 0, None
+        for k in range(self.strides):
+            X = APEX.sym(f"X{k}", ca.MX)
+            T = ca.vertcat(*(ca.MX.sym(f"T{k}_{ph}") for ph in PHASES))
+            comp_nodes = ca.MX.sym(f"compression_nodes{k}", STANCE.size, n)
+            decomp_nodes = ca.MX.sym(f"decompression_nodes{k}", STANCE.size, n)
+            if apex_next is not None:
+                constrain(apex_next - X, 0, 0)  # strides join
+            apex_next, stride_effort = self._stride(X, u, p, T, comp_nodes, decomp_nodes, constrain)
+            effort += stride_effort
+            apexes.append(X)
+            # X_0 and u lead the vector so that the design is w[:len(DESIGN)] for any N.
+            blocks += ([] if k == 0 else [X]) + [T, ca.vec(comp_nodes), ca.vec(decomp_nodes)]
+        X0 = apexes[0]
+        self._periodicity_row = sum(c[0].numel() for c in constraints)
+        constrain(apex_next - X0, 0, 0)  # the orbit closes
+        self._energy_row = sum(c[0].numel() for c in constraints)
+        constrain(apex_energy(X0, p), -ca.inf, ca.inf)  # bounded or fixed per problem
+
+        design = ca.vertcat(X0, u)
+        scale = ca.DM([NOMINAL[name] for name in DESIGN])
+        distance = ca.sumsqr((design - guess) / scale)
+        objective = weights[0] * distance + weights[1] * effort
+
+        w = ca.vertcat(X0, u, *blocks)
+        self._n_w = w.numel()
+        params = ca.vertcat(p, guess, weights)
+        g = ca.vertcat(*(c[0] for c in constraints))
+        self._lbg = np.concatenate([np.full(c[0].numel(), c[1], dtype=float) for c in constraints])
+        self._ubg = np.concatenate([np.full(c[0].numel(), c[2], dtype=float) for c in constraints])
+        ipopt = {"print_level": 0, "sb": "yes", **dict(opt.ipopt)}
+        self._solver = ca.nlpsol(
+            "periodic_orbit", "ipopt", {"x": w, "p": params, "f": objective, "g": g},
+            # Expanding to SX makes each IPOPT iteration several times cheaper than MX.
+            {"ipopt": ipopt, "print_time": False, "error_on_fail": False, "expand": True},
+        )
+
+    def _stride(self, X, u, p, T, comp_nodes, decomp_nodes, constrain):
+        """Constrain one shot stride from apex ``X``; return its next apex and its tau^2
+        integral [N^2 m^2 s]."""
+        opt, n = self.options, self.options.nodes
+        t_descent, t_compression, t_decompression, t_ascent = (T[i] for i in range(len(PHASES)))
         theta_td = touchdown_angle(u)
         apex_flight = apex_to_flight(X)
         # Descent: the foot stays above ground until it crosses zero, falling.
         for fraction in (0.0, 0.25, 0.5, 0.75):
             constrain(touchdown_guard(ballistic_flight(apex_flight, fraction * t_descent, p), theta_td, p), 0, ca.inf)
         at_touchdown = ballistic_flight(apex_flight, t_descent, p)
-        foot_height = touchdown_guard(at_touchdown, theta_td, p)
-        constrain(foot_height, 0, 0)
+        constrain(touchdown_guard(at_touchdown, theta_td, p), 0, 0)
         constrain(touchdown_guard_rate(at_touchdown, p), -ca.inf, -opt.margin)
         x_td = touchdown_map(at_touchdown, theta_td, p)
 
-        interval = _rk4_interval(opt.substeps)
         starts_c = ca.horzcat(x_td, comp_nodes[:, :-1])
-        ends_c, effort_c = interval.map(n)(starts_c, u, p, t_compression / n)
+        ends_c, effort_c = self.interval.map(n)(starts_c, u, p, t_compression / n)
         constrain(comp_nodes - ends_c, 0, 0)
         bottom = comp_nodes[:, -1]
         constrain(bottom_guard(bottom), 0, 0)
@@ -179,7 +228,7 @@ class ShootingNLP:
         constrain(bottom_guard(comp_nodes[:, :-1]), -ca.inf, 0)
 
         starts_d = ca.horzcat(bottom, decomp_nodes[:, :-1])
-        ends_d, effort_d = interval.map(n)(starts_d, u, p, t_decompression / n)
+        ends_d, effort_d = self.interval.map(n)(starts_d, u, p, t_decompression / n)
         constrain(decomp_nodes - ends_d, 0, 0)
         x_lo = decomp_nodes[:, -1]
         constrain(liftoff_guard(x_lo, p), 0, 0)
@@ -196,37 +245,19 @@ class ShootingNLP:
                 constrain(stance_hip_position(q)[1], 0, ca.inf)
 
         at_liftoff = liftoff_map(x_lo, p)
-        zdot_lo = FLIGHT.get(at_liftoff, "zdot")
-        constrain(zdot_lo, opt.margin, ca.inf)
+        constrain(FLIGHT.get(at_liftoff, "zdot"), opt.margin, ca.inf)
         at_apex = ballistic_flight(at_liftoff, t_ascent, p)
         constrain(FLIGHT.get(at_apex, "zdot"), 0, 0)  # apex guard
-        apex_next = ca.vertcat(*(FLIGHT.get(at_apex, name) for name in ("z", "theta_h", "ydot", "theta_h_dot")))
-        self._periodicity_row = sum(c[0].numel() for c in constraints)
-        constrain(apex_next - X, 0, 0)  # periodicity
-        self._energy_row = sum(c[0].numel() for c in constraints)
-        constrain(apex_energy(X, p), -ca.inf, ca.inf)  # bounded or fixed per problem
-
-        design = ca.vertcat(X, u)
-        scale = ca.DM([NOMINAL[name] for name in DESIGN])
-        distance = ca.sumsqr((design - guess) / scale)
-        effort = ca.sum2(effort_c) + ca.sum2(effort_d)
-        objective = weights[0] * distance + weights[1] * effort
-
-        w = ca.vertcat(X, u, T, ca.vec(comp_nodes), ca.vec(decomp_nodes))
-        self._n_w = w.numel()
-        params = ca.vertcat(p, guess, weights)
-        g = ca.vertcat(*(c[0] for c in constraints))
-        self._lbg = np.concatenate([np.full(c[0].numel(), c[1], dtype=float) for c in constraints])
-        self._ubg = np.concatenate([np.full(c[0].numel(), c[2], dtype=float) for c in constraints])
-        ipopt = {"print_level": 0, "sb": "yes", **dict(opt.ipopt)}
-        self._solver = ca.nlpsol(
-            "periodic_stride", "ipopt", {"x": w, "p": params, "f": objective, "g": g},
-            # Expanding to SX makes each IPOPT iteration several times cheaper than MX.
-            {"ipopt": ipopt, "print_time": False, "error_on_fail": False, "expand": True},
-        )
-        self.interval = interval
+        apex_next = ca.vertcat(*(FLIGHT.get(at_apex, name) for name in APEX.names))
+        return apex_next, ca.sum2(effort_c) + ca.sum2(effort_d)
 
     # -- solving -----------------------------------------------------------------------
+
+    def _durations_index(self, k: int) -> int:
+        """Position of stride k's first phase duration in the NLP vector, laid out as
+        (X_0, u, T_0, nodes_0, X_1, T_1, nodes_1, ...)."""
+        nodes = 2 * STANCE.size * self.options.nodes
+        return len(DESIGN) + k * (APEX.size + len(PHASES) + nodes)
 
     def _bounds(self, spec: FixedPointSpec) -> tuple[np.ndarray, np.ndarray]:
         lbx = np.full(self._n_w, -np.inf)
@@ -236,25 +267,35 @@ class ShootingNLP:
             if name in spec.fixed:
                 lo = hi = spec.fixed[name]
             lbx[i], ubx[i] = lo, hi
-        t0 = len(DESIGN)
-        lbx[t0 : t0 + len(PHASES)] = self.options.min_duration
-        ubx[t0 : t0 + len(PHASES)] = self.options.max_duration
+        for k in range(self.strides):
+            t0 = self._durations_index(k)
+            lbx[t0 : t0 + len(PHASES)] = self.options.min_duration
+            ubx[t0 : t0 + len(PHASES)] = self.options.max_duration
         return lbx, ubx
 
     def initial_guess(self, spec: FixedPointSpec, rmap: ReturnMap | None = None) -> np.ndarray:
-        """Initial point: the guess's design, its simulated durations, RK4-propagated nodes."""
+        """Initial point: the guess's design, then for each stride the apex reached by
+        simulating the guess (the guess itself if it falls), its durations, and nodes
+        propagated by RK4 through stance."""
         design = spec.start_design()
         X, u = design[: APEX.size], design[APEX.size :]
         p = spec.params.vector()
-        durations = _guess_durations(X, u, spec.params, rmap)
         n = self.options.nodes
-        x_td = np.asarray(_touchdown_state(X, u, p, durations[0])).ravel()
-        nodes_c = _propagate(self.interval, x_td, u, p, durations[1], n)
-        nodes_d = _propagate(self.interval, nodes_c[:, -1], u, p, durations[2], n)
-        return np.concatenate([design, durations, nodes_c.T.ravel(), nodes_d.T.ravel()])
+        parts = [design]
+        for k in range(self.strides):
+            durations = _guess_durations(X, u, spec.params, rmap)
+            x_td = np.asarray(_touchdown_state(X, u, p, durations[0])).ravel()
+            nodes_c = _propagate(self.interval, x_td, u, p, durations[1], n)
+            nodes_d = _propagate(self.interval, nodes_c[:, -1], u, p, durations[2], n)
+            parts += ([X] if k else []) + [durations, nodes_c.T.ravel(), nodes_d.T.ravel()]
+            stride = rmap.stride(X, u, spec.params) if rmap is not None else None
+            X = stride.apex if stride is not None and stride.ok else X
+        return np.concatenate(parts)
 
     def solve(self, spec: FixedPointSpec, w0: np.ndarray | None = None, rmap: ReturnMap | None = None) -> NlpSolution:
         """Solve the NLP from ``w0`` (default: :meth:`initial_guess`)."""
+        if spec.strides != self.strides:
+            raise ValueError(f"this NLP is built for {self.strides}-stride orbits, not {spec.strides}")
         if w0 is None:
             w0 = self.initial_guess(spec, rmap)
         lbx, ubx = self._bounds(spec)
@@ -298,7 +339,9 @@ def implied_periodicity(spec: FixedPointSpec) -> tuple[str, ...]:
     always periodic, and theta_h is too when theta_h_dot is fixed at zero. These rows are
     exactly dependent on the others; the RK4 discretisation breaks the dependence by its
     truncation error, which makes IPOPT declare the problem infeasible. So the NLP leaves
-    them out; the Newton polish and the verification still check all four on the exact map.
+    them out of the row that closes the orbit (the joins of a multi-stride orbit keep all
+    four, or its intermediate apexes would float); the Newton polish and the verification
+    still check all four on the exact map.
     """
     torque_free = spec.fixed.get("Kp") == 0.0 and spec.fixed.get("Kd") == 0.0
     if not torque_free:

@@ -59,6 +59,9 @@ def summary(result: FixedPointResult) -> str:
         f"theta_td = {c['theta_td'] * deg:.4f} deg",
         f"  energy   {result.energy:.9g} J",
     ]
+    if result.strides > 1:
+        apexes = "; ".join(f"z = {X[0]:.6f} m, ydot = {X[2]:.6f} m/s" for X in result.orbit)
+        lines.append(f"  orbit    {result.strides} strides, apexes: {apexes}")
     if result.residual is not None:
         lines.append(f"  residual eps = {result.residual:.3e} ({result.residual_source})")
     if result.stability is not None:
@@ -67,7 +70,8 @@ def summary(result: FixedPointResult) -> str:
             text = f"{m.value.real:.6g}{m.value.imag:+.6g}j" if m.value.imag else f"{m.value.real:.6g}"
             parts.append(f"{text} [{m.label}]" if m.label else text)
         verdict = "stable" if result.stable else "unstable"
-        lines.append(f"  multipliers {', '.join(parts)}")
+        of_map = "" if result.strides == 1 else f" (of the {result.strides}-stride map)"
+        lines.append(f"  multipliers{of_map} {', '.join(parts)}")
         lines.append(f"  spectral radius {result.spectral_radius:.6g} -> {verdict}")
     return "\n".join(lines)
 
@@ -151,9 +155,16 @@ def _run_continuation(problem, out_dir: Path, quiet: bool) -> int:
         return EXIT_NOT_CONVERGED
     write_summary(summary, out_dir)
     if not quiet:
-        special = ", ".join(f"{p['type']} at {summary['parameter']} = {p[summary['parameter']]:.7g}" for p in summary["special_points"])
-        print(f"{problem.name}: {summary['points']} verified points, stopped: {summary['stop_reason']}")
-        print(f"  special points: {special or 'none'}")
+        parameter = summary["parameter"]
+        for b in summary["branches"]:
+            special = ", ".join(f"{p['type']} at {parameter} = {p[parameter]:.7g}"
+                                for p in summary["special_points"] if p["branch"] == b["branch"])
+            origin = f", switched at the {b['switched_from']['type'].replace('_', ' ')}" if b["switched_from"] else ""
+            print(f"{problem.name}: branch {b['branch']} ({b['strides']}-stride orbits{origin}): "
+                  f"{b['points']} verified points, stopped: {b['stop_reason']}")
+            print(f"  special points: {special or 'none'}")
+        for f in summary["failed_switches"]:
+            print(f"  could not switch at the {f['type'].replace('_', ' ')} at {parameter} = {f[parameter]:.7g}: {f['reason']}")
         print(f"  wrote {out_dir}/ (branch.csv, result.json, diagram.png), {summary['wall_time_s']:.1f} s")
     return EXIT_OK
 

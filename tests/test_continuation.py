@@ -1,15 +1,17 @@
 """Specification of baslip.continuation: pseudo-arclength continuation and special points.
 
-A smooth test map with known bifurcations: x -> mu - x^2. Its fixed points solve
+A smooth test map with known bifurcations: f(x) = mu - x^2. Its fixed points solve
 x^2 + x - mu = 0, with a fold at mu = -1/4 (x = -1/2) and, on the upper branch, a
-multiplier -2x that crosses -1 at x = 1/2, mu = 3/4 (period doubling).
+multiplier -2x that crosses -1 at x = 1/2, mu = 3/4 (period doubling). Beyond it, the
+period-2 orbit is x = (1 +- sqrt(4 mu - 3)) / 2, with multiplier 4 x1 x2 = 4 (1 - mu),
+which crosses -1 at mu = 5/4 (the next period doubling).
 """
 
 import math
 
 import numpy as np
 
-from baslip.continuation import Settings, continue_branch
+from baslip.continuation import Settings, continue_branch, switch_branch
 
 
 class QuadraticMap:
@@ -23,6 +25,23 @@ class QuadraticMap:
 
     def multipliers(self, v):
         return np.array([complex(-2 * v[0])]), [False]
+
+
+class TwiceQuadraticMap:
+    """The same map applied twice: its fixed points are the period-2 orbits of f."""
+
+    def residual(self, v):
+        x, mu = v
+        return np.array([mu - (mu - x * x) ** 2 - x])
+
+    def jacobian(self, v):
+        x, mu = v
+        y = mu - x * x
+        return np.array([[4 * x * y - 1, 1 - 2 * y]])
+
+    def multipliers(self, v):
+        x, mu = v
+        return np.array([complex(4 * x * (mu - x * x))]), [False]
 
 
 def run(direction, lam_range=(-1.0, 1.0), step=0.05):
@@ -55,3 +74,18 @@ def test_limits_stop_the_run():
     assert run(+1, step=0.01, lam_range=(-1, 1)).stop_reason == "end of range"
     short = continue_branch(QuadraticMap(), np.zeros(2), 1, Settings(step=0.01, max_points=5))
     assert short.stop_reason == "maximum number of points" and len(short.points) == 5
+
+
+def test_switching_at_the_period_doubling_traces_the_period_2_orbits():
+    pd = next(p for p in run(+1).special if p.special == "period_doubling")
+    v, direction = switch_branch(TwiceQuadraticMap(), pd, 0.05, Settings())
+    branch = continue_branch(TwiceQuadraticMap(), v, direction, Settings(step=0.05, lam_range=(-1.0, 1.6)))
+    assert branch.stop_reason == "end of range"
+    points = [p.v for p in branch.points]
+    assert len(points) > 10 and max(mu for _, mu in points) > 1.5
+    assert all(mu > 0.75 for _, mu in points)  # the orbit exists only past the period doubling
+    for x, mu in points:
+        root = math.sqrt(4 * mu - 3)
+        assert min(abs(x - (1 + root) / 2), abs(x - (1 - root) / 2)) < 1e-9
+    (next_pd,) = [p for p in branch.special if p.special == "period_doubling"]
+    assert abs(next_pd.v[1] - 1.25) < 1e-6

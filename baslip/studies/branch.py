@@ -1,8 +1,12 @@
 """Run a ``continuation:`` problem: solve the start, trace the branch, write its files.
 
-Writes ``branch.csv`` (one row per point: the parameter, apex, control, energy, the four
-multipliers, spectral radius, stability and the special-point label), ``result.json``
-(the special points and why the run stopped) and ``diagram.png``.
+With ``switch: period_doubling`` the run also switches, at each period doubling found on
+the first branch, onto the branch of orbits of twice the period, and traces it.
+
+Writes ``branch.csv`` (one row per point: the branch it belongs to and its period in
+strides, the parameter, apex, control, energy, the four multipliers, spectral radius,
+stability and the special-point label), ``result.json`` (the branches, why each stopped,
+and the special points) and ``diagram.png``.
 """
 
 from __future__ import annotations
@@ -11,26 +15,45 @@ import csv
 import io
 import sys
 import time
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from ..continuation import Point, Settings, continue_branch
+from ..continuation import Branch, CorrectionFailed, Point, Settings, continue_branch, switch_branch
 from ..control import CONTROL
 from ..model import APEX
 from ..output import json_text, write_files_atomically
 from ..stability import STABILITY_MARGIN
+from .runner import format_value
+
+#: Times the amplitude of a branch switch is halved when its first point fails.
+SWITCH_ATTEMPTS = 4
 
 
 class BranchStartFailed(RuntimeError):
     """The starting fixed point did not converge."""
 
 
+@dataclass(frozen=True)
+class TracedBranch:
+    """One traced branch: its fixed-point system, points, and where it came from."""
+
+    number: int  # 0 for the branch from the problem's start, then in order of switching
+    system: object  # baslip.branches.FixedPointSystem
+    branch: Branch
+    origin: dict | None = None  # the special point it was switched from
+
+    @property
+    def strides(self) -> int:
+        return self.system.spec.strides
+
+
 def run_continuation(problem, out_dir: Path, quiet: bool = False) -> dict:
     from .. import plots
     from ..api import fixed_point_spec, shooting_options, solve_problem
     from ..branches import FixedPointSystem
-    from ..fixedpoint import VERIFY_EPS, FixedPointSolver
+    from ..fixedpoint import FixedPointSolver
 
     spec = problem.continuation
     start_time = time.perf_counter()
@@ -38,71 +61,140 @@ def run_continuation(problem, out_dir: Path, quiet: bool = False) -> dict:
     start = solve_problem(problem, solver)
     if not start.converged:
         raise BranchStartFailed(f"the starting fixed point did not converge: {start.status} ({start.message})")
-    system = FixedPointSystem(fixed_point_spec(problem), spec.parameter, solver.residual_map, solver.jacobian_map)
-    v0 = system.pack(start.X, start.u, system.start_value())
 
-    def verified(v):
-        X, u, params, _ = system.unpack(v)
-        check = solver.verify_map.stride(X, u, params)
-        if not check.ok:
-            return f"the runner falls ({check.fall.value})"
-        eps = float(np.linalg.norm(check.apex - X) / np.linalg.norm(X))
-        return None if eps <= VERIFY_EPS else f"not verified (eps = {eps:.1e})"
+    def system_for(strides: int):
+        fixed_point = replace(fixed_point_spec(problem), strides=strides)
+        return FixedPointSystem(fixed_point, spec.parameter, solver.residual_map, solver.jacobian_map)
 
-    def progress(n, point):
-        if not quiet:
-            lam = point.v[-1] * system.lam_scale
-            print(f"\r{problem.name}: {n} points, {spec.parameter} = {lam:.6g}   ", end="", file=sys.stderr, flush=True)
-
+    first = system_for(problem.strides)
     settings = Settings(
         step=spec.step, max_points=spec.max_points,
-        lam_range=(spec.lo / system.lam_scale, spec.hi / system.lam_scale),
+        lam_range=(spec.lo / first.lam_scale, spec.hi / first.lam_scale),
     )
-    branch = continue_branch(system, v0, spec.direction, settings, accept=verified, progress=progress)
-    if not quiet:
-        print(file=sys.stderr)
-    rows = [_row(system, p) for p in branch.points]
+    v0 = first.pack(start.X, start.u, first.start_value())
+    traced = [_trace(first, v0, spec.direction, settings, solver, 0, None, quiet)]
+    failed_switches = []
+    if spec.switch == "period_doubling":
+        for point in [p for p in traced[0].branch.special if p.special == "period_doubling"]:
+            doubled = system_for(2 * problem.strides)
+            origin = {"type": point.special, spec.parameter: first.unpack(point.v)[3], "branch": 0}
+            try:
+                v, direction = _switch(doubled, point, settings, solver)
+            except CorrectionFailed as err:
+                failed_switches.append({**origin, "reason": str(err)})
+                continue
+            traced.append(_trace(doubled, v, direction, settings, solver, len(traced), origin, quiet))
+
+    rows = [_row(t, p, solver) for t in traced for p in t.branch.points]
     write_files_atomically({out_dir / "branch.csv": _csv(rows, spec.parameter)})
     plots.bifurcation_diagram(rows, spec.parameter, spec.plot, out_dir / "diagram.png")
-    special = [
-        {"type": r["special"], spec.parameter: r[spec.parameter], "apex": {n: r[n] for n in APEX.names},
-         "control": {n: r[n] for n in CONTROL.names},
-         "multipliers": [[r[f"mult{i}_re"], r[f"mult{i}_im"]] for i in range(1, 5)]}
-        for r in rows if r["special"]
-    ]
     return {
         "name": problem.name,
         "parameter": spec.parameter,
         "range": [spec.lo, spec.hi],
         "points": len(rows),
-        "stop_reason": branch.stop_reason,
-        "special_points": special,
+        "stop_reason": traced[0].branch.stop_reason,
+        "branches": [
+            {"branch": t.number, "strides": t.strides, "points": len(t.branch.points),
+             "stop_reason": t.branch.stop_reason, "switched_from": t.origin}
+            for t in traced
+        ],
+        "failed_switches": failed_switches,
+        "special_points": [_special(r, spec.parameter) for r in rows if r["special"]],
         "wall_time_s": time.perf_counter() - start_time,
     }
 
 
-def _row(system, point: Point) -> dict:
+def _trace(system, v0, direction, settings, solver, number, origin, quiet) -> TracedBranch:
+    """Trace one branch, every point verified independently."""
+
+    def progress(n, point):
+        if not quiet:
+            lam = point.v[-1] * system.lam_scale
+            print(f"\rbranch {number} ({system.spec.strides} stride{'s' if system.spec.strides > 1 else ''}): "
+                  f"{n} points, {system.parameter} = {lam:.6g}   ", end="", file=sys.stderr, flush=True)
+
+    branch = continue_branch(system, v0, direction, settings, accept=lambda v: _unverified(system, v, solver),
+                             progress=progress)
+    if not quiet:
+        print(file=sys.stderr)
+    return TracedBranch(number, system, branch, origin)
+
+
+def _switch(system, point: Point, settings: Settings, solver) -> tuple[np.ndarray, np.ndarray]:
+    """First verified point of the branch through ``point`` of ``system``, trying smaller
+    amplitudes if the first attempts fail."""
+    amplitude, reason = settings.step, ""
+    for _ in range(SWITCH_ATTEMPTS):
+        try:
+            v, direction = switch_branch(system, point, amplitude, settings)
+            reason = _unverified(system, v, solver)
+            if reason is None:
+                return v, direction
+        except CorrectionFailed as err:
+            reason = str(err)
+        amplitude /= 2
+    raise CorrectionFailed(f"no verified point on the new branch: {reason}")
+
+
+def _unverified(system, v, solver) -> str | None:
+    """Why the point ``v`` is not a verified orbit of its period, or None if it is.
+
+    The orbit is re-simulated by the independent map (eps <= 1e-10, as in the core), and
+    an orbit of N > 1 strides must not repeat sooner (or it belongs to another branch).
+    """
+    from ..fixedpoint import VERIFY_EPS, minimal_period
+
+    X, u, params, _ = system.unpack(v)
+    strides = system.spec.strides
+    check = solver.verify_map.simulate(X, u, params, strides)
+    if check.fall is not None:
+        return f"the runner falls ({check.fall.value})"
+    eps = float(np.linalg.norm(check.apexes[-1] - X) / np.linalg.norm(X))
+    if eps > VERIFY_EPS:
+        return f"not verified (eps = {eps:.1e})"
+    period = minimal_period(check.apexes)
+    if period < strides:
+        return f"the orbit repeats after {period} of its {strides} strides"
+    return None
+
+
+def _row(traced: TracedBranch, point: Point, solver) -> dict:
+    system = traced.system
     X, u, params, lam = system.unpack(point.v)
-    row = {system.parameter: lam, **APEX.to_dict(X), **CONTROL.to_dict(u)}
+    row = {"branch": traced.number, "strides": traced.strides, system.parameter: lam,
+           **APEX.to_dict(X), **CONTROL.to_dict(u)}
     row["energy"] = system.energy(X, params)
     for i, m in enumerate(point.multipliers, start=1):
         row[f"mult{i}_re"], row[f"mult{i}_im"] = float(m.real), float(m.imag)
     nontrivial = [abs(m) for m, t in zip(point.multipliers, point.trivial) if not t]
     radius = max(nontrivial) if nontrivial else 0.0
     row.update(spectral_radius=radius, stable=bool(radius < 1 - STABILITY_MARGIN), special=point.special)
+    # For the diagram only: every apex of the orbit (a period-2 branch shows both).
+    orbit = solver.residual_map.simulate(X, u, params, traced.strides)
+    row["orbit"] = [APEX.to_dict(a) for a in orbit.apexes[:-1]] if orbit.fall is None else [APEX.to_dict(X)]
     return row
 
 
+def _special(row: dict, parameter: str) -> dict:
+    return {
+        "type": row["special"], parameter: row[parameter], "branch": row["branch"], "strides": row["strides"],
+        "apex": {n: row[n] for n in APEX.names}, "control": {n: row[n] for n in CONTROL.names},
+        "multipliers": [[row[f"mult{i}_re"], row[f"mult{i}_im"]] for i in range(1, 5)],
+    }
+
+
 def _csv(rows: list[dict], parameter: str) -> str:
-    columns = [parameter, *APEX.names, *CONTROL.names, "energy"]
+    # The parameter leads; if it is itself an apex or control value it is not repeated.
+    columns = ["branch", "strides", parameter]
+    columns += [n for n in (*APEX.names, *CONTROL.names, "energy") if n != parameter]
     columns += [f"mult{i}_{part}" for i in range(1, 5) for part in ("re", "im")]
     columns += ["spectral_radius", "stable", "special"]
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, columns, lineterminator="\n", extrasaction="ignore")
     writer.writeheader()
     for row in rows:
-        writer.writerow({k: (repr(v) if isinstance(v, float) else ("true" if v is True else "false" if v is False else v))
-                         for k, v in row.items()})
+        writer.writerow({k: format_value(v) for k, v in row.items() if k in columns})
     return buffer.getvalue()
 
 
