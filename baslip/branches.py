@@ -23,6 +23,7 @@ import numpy as np
 
 from .continuation import CorrectionFailed
 from .control import CONTROL
+from .fixedpoint import VERIFY_EPS, minimal_period
 from .model import APEX, PARAMS, Params, apex_energy
 from .quantities import DESIGN, NOMINAL
 from .returnmap import ReturnMap, RunnerFell
@@ -156,6 +157,26 @@ class FixedPointSystem:
                 lam_energy = energy[DESIGN.index(self.parameter)]
             jac = np.vstack([jac, np.concatenate([energy[columns], [lam_energy]])])
         return jac * self.scale
+
+    def verification_failure(self, v: np.ndarray, verify_map: ReturnMap) -> str | None:
+        """Why ``v`` is not a verified orbit of its period, or None if it is.
+
+        ``verify_map`` re-simulates the orbit independently and must give eps <= 1e-10, as
+        for any reported fixed point; an orbit of N > 1 strides must not repeat sooner (it
+        would belong to a branch of shorter orbits).
+        """
+        X, u, params, _ = self.unpack(v)
+        strides = self.spec.strides
+        check = verify_map.simulate(X, u, params, strides)
+        if check.fall is not None:
+            return f"the runner falls ({check.fall.value})"
+        eps = float(np.linalg.norm(check.apexes[-1] - X) / np.linalg.norm(X))
+        if eps > VERIFY_EPS:
+            return f"not verified (eps = {eps:.1e})"
+        period = minimal_period(check.apexes)
+        if period < strides:
+            return f"the orbit repeats after {period} of its {strides} strides"
+        return None
 
     def multipliers(self, v: np.ndarray) -> tuple[np.ndarray, list[bool]]:
         _, u, params, dr_dX, _, _ = self._jacobians(v)

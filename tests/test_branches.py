@@ -8,17 +8,19 @@ doubling is cross-checked with the independent SLIP implementation of test_slip_
 """
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from baslip.api import fixed_point_spec
 from baslip.branches import BranchError, FixedPointSystem, check_branch
-from baslip.continuation import Settings, continue_branch
+from baslip.continuation import Settings, continue_branch, switch_branch
+from baslip.fixedpoint import minimal_period
 from baslip.problem import load_problem
 from baslip.shooting import FixedPointSpec
 
-from test_slip_limit import slip_fixed_point  # an independent SLIP (tests/ is on sys.path)
+from test_slip_limit import slip_apex_map, slip_fixed_point  # an independent SLIP (tests/ is on sys.path)
 
 
 @pytest.fixture(scope="module")
@@ -31,6 +33,20 @@ def slip_branch(solver):
     settings = Settings(step=0.05, lam_range=(math.radians(20) / system.lam_scale, math.radians(25) / system.lam_scale))
     branch = continue_branch(system, v0, +1, settings)
     return system, branch
+
+
+@pytest.fixture(scope="module")
+def slip_period_2_branch(slip_branch, solver):
+    """The 2-stride orbits born at the SLIP's period doubling, by branch switching."""
+    system, branch = slip_branch
+    pd = branch.special[0]
+    doubled = FixedPointSystem(replace(system.spec, strides=2), "theta_td", solver.residual_map, solver.jacobian_map)
+    v, direction = switch_branch(doubled, pd, 0.05, Settings())
+    def verified(v):
+        return doubled.verification_failure(v, solver.verify_map)
+
+    assert verified(v) is None
+    return doubled, pd, continue_branch(doubled, v, direction, Settings(step=0.05, max_points=40), accept=verified)
 
 
 def _attack_deg(system, point):
@@ -93,3 +109,56 @@ def test_a_model_parameter_can_be_varied(solver):
     assert len(ks) == 4 and all(b > a for a, b in zip(ks, ks[1:]))
     for point in branch.points:
         assert np.linalg.norm(system.residual(point.v)) <= 1e-10
+
+
+def test_switching_at_the_period_doubling_gives_verified_two_stride_orbits(slip_period_2_branch, solver):
+    doubled, pd, branch = slip_period_2_branch
+    assert len(branch.points) > 5
+    pd_X, _, _, pd_angle = doubled.unpack(pd.v)
+    first = branch.points[0]
+    X, u, params, angle = doubled.unpack(first.v)
+    # Born at the period doubling: close to it, with the squared multiplier -1 -> +1.
+    assert abs(angle - pd_angle) < 1e-3 and abs(X[0] - pd_X[0]) < 5e-3
+    (multiplier,) = [m for m, t in zip(first.multipliers, first.trivial) if not t]
+    assert abs(multiplier - 1) < 0.2
+    for point in branch.points:
+        X, u, params, _ = doubled.unpack(point.v)
+        orbit = solver.verify_map.simulate(X, u, params, 2)
+        assert orbit.fall is None and np.linalg.norm(orbit.apexes[2] - X) / np.linalg.norm(X) <= 1e-10
+        assert minimal_period(orbit.apexes) == 2
+        high, low = sorted(orbit.apexes[:2, 0], reverse=True)
+        assert high > pd_X[0] > low  # the two apexes straddle the period-1 apex
+
+
+def test_the_two_stride_orbit_agrees_with_the_independent_slip(slip_period_2_branch, solver):
+    doubled, _, branch = slip_period_2_branch
+    X, u, params, angle = doubled.unpack(branch.points[3].v)
+    heights = solver.verify_map.simulate(X, u, params, 2).apexes[:, 0]
+    attack = 90.0 - math.degrees(angle)
+    assert slip_apex_map(heights[0], attack) == pytest.approx(heights[1], abs=1e-6)
+    assert slip_apex_map(heights[1], attack) == pytest.approx(heights[0], abs=1e-6)
+
+
+def test_the_two_stride_branch_ends_where_the_low_apex_grazes_touchdown(slip_period_2_branch, solver):
+    """Past a few hundredths of a degree the low apex sinks to the touchdown height
+    rho0 cos(theta_td): the descent time goes to zero and the orbits end there."""
+    doubled, _, branch = slip_period_2_branch
+    assert branch.stop_reason != "end of range"
+    X, u, params, angle = doubled.unpack(branch.points[-1].v)
+    orbit = solver.verify_map.simulate(X, u, params, 2)
+    assert min(orbit.apexes[:2, 0]) - params.rho0 * math.cos(angle) < 1e-3
+    assert min(d["descent"] for d in orbit.durations) < 1e-3
+
+
+def test_the_two_stride_nlp_finds_the_switched_branch_orbit(slip_period_2_branch, solver):
+    """Two methods, one orbit: multiple shooting over two strides (IPOPT, RK4) from a
+    rounded guess lands on the orbit that branch switching found."""
+    doubled, _, branch = slip_period_2_branch
+    X, u, params, angle = doubled.unpack(branch.points[3].v)
+    spec = replace(doubled.spec, fixed={**doubled.spec.fixed, "theta_td": angle},
+                   guess={"z": round(X[0], 3), "ydot": round(X[2], 2)})
+    result = solver.solve(spec)
+    assert result.converged and result.strides == 2, result.message
+    heights = sorted(result.orbit[:, 0])
+    expected = sorted(solver.verify_map.simulate(X, u, params, 2).apexes[:2, 0])
+    assert heights == pytest.approx(expected, abs=1e-8)

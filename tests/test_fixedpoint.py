@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 
 from baslip import Params, ReturnMap, Tolerances
+from baslip.api import fixed_point_spec
 from baslip.fixedpoint import ACCEPTED_IPOPT
+from baslip.problem import load_problem
 from baslip.shooting import FixedPointSpec
 
 DOWNWARD_GUESS = {
@@ -128,3 +130,20 @@ def test_an_energy_bound_holds_after_the_polish(solver):
     assert result.status == "converged", result.message
     assert result.energy <= 4.0 + 1e-10
     assert recheck(result) <= 1e-10
+
+
+def test_a_two_stride_orbit_is_solved_and_verified(solver, tight_map):
+    """problems/downward_period2.yaml: a hanging-trunk gait that repeats every two strides
+    (it lies on the branch switched from the period doubling of the height branch)."""
+    result = solver.solve(fixed_point_spec(load_problem("problems/downward_period2.yaml")), name="period2")
+    assert result.converged and result.strides == 2, result.message
+    first, second = result.orbit
+    assert eps(first, second) > 1e-2  # a genuine 2-stride orbit, not a fixed point twice
+    # Each apex maps to the other under one stride, re-simulated by another integrator.
+    assert eps(second, RECHECK_MAP(first, result.u, result.params)) < 1e-9
+    assert eps(first, RECHECK_MAP(second, result.u, result.params)) < 1e-9
+    # The orbit's multipliers do not depend on the apex it is started from (eig(AB) = eig(BA)).
+    from_second = np.linalg.eigvals(tight_map.jacobians(second, result.u, result.params, strides=2)[0])
+    assert np.sort_complex(from_second) == pytest.approx(np.sort_complex(np.array(result.eigenvalues)), abs=1e-6)
+    record = result.to_json_dict()
+    assert record["strides"] == 2 and record["minimal_period"] == 2 and len(record["orbit"]) == 2

@@ -83,6 +83,12 @@ def test_shipped_problems_load():
         (with_(bounds={"theta_td": [1.52, 1.56]}), "bounds.theta_td", "physical range"),
         (with_(fix={"energy": 1.0}), "fix.energy", "below the least apex energy"),
         (with_(fix={"energy": 5.0, "theta_h_dot": 0.0}), "fix.energy", "contradicts"),
+        (with_(strides=0), "strides", "integer in [1, 16]"),
+        (with_(strides=2.0), "strides", "integer in [1, 16]"),
+        (with_(strides=True), "strides", "integer in [1, 16]"),
+        (with_(strides=2, study={"kind": "sweep", "vary": {"ydot": [0.4, 0.6, 0.1]}}), "strides", "one-stride"),
+        (with_(continuation={"parameter": "z", "range": [0.3, 0.5], "switch": "fold"}),
+         "continuation.switch", "period_doubling"),
     ],
 )
 def test_bad_input_names_the_key(data, key, words):
@@ -147,3 +153,11 @@ def test_default_name_comes_from_a_sanitised_file_name(tmp_path):
     path = tmp_path / "sp ace.yaml"
     path.write_text("fix: {z: 0.4}\n")
     assert load_problem(path).name == "sp_ace"
+
+
+def test_strides_and_switch_are_read():
+    problem = parse_problem(with_(
+        strides=2, continuation={"parameter": "z", "range": [0.3, 0.5], "switch": "period_doubling"},
+    ))
+    assert problem.strides == 2 and problem.continuation.switch == "period_doubling"
+    assert parse_problem(VALID).strides == 1 and load_problem("problems/downward_period2.yaml").strides == 2

@@ -4,6 +4,7 @@ Exit 0 and a verified result.json for a good problem; exit 1 with status "failed
 solver fails; exit 2, one line on stderr naming the key and nothing written for bad input.
 """
 
+import csv
 import json
 import subprocess
 import sys
@@ -117,3 +118,30 @@ def test_bad_input_from_the_shell_has_no_traceback(tmp_path):
 def test_help_documents_the_options():
     proc = run_cli("--help")
     assert proc.returncode == 0 and "--out" in proc.stdout and "result.json" in proc.stdout
+
+
+def test_continuation_with_a_switch_end_to_end(tmp_path):
+    """The SLIP band's period doubling, then the two-stride branch switched from it:
+    plain CSV that any reader parses, the branches and special points in result.json."""
+    text = (ROOT / "problems" / "continuation_slip_attack.yaml").read_text()
+    text = text.replace('range: ["20 deg", "25 deg"]', 'range: ["20.9 deg", "21.3 deg"]')
+    text = text.replace("  plot: z", "  plot: z\n  switch: period_doubling\n  max_points: 8")
+    problem = tmp_path / "slip.yaml"
+    problem.write_text(text)
+    proc = run_cli(problem, "--out", tmp_path / "out")
+    assert proc.returncode == 0, proc.stderr
+    with open(tmp_path / "out" / "branch.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    header = list(rows[0])
+    assert len(header) == len(set(header)) and header[:3] == ["branch", "strides", "theta_td"]
+    for row in rows:
+        assert all(float(row[c]) == float(row[c]) for c in header if c not in ("stable", "special"))
+        assert row["stable"] in ("true", "false")
+    assert {(r["branch"], r["strides"]) for r in rows} == {("0", "1"), ("1", "2")}
+    summary = json.loads((tmp_path / "out" / "result.json").read_text())
+    assert [b["strides"] for b in summary["branches"]] == [1, 2]
+    assert summary["branches"][1]["switched_from"]["type"] == "period_doubling"
+    (pd,) = [p for p in summary["special_points"] if p["type"] == "period_doubling" and p["branch"] == 0]
+    assert abs(pd["theta_td"] - summary["branches"][1]["switched_from"]["theta_td"]) < 1e-12
+    assert (tmp_path / "out" / "diagram.png").stat().st_size > 10_000
+    assert "branch 1 (2-stride orbits, switched at the period doubling)" in proc.stdout

@@ -114,8 +114,10 @@ def _trace(system, v0, direction, settings, solver, number, origin, quiet) -> Tr
             print(f"\rbranch {number} ({system.spec.strides} stride{'s' if system.spec.strides > 1 else ''}): "
                   f"{n} points, {system.parameter} = {lam:.6g}   ", end="", file=sys.stderr, flush=True)
 
-    branch = continue_branch(system, v0, direction, settings, accept=lambda v: _unverified(system, v, solver),
-                             progress=progress)
+    def verified(v):
+        return system.verification_failure(v, solver.verify_map)
+
+    branch = continue_branch(system, v0, direction, settings, accept=verified, progress=progress)
     if not quiet:
         print(file=sys.stderr)
     return TracedBranch(number, system, branch, origin)
@@ -128,35 +130,13 @@ def _switch(system, point: Point, settings: Settings, solver) -> tuple[np.ndarra
     for _ in range(SWITCH_ATTEMPTS):
         try:
             v, direction = switch_branch(system, point, amplitude, settings)
-            reason = _unverified(system, v, solver)
+            reason = system.verification_failure(v, solver.verify_map)
             if reason is None:
                 return v, direction
         except CorrectionFailed as err:
             reason = str(err)
         amplitude /= 2
     raise CorrectionFailed(f"no verified point on the new branch: {reason}")
-
-
-def _unverified(system, v, solver) -> str | None:
-    """Why the point ``v`` is not a verified orbit of its period, or None if it is.
-
-    The orbit is re-simulated by the independent map (eps <= 1e-10, as in the core), and
-    an orbit of N > 1 strides must not repeat sooner (or it belongs to another branch).
-    """
-    from ..fixedpoint import VERIFY_EPS, minimal_period
-
-    X, u, params, _ = system.unpack(v)
-    strides = system.spec.strides
-    check = solver.verify_map.simulate(X, u, params, strides)
-    if check.fall is not None:
-        return f"the runner falls ({check.fall.value})"
-    eps = float(np.linalg.norm(check.apexes[-1] - X) / np.linalg.norm(X))
-    if eps > VERIFY_EPS:
-        return f"not verified (eps = {eps:.1e})"
-    period = minimal_period(check.apexes)
-    if period < strides:
-        return f"the orbit repeats after {period} of its {strides} strides"
-    return None
 
 
 def _row(traced: TracedBranch, point: Point, solver) -> dict:
