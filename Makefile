@@ -5,13 +5,13 @@ PY ?= .venv/bin/python
 STUDIES = grid_downward grid_upward speed_sweep stable_region_random convergence_regions \
           body_angle_scan body_angle_fine_scan adaptive_upright
 BRANCHES = continuation_slip_attack continuation_downward_speed continuation_downward_height
+GAITS = downward upward downward_period2
 
 .PHONY: studies clean-studies
 
 studies:
 	@for s in $(STUDIES) $(BRANCHES); do $(PY) -m baslip.solve problems/$$s.yaml || exit 1; done
-	$(PY) -m baslip.solve problems/downward.yaml
-	$(PY) -m baslip.solve problems/upward.yaml
+	@for g in $(GAITS); do $(PY) -m baslip.solve problems/$$g.yaml || exit 1; done
 	$(PY) -m baslip.animate problems/downward.yaml problems/upward.yaml --out results/animation
 	$(PY) -m baslip.report
 

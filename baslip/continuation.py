@@ -8,7 +8,7 @@ Steps grow after easy corrections and halve after failed ones, so the branch pas
 through folds, where lambda turns back.
 
 Special points, found by sign changes of test functions between consecutive points, and
-then located by the secant method on the arclength until lambda is known to 1e-7:
+then located by regula falsi (Illinois) on the arclength until lambda is known to 1e-7:
 
 * ``fold``: the lambda component of the tangent;
 * ``period_doubling``: det(I + dr/dX) (a multiplier crosses -1);
@@ -22,13 +22,17 @@ Multipliers that are 1 by structure (energy, free spin) are never tested for cro
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Protocol
 
 import numpy as np
 
 SPECIAL_TYPES = ("fold", "period_doubling", "neimark_sacker", "branch_point")
+#: How special points are named in text and figures.
+SPECIAL_NAMES = {"fold": "fold", "period_doubling": "period doubling", "neimark_sacker": "Neimark-Sacker",
+                 "branch_point": "branch point"}
 LOCATE_TOLERANCE = 1e-7  # on lambda (scaled units)
+LOCATE_MAX_NEWTON = 60
 
 
 class CorrectionFailed(RuntimeError):
@@ -205,25 +209,44 @@ def _crossings(a: Point, b: Point) -> list[str]:
 
 
 def locate(system: System, a: Point, b: Point, kind: str, settings: Settings) -> Point:
-    """The point between a and b where test function ``kind`` vanishes (secant on the
-    arclength from a, each trial corrected onto the branch)."""
+    """The point between a and b where test function ``kind`` vanishes.
+
+    Regula falsi (Illinois) on s, the arclength from a along its tangent: each trial is
+    the branch's point on the hyperplane orthogonal to that tangent at s. Newton starts
+    from the nearest point found so far, extrapolated along its own tangent onto the
+    hyperplane. Near a branch point another branch crosses close by, and a start far away
+    (such as a's tangent line) can converge onto it.
+    """
     span = float(np.dot(b.v - a.v, a.tangent))
     s_lo, s_hi, f_lo, f_hi = 0.0, span, a.tests[kind], b.tests[kind]
-    best, lam_lo, lam_hi = b, a.v[-1], b.v[-1]
+    # At a branch point the corrector's Jacobian is singular, so Newton converges only
+    # linearly close to it: allow it the iterations that takes.
+    settings = replace(settings, max_newton=max(settings.max_newton, LOCATE_MAX_NEWTON))
+    known = [(0.0, a), (span, b)]
+    best, lam_lo, lam_hi, last_moved = b, a.v[-1], b.v[-1], ""
     for _ in range(60):
         s = s_lo - f_lo * (s_hi - s_lo) / (f_hi - f_lo)
         if not min(s_lo, s_hi) < s < max(s_lo, s_hi):
             s = 0.5 * (s_lo + s_hi)
+        s_near, near = min(known, key=lambda k: abs(k[0] - s))
+        start = near.v + (s - s_near) / np.dot(near.tangent, a.tangent) * near.tangent
         try:
-            v, _ = correct(system, a.v + s * a.tangent, a.tangent, settings)
+            v, _ = correct(system, start, a.tangent, settings)
         except CorrectionFailed:
             break
         best = make_point(system, v, a.tangent)
+        known.append((s, best))
         value = best.tests[kind]
+        # Illinois rule: when the same end moves twice running, halve the other end's
+        # value, so that the bracket shrinks from both sides.
         if value * f_lo < 0:
             s_hi, f_hi, lam_hi = s, value, best.v[-1]
+            f_lo = f_lo / 2 if last_moved == "hi" else f_lo
+            last_moved = "hi"
         else:
             s_lo, f_lo, lam_lo = s, value, best.v[-1]
+            f_hi = f_hi / 2 if last_moved == "lo" else f_hi
+            last_moved = "lo"
         # At a fold lambda is extremal, so it settles long before s does: both must.
         if (abs(lam_hi - lam_lo) < LOCATE_TOLERANCE and abs(s_hi - s_lo) < 1e-5) or value == 0.0:
             break

@@ -16,8 +16,9 @@ from .fixedpoint import FixedPointResult
 RESULT_FILES = ("result.json", "multipliers.csv")
 
 
-def write_files_atomically(files: Mapping[Path, str]) -> None:
-    """Write every file to a temporary sibling first, then rename them all into place.
+def write_files_atomically(files: Mapping[Path, str | bytes]) -> None:
+    """Write every file (text, or bytes such as a PNG) to a temporary sibling first, then
+    rename them all into place.
 
     Readers never see a half-written file, and a failure while writing leaves the old
     files (if any) untouched. Files get the usual permissions (0666 less the umask).
@@ -30,7 +31,7 @@ def write_files_atomically(files: Mapping[Path, str]) -> None:
             path.parent.mkdir(parents=True, exist_ok=True)
             fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
             temporaries[path] = tmp
-            with os.fdopen(fd, "w") as handle:
+            with os.fdopen(fd, "wb" if isinstance(text, bytes) else "w") as handle:
                 handle.write(text)
             os.chmod(tmp, 0o666 & ~umask)
         for path, tmp in temporaries.items():

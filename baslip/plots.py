@@ -16,6 +16,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.colors import LogNorm  # noqa: E402
 
+from .continuation import SPECIAL_NAMES  # noqa: E402
+
 DEG = 180 / math.pi
 ANGLES = ("theta_h", "theta2_des", "theta_td")
 LABELS = {
@@ -43,9 +45,10 @@ def shown(name: str, values):
     return values * DEG if name in ANGLES else values
 
 
-def _save(fig, path: Path) -> None:
+def _save(fig, path) -> None:
+    """Save as PNG to ``path``, a file name or a binary file object."""
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=110, format="png")
     plt.close(fig)
 
 
@@ -276,8 +279,9 @@ def adaptive_figures(rows: list[dict], out_dir: Path) -> list[Path]:
 # --- continuation ---------------------------------------------------------------------------
 
 
-def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path: Path) -> Path:
+def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path) -> Path:
     """Branch diagram: stable segments solid, unstable dashed, special points labelled.
+    ``path`` is a file name or a binary file object.
 
     Rows carry ``branch``, ``strides`` and ``orbit`` (the apexes of the orbit): an orbit
     of N strides is drawn at each of its N apexes, so a period-2 branch shows both.
@@ -300,14 +304,14 @@ def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path: P
                 ax.plot([], [], style, color=color, label=f"{strides}-stride orbits, {word}")
     markers = {"fold": ("s", "tab:red"), "period_doubling": ("D", "tab:green"),
                "neimark_sacker": ("^", "tab:purple"), "branch_point": ("o", "tab:orange")}
-    for r in rows:
-        if r["special"]:
-            marker, color = markers[r["special"]]
-            xv, yv = shown(parameter, [r[parameter]])[0], shown(quantity, [_orbit_value(r, 0, quantity)])[0]
-            ax.plot(xv, yv, marker, color=color, ms=8)
-            value = r[parameter] * DEG if parameter in ANGLES else r[parameter]
-            ax.annotate(f"{r['special'].replace('_', ' ')}\n{value:.6g}", (xv, yv), textcoords="offset points",
-                        xytext=(6, 6), fontsize=8)
+    for i, r in enumerate(r for r in rows if r["special"]):
+        marker, color = markers[r["special"]]
+        xv, yv = shown(parameter, [r[parameter]])[0], shown(quantity, [_orbit_value(r, 0, quantity)])[0]
+        ax.plot(xv, yv, marker, color=color, ms=8)
+        value = r[parameter] * DEG if parameter in ANGLES else r[parameter]
+        # Labels alternate above and below, so that neighbouring points stay readable.
+        ax.annotate(f"{SPECIAL_NAMES[r['special']]}\n{value:.6g}", (xv, yv), textcoords="offset points",
+                    xytext=(6, 6) if i % 2 == 0 else (6, -24), fontsize=8)
     ax.set_xlabel(LABELS.get(parameter, f"{parameter}"))
     ax.set_ylabel(LABELS.get(quantity, quantity))
     ax.legend(fontsize=8)

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .continuation import SPECIAL_NAMES
 from .control import CONTROL
 from .model import APEX, Params
 from .output import write_files_atomically
@@ -310,6 +311,67 @@ def adaptive_claims(ev: Evidence) -> list[str]:
     )]
 
 
+BRANCHES = ("continuation_slip_attack", "continuation_downward_speed", "continuation_downward_height")
+
+
+def branch_sections(ev: Evidence) -> list[str]:
+    """What each shipped continuation found: branches, stop reasons, special points."""
+    out = []
+    for name in BRANCHES:
+        summary = ev.summary(name)
+        if not summary or "branches" not in summary:
+            out.append(f"### {name}\n\nNot run.\n")
+            continue
+        parameter = summary["parameter"]
+        lines = [f"### {name}", "", f"Parameter `{parameter}` over [{summary['range'][0]:.6g}, {summary['range'][1]:.6g}]; "
+                 f"{summary['points']} verified points in {summary['wall_time_s']:.0f} s. "
+                 f"Figure: [{name}/diagram.png]({name}/diagram.png).", ""]
+        for b in summary["branches"]:
+            origin = ""
+            if b["switched_from"]:
+                origin = (f", switched at the {SPECIAL_NAMES[b['switched_from']['type']]} at "
+                          f"{parameter} = {_shown(parameter, b['switched_from'][parameter])}")
+            special = [p for p in summary["special_points"] if p["branch"] == b["branch"]]
+            found = "; ".join(f"{SPECIAL_NAMES[p['type']]} at {parameter} = {_shown(parameter, p[parameter])}"
+                              for p in special) or "no special points"
+            lines.append(f"- Branch {b['branch']} ({b['strides']}-stride orbits{origin}): {b['points']} points, "
+                         f"stopped at: {b['stop_reason']}. {found}.")
+        for f in summary.get("failed_switches", []):
+            lines.append(f"- Could not switch at the {SPECIAL_NAMES[f['type']]} at {parameter} = "
+                         f"{_shown(parameter, f[parameter])}: {f['reason']}.")
+        rows = ev.rows(name, "branch.csv")
+        doubled = [r for r in rows if r["strides"] > 1]
+        if doubled:
+            radii = [r["spectral_radius"] for r in doubled]
+            stable = sum(r["stable"] is True for r in doubled)
+            lines.append(f"- On the switched branches: {stable} of {len(doubled)} points stable; spectral radius "
+                         f"{min(radii):.3g} to {max(radii):.3g} (multipliers of the 2-stride map).")
+        out.append("\n".join(lines) + "\n")
+    out.append(period_two_gait(ev))
+    return out
+
+
+def period_two_gait(ev: Evidence) -> str:
+    """The shipped two-stride gait, solved directly by the two-stride NLP."""
+    record = ev.summary("downward_period2")
+    if not record:
+        return "### downward_period2\n\nNot run.\n"
+    apexes = "; ".join(f"z = {a['z']:.5g} m, theta_h = {a['theta_h'] * DEG:.4g} deg, ydot = {a['ydot']:.4g} m/s, "
+                       f"theta_h_dot = {a['theta_h_dot']:.4g} rad/s" for a in record["orbit"])
+    return "\n".join([
+        "### downward_period2", "",
+        f"`problems/downward_period2.yaml` asks the NLP directly for a {record['strides']}-stride orbit at the first "
+        f"apex's z = {record['apex']['z']:.4g} m and ydot = {record['apex']['ydot']:.4g} m/s: {record['status']}, "
+        f"residual {record['residual']:.1e} over the whole orbit, minimal period {record['minimal_period']}, "
+        f"spectral radius {record['spectral_radius']:.4g} ({'stable' if record['stable'] else 'unstable'}). "
+        f"Its apexes: {apexes}. It lies on the switched branch of continuation_downward_height.", "",
+    ])
+
+
+def _shown(name: str, value: float) -> str:
+    return f"{value * DEG:.6g} deg" if name.startswith("theta") else f"{value:.6g}"
+
+
 HEADER = """# baslip against the thesis, chapter 4
 
 Each claim of chapter 4 of the MSc thesis *Identification and stability analysis of periodic
@@ -340,6 +402,7 @@ def build_report(results: Path) -> str:
         ("Sec. 4.5: stability region and convergence regions", region_claims(ev) + basin_claims(ev)),
         ("Sec. 4.6: the fixed-point manifold", scan_claims(ev) + dimension_claim(ev)),
         ("Sec. 4.7: time-varying control", adaptive_claims(ev)),
+        ("Beyond the thesis: branches of fixed points and their bifurcations", branch_sections(ev)),
     ]
     body = "".join(f"## {title}\n\n" + "\n".join(parts) + "\n" for title, parts in sections)
     return HEADER + body

@@ -146,25 +146,25 @@ def _run_study(problem, problem_path: Path, out_dir: Path, quiet: bool) -> int:
 
 
 def _run_continuation(problem, out_dir: Path, quiet: bool) -> int:
-    from .studies.branch import BranchStartFailed, run_continuation, write_summary
+    from .continuation import SPECIAL_NAMES
+    from .studies.branch import BranchStartFailed, run_continuation
 
     try:
         summary = run_continuation(problem, out_dir, quiet)
     except BranchStartFailed as err:
         print(f"error: {problem.name}: {err}", file=sys.stderr)
         return EXIT_NOT_CONVERGED
-    write_summary(summary, out_dir)
     if not quiet:
         parameter = summary["parameter"]
         for b in summary["branches"]:
             special = ", ".join(f"{p['type']} at {parameter} = {p[parameter]:.7g}"
                                 for p in summary["special_points"] if p["branch"] == b["branch"])
-            origin = f", switched at the {b['switched_from']['type'].replace('_', ' ')}" if b["switched_from"] else ""
+            origin = f", switched at the {SPECIAL_NAMES[b['switched_from']['type']]}" if b["switched_from"] else ""
             print(f"{problem.name}: branch {b['branch']} ({b['strides']}-stride orbits{origin}): "
                   f"{b['points']} verified points, stopped: {b['stop_reason']}")
             print(f"  special points: {special or 'none'}")
         for f in summary["failed_switches"]:
-            print(f"  could not switch at the {f['type'].replace('_', ' ')} at {parameter} = {f[parameter]:.7g}: {f['reason']}")
+            print(f"  could not switch at the {SPECIAL_NAMES[f['type']]} at {parameter} = {f[parameter]:.7g}: {f['reason']}")
         print(f"  wrote {out_dir}/ (branch.csv, result.json, diagram.png), {summary['wall_time_s']:.1f} s")
     return EXIT_OK
 

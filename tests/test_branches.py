@@ -162,3 +162,15 @@ def test_the_two_stride_nlp_finds_the_switched_branch_orbit(slip_period_2_branch
     heights = sorted(result.orbit[:, 0])
     expected = sorted(solver.verify_map.simulate(X, u, params, 2).apexes[:2, 0])
     assert heights == pytest.approx(expected, abs=1e-8)
+
+
+def test_the_period_doubling_is_a_branch_point_of_the_two_stride_equations(slip_branch, solver):
+    """Followed as 2-stride orbits, the 1-stride branch meets the switched branch at a
+    branch point, located at the same angle as the period doubling."""
+    system, branch = slip_branch
+    pd = branch.special[0]
+    doubled = FixedPointSystem(replace(system.spec, strides=2), "theta_td", solver.residual_map, solver.jacobian_map)
+    end = math.radians(21.3) / system.lam_scale
+    run = continue_branch(doubled, branch.points[0].v, +1, Settings(step=0.05, lam_range=(0.0, end)))
+    assert [p.special for p in run.special] == ["branch_point"]
+    assert abs(doubled.unpack(run.special[0].v)[3] - system.unpack(pd.v)[3]) < 1e-6

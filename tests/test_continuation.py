@@ -89,3 +89,11 @@ def test_switching_at_the_period_doubling_traces_the_period_2_orbits():
         assert min(abs(x - (1 + root) / 2), abs(x - (1 - root) / 2)) < 1e-9
     (next_pd,) = [p for p in branch.special if p.special == "period_doubling"]
     assert abs(next_pd.v[1] - 1.25) < 1e-6
+
+
+def test_a_branch_point_is_located_where_the_period_2_orbits_cross():
+    """Fixed points of f are fixed points of f o f too; in those equations the period
+    doubling at mu = 3/4 is a branch point, where the period-2 orbits cross."""
+    branch = continue_branch(TwiceQuadraticMap(), np.zeros(2), +1, Settings(step=0.05, lam_range=(-1.0, 1.0)))
+    (bp,) = [p for p in branch.special if p.special == "branch_point"]
+    assert abs(bp.v[1] - 0.75) < 1e-6 and abs(bp.v[0] - 0.5) < 1e-6

@@ -27,6 +27,9 @@ from ..output import json_text, write_files_atomically
 from ..stability import STABILITY_MARGIN
 from .runner import format_value
 
+#: First step onto a switched branch, as a fraction of the continuation step: small, so
+#: that the new branch starts close to the bifurcation it comes from.
+SWITCH_FRACTION = 0.1
 #: Times the amplitude of a branch switch is halved when its first point fails.
 SWITCH_ATTEMPTS = 4
 
@@ -50,6 +53,8 @@ class TracedBranch:
 
 
 def run_continuation(problem, out_dir: Path, quiet: bool = False) -> dict:
+    """Trace the problem's branches, write branch.csv, result.json and diagram.png to
+    ``out_dir`` together, and return the summary that result.json holds."""
     from .. import plots
     from ..api import fixed_point_spec, shooting_options, solve_problem
     from ..branches import FixedPointSystem
@@ -86,9 +91,9 @@ def run_continuation(problem, out_dir: Path, quiet: bool = False) -> dict:
             traced.append(_trace(doubled, v, direction, settings, solver, len(traced), origin, quiet))
 
     rows = [_row(t, p, solver) for t in traced for p in t.branch.points]
-    write_files_atomically({out_dir / "branch.csv": _csv(rows, spec.parameter)})
-    plots.bifurcation_diagram(rows, spec.parameter, spec.plot, out_dir / "diagram.png")
-    return {
+    diagram = io.BytesIO()
+    plots.bifurcation_diagram(rows, spec.parameter, spec.plot, diagram)
+    summary = {
         "name": problem.name,
         "parameter": spec.parameter,
         "range": [spec.lo, spec.hi],
@@ -103,6 +108,13 @@ def run_continuation(problem, out_dir: Path, quiet: bool = False) -> dict:
         "special_points": [_special(r, spec.parameter) for r in rows if r["special"]],
         "wall_time_s": time.perf_counter() - start_time,
     }
+    # All three files or none: an error before this point leaves the old ones as they were.
+    write_files_atomically({
+        out_dir / "branch.csv": _csv(rows, spec.parameter),
+        out_dir / "result.json": json_text(summary),
+        out_dir / "diagram.png": diagram.getvalue(),
+    })
+    return summary
 
 
 def _trace(system, v0, direction, settings, solver, number, origin, quiet) -> TracedBranch:
@@ -126,7 +138,7 @@ def _trace(system, v0, direction, settings, solver, number, origin, quiet) -> Tr
 def _switch(system, point: Point, settings: Settings, solver) -> tuple[np.ndarray, np.ndarray]:
     """First verified point of the branch through ``point`` of ``system``, trying smaller
     amplitudes if the first attempts fail."""
-    amplitude, reason = settings.step, ""
+    amplitude, reason = SWITCH_FRACTION * settings.step, ""
     for _ in range(SWITCH_ATTEMPTS):
         try:
             v, direction = switch_branch(system, point, amplitude, settings)
@@ -177,6 +189,3 @@ def _csv(rows: list[dict], parameter: str) -> str:
         writer.writerow({k: format_value(v) for k, v in row.items() if k in columns})
     return buffer.getvalue()
 
-
-def write_summary(summary: dict, out_dir: Path) -> None:
-    write_files_atomically({out_dir / "result.json": json_text(summary)})
