@@ -74,11 +74,8 @@ class FixedPointResult:
     polish_iterations: int = 0
     residual_source: str = ""  # which map measured ``residual``
     nlp_w: np.ndarray | None = None  # IPOPT's point, to warm-start a neighbouring solve
+    strides: int = 1  # the orbit's period asked for, in strides
     orbit: np.ndarray | None = None  # strides x 4: the apexes of a multi-stride orbit, X first
-
-    @property
-    def strides(self) -> int:
-        return 1 if self.orbit is None else len(self.orbit)
 
     @property
     def converged(self) -> bool:
@@ -130,6 +127,8 @@ class FixedPointResult:
         """Extra keys of a multi-stride orbit: its stride count, apexes and minimal period."""
         if self.strides == 1:
             return {}
+        if self.orbit is None:  # the solve failed or the orbit falls
+            return {"strides": self.strides, "orbit": None, "minimal_period": None}
         return {
             "strides": self.strides,
             "orbit": [APEX.to_dict(apex) for apex in self.orbit],
@@ -292,6 +291,7 @@ class FixedPointSolver:
             polish_iterations=polish_iterations,
             residual_source=source,
             nlp_w=sol.w,
+            strides=spec.strides,
             orbit=orbit,
         )
 

@@ -309,9 +309,11 @@ def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path) -
         xv, yv = shown(parameter, [r[parameter]])[0], shown(quantity, [_orbit_value(r, 0, quantity)])[0]
         ax.plot(xv, yv, marker, color=color, ms=8)
         value = r[parameter] * DEG if parameter in ANGLES else r[parameter]
-        # Labels alternate above and below, so that neighbouring points stay readable.
+        # Labels alternate above and below, in their marker's colour and tied to it by a
+        # line, so that neighbouring points stay readable and unambiguous.
         ax.annotate(f"{SPECIAL_NAMES[r['special']]}\n{value:.6g}", (xv, yv), textcoords="offset points",
-                    xytext=(6, 6) if i % 2 == 0 else (6, -24), fontsize=8)
+                    xytext=(14, 12) if i % 2 == 0 else (14, -30), fontsize=8, color=color,
+                    arrowprops={"arrowstyle": "-", "color": color, "lw": 0.7})
     ax.set_xlabel(LABELS.get(parameter, f"{parameter}"))
     ax.set_ylabel(LABELS.get(quantity, quantity))
     ax.legend(fontsize=8)

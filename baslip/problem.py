@@ -254,8 +254,8 @@ class ContinuationSpec:
     parameter: a fixed quantity (or energy) or a model parameter; step: first arclength
     step (scaled units); max_points: limit on the points; direction: +1 or -1, the way
     lambda first moves; plot: apex quantity on the diagram's vertical axis; switch:
-    ``period_doubling`` to also trace, from each period doubling found, the branch of
-    orbits of twice the period.
+    ``period_doubling`` to also trace, from each period doubling found on the first
+    branch, the branch of orbits of twice the period.
     """
 
     parameter: str

@@ -345,7 +345,7 @@ def branch_sections(ev: Evidence) -> list[str]:
             radii = [r["spectral_radius"] for r in doubled]
             stable = sum(r["stable"] is True for r in doubled)
             lines.append(f"- On the switched branches: {stable} of {len(doubled)} points stable; spectral radius "
-                         f"{min(radii):.3g} to {max(radii):.3g} (multipliers of the 2-stride map).")
+                         f"{min(radii):.4g} to {max(radii):.4g} (multipliers of each orbit's own N-stride map).")
         out.append("\n".join(lines) + "\n")
     out.append(period_two_gait(ev))
     return out
@@ -356,6 +356,8 @@ def period_two_gait(ev: Evidence) -> str:
     record = ev.summary("downward_period2")
     if not record:
         return "### downward_period2\n\nNot run.\n"
+    if record["status"] != "converged" or not record.get("orbit"):
+        return f"### downward_period2\n\nThe two-stride solve did not converge: status {record['status']}.\n"
     apexes = "; ".join(f"z = {a['z']:.5g} m, theta_h = {a['theta_h'] * DEG:.4g} deg, ydot = {a['ydot']:.4g} m/s, "
                        f"theta_h_dot = {a['theta_h_dot']:.4g} rad/s" for a in record["orbit"])
     return "\n".join([

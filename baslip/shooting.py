@@ -55,7 +55,7 @@ from .model import (
     touchdown_map,
 )
 from .quantities import DEFAULT_BOUNDS, DESIGN, NOMINAL, OBJECTIVES, start_value
-from .returnmap import COLLAPSE_FRACTION, PHASES, ReturnMap
+from .returnmap import COLLAPSE_FRACTION, PHASES, ReturnMap, Stride
 
 @dataclass(frozen=True)
 class ShootingOptions:
@@ -283,12 +283,12 @@ class ShootingNLP:
         n = self.options.nodes
         parts = [design]
         for k in range(self.strides):
-            durations = _guess_durations(X, u, spec.params, rmap)
+            stride = rmap.stride(X, u, spec.params) if rmap is not None else None
+            durations = _guess_durations(X, u, spec.params, stride)
             x_td = np.asarray(_touchdown_state(X, u, p, durations[0])).ravel()
             nodes_c = _propagate(self.interval, x_td, u, p, durations[1], n)
             nodes_d = _propagate(self.interval, nodes_c[:, -1], u, p, durations[2], n)
             parts += ([X] if k else []) + [durations, nodes_c.T.ravel(), nodes_d.T.ravel()]
-            stride = rmap.stride(X, u, spec.params) if rmap is not None else None
             X = stride.apex if stride is not None and stride.ok else X
         return np.concatenate(parts)
 
@@ -382,12 +382,11 @@ def _propagate(interval: ca.Function, x0, u, p, duration, n) -> np.ndarray:
     return np.array(states).T
 
 
-def _guess_durations(X, u, params: Params, rmap: ReturnMap | None) -> np.ndarray:
-    """Phase durations of the guess's stride, or spring-based estimates if it falls."""
-    if rmap is not None:
-        stride = rmap.stride(X, u, params)
-        if stride.ok:
-            return np.array([stride.durations[ph] for ph in PHASES])
+def _guess_durations(X, u, params: Params, stride: Stride | None) -> np.ndarray:
+    """Phase durations of the guess's simulated ``stride``, or spring-based estimates if
+    it falls (or was not simulated)."""
+    if stride is not None and stride.ok:
+        return np.array([stride.durations[ph] for ph in PHASES])
     p = params.vector()
     t_down = ReturnMap.touchdown_guess(X, u, p) or 0.1
     quarter = 0.5 * np.pi * np.sqrt(params.m / params.k)

@@ -59,7 +59,7 @@ def summary(result: FixedPointResult) -> str:
         f"theta_td = {c['theta_td'] * deg:.4f} deg",
         f"  energy   {result.energy:.9g} J",
     ]
-    if result.strides > 1:
+    if result.orbit is not None:
         apexes = "; ".join(f"z = {X[0]:.6f} m, ydot = {X[2]:.6f} m/s" for X in result.orbit)
         lines.append(f"  orbit    {result.strides} strides, apexes: {apexes}")
     if result.residual is not None:

@@ -143,7 +143,7 @@ def test_the_two_stride_branch_ends_where_the_low_apex_grazes_touchdown(slip_per
     """Past a few hundredths of a degree the low apex sinks to the touchdown height
     rho0 cos(theta_td): the descent time goes to zero and the orbits end there."""
     doubled, _, branch = slip_period_2_branch
-    assert branch.stop_reason != "end of range"
+    assert branch.stop_reason.startswith(("not verified", "step too small")), branch.stop_reason
     X, u, params, angle = doubled.unpack(branch.points[-1].v)
     orbit = solver.verify_map.simulate(X, u, params, 2)
     assert min(orbit.apexes[:2, 0]) - params.rho0 * math.cos(angle) < 1e-3

@@ -144,3 +144,27 @@ def test_simulate_returns_the_apex_sequence_or_the_fall(tight_map, params):
     run = tight_map.simulate([0.4, math.pi / 2, 0.5, 0.0], [0, 0, 0, 0, 0.3], params, strides=50)
     assert run.fall is not None and run.fall_stride is not None
     assert run.apexes.shape == (run.fall_stride + 1, 4)
+
+
+def test_multi_stride_jacobians_match_central_differences_of_two_strides(tight_map, params, running_point):
+    """dr^2/d(X, u, p) by the chain rule over the strides, against differences of r(r(.))."""
+    X, u = running_point
+    dr_dX, dr_du = tight_map.jacobians(X, u, params, strides=2)
+    dr_dp = tight_map.parameter_jacobian(X, u, params, strides=2)
+    p = params.vector()
+
+    def twice(X, u, p):
+        run = tight_map.simulate(X, u, p, 2)
+        assert run.fall is None
+        return run.apexes[-1]
+
+    h = 1e-6
+    for jac, which in ((dr_dX, 0), (dr_du, 1), (dr_dp, 2)):
+        base = (X, u, p)[which]
+        for j in range(len(base)):
+            shift = np.zeros(len(base))
+            shift[j] = h * max(1.0, abs(base[j]))
+            plus, minus = [list((X, u, p)) for _ in range(2)]
+            plus[which], minus[which] = base + shift, base - shift
+            column = (twice(*plus) - twice(*minus)) / (2 * shift[j])
+            np.testing.assert_allclose(jac[:, j], column, rtol=1e-5, atol=1e-5, err_msg=f"column {j} of input {which}")

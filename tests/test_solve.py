@@ -124,8 +124,10 @@ def test_continuation_with_a_switch_end_to_end(tmp_path):
     """The SLIP band's period doubling, then the two-stride branch switched from it:
     plain CSV that any reader parses, the branches and special points in result.json."""
     text = (ROOT / "problems" / "continuation_slip_attack.yaml").read_text()
+    assert 'range: ["20 deg", "25 deg"]' in text
     text = text.replace('range: ["20 deg", "25 deg"]', 'range: ["20.9 deg", "21.3 deg"]')
-    text = text.replace("  plot: z", "  plot: z\n  switch: period_doubling\n  max_points: 8")
+    assert "  switch: period_doubling\n" in text
+    text = text.replace("  switch: period_doubling\n", "  switch: period_doubling\n  max_points: 8\n")
     problem = tmp_path / "slip.yaml"
     problem.write_text(text)
     proc = run_cli(problem, "--out", tmp_path / "out")

@@ -30,7 +30,7 @@ from .runner import format_value
 #: First step onto a switched branch, as a fraction of the continuation step: small, so
 #: that the new branch starts close to the bifurcation it comes from.
 SWITCH_FRACTION = 0.1
-#: Times the amplitude of a branch switch is halved when its first point fails.
+#: Attempts at a branch switch; the amplitude is halved after each failed one.
 SWITCH_ATTEMPTS = 4
 
 
