@@ -179,8 +179,11 @@ def _solve_and_write(problem, out_dir: Path, quiet: bool) -> int:
 
     if not quiet:
         s = problem.solver
-        print(f"{problem.name}: building the model and NLP ({s.nodes} nodes x {s.substeps} RK4 steps per stance phase)...", file=sys.stderr)
+        orbit = "" if problem.strides == 1 else f", {problem.strides}-stride orbits"
+        print(f"{problem.name}: building the model and NLP ({s.nodes} nodes x {s.substeps} RK4 steps per stance "
+              f"phase{orbit})...", file=sys.stderr)
     solver = FixedPointSolver(shooting_options(problem))
+    solver.nlp_for(problem.strides)
     if not quiet:
         print(f"{problem.name}: solving ({problem.objective}) and verifying...", file=sys.stderr)
     result = solve_problem(problem, solver)
