@@ -126,8 +126,10 @@ class FixedPointSystem:
             X, u, params, _ = self.unpack(v)
             try:
                 strides = self.spec.strides
-                dr_dX, dr_du = self.jacobian_map.jacobians(X, u, params, strides)
-                dr_dp = self.jacobian_map.parameter_jacobian(X, u, params, strides) if self.parameter in PARAMS.names else None
+                if self.parameter in PARAMS.names:  # one pass gives all three
+                    dr_dX, dr_du, dr_dp = self.jacobian_map.all_jacobians(X, u, params, strides)
+                else:
+                    (dr_dX, dr_du), dr_dp = self.jacobian_map.jacobians(X, u, params, strides), None
             except RunnerFell as err:
                 raise CorrectionFailed(f"the runner falls ({err.fall.value})") from None
             self._cache = (key, (X, u, params, dr_dX, dr_du, dr_dp))

@@ -326,7 +326,11 @@ class ReturnMap:
 
     def parameter_jacobian(self, X, u, params, strides: int = 1) -> np.ndarray:
         """dr^n/dp (4 x 6) with respect to the model parameters (m, I, k, rho0, d, g)."""
-        return self._chained_jacobians(X, u, params, strides, with_parameters=True)[2]
+        return self.all_jacobians(X, u, params, strides)[2]
+
+    def all_jacobians(self, X, u, params, strides: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(dr^n/dX, dr^n/du, dr^n/dp) from one pass over the strides."""
+        return self._chained_jacobians(X, u, params, strides, with_parameters=True)
 
     def _chained_jacobians(self, X, u, params, strides: int, with_parameters: bool):
         """Jacobians of r^n in (X, u), and in p if asked, accumulated stride by stride."""
