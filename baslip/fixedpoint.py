@@ -312,7 +312,7 @@ def minimal_period(apexes: np.ndarray) -> int:
 
 
 def _describe(rmap: ReturnMap) -> str:
-    return f"{rmap.plugin}, rtol = {rmap.tolerances.rtol:g}, atol = {rmap.tolerances.atol:g}"
+    return rmap.describe()
 
 
 def _first_line(err: Exception) -> str:

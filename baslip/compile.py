@@ -1,0 +1,220 @@
+"""Compile CasADi Functions to C and cache the shared libraries on disk.
+
+CasADi evaluates a Function in its virtual machine (VM) unless the Function is
+code-generated, compiled and loaded back with :func:`casadi.external`; the compiled
+version runs several times faster and gives the same numbers. :func:`compile_functions`
+does this for a list of Functions at once:
+
+* One C file holds all Functions (dependencies they share are emitted once).
+* The library is cached as ``cache_dir()/<name>-<key>.so``, where ``key`` hashes the C
+  text, the CasADi version, the compiler command and flags and the compiler's version,
+  so a change to any of them builds a new library and a cached one is never stale.
+* The library is compiled to a unique temporary file next to its final name and
+  renamed into place, an atomic step: processes compiling the same key at once are
+  both safe, and no process ever loads a half-written library.
+* Without a working compiler or a writable cache the original Functions are returned
+  (one line on stderr says so): slower, same results. Setting ``BASLIP_NO_COMPILE=1``
+  or passing ``enabled=False`` returns them silently.
+
+The flags keep results IEEE-exact: no ``-ffast-math``, no ``-march=native``, and
+``-ffp-contract=off`` so that no compiler fuses ``a*b + c`` into one FMA (GCC does by
+default on targets that have FMA in their base instruction set, such as aarch64).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+import pathlib
+import re
+import shlex
+import subprocess
+import sys
+import tempfile
+from collections.abc import Sequence
+
+import casadi as ca
+
+#: Flags after the compiler command: optimised, position-independent shared library.
+CFLAGS = ("-O3", "-fPIC", "-shared", "-ffp-contract=off")
+#: Libraries after the source file (the generated code calls sin, cos, ... of libm).
+LDLIBS = ("-lm",)
+#: Seconds after which a compiler run (or its ``--version`` probe) is abandoned.
+COMPILER_TIMEOUT = 600.0
+#: Library names: CasADi prefixes the generated C symbols with the name.
+_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
+
+
+class _NoCompiler(Exception):
+    """The C route failed; the message is the short reason shown to the user."""
+
+
+def cache_dir() -> pathlib.Path:
+    """$BASLIP_CACHE_DIR if set, else $XDG_CACHE_HOME/baslip, else ~/.cache/baslip."""
+    if os.environ.get("BASLIP_CACHE_DIR"):
+        return pathlib.Path(os.environ["BASLIP_CACHE_DIR"])
+    if os.environ.get("XDG_CACHE_HOME"):
+        return pathlib.Path(os.environ["XDG_CACHE_HOME"]) / "baslip"
+    return pathlib.Path.home() / ".cache" / "baslip"
+
+
+def compile_functions(
+    name: str, functions: Sequence[ca.Function], *, enabled: bool | None = None
+) -> dict[str, ca.Function]:
+    """Return {f.name(): callable Function} for each input function, compiled to C and loaded from the disk cache when possible, else the originals (CasADi virtual machine).
+
+    ``name`` names the library (a C identifier: letters, digits, underscores). ``enabled``
+    True or False forces compiling on or off; None (the default) compiles unless the
+    environment variable ``BASLIP_NO_COMPILE`` is set to something other than "" or "0".
+    The returned Functions take the same inputs as the originals; derivatives of them
+    are not available, so pass derivative Functions (e.g. a Jacobian) in ``functions``.
+
+    Raises ValueError for an invalid ``name`` or two Functions with one name, and
+    CasADi's RuntimeError for a Function that cannot be code-generated: those are
+    programming errors. A missing or failing compiler or an unwritable cache is not an
+    error: the originals are returned with one line on stderr.
+    """
+    originals = _by_name(name, functions)
+    if not _compiling(enabled):
+        return originals
+    c_text = _generate(name, functions)
+    try:
+        return _load_or_build(name, c_text, list(originals))
+    except _NoCompiler as reason:
+        print(
+            f"baslip: no working C compiler ({reason}); "
+            "using CasADi's virtual machine (slower, same results)",
+            file=sys.stderr,
+        )
+        return originals
+
+
+def _by_name(name: str, functions: Sequence[ca.Function]) -> dict[str, ca.Function]:
+    """The functions keyed by name, after checking the library name and unique names."""
+    if not _NAME.fullmatch(name):
+        raise ValueError(f"library name {name!r} is not a C identifier")
+    originals = {f.name(): f for f in functions}
+    if len(originals) != len(functions):
+        raise ValueError(f"function names are not unique: {[f.name() for f in functions]}")
+    return originals
+
+
+def _compiling(enabled: bool | None) -> bool:
+    """Whether to compile: ``enabled`` if given, else unless BASLIP_NO_COMPILE is set."""
+    if enabled is not None:
+        return enabled
+    return os.environ.get("BASLIP_NO_COMPILE", "") in ("", "0")
+
+
+def _generate(name: str, functions: Sequence[ca.Function]) -> str:
+    """The C source of one file holding all ``functions``."""
+    generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})
+    for function in functions:
+        generator.add(function)
+    return generator.dump()
+
+
+def _compiler() -> list[str]:
+    """The compiler command: ``$CC`` (split like a shell would) if set, else gcc."""
+    try:
+        return shlex.split(os.environ.get("CC", "")) or ["gcc"]
+    except ValueError as error:
+        raise _NoCompiler(f"CC={os.environ['CC']!r}: {error}") from None
+
+
+def _compiler_version(compiler: list[str]) -> str:
+    """First line of ``compiler --version``; raises _NoCompiler if it does not run."""
+    result = _run([*compiler, "--version"])
+    lines = result.stdout.splitlines() or [""]
+    return lines[0].strip()
+
+
+def _run(command: list[str]) -> subprocess.CompletedProcess:
+    """Run ``command`` with output captured; raises _NoCompiler if it cannot or fails."""
+    try:
+        result = subprocess.run(
+            command,
+            capture_output=True,
+            text=True,
+            errors="replace",
+            timeout=COMPILER_TIMEOUT,
+            check=False,
+        )
+    except FileNotFoundError:
+        raise _NoCompiler(f"{command[0]} not found") from None
+    except subprocess.TimeoutExpired:
+        raise _NoCompiler(f"{command[0]} timed out after {COMPILER_TIMEOUT:g} s") from None
+    except OSError as error:
+        raise _NoCompiler(f"{command[0]}: {error.strerror or error}") from None
+    if result.returncode != 0:
+        first = (result.stderr.strip().splitlines() or [""])[0]
+        raise _NoCompiler(f"{command[0]} exited with status {result.returncode}: {first}")
+    return result
+
+
+def _cache_key(c_text: str, compiler: list[str], version: str) -> str:
+    """sha256 of everything that decides the library's contents."""
+    digest = hashlib.sha256()
+    for part in (c_text, ca.__version__, shlex.join([*compiler, *CFLAGS, *LDLIBS]), version):
+        digest.update(part.encode())
+        digest.update(b"\0")
+    return digest.hexdigest()
+
+
+def _load_or_build(name: str, c_text: str, names: list[str]) -> dict[str, ca.Function]:
+    """Load the cached library for ``c_text``, building it first if missing or unloadable."""
+    compiler = _compiler()
+    key = _cache_key(c_text, compiler, _compiler_version(compiler))
+    library = cache_dir() / f"{name}-{key[:20]}.so"
+    if os.path.isfile(library):
+        loaded = _load(library, names)
+        if loaded is not None:
+            return loaded
+        _discard(library)  # corrupt, truncated by something else, or stale: rebuild once
+    _build(name, c_text, compiler, library)
+    loaded = _load(library, names)
+    if loaded is None:
+        raise _NoCompiler(f"the freshly compiled {library.name} does not load")
+    return loaded
+
+
+def _load(library: pathlib.Path, names: list[str]) -> dict[str, ca.Function] | None:
+    """Every function of ``names`` loaded from ``library``, or None if any fails to load."""
+    try:
+        return {fname: ca.external(fname, str(library)) for fname in names}
+    except RuntimeError:
+        return None
+
+
+def _discard(path: pathlib.Path | str) -> None:
+    """Delete ``path`` if it exists and can be deleted; never raises."""
+    with contextlib.suppress(OSError):
+        os.unlink(path)
+
+
+def _build(name: str, c_text: str, compiler: list[str], library: pathlib.Path) -> None:
+    """Compile ``c_text`` into ``library``, atomically; raises _NoCompiler on failure.
+
+    The source goes to a private temporary directory, the library to a unique
+    temporary file in the cache directory that is renamed onto ``library``; neither
+    temporary survives, whatever happens.
+    """
+    try:
+        library.parent.mkdir(parents=True, exist_ok=True)
+        handle, partial = tempfile.mkstemp(
+            dir=library.parent, prefix=f".{library.stem}.", suffix=".tmp"
+        )
+        os.close(handle)
+    except OSError as error:
+        raise _NoCompiler(f"cache {library.parent} not writable: {error.strerror}") from None
+    try:
+        with tempfile.TemporaryDirectory(prefix="baslip-cc-") as scratch:
+            source = pathlib.Path(scratch) / f"{name}.c"
+            source.write_text(c_text, encoding="utf-8")
+            _run([*compiler, *CFLAGS, str(source), "-o", partial, *LDLIBS])
+        os.replace(partial, library)
+    except OSError as error:
+        raise _NoCompiler(f"cannot write the library: {error.strerror or error}") from None
+    finally:
+        _discard(partial)

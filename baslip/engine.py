@@ -1,0 +1,223 @@
+"""The numeric driver of the compiled stride engine (:mod:`baslip.stride`).
+
+For one stride it runs the scout, picks the step count, calls the compiled final pass (or
+its Jacobian) and judges the result: an apex, a named fall, or ``None`` where the engine
+cannot guarantee its accuracy, so that the caller falls back to the adaptive event map.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .model import PARAMS, STANCE
+from .outcome import PHASES, STANCE_HORIZON_HALF_PERIODS, Fall, Stride
+from .stride import (
+    CLEARANCES,
+    DIAGNOSTICS,
+    MAX_SCOUT_STEP_RATE,
+    MAX_STEP_RATE,
+    SCOUT_STEPS,
+    SCOUT_STEPS_PER_HALF_PERIOD,
+    TIERS,
+    StrideFunctions,
+    half_period,
+    stiffness_rate,
+)
+
+_CLEARANCE_FALLS = {
+    "com": Fall.COM_HITS_GROUND,
+    "hip": Fall.HIP_HITS_GROUND,
+    "leg": Fall.LEG_COLLAPSES,
+}
+#: Newton on an event step is converged when its last update is below this fraction of
+#: the phase duration.
+NEWTON_CONVERGED = 1e-13
+#: The event must end the phase within this many grid steps of the grid's end.
+LAST_STEP_RANGE = (0.0, 2.0)
+
+
+@dataclass(frozen=True)
+class Scouted:
+    """Estimated stance event times [s] after touchdown, and the stride's step rate [1/s]."""
+
+    bottom: float
+    liftoff: float
+    rate: float
+
+
+class CompiledEngine:
+    """One stride by the compiled fixed-step engine, at a stated error bound.
+
+    ``tolerance`` bounds the summed DOP853 error estimate of the stance integration
+    (relative to max(1, |x|)); a stride whose estimate stays above it at the finest step
+    count, or whose events the scout could not bracket cleanly, returns ``None``.
+    """
+
+    def __init__(self, tolerance: float, compile: bool | None = None):
+        self.tolerance = tolerance
+        self.functions = StrideFunctions(compile)
+
+    def stride(self, X, u, p, t_guess) -> Stride | None:
+        """The stride from apex ``X`` (which passed the pre-checks), or None."""
+        plan = self._plan(X, u, p, t_guess)
+        if not isinstance(plan, tuple):
+            return plan
+        tiers, guesses = plan
+        for n in tiers:
+            verdict = self._judge(*self.functions.final(n)(X, u, p, guesses))
+            if verdict != "refine":
+                return verdict
+        return None
+
+    def stride_jacobian(self, X, u, p, t_guess) -> tuple[np.ndarray | None, Stride] | None:
+        """(dr/d(X, u, p) as 4 x 15, the stride), the Jacobian None after a fall; or None."""
+        plan = self._plan(X, u, p, t_guess)
+        if not isinstance(plan, tuple):
+            return None if plan is None else (None, plan)
+        tiers, guesses = plan
+        for n in tiers:
+            jac, *outputs = self.functions.jacobian(n)(X, u, p, guesses)
+            verdict = self._judge(*outputs)
+            if verdict is None:
+                return None
+            if verdict != "refine":
+                return (np.asarray(jac) if verdict.ok else None), verdict
+        return None
+
+    # -- pieces ----------------------------------------------------------------------
+
+    def _plan(self, X, u, p, t_guess):
+        """Touchdown checks and the scout: a fall, None, or (tiers to try, guesses)."""
+        x_td, com_height, _ = (np.asarray(v).ravel() for v in self.functions.touchdown_state(X, u, p, t_guess))
+        descent = {"descent": float(t_guess)}
+        if com_height[0] <= 0.0:
+            return Stride(None, descent, Fall.COM_HITS_GROUND)
+        if STANCE.get(x_td, "rhodot") >= 0.0:
+            return Stride(None, descent, Fall.LEG_EXTENDING_AT_TOUCHDOWN)
+        scouted = self._scout(x_td, np.concatenate([u, p]), X, u, p)
+        if not isinstance(scouted, Scouted):
+            return scouted if scouted is None else Stride(None, descent, scouted)
+        longest = max(scouted.bottom, scouted.liftoff - scouted.bottom)
+        tiers = [n for n in TIERS if longest * scouted.rate / n <= MAX_STEP_RATE]
+        if not tiers:
+            return None
+        return tiers, np.array([t_guess, scouted.bottom, scouted.liftoff - scouted.bottom])
+
+    def _scout(self, x0, theta, X, u, p) -> Scouted | Fall | None:
+        """Step stance in chunks until liftoff: the event estimates, a fall, or None."""
+        rate = stiffness_rate(X, u, p)
+        h = min(half_period(p) / SCOUT_STEPS_PER_HALF_PERIOD, MAX_SCOUT_STEP_RATE / rate)
+        horizon = STANCE_HORIZON_HALF_PERIODS * half_period(p)
+        rho0 = PARAMS.get(p, "rho0")
+        t0, bottom = 0.0, None
+        while t0 < horizon:
+            nodes, rates, clearance = (np.asarray(v) for v in self.functions.scout(x0, h, theta))
+            if not np.all(np.isfinite(nodes)):
+                return None
+            times = t0 + h * np.arange(SCOUT_STEPS + 1)
+            rhodot = STANCE.get(nodes, "rhodot")
+            if bottom is None:
+                j = _first_rise(rhodot)
+                if j is not None:
+                    bottom = _hermite_root(times[j - 1 : j + 1], rhodot[j - 1 : j + 1], rates[3, j - 1 : j + 1])
+            liftoff_step = None
+            if bottom is not None:
+                stretch = STANCE.get(nodes, "rho") - rho0
+                k = _first_rise(np.where(times >= bottom, stretch, -1.0))
+                if k is not None:
+                    liftoff_step = k
+            # The liftoff step itself is left to the final pass, whose last step ends on
+            # the event: the runner may touch the ground after leaving it.
+            fall_step = _first_fall_step(clearance, None if liftoff_step is None else liftoff_step - 1)
+            if fall_step is not None:
+                return self._fall_in_step(nodes[:, fall_step], h, theta)
+            if liftoff_step is not None:
+                k = liftoff_step
+                liftoff = _hermite_root(times[k - 1 : k + 1], stretch[k - 1 : k + 1], rhodot[k - 1 : k + 1])
+                return Scouted(bottom, liftoff, rate)
+            x0, t0 = nodes[:, -1], times[-1]
+        return Fall.STANCE_NEVER_ENDS
+
+    def _fall_in_step(self, x0, h, theta, depth: int = 3) -> Fall:
+        """Which clearance reaches zero first in the step of size ``h`` from ``x0``: when
+        several do within the step, the step is re-scouted in finer steps to order them."""
+        fine = h / SCOUT_STEPS
+        _, _, clearance = (np.asarray(v) for v in self.functions.scout(x0, fine, theta))
+        step = _first_fall_step(clearance, None)
+        if step is None:  # the step's stage points saw it, the finer steps' did not
+            step = clearance.shape[1] - 1
+        hit = clearance[:, step] <= 0.0
+        if np.count_nonzero(hit) > 1 and depth > 1:
+            nodes = np.asarray(self.functions.scout(x0, fine, theta)[0])
+            return self._fall_in_step(nodes[:, step], fine, theta, depth - 1)
+        which = int(np.argmax(hit)) if hit.any() else int(np.argmin(clearance[:, step]))
+        return _CLEARANCE_FALLS[CLEARANCES[which]]
+
+    def _judge(self, apex, durations, diagnostics) -> Stride | str | None:
+        """The stride, "refine" (error estimate too large) or None (cannot vouch for it)."""
+        apex, durations = np.asarray(apex).ravel(), np.asarray(durations).ravel()
+        d = DIAGNOSTICS.to_dict(diagnostics)
+        reached = dict(zip(PHASES, durations.tolist()))
+        if not _events_in_last_step(d, reached):
+            return None
+        for name in CLEARANCES:
+            if d[f"{name}_min"] <= 0.0:
+                return Stride(None, {"descent": reached["descent"]}, _CLEARANCE_FALLS[name])
+        if d["zdot_lo"] <= 0.0:
+            return Stride(None, {k: reached[k] for k in PHASES[:3]}, Fall.LIFTOFF_DESCENDING)
+        if not np.all(np.isfinite(apex)) or not np.isfinite(d["error"]):
+            return None
+        if d["error"] > self.tolerance:
+            return "refine"
+        return Stride(apex, reached, None, error=d["error"])
+
+
+def _events_in_last_step(d: dict, reached: dict) -> bool:
+    """Each stance event ends its phase's last step, converged, with no earlier crossing."""
+    lo, hi = LAST_STEP_RANGE
+    return (
+        lo < d["bottom_last_step"] < hi
+        and lo < d["liftoff_last_step"] < hi
+        and d["rhodot_max_compression"] < 0.0
+        and d["stretch_max_decompression"] < 0.0
+        and abs(d["bottom_update"]) <= NEWTON_CONVERGED * reached["compression"]
+        and abs(d["liftoff_update"]) <= NEWTON_CONVERGED * reached["decompression"]
+    )
+
+
+def _first_rise(values: np.ndarray) -> int | None:
+    """The first index j >= 1 with values[j] >= 0 after values[j - 1] < 0, or None."""
+    rises = np.nonzero((values[1:] >= 0.0) & (values[:-1] < 0.0))[0]
+    return int(rises[0]) + 1 if len(rises) else None
+
+
+def _first_fall_step(clearance: np.ndarray, last_step: int | None) -> int | None:
+    """The earliest step (up to the liftoff step) in which a clearance reaches zero."""
+    steps = clearance.shape[1] if last_step is None else last_step
+    hit = np.nonzero(np.any(clearance[:, :steps] <= 0.0, axis=0))[0]
+    return int(hit[0]) if len(hit) else None
+
+
+def _hermite_root(t, g, dg) -> float:
+    """The root in [t0, t1] of the cubic Hermite interpolant of g (g0 < 0 <= g1)."""
+    span = t[1] - t[0]
+    m0, m1 = dg[0] * span, dg[1] * span
+
+    def cubic(s):
+        return (
+            (2 * s**3 - 3 * s**2 + 1) * g[0] + (s**3 - 2 * s**2 + s) * m0
+            + (-2 * s**3 + 3 * s**2) * g[1] + (s**3 - s**2) * m1
+        )
+
+    def slope(s):
+        return 6 * (s**2 - s) * (g[0] - g[1]) + (3 * s**2 - 4 * s + 1) * m0 + (3 * s**2 - 2 * s) * m1
+
+    s = g[0] / (g[0] - g[1])  # the secant's root, then Newton on the cubic, kept in [0, 1]
+    for _ in range(8):
+        rate = slope(s)
+        if rate <= 0.0:
+            break
+        s = min(max(s - cubic(s) / rate, 0.0), 1.0)
+    return float(t[0] + span * s)

@@ -1,0 +1,149 @@
+"""What a stride can end in, shared by every return-map engine.
+
+A stride ends at the next apex or in a named :class:`Fall`; falls are outcomes, not
+exceptions. :func:`precheck` finds the falls visible before any integration and brackets
+the touchdown time, in closed form.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+
+from .control import CONTROL
+from .model import APEX, PARAMS, descent_foot_height
+
+PHASES = ("descent", "compression", "decompression", "ascent")
+
+#: Leg length below which the leg counts as collapsed, as a fraction of rho0.
+COLLAPSE_FRACTION = 0.05
+#: Stance that has not ended after this many spring half-periods pi*sqrt(m/k) "never ends".
+STANCE_HORIZON_HALF_PERIODS = 40.0
+
+
+class Fall(str, Enum):
+    """Named reasons a stride does not reach the next apex."""
+
+    FOOT_BELOW_GROUND = "foot below ground at apex"
+    NO_TOUCHDOWN = "no touchdown (leg cannot reach the ground)"
+    LEG_EXTENDING_AT_TOUCHDOWN = "leg extending at touchdown (rhodot >= 0)"
+    COM_HITS_GROUND = "CoM touches the ground"
+    HIP_HITS_GROUND = "hip touches the ground"
+    LEG_COLLAPSES = "leg collapses (rho below floor)"
+    STANCE_NEVER_ENDS = "stance never ends"
+    LIFTOFF_DESCENDING = "liftoff with zdot <= 0"
+    NOT_FINITE = "non-finite state"
+    INTEGRATION_FAILED = "integration failed"
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """Integrator tolerances (relative and absolute) of a return map."""
+
+    rtol: float = 1e-10
+    atol: float = 1e-10
+
+
+@dataclass(frozen=True)
+class Stride:
+    """Outcome of one stride: the next apex, or the reason the runner fell."""
+
+    apex: np.ndarray | None  # next apex X [z m, theta_h rad, ydot m/s, theta_h_dot rad/s]
+    durations: dict[str, float]  # phase -> duration [s]; phases not reached are absent
+    fall: Fall | None = None
+    error: float | None = None  # the engine's error estimate of the stance integration, if it has one
+
+    @property
+    def ok(self) -> bool:
+        return self.fall is None
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """Apex sequence of a multi-stride run; ``fall`` is set if it ended early."""
+
+    apexes: np.ndarray  # (n + 1) x 4, the initial apex first
+    durations: list[dict[str, float]] = field(default_factory=list)
+    fall: Fall | None = None
+    fall_stride: int | None = None  # 0-based index of the stride that fell
+
+
+class RunnerFell(RuntimeError):
+    """Raised by :meth:`ReturnMap.__call__` when a stride falls; carries the :class:`Fall`."""
+
+    def __init__(self, fall: Fall):
+        super().__init__(fall.value)
+        self.fall = fall
+
+
+def touchdown_guess(X, u, p) -> float | None:
+    """First zero of the foot height after apex, bracketed then refined to round-off [s].
+
+    Returns None when the foot cannot reach the ground. The foot height is
+    h(t) = c - g t^2/2 - d sin(theta_h + w t) with c = z - rho0 cos(theta_td), so
+    h < 0 for all t > sqrt(2 (c + d) / g): the first root lies in that bracket. The
+    rootfinder then converges on it from this guess.
+    """
+    a, pr = APEX.unpack(X), PARAMS.unpack(p)
+    theta_td = CONTROL.get(u, "theta_td")
+    if not abs(theta_td) < math.pi / 2:
+        return None
+
+    def height(t):
+        return descent_foot_height(
+            t, a["z"], a["theta_h"], a["theta_h_dot"], theta_td, pr["d"], pr["rho0"], pr["g"]
+        )
+
+    clearance = a["z"] - pr["rho0"] * math.cos(theta_td)
+    t_max = math.sqrt(2.0 * max(clearance + pr["d"], 0.0) / pr["g"]) + 1e-9
+    grid = np.linspace(0.0, t_max, 257)
+    below = np.nonzero(height(grid[1:]) <= 0.0)[0]
+    if len(below) == 0:
+        return None
+    lo, hi = grid[below[0]], grid[below[0] + 1]
+    return _refine_root(lo, hi, a["theta_h"], a["theta_h_dot"], clearance, pr["d"], pr["g"])
+
+
+def _refine_root(lo: float, hi: float, theta_h: float, w: float, clearance: float, d: float, g: float) -> float:
+    """The root of h(t) = clearance - g t^2/2 - d sin(theta_h + w t) in [lo, hi] (h(lo) > 0
+    >= h(hi)), to round-off: Newton, with a bisection whenever it would leave the bracket."""
+    t = 0.5 * (lo + hi)
+    for _ in range(60):
+        height = clearance - 0.5 * g * t * t - d * math.sin(theta_h + w * t)
+        if height > 0.0:
+            lo = t
+        else:
+            hi = t
+        slope = -g * t - d * w * math.cos(theta_h + w * t)
+        t_new = t - height / slope if slope < 0.0 else 0.5 * (lo + hi)
+        if not lo < t_new < hi:
+            t_new = 0.5 * (lo + hi)
+        if abs(t_new - t) <= 1e-15 * t or hi - lo <= 1e-15 * hi:
+            return t_new
+        t = t_new
+    return t
+
+
+def precheck(X, u, p) -> tuple[Stride | None, float | None]:
+    """Checks before any integration: a fall found already, or the touchdown time guess [s]."""
+    if not (np.all(np.isfinite(X)) and np.all(np.isfinite(u)) and np.all(np.isfinite(p))):
+        return Stride(None, {}, Fall.NOT_FINITE), None
+    a, pr = APEX.unpack(X), PARAMS.unpack(p)
+    theta_td = CONTROL.get(u, "theta_td")
+    if descent_foot_height(0.0, a["z"], a["theta_h"], 0.0, theta_td, pr["d"], pr["rho0"], pr["g"]) < 0.0:
+        return Stride(None, {}, Fall.FOOT_BELOW_GROUND), None
+    t_guess = touchdown_guess(X, u, p)
+    if t_guess is None:
+        return Stride(None, {}, Fall.NO_TOUCHDOWN), None
+    return None, t_guess
+
+
+def vec(v) -> np.ndarray:
+    return np.asarray(v, dtype=float).ravel()
+
+
+def param_vector(params) -> np.ndarray:
+    return params.vector() if hasattr(params, "vector") else vec(params)

@@ -1,0 +1,300 @@
+"""The compiled stride engine: one apex-to-apex stride of the BA-SLIP as fixed-step
+order-8 flows, generated as C and cached on disk.
+
+How a stride is computed:
+
+1. **Descent** is closed form; the touchdown time comes from the bracketed first root of
+   the foot height (:func:`touchdown_guess`), refined by Newton inside the graph.
+2. **Scout.** Stance is stepped with DOP853 at a step size set by the stiffness, in chunks
+   of :data:`SCOUT_STEPS` steps, until ``rho`` passes ``rho0`` after the bottom. The
+   nodes bracket the bottom (``rhodot`` rising through 0) and the liftoff
+   (``rho - rho0`` rising through 0), and cubic Hermite interpolation estimates both
+   times. Ground contact of the CoM or hip and a collapsing leg are seen at every stage
+   point of every step, so a crossing between nodes is not missed.
+3. **Final pass**, a fixed-structure function per step count ``N`` (:data:`TIERS`):
+   compression and decompression each take ``N - 1`` equal steps of a grid set by the
+   scout's estimate, then a last step whose size solves the guard by Newton. Derivatives
+   of this function are algorithmic derivatives of the discrete flow, through the event
+   times by the implicit-function theorem.
+4. **Checks.** ``N`` is the least tier with ``h * lambda <= 1/2``, where ``lambda`` is the
+   fastest rate of the stance dynamics (spring, hip damping and stiffness, spin). The
+   summed DOP853 error estimate must be below :data:`ERROR_TARGET`; otherwise the next
+   tier is tried, and past the last one the stride reports that it cannot guarantee its
+   accuracy (the caller falls back to the adaptive event map).
+
+All inputs and outputs are SI units and radians.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import casadi as ca
+
+from . import flow
+from .compile import compile_functions
+from .control import CONTROL, hip_torque, touchdown_angle
+from .layout import Layout
+from .outcome import COLLAPSE_FRACTION
+from .model import (
+    APEX,
+    FLIGHT,
+    PARAMS,
+    STANCE,
+    apex_to_flight,
+    ballistic_flight,
+    bottom_guard,
+    flight_to_apex,
+    liftoff_guard,
+    liftoff_map,
+    stance_com_position,
+    stance_dynamics,
+    stance_hip_position,
+    touchdown_guard,
+    touchdown_map,
+)
+
+#: Step counts per stance phase of the compiled final pass.
+TIERS = (16, 32, 64, 128, 256, 512, 1024)
+#: Stance steps per scout call.
+SCOUT_STEPS = 48
+#: Largest h * lambda of a step (DOP853 is stable to about 5; 1/2 keeps it accurate).
+MAX_STEP_RATE = 0.5
+#: Scout steps per spring half-period pi sqrt(m/k), at most, and the scout's largest
+#: h * lambda: the scout only brackets the events, so it needs stability, not accuracy.
+SCOUT_STEPS_PER_HALF_PERIOD = 12
+MAX_SCOUT_STEP_RATE = 2.0
+#: Accepted summed error estimate of a stride (relative to max(1, |x|)).
+ERROR_TARGET = 1e-12
+#: Newton iterations of each stance event step, and of the touchdown time.
+EVENT_NEWTON = 3
+TOUCHDOWN_NEWTON = 2
+
+#: Parameters of the stance flow: the control, then the model parameters.
+THETA = Layout(CONTROL.names + PARAMS.names)
+#: Watched quantities in stance, a fall when one reaches zero: CoM height, hip height and
+#: the leg's length above the collapse floor [m].
+CLEARANCES = ("com", "hip", "leg")
+#: Guess inputs of the final pass [s]: descent, and the grid durations of the two phases.
+GUESSES = Layout(("descent", "compression", "decompression"))
+#: Scalar outputs of the final pass that decide whether and how it fell and whether it is
+#: accurate; see :func:`_final_pass`.
+DIAGNOSTICS = Layout((
+    "rhodot_td", "zdot_lo", "foot_height_td", "com_height_td",
+    "bottom_residual", "liftoff_residual", "bottom_update", "liftoff_update",
+    "bottom_last_step", "liftoff_last_step",
+    "rhodot_max_compression", "stretch_max_decompression",
+    "com_min", "hip_min", "leg_min", "error",
+))
+
+
+def _split_theta(theta):
+    return theta[: CONTROL.size], theta[CONTROL.size :]
+
+
+def stance_rhs() -> ca.Function:
+    """xdot = f(x, theta) of stance under the PD hip law, theta = (u, p)."""
+    x, theta = STANCE.sym("x"), THETA.sym("theta")
+    u, p = _split_theta(theta)
+    xdot = stance_dynamics(x, hip_torque(x, u), p)
+    return ca.Function("stance_rhs", [x, theta], [ca.cse(xdot)], ["x", "theta"], ["xdot"])
+
+
+def stance_clearances(x, theta):
+    """(CoM height, hip height, rho - collapse floor) [m]; the runner falls at zero."""
+    _, p = _split_theta(theta)
+    q = x[:3]
+    floor = COLLAPSE_FRACTION * PARAMS.get(p, "rho0")
+    return ca.vertcat(stance_com_position(q, p)[1], stance_hip_position(q)[1], STANCE.get(x, "rho") - floor)
+
+
+def stance_guards() -> tuple[ca.Function, ca.Function]:
+    """The bottom guard rhodot [m/s] and the liftoff guard rho - rho0 [m] as Functions of
+    (x, theta); each rises through zero at its event."""
+    x, theta = STANCE.sym("x"), THETA.sym("theta")
+    _, p = _split_theta(theta)
+    return (
+        ca.Function("bottom", [x, theta], [bottom_guard(x)]),
+        ca.Function("liftoff", [x, theta], [liftoff_guard(x, p)]),
+    )
+
+
+def stiffness_rate(X, u, p) -> float:
+    """The fastest rate of the stance dynamics [1/s], for the step size.
+
+    The larger of the spring's sqrt(k/m), the hip damping Kd/(I + m d^2), the hip
+    stiffness sqrt(|Kp|/(I + m d^2)), the trunk spin |theta_h_dot| and the leg's sweep
+    rate |ydot|/rho0 (``I + m d^2`` is the trunk's inertia about the hip).
+    """
+    a, c, pr = APEX.unpack(X), CONTROL.unpack(u), PARAMS.unpack(p)
+    inertia_hip = pr["I"] + pr["m"] * pr["d"] ** 2
+    return max(
+        math.sqrt(pr["k"] / pr["m"]),
+        abs(c["Kd"]) / inertia_hip,
+        math.sqrt(abs(c["Kp"]) / inertia_hip),
+        abs(a["theta_h_dot"]),
+        abs(a["ydot"]) / pr["rho0"],
+    )
+
+
+def half_period(p) -> float:
+    """The spring's half-period pi sqrt(m/k) [s]."""
+    pr = PARAMS.unpack(p)
+    return math.pi * math.sqrt(pr["m"] / pr["k"])
+
+
+@dataclass(frozen=True)
+class StanceEstimate:
+    """What the scout found: the event times [s] after touchdown, or a fall."""
+
+    bottom: float | None = None
+    liftoff: float | None = None
+    fall: str | None = None  # "com", "hip", "leg" or "never_ends"
+
+
+class StrideFunctions:
+    """The Functions of the compiled stride, built and compiled once: the touchdown state,
+    the stance scout and, per tier, the final pass and its Jacobian in (X, u, p).
+
+    ``compile``: True or False forces the C route on or off; None follows the
+    environment (see :func:`baslip.compile.compile_functions`)."""
+
+    def __init__(self, compile: bool | None = None):
+        rhs = stance_rhs()
+        x, theta = STANCE.sym("x"), THETA.sym("theta")
+        watch = ca.Function("stance_clearances", [x, theta], [stance_clearances(x, theta)])
+        self.step = flow.step_function(rhs, watch)
+        self.rhs = rhs
+        bottom, liftoff = stance_guards()
+        self.bottom_step = flow.event_step(self.step, rhs, bottom, EVENT_NEWTON)
+        self.liftoff_step = flow.event_step(self.step, rhs, liftoff, EVENT_NEWTON)
+        self._chains: dict[int, ca.Function] = {}
+        self.functions = compile_functions("baslip_stride", self._all(), enabled=compile)
+        self.touchdown_state = self.functions["touchdown_state"]
+        self.scout = self.functions["stance_scout"]
+
+    def final(self, n: int) -> ca.Function:
+        """(X, u, p, guesses) -> (apex, durations, diagnostics) with ``n`` steps a phase."""
+        return self.functions[f"stride_{n}"]
+
+    def jacobian(self, n: int) -> ca.Function:
+        """(X, u, p, guesses) -> (dr/d(X, u, p) 4 x 15, apex, durations, diagnostics)."""
+        return self.functions[f"stride_jacobian_{n}"]
+
+    def _scout(self) -> ca.Function:
+        """(x0, h, theta) -> the M + 1 nodes from x0 (columns), their rates xdot, and each
+        step's least clearances (M columns); M = :data:`SCOUT_STEPS`."""
+        chained = self.chain(SCOUT_STEPS)
+        x0, h, theta = ca.MX.sym("x0", STANCE.size), ca.MX.sym("h"), THETA.sym("theta", ca.MX)
+        steps, _, clearances = chained(x0, h, theta)
+        nodes = ca.horzcat(x0, steps)
+        rates = self.rhs.map(SCOUT_STEPS + 1)(nodes, ca.repmat(theta, 1, SCOUT_STEPS + 1))
+        return ca.Function("stance_scout", [x0, h, theta], [nodes, rates, clearances],
+                           ["x0", "h", "theta"], ["nodes", "rates", "clearance_min"])
+
+    def chain(self, n: int) -> ca.Function:
+        """``n`` stance steps, one Function per ``n`` so generated code holds it once."""
+        if n not in self._chains:
+            self._chains[n] = flow.chain(self.step, n)
+        return self._chains[n]
+
+    def _jacobian(self, final: ca.Function) -> ca.Function:
+        """The final pass's Jacobian of the apex in (X, u, p), with its ordinary outputs."""
+        X, u, p, guesses = final.mx_in()
+        apex, durations, diagnostics = final(X, u, p, guesses)
+        return ca.Function(
+            final.name().replace("stride", "stride_jacobian"), [X, u, p, guesses],
+            [ca.jacobian(apex, ca.vertcat(X, u, p)), apex, durations, diagnostics],
+            ["X", "u", "p", "guesses"], ["dr_dXup", "apex", "durations", "diagnostics"],
+        )
+
+    def _all(self) -> list[ca.Function]:
+        """Every Function of the engine, compiled together so that the step and its
+        derivatives are generated once for all tiers."""
+        finals = [_final_pass(self, n) for n in TIERS]
+        return [touchdown_state(), self._scout(), *finals, *(self._jacobian(f) for f in finals)]
+
+
+def _phase(functions: StrideFunctions, event: ca.Function, x0, grid_duration, theta, n: int):
+    """A stance phase of ``n`` steps: ``n - 1`` on the grid ``grid_duration / n``, then the
+    step that ends on the event. Returns (duration, end state, event outputs, node values)."""
+    h = grid_duration / n
+    nodes, errors, clearances = functions.chain(n - 1)(x0, h, theta)
+    x_last = nodes[:, -1]
+    s, x_end, residual, update, error, clearance_end = event(x_last, h, theta)
+    duration = (n - 1) * h + s
+    return dict(
+        duration=duration, x_end=x_end, residual=residual, update=update, last_step=s / h,
+        nodes=nodes, error=ca.sum2(errors) + error,
+        clearance=ca.vertcat(*[ca.mmin(ca.horzcat(clearances[i, :], clearance_end[i])) for i in range(len(CLEARANCES))]),
+    )
+
+
+def _final_pass(functions: StrideFunctions, n: int) -> ca.Function:
+    """(X, u, p, guesses) -> (next apex, durations, diagnostics) with ``n`` steps a phase."""
+    X, u, p = APEX.sym("X", ca.MX), CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
+    guesses = GUESSES.sym("guesses", ca.MX)
+    theta = ca.vertcat(u, p)
+    theta_td = touchdown_angle(u)
+
+    t_descent = _touchdown_time(X, u, p, GUESSES.get(guesses, "descent"))
+    at_touchdown = ballistic_flight(apex_to_flight(X), t_descent, p)
+    x_td = touchdown_map(at_touchdown, theta_td, p)
+
+    comp = _phase(functions, functions.bottom_step, x_td, GUESSES.get(guesses, "compression"), theta, n)
+    decomp = _phase(functions, functions.liftoff_step, comp["x_end"], GUESSES.get(guesses, "decompression"), theta, n)
+
+    at_liftoff = liftoff_map(decomp["x_end"], p)
+    zdot_lo = FLIGHT.get(at_liftoff, "zdot")
+    apex_next = flight_to_apex(at_liftoff, p)
+    durations = ca.vertcat(t_descent, comp["duration"], decomp["duration"], zdot_lo / PARAMS.get(p, "g"))
+    clearance = ca.fmin(comp["clearance"], decomp["clearance"])
+    diagnostics = DIAGNOSTICS.pack({
+        "rhodot_td": bottom_guard(x_td),
+        "zdot_lo": zdot_lo,
+        "foot_height_td": touchdown_guard(at_touchdown, theta_td, p),
+        "com_height_td": FLIGHT.get(at_touchdown, "z"),
+        "bottom_residual": comp["residual"],
+        "liftoff_residual": decomp["residual"],
+        "bottom_update": comp["update"],
+        "liftoff_update": decomp["update"],
+        "bottom_last_step": comp["last_step"],
+        "liftoff_last_step": decomp["last_step"],
+        "rhodot_max_compression": ca.mmax(STANCE.get(comp["nodes"], "rhodot")),
+        "stretch_max_decompression": ca.mmax(STANCE.get(decomp["nodes"], "rho")) - PARAMS.get(p, "rho0"),
+        "com_min": clearance[0],
+        "hip_min": clearance[1],
+        "leg_min": clearance[2],
+        "error": comp["error"] + decomp["error"],
+    })
+    return ca.Function(
+        f"stride_{n}", [X, u, p, guesses], [apex_next, durations, diagnostics],
+        ["X", "u", "p", "guesses"], ["apex", "durations", "diagnostics"],
+    )
+
+
+def _touchdown_time(X, u, p, t_guess):
+    """The touchdown time [s]: Newton on the closed-form foot height from a converged guess,
+    so that its derivative is the implicit-function-theorem one."""
+    t = ca.SX.sym("t")
+    Xs, us, ps = APEX.sym("X"), CONTROL.sym("u"), PARAMS.sym("p")
+    height = touchdown_guard(ballistic_flight(apex_to_flight(Xs), t, ps), touchdown_angle(us), ps)
+    newton = ca.Function("touchdown_newton", [Xs, us, ps, t], [t - height / ca.jacobian(height, t)])
+    for _ in range(TOUCHDOWN_NEWTON):
+        t_guess = newton(X, u, p, t_guess)
+    return t_guess
+
+
+def touchdown_state() -> ca.Function:
+    """(X, u, p, t_descent) -> stance state at touchdown, CoM height there [m], foot height
+    there [m] (zero at a located touchdown)."""
+    X, u, p, t = APEX.sym("X"), CONTROL.sym("u"), PARAMS.sym("p"), ca.SX.sym("t_descent")
+    at_touchdown = ballistic_flight(apex_to_flight(X), t, p)
+    theta_td = touchdown_angle(u)
+    return ca.Function(
+        "touchdown_state", [X, u, p, t],
+        [touchdown_map(at_touchdown, theta_td, p), FLIGHT.get(at_touchdown, "z"),
+         touchdown_guard(at_touchdown, theta_td, p)],
+        ["X", "u", "p", "t_descent"], ["x_touchdown", "com_height", "foot_height"],
+    )

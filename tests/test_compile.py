@@ -1,0 +1,236 @@
+"""Compiling CasADi Functions to C: same numbers as the VM, a disk cache, safe fallbacks.
+
+Every test uses its own cache directory (``BASLIP_CACHE_DIR`` under ``tmp_path``), so
+none touches the user's cache; the compiler is gcc unless a test sets ``CC``.
+"""
+
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from baslip.compile import cache_dir, compile_functions
+
+pytestmark = pytest.mark.skipif(shutil.which("gcc") is None, reason="needs gcc")
+
+POINTS = [np.array([0.3, -0.2, 0.5]), np.array([-1.1, 2.0, 0.25]), np.zeros(3)]
+
+
+def make_functions(gain=0.01):
+    """A map f(x) = 30 steps of an SX step function (sin, cos) via mapaccum, and its Jacobian."""
+    x = ca.SX.sym("x", 3)
+    step = ca.Function(
+        "step", [x], [x + gain * ca.vertcat(ca.sin(x[1]), ca.cos(x[0]) * x[2], x[0] * x[1])]
+    )
+    trajectory = step.mapaccum("steps", 30)(x)
+    f = ca.Function("f", [x], [trajectory[:, -1], ca.sumsqr(trajectory)])
+    f_jac = ca.Function("f_jac", [x], [ca.jacobian(f(x)[0], x)])
+    return [f, f_jac]
+
+
+def assert_same_results(functions, results):
+    """``results`` (name -> Function) give the numbers of ``functions`` to 1e-15 relative."""
+    assert sorted(results) == sorted(f.name() for f in functions)
+    for f in functions:
+        for point in POINTS:
+            for got, want in zip(results[f.name()].call([point]), f.call([point])):
+                np.testing.assert_allclose(np.array(got), np.array(want), rtol=1e-15, atol=0)
+
+
+def libraries(directory):
+    return sorted(p.name for p in directory.iterdir() if p.name.endswith(".so"))
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    """An empty cache directory of this test's own, with compiling switched on."""
+    directory = tmp_path / "cache"
+    monkeypatch.setenv("BASLIP_CACHE_DIR", str(directory))
+    monkeypatch.delenv("BASLIP_NO_COMPILE", raising=False)
+    monkeypatch.delenv("CC", raising=False)
+    return directory
+
+
+def test_cache_dir_from_environment(monkeypatch, tmp_path):
+    monkeypatch.setenv("BASLIP_CACHE_DIR", str(tmp_path / "a"))
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert cache_dir() == tmp_path / "a"
+    monkeypatch.delenv("BASLIP_CACHE_DIR")
+    assert cache_dir() == tmp_path / "xdg" / "baslip"
+    monkeypatch.delenv("XDG_CACHE_HOME")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    assert cache_dir() == tmp_path / "home" / ".cache" / "baslip"
+
+
+def test_compiled_functions_match_the_virtual_machine(cache, capsys):
+    functions = make_functions()
+    compiled = compile_functions("test_lib", functions)
+    assert all(g.is_a("External") for g in compiled.values())
+    assert_same_results(functions, compiled)
+    assert libraries(cache) == [next(iter(libraries(cache)))]  # one library for both
+    assert libraries(cache)[0].startswith("test_lib-")
+    assert capsys.readouterr().err == ""
+
+
+def test_second_call_loads_from_the_cache_without_compiling(cache, tmp_path, monkeypatch, capsys):
+    """The compiler is only asked for its version (part of the key), never to compile."""
+    log = tmp_path / "cc.log"
+    wrapper = tmp_path / "cc"
+    wrapper.write_text(f'#!/bin/sh\necho "$@" >> {log}\nexec gcc "$@"\n')
+    wrapper.chmod(0o755)
+    monkeypatch.setenv("CC", str(wrapper))
+    functions = make_functions()
+    compile_functions("test_lib", functions)
+    [library] = cache.glob("*.so")
+    mtime = library.stat().st_mtime_ns
+    assert sum("-shared" in line for line in log.read_text().splitlines()) == 1
+
+    log.unlink()
+    again = compile_functions("test_lib", make_functions())  # rebuilt, equal Functions
+    assert log.read_text().splitlines() == ["--version"]
+    assert library.stat().st_mtime_ns == mtime
+    assert libraries(cache) == [library.name]
+    assert_same_results(functions, again)
+    assert capsys.readouterr().err == ""
+
+
+def test_changed_function_gets_its_own_library(cache):
+    compile_functions("test_lib", make_functions(0.01))
+    first = libraries(cache)
+    compiled = compile_functions("test_lib", make_functions(0.02))
+    assert len(first) == 1 and len(libraries(cache)) == 2
+    assert_same_results(make_functions(0.02), compiled)
+
+
+def test_without_a_compiler_the_originals_are_used_with_one_notice(cache, monkeypatch, capsys):
+    monkeypatch.setenv("CC", "/nonexistent/cc")
+    functions = make_functions()
+    result = compile_functions("test_lib", functions)
+    assert all(result[f.name()] is f for f in functions)
+    assert_same_results(functions, result)
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 1
+    assert lines[0].startswith("baslip: no working C compiler (")
+    assert "virtual machine" in lines[0]
+    assert not cache.exists() or list(cache.iterdir()) == []
+
+
+def test_failing_compiler_falls_back(cache, monkeypatch, capsys):
+    monkeypatch.setenv("CC", "false")  # runs, but fails (its --version prints nothing)
+    functions = make_functions()
+    result = compile_functions("test_lib", functions)
+    assert all(result[f.name()] is f for f in functions)
+    assert len(capsys.readouterr().err.splitlines()) == 1
+    assert not cache.exists() or list(cache.iterdir()) == []
+
+
+def test_unwritable_cache_falls_back(tmp_path, monkeypatch, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    monkeypatch.setenv("BASLIP_CACHE_DIR", str(blocker / "cache"))  # parent is a file
+    monkeypatch.delenv("BASLIP_NO_COMPILE", raising=False)
+    monkeypatch.delenv("CC", raising=False)
+    functions = make_functions()
+    result = compile_functions("test_lib", functions)
+    assert all(result[f.name()] is f for f in functions)
+    [line] = capsys.readouterr().err.splitlines()
+    assert "not writable" in line
+
+
+@pytest.mark.parametrize("value", ["1", "yes"])
+def test_no_compile_returns_the_originals_silently(cache, monkeypatch, capsys, value):
+    monkeypatch.setenv("BASLIP_NO_COMPILE", value)
+    functions = make_functions()
+    result = compile_functions("test_lib", functions)
+    assert all(result[f.name()] is f for f in functions)
+    assert capsys.readouterr().err == ""
+    assert not cache.exists()
+
+
+def test_enabled_false_returns_the_originals(cache, capsys):
+    functions = make_functions()
+    result = compile_functions("test_lib", functions, enabled=False)
+    assert all(result[f.name()] is f for f in functions)
+    assert capsys.readouterr().err == "" and not cache.exists()
+
+
+def test_no_compile_zero_still_compiles(cache, monkeypatch):
+    monkeypatch.setenv("BASLIP_NO_COMPILE", "0")
+    result = compile_functions("test_lib", make_functions())
+    assert all(g.is_a("External") for g in result.values())
+
+
+def test_invalid_names_are_rejected(cache):
+    with pytest.raises(ValueError):
+        compile_functions("not-an-identifier", make_functions())
+    f, _ = make_functions()
+    with pytest.raises(ValueError):
+        compile_functions("test_lib", [f, f])
+
+
+def test_corrupt_library_is_rebuilt(cache, capsys):
+    functions = make_functions()
+    compile_functions("test_lib", functions)
+    [library] = cache.glob("*.so")
+    library.write_bytes(b"\x7fELF garbage, not a library")
+    compiled = compile_functions("test_lib", functions)
+    assert all(g.is_a("External") for g in compiled.values())
+    assert_same_results(functions, compiled)
+    assert libraries(cache) == [library.name]
+    assert capsys.readouterr().err == ""
+
+
+def test_two_processes_compiling_at_once(cache, tmp_path, monkeypatch):
+    """Both compile the same library at the same moment (a barrier in CC makes sure)."""
+    barrier = tmp_path / "barrier"
+    barrier.mkdir()
+    wrapper = tmp_path / "cc"
+    wrapper.write_text(
+        textwrap.dedent(
+            f"""\
+            #!/bin/sh
+            case " $* " in *" -shared "*)
+              touch {barrier}/$$
+              i=0
+              while [ "$(ls {barrier} | wc -l)" -lt 2 ] && [ $i -lt 300 ]; do
+                sleep 0.1; i=$((i + 1))
+              done;;
+            esac
+            exec gcc "$@"
+            """
+        )
+    )
+    wrapper.chmod(0o755)
+    monkeypatch.setenv("CC", str(wrapper))
+    script = textwrap.dedent(
+        f"""
+        import sys
+        sys.path.insert(0, {os.path.dirname(__file__)!r})
+        from test_compile import make_functions
+        from baslip.compile import compile_functions
+        compiled = compile_functions("test_lib", make_functions())
+        assert all(g.is_a("External") for g in compiled.values()), compiled
+        print("ok")
+        """
+    )
+    processes = [
+        subprocess.Popen(
+            [sys.executable, "-c", script],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for _ in range(2)
+    ]
+    outputs = [p.communicate(timeout=120) for p in processes]
+    for process, (out, err) in zip(processes, outputs):
+        assert process.returncode == 0, err
+        assert out.strip() == "ok" and err == ""
+    assert len(list(barrier.iterdir())) == 2  # both compiled
+    assert len(libraries(cache)) == 1
+    assert [p.name for p in cache.iterdir()] == libraries(cache)  # no temporary files
