@@ -124,10 +124,13 @@ class CompiledEngine:
                     bottom = _hermite_root(times[j - 1 : j + 1], rhodot[j - 1 : j + 1], rates[3, j - 1 : j + 1])
             liftoff_step = None
             if bottom is not None:
-                stretch = STANCE.get(nodes, "rho") - rho0
-                k = _first_rise(np.where(times >= bottom, stretch, -1.0))
-                if k is not None:
-                    liftoff_step = k
+                stretch = np.where(times >= bottom, STANCE.get(nodes, "rho") - rho0, -1.0)
+                liftoff_step = _first_rise(stretch)
+                graze = _first_grazing_step(stretch, rhodot, h)
+                if graze is not None and (liftoff_step is None or graze < liftoff_step - 1):
+                    liftoff = self._liftoff_in_step(nodes[:, graze], times[graze], h, theta, rho0)
+                    if liftoff is not None:
+                        return Scouted(bottom, liftoff, rate)
             # The liftoff step itself is left to the final pass, whose last step ends on
             # the event: the runner may touch the ground after leaving it.
             fall_step = _first_fall_step(clearance, None if liftoff_step is None else liftoff_step - 1)
@@ -135,10 +138,25 @@ class CompiledEngine:
                 return self._fall_in_step(nodes[:, fall_step], h, theta)
             if liftoff_step is not None:
                 k = liftoff_step
-                liftoff = _hermite_root(times[k - 1 : k + 1], stretch[k - 1 : k + 1], rhodot[k - 1 : k + 1])
-                return Scouted(bottom, liftoff, rate)
+                return Scouted(bottom, _hermite_root(times[k - 1 : k + 1], stretch[k - 1 : k + 1], rhodot[k - 1 : k + 1]), rate)
             x0, t0 = nodes[:, -1], times[-1]
         return Fall.STANCE_NEVER_ENDS
+
+    def _liftoff_in_step(self, x0, t0: float, h: float, theta, rho0: float, depth: int = 3) -> float | None:
+        """The first liftoff time [s] inside a step where rho peaks just below rho0 at the
+        nodes: the step is re-scouted in finer steps, as often as ``depth`` times, since
+        rho may cross rho0 and fall back between two nodes."""
+        fine = h / SCOUT_STEPS
+        nodes = np.asarray(self.functions.scout(x0, fine, theta)[0])
+        times = t0 + fine * np.arange(SCOUT_STEPS + 1)
+        stretch, rhodot = STANCE.get(nodes, "rho") - rho0, STANCE.get(nodes, "rhodot")
+        k = _first_rise(stretch)
+        if k is not None:
+            return _hermite_root(times[k - 1 : k + 1], stretch[k - 1 : k + 1], rhodot[k - 1 : k + 1])
+        graze = _first_grazing_step(stretch, rhodot, fine)
+        if graze is None or depth <= 1:
+            return None
+        return self._liftoff_in_step(nodes[:, graze], times[graze], fine, theta, rho0, depth - 1)
 
     def _fall_in_step(self, x0, h, theta, depth: int = 3) -> Fall:
         """Which clearance reaches zero first in the step of size ``h`` from ``x0``: when
@@ -185,6 +203,15 @@ def _events_in_last_step(d: dict, reached: dict) -> bool:
         and abs(d["bottom_update"]) <= NEWTON_CONVERGED * reached["compression"]
         and abs(d["liftoff_update"]) <= NEWTON_CONVERGED * reached["decompression"]
     )
+
+
+def _first_grazing_step(stretch: np.ndarray, rhodot: np.ndarray, h: float) -> int | None:
+    """The first step where rho peaks (rhodot falls through 0) with both nodes below rho0
+    but within the rise that the step's speed allows: rho may touch rho0 in between."""
+    peak = (rhodot[:-1] > 0.0) & (rhodot[1:] <= 0.0) & (stretch[:-1] < 0.0) & (stretch[1:] < 0.0)
+    reach = np.maximum(stretch[:-1] + 0.5 * h * rhodot[:-1], stretch[1:] - 0.5 * h * rhodot[1:])
+    steps = np.nonzero(peak & (reach > 0.0))[0]
+    return int(steps[0]) if len(steps) else None
 
 
 def _first_rise(values: np.ndarray) -> int | None:

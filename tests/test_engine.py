@@ -1,0 +1,122 @@
+"""Specification of the compiled stride engine (baslip.stride, baslip.engine) behind
+``ReturnMap()``: as accurate as a tight adaptive reference over the design box, the same
+falls, the same numbers in C and in CasADi's virtual machine, exact Jacobians.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from baslip import Fall, Params, ReturnMap, Tolerances
+
+PARAMS = Params()
+
+
+@pytest.fixture(scope="module")
+def compiled():
+    return ReturnMap(Tolerances(1e-12, 1e-12))
+
+
+@pytest.fixture(scope="module")
+def reference():
+    """The adaptive erk event map at rtol = atol = 1e-13."""
+    return ReturnMap(Tolerances(1e-13, 1e-13))
+
+
+def design_box(rng, n: int, Kd_high: float = 30.0):
+    """Random (X, u) over the design box: hanging to upright trunks, spins up to
+    15 rad/s, Kp up to 20 N m/rad, Kd up to ``Kd_high`` N m s/rad."""
+    for _ in range(n):
+        X = np.array([rng.uniform(0.25, 0.8), rng.uniform(-math.pi, math.pi), rng.uniform(-1, 3), rng.uniform(-15, 15)])
+        u = np.array([rng.uniform(-20, 20), rng.uniform(0, Kd_high), rng.uniform(-math.pi, math.pi),
+                      rng.uniform(-5, 5), rng.uniform(-0.6, 0.6)])
+        yield X, u
+
+
+def relative_gap(a, b) -> float:
+    return float(np.max(np.abs(a - b) / np.maximum(1.0, np.abs(b))))
+
+
+def test_default_map_is_the_compiled_engine():
+    assert ReturnMap().plugin == "compiled"
+    assert ReturnMap(Tolerances(1e-13, 1e-13)).plugin == "erk"
+
+
+def test_compiled_strides_match_the_tight_reference_over_the_design_box(compiled, reference):
+    """Every stride the compiled engine vouches for is within 1e-12 of the reference, and
+    its error estimate is within the tolerance; the rest go to the event map."""
+    rng = np.random.default_rng(8)
+    checked = 0
+    for X, u in design_box(rng, 250):
+        before = compiled.fallbacks
+        ours, theirs = compiled.stride(X, u, PARAMS), reference.stride(X, u, PARAMS)
+        assert ours.fall == theirs.fall
+        if ours.ok and compiled.fallbacks == before:
+            assert ours.error <= 1e-12
+            assert relative_gap(ours.apex, theirs.apex) <= 1e-12
+            checked += 1
+    assert checked >= 30  # the compiled engine, not its fallback, carried the test
+
+
+@pytest.mark.parametrize("Kd", [5.0, 30.0, 100.0])
+def test_stiff_hip_damping(compiled, reference, Kd):
+    """Kd / (I + m d^2) up to 20,000 /s: more steps, or the fallback, never a wrong apex."""
+    X, u = [0.4, -math.pi / 2 + 0.02, 0.5, 0.1], [0.5, Kd, -0.05, 1.4, 0.12]
+    ours, theirs = compiled.stride(X, u, PARAMS), reference.stride(X, u, PARAMS)
+    assert ours.ok and theirs.ok
+    assert relative_gap(ours.apex, theirs.apex) <= 1e-12
+
+
+@pytest.mark.parametrize("drop", [1e-3, 1e-5, 1e-7, 1e-9])
+def test_grazing_touchdown_matches_the_vertical_hop_closed_form(compiled, drop):
+    """A drop of ``drop`` metres onto the leg: rhodot at touchdown near 0, stance times known.
+
+    rho then peaks only about ``drop`` above rho0, for a fraction of a scout step: the
+    liftoff is the first crossing, not one several oscillations later. (The adaptive erk
+    reference at 1e-13 itself misses it at a 1e-8 m drop.)"""
+    p = PARAMS
+    z = p.rho0 + p.d + drop
+    stride = compiled.stride([z, math.pi / 2, 0.0, 0.0], [0, 0, 0, 0, 0], p)
+    omega = math.sqrt(p.k / p.m)
+    v_touchdown = -math.sqrt(2 * p.g * drop)
+    t_bottom = (math.pi + math.atan2(v_touchdown / omega, p.m * p.g / p.k)) / omega
+    assert abs(stride.durations["compression"] - t_bottom) <= 1e-12
+    assert abs(stride.apex[0] - z) <= 1e-12
+
+
+def test_falls_match_the_reference_over_a_broad_box(compiled, reference):
+    """No exception, no NaN: an apex or a named fall, the same fall as the reference."""
+    rng = np.random.default_rng(3)
+    falls = set()
+    for X, u in design_box(rng, 150, Kd_high=2.0):
+        X[0] = rng.uniform(0.05, 3.0)  # from below the touchdown height to high drops
+        ours, theirs = compiled.stride(X, u, PARAMS), reference.stride(X, u, PARAMS)
+        assert ours.fall == theirs.fall
+        if ours.ok:
+            assert np.all(np.isfinite(ours.apex))
+            assert relative_gap(ours.apex, theirs.apex) <= 1e-10
+        falls.add(ours.fall)
+    assert {Fall.FOOT_BELOW_GROUND, Fall.COM_HITS_GROUND, None} <= falls
+
+
+def test_virtual_machine_gives_the_compiled_numbers(compiled, running_point):
+    X, u = running_point
+    vm = ReturnMap(Tolerances(1e-12, 1e-12), compile=False)
+    assert np.array_equal(vm.stride(X, u, PARAMS).apex, compiled.stride(X, u, PARAMS).apex)
+    for ours, theirs in zip(vm.all_jacobians(X, u, PARAMS), compiled.all_jacobians(X, u, PARAMS)):
+        assert np.allclose(ours, theirs, rtol=1e-13, atol=1e-13)
+
+
+def test_jacobians_match_the_reference_and_differences(compiled, reference, running_point):
+    X, u = running_point
+    ours = compiled.all_jacobians(X, u, PARAMS)
+    theirs = reference.all_jacobians(X, u, PARAMS)
+    for a, b in zip(ours, theirs):
+        assert np.max(np.abs(a - b)) <= 1e-9
+    step = 1e-5
+    for i in range(4):
+        dX = np.zeros(4)
+        dX[i] = step
+        central = (compiled(X + dX, u, PARAMS) - compiled(X - dX, u, PARAMS)) / (2 * step)
+        assert np.max(np.abs(central - ours[0][:, i])) <= 1e-6
