@@ -28,8 +28,6 @@ All inputs and outputs are SI units and radians.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-
 import casadi as ca
 
 from . import flow
@@ -142,15 +140,6 @@ def half_period(p) -> float:
     """The spring's half-period pi sqrt(m/k) [s]."""
     pr = PARAMS.unpack(p)
     return math.pi * math.sqrt(pr["m"] / pr["k"])
-
-
-@dataclass(frozen=True)
-class StanceEstimate:
-    """What the scout found: the event times [s] after touchdown, or a fall."""
-
-    bottom: float | None = None
-    liftoff: float | None = None
-    fall: str | None = None  # "com", "hip", "leg" or "never_ends"
 
 
 class StrideFunctions:

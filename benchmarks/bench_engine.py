@@ -1,0 +1,106 @@
+"""Benchmark of the compiled stride engine against the adaptive erk event map.
+
+    python benchmarks/bench_engine.py [--repeats N] [--cold]
+
+Both engines run side by side in one process; each row prints the two medians and their
+ratio. ``--cold`` also times the first build of the compiled engine into an empty cache
+(code generation and gcc), in a fresh process.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+from baslip import FixedPointSolver, Params, ReturnMap, Tolerances, load_problem
+from baslip.api import fixed_point_spec
+
+X_RUN = np.array([0.4, -math.pi / 2 + 0.02, 0.5, 0.1])
+U_RUN = np.array([0.1, 0.01, 0.2, 0.0, 0.15])
+X_GAIT = np.array([0.4, -1.5657, 0.5, 0.164274])  # near the shipped downward gait
+U_GAIT = np.array([-0.751879, 1.50002, -0.05246, 1.42038, 0.11471])
+
+
+def median_s(fn, repeats: int) -> float:
+    fn()
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def row(what: str, old: float, new: float, unit: str = "ms") -> None:
+    scale = {"ms": 1e3, "us": 1e6}[unit]
+    print(f"| {what} | {old * scale:.3g} {unit} | {new * scale:.3g} {unit} | {old / new:.1f}x |")
+
+
+def strides_per_second(rmap: ReturnMap, starts: np.ndarray, u, p) -> float:
+    start = time.perf_counter()
+    for X in starts:
+        rmap.stride(X, u, p)
+    return len(starts) / (time.perf_counter() - start)
+
+
+def solve_time(solver: FixedPointSolver, spec, repeats: int) -> float:
+    return median_s(lambda: solver.solve(spec, "downward"), repeats)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=30)
+    parser.add_argument("--cold", action="store_true", help="also time the first compile")
+    args = parser.parse_args()
+    p = Params()
+    print("| what | erk event map | compiled engine | ratio |")
+    print("|---|---|---|---|")
+    for tol in (1e-10, 1e-12):
+        old, new = ReturnMap(Tolerances(tol, tol), plugin="erk"), ReturnMap(Tolerances(tol, tol))
+        for name, X, u in (("running stride", X_RUN, U_RUN), ("downward gait", X_GAIT, U_GAIT)):
+            row(f"r, {name}, tol {tol:g}", median_s(lambda: old.stride(X, u, p), args.repeats),
+                median_s(lambda: new.stride(X, u, p), args.repeats), "us")
+            row(f"r + dr/dX + dr/du, {name}, tol {tol:g}", median_s(lambda: old.jacobians(X, u, p), args.repeats),
+                median_s(lambda: new.jacobians(X, u, p), args.repeats), "us")
+        rng = np.random.default_rng(0)
+        starts = X_GAIT + rng.normal(scale=[0.01, 0.05, 0.05, 0.2], size=(200, 4))
+        rate_old, rate_new = strides_per_second(old, starts, U_GAIT, p), strides_per_second(new, starts, U_GAIT, p)
+        print(f"| strides/s, 200 starts near the gait, one core, tol {tol:g} | {rate_old:.0f} | {rate_new:.0f} | "
+              f"{rate_new / rate_old:.1f}x |")
+
+    spec = fixed_point_spec(load_problem("problems/downward.yaml"))
+    new_solver = FixedPointSolver()
+    old_solver = FixedPointSolver()
+    old_solver.residual_map = ReturnMap(Tolerances(1e-12, 1e-12), plugin="erk")
+    old_solver.jacobian_map = ReturnMap(Tolerances(1e-10, 1e-10), plugin="erk")
+    repeats = max(3, args.repeats // 5)
+    row("verified solve of downward (NLP, polish, verification, stability)",
+        solve_time(old_solver, spec, repeats), solve_time(new_solver, spec, repeats))
+    result = new_solver.solve(spec, "downward")
+    print(f"\n(downward with the compiled engine: {result.status}, eps = {result.residual:.2e}, "
+          f"{result.polish_iterations} polish steps, spectral radius {result.spectral_radius:.6f})")
+
+    with tempfile.TemporaryDirectory() as out:
+        start = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "baslip.solve", "problems/downward.yaml", "--out", out],
+                       check=True, capture_output=True)
+        print(f"whole CLI process, warm cache: {time.perf_counter() - start:.2f} s")
+    if args.cold:
+        with tempfile.TemporaryDirectory() as cache:
+            env = dict(os.environ, BASLIP_CACHE_DIR=cache)
+            start = time.perf_counter()
+            subprocess.run([sys.executable, "-c", "from baslip.stride import StrideFunctions; StrideFunctions(True)"],
+                           check=True, env=env)
+            print(f"first build of the compiled engine (code generation and gcc): {time.perf_counter() - start:.1f} s")
+
+
+if __name__ == "__main__":
+    main()
