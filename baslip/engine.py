@@ -162,13 +162,12 @@ class CompiledEngine:
         """Which clearance reaches zero first in the step of size ``h`` from ``x0``: when
         several do within the step, the step is re-scouted in finer steps to order them."""
         fine = h / SCOUT_STEPS
-        _, _, clearance = (np.asarray(v) for v in self.functions.scout(x0, fine, theta))
+        nodes, _, clearance = (np.asarray(v) for v in self.functions.scout(x0, fine, theta))
         step = _first_fall_step(clearance, None)
         if step is None:  # the step's stage points saw it, the finer steps' did not
             step = clearance.shape[1] - 1
         hit = clearance[:, step] <= 0.0
         if np.count_nonzero(hit) > 1 and depth > 1:
-            nodes = np.asarray(self.functions.scout(x0, fine, theta)[0])
             return self._fall_in_step(nodes[:, step], fine, theta, depth - 1)
         which = int(np.argmax(hit)) if hit.any() else int(np.argmin(clearance[:, step]))
         return _CLEARANCE_FALLS[CLEARANCES[which]]
