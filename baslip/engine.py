@@ -13,6 +13,7 @@ import numpy as np
 
 from .model import PARAMS, STANCE
 from .outcome import PHASES, STANCE_HORIZON_HALF_PERIODS, Fall, Stride
+from .flow import DOP853
 from .stride import (
     CLEARANCES,
     DIAGNOSTICS,
@@ -40,11 +41,14 @@ LAST_STEP_RANGE = (0.0, 2.0)
 
 @dataclass(frozen=True)
 class Scouted:
-    """Estimated stance event times [s] after touchdown, and the stride's step rate [1/s]."""
+    """Estimated stance event times [s] after touchdown, the stride's step rate [1/s], the
+    scout's step [s] and its summed error estimate up to liftoff."""
 
     bottom: float
     liftoff: float
     rate: float
+    step: float
+    error: float
 
 
 class CompiledEngine:
@@ -64,29 +68,30 @@ class CompiledEngine:
         plan = self._plan(X, u, p, t_guess)
         if not isinstance(plan, tuple):
             return plan
-        tiers, guesses = plan
-        for n in tiers:
-            verdict = self._judge(*self.functions.final(n)(X, u, p, guesses))
-            if verdict != "refine":
-                return verdict
-        return None
+        return self._final(X, u, p, *plan)[1]
 
     def stride_jacobian(self, X, u, p, t_guess) -> tuple[np.ndarray | None, Stride] | None:
-        """(dr/d(X, u, p) as 4 x 15, the stride), the Jacobian None after a fall; or None."""
+        """(dr/d(X, u, p) as 4 x 15, the stride), the Jacobian None after a fall; or None.
+
+        The step count is settled by value passes, which cost a fraction of a Jacobian."""
         plan = self._plan(X, u, p, t_guess)
         if not isinstance(plan, tuple):
             return None if plan is None else (None, plan)
-        tiers, guesses = plan
-        for n in tiers:
-            jac, *outputs = self.functions.jacobian(n)(X, u, p, guesses)
-            verdict = self._judge(*outputs)
-            if verdict is None:
-                return None
-            if verdict != "refine":
-                return (np.asarray(jac) if verdict.ok else None), verdict
-        return None
+        n, verdict = self._final(X, u, p, *plan)
+        if verdict is None or not verdict.ok:
+            return None if verdict is None else (None, verdict)
+        jac, *outputs = self.functions.jacobian(n)(X, u, p, plan[1])
+        return jac, self._judge(*outputs)
 
     # -- pieces ----------------------------------------------------------------------
+
+    def _final(self, X, u, p, tiers, guesses) -> tuple[int, Stride | None]:
+        """The final pass at the first tier whose error estimate is within the tolerance."""
+        for n in tiers:
+            verdict = self._judge(*self.functions.final(n)(X, u, p, guesses))
+            if verdict != "refine":
+                return n, verdict
+        return tiers[-1], None
 
     def _plan(self, X, u, p, t_guess):
         """Touchdown checks and the scout: a fall, None, or (tiers to try, guesses)."""
@@ -99,11 +104,20 @@ class CompiledEngine:
         scouted = self._scout(x_td, np.concatenate([u, p]), X, u, p)
         if not isinstance(scouted, Scouted):
             return scouted if scouted is None else Stride(None, descent, scouted)
-        longest = max(scouted.bottom, scouted.liftoff - scouted.bottom)
-        tiers = [n for n in TIERS if longest * scouted.rate / n <= MAX_STEP_RATE]
+        tiers = self._tiers(scouted)
         if not tiers:
             return None
         return tiers, np.array([t_guess, scouted.bottom, scouted.liftoff - scouted.bottom])
+
+    def _tiers(self, scouted: Scouted) -> list[int]:
+        """Step counts to try, finest last: within the rate limit, and starting at the first
+        whose error, extrapolated from the scout's estimate with the method's order
+        (error ~ h^8), is within the tolerance."""
+        longest = max(scouted.bottom, scouted.liftoff - scouted.bottom)
+        stable = [n for n in TIERS if longest * scouted.rate / n <= MAX_STEP_RATE]
+        predicted = [scouted.error * (longest / n / scouted.step) ** DOP853.order for n in stable]
+        first = next((i for i, e in enumerate(predicted) if e <= self.tolerance), len(stable) - 1)
+        return stable[max(first, 0):]
 
     def _scout(self, x0, theta, X, u, p) -> Scouted | Fall | None:
         """Step stance in chunks until liftoff: the event estimates, a fall, or None."""
@@ -111,9 +125,9 @@ class CompiledEngine:
         h = min(half_period(p) / SCOUT_STEPS_PER_HALF_PERIOD, MAX_SCOUT_STEP_RATE / rate)
         horizon = STANCE_HORIZON_HALF_PERIODS * half_period(p)
         rho0 = PARAMS.get(p, "rho0")
-        t0, bottom = 0.0, None
+        t0, bottom, error = 0.0, None, 0.0
         while t0 < horizon:
-            nodes, rates, clearance = (np.asarray(v) for v in self.functions.scout(x0, h, theta))
+            nodes, rates, clearance, errors = self.functions.scout(x0, h, theta)
             if not np.all(np.isfinite(nodes)):
                 return None
             times = t0 + h * np.arange(SCOUT_STEPS + 1)
@@ -130,7 +144,7 @@ class CompiledEngine:
                 if graze is not None and (liftoff_step is None or graze < liftoff_step - 1):
                     liftoff = self._liftoff_in_step(nodes[:, graze], times[graze], h, theta, rho0)
                     if liftoff is not None:
-                        return Scouted(bottom, liftoff, rate)
+                        return Scouted(bottom, liftoff, rate, h, error + float(np.sum(errors[0, : graze + 1])))
             # The liftoff step itself is left to the final pass, whose last step ends on
             # the event: the runner may touch the ground after leaving it.
             fall_step = _first_fall_step(clearance, None if liftoff_step is None else liftoff_step - 1)
@@ -138,7 +152,9 @@ class CompiledEngine:
                 return self._fall_in_step(nodes[:, fall_step], h, theta)
             if liftoff_step is not None:
                 k = liftoff_step
-                return Scouted(bottom, _hermite_root(times[k - 1 : k + 1], stretch[k - 1 : k + 1], rhodot[k - 1 : k + 1]), rate)
+                liftoff = _hermite_root(times[k - 1 : k + 1], stretch[k - 1 : k + 1], rhodot[k - 1 : k + 1])
+                return Scouted(bottom, liftoff, rate, h, error + float(np.sum(errors[0, :k])))
+            error += float(np.sum(errors))
             x0, t0 = nodes[:, -1], times[-1]
         return Fall.STANCE_NEVER_ENDS
 
@@ -147,7 +163,7 @@ class CompiledEngine:
         nodes: the step is re-scouted in finer steps, as often as ``depth`` times, since
         rho may cross rho0 and fall back between two nodes."""
         fine = h / SCOUT_STEPS
-        nodes = np.asarray(self.functions.scout(x0, fine, theta)[0])
+        nodes = self.functions.scout(x0, fine, theta)[0]
         times = t0 + fine * np.arange(SCOUT_STEPS + 1)
         stretch, rhodot = STANCE.get(nodes, "rho") - rho0, STANCE.get(nodes, "rhodot")
         k = _first_rise(stretch)
@@ -162,7 +178,7 @@ class CompiledEngine:
         """Which clearance reaches zero first in the step of size ``h`` from ``x0``: when
         several do within the step, the step is re-scouted in finer steps to order them."""
         fine = h / SCOUT_STEPS
-        nodes, _, clearance = (np.asarray(v) for v in self.functions.scout(x0, fine, theta))
+        nodes, _, clearance, _ = self.functions.scout(x0, fine, theta)
         step = _first_fall_step(clearance, None)
         if step is None:  # the step's stage points saw it, the finer steps' did not
             step = clearance.shape[1] - 1
@@ -228,22 +244,18 @@ def _first_fall_step(clearance: np.ndarray, last_step: int | None) -> int | None
 
 def _hermite_root(t, g, dg) -> float:
     """The root in [t0, t1] of the cubic Hermite interpolant of g (g0 < 0 <= g1)."""
-    span = t[1] - t[0]
-    m0, m1 = dg[0] * span, dg[1] * span
-
-    def cubic(s):
-        return (
-            (2 * s**3 - 3 * s**2 + 1) * g[0] + (s**3 - 2 * s**2 + s) * m0
-            + (-2 * s**3 + 3 * s**2) * g[1] + (s**3 - s**2) * m1
-        )
-
-    def slope(s):
-        return 6 * (s**2 - s) * (g[0] - g[1]) + (3 * s**2 - 4 * s + 1) * m0 + (3 * s**2 - 2 * s) * m1
-
-    s = g[0] / (g[0] - g[1])  # the secant's root, then Newton on the cubic, kept in [0, 1]
+    t0, span = float(t[0]), float(t[1] - t[0])
+    g0, g1 = float(g[0]), float(g[1])
+    m0, m1 = float(dg[0]) * span, float(dg[1]) * span
+    s = g0 / (g0 - g1)  # the secant's root, then Newton on the cubic, kept in [0, 1]
     for _ in range(8):
-        rate = slope(s)
+        s2, s3 = s * s, s * s * s
+        value = (2 * s3 - 3 * s2 + 1) * g0 + (s3 - 2 * s2 + s) * m0 + (3 * s2 - 2 * s3) * g1 + (s3 - s2) * m1
+        rate = 6 * (s2 - s) * (g0 - g1) + (3 * s2 - 4 * s + 1) * m0 + (3 * s2 - 2 * s) * m1
         if rate <= 0.0:
             break
-        s = min(max(s - cubic(s) / rate, 0.0), 1.0)
-    return float(t[0] + span * s)
+        step = value / rate
+        s = min(max(s - step, 0.0), 1.0)
+        if abs(step) < 1e-14:
+            break
+    return t0 + span * s

@@ -14,7 +14,10 @@ from enum import Enum
 import numpy as np
 
 from .control import CONTROL
-from .model import APEX, PARAMS, descent_foot_height
+from .model import PARAMS, descent_foot_height
+
+_RHO0, _D, _G = PARAMS.index("rho0"), PARAMS.index("d"), PARAMS.index("g")
+_THETA_TD = CONTROL.index("theta_td")
 
 PHASES = ("descent", "compression", "decompression", "ascent")
 
@@ -87,24 +90,19 @@ def touchdown_guess(X, u, p) -> float | None:
     h < 0 for all t > sqrt(2 (c + d) / g): the first root lies in that bracket. The
     rootfinder then converges on it from this guess.
     """
-    a, pr = APEX.unpack(X), PARAMS.unpack(p)
-    theta_td = CONTROL.get(u, "theta_td")
+    z, theta_h, spin = float(X[0]), float(X[1]), float(X[3])
+    rho0, d, g = float(p[_RHO0]), float(p[_D]), float(p[_G])
+    theta_td = float(u[_THETA_TD])
     if not abs(theta_td) < math.pi / 2:
         return None
-
-    def height(t):
-        return descent_foot_height(
-            t, a["z"], a["theta_h"], a["theta_h_dot"], theta_td, pr["d"], pr["rho0"], pr["g"]
-        )
-
-    clearance = a["z"] - pr["rho0"] * math.cos(theta_td)
-    t_max = math.sqrt(2.0 * max(clearance + pr["d"], 0.0) / pr["g"]) + 1e-9
+    clearance = z - rho0 * math.cos(theta_td)
+    t_max = math.sqrt(2.0 * max(clearance + d, 0.0) / g) + 1e-9
     grid = np.linspace(0.0, t_max, 257)
-    below = np.nonzero(height(grid[1:]) <= 0.0)[0]
+    below = np.nonzero(descent_foot_height(grid[1:], z, theta_h, spin, theta_td, d, rho0, g) <= 0.0)[0]
     if len(below) == 0:
         return None
     lo, hi = grid[below[0]], grid[below[0] + 1]
-    return _refine_root(lo, hi, a["theta_h"], a["theta_h_dot"], clearance, pr["d"], pr["g"])
+    return _refine_root(lo, hi, theta_h, spin, clearance, d, g)
 
 
 def _refine_root(lo: float, hi: float, theta_h: float, w: float, clearance: float, d: float, g: float) -> float:
@@ -131,9 +129,8 @@ def precheck(X, u, p) -> tuple[Stride | None, float | None]:
     """Checks before any integration: a fall found already, or the touchdown time guess [s]."""
     if not (np.all(np.isfinite(X)) and np.all(np.isfinite(u)) and np.all(np.isfinite(p))):
         return Stride(None, {}, Fall.NOT_FINITE), None
-    a, pr = APEX.unpack(X), PARAMS.unpack(p)
-    theta_td = CONTROL.get(u, "theta_td")
-    if descent_foot_height(0.0, a["z"], a["theta_h"], 0.0, theta_td, pr["d"], pr["rho0"], pr["g"]) < 0.0:
+    foot_height = float(X[0]) - float(p[_D]) * math.sin(float(X[1])) - float(p[_RHO0]) * math.cos(float(u[_THETA_TD]))
+    if foot_height < 0.0:
         return Stride(None, {}, Fall.FOOT_BELOW_GROUND), None
     t_guess = touchdown_guess(X, u, p)
     if t_guess is None:

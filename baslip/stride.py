@@ -28,10 +28,12 @@ All inputs and outputs are SI units and radians.
 from __future__ import annotations
 
 import math
+import pathlib
+
 import casadi as ca
 
 from . import flow
-from .compile import compile_functions
+from .compile import Kernel, compile_kernels
 from .control import CONTROL, hip_torque, touchdown_angle
 from .layout import Layout
 from .outcome import COLLAPSE_FRACTION
@@ -56,9 +58,10 @@ from .model import (
 #: Step counts per stance phase of the compiled final pass.
 TIERS = (16, 32, 64, 128, 256, 512, 1024)
 #: Stance steps per scout call.
-SCOUT_STEPS = 48
-#: Largest h * lambda of a step (DOP853 is stable to about 5; 1/2 keeps it accurate).
-MAX_STEP_RATE = 0.5
+SCOUT_STEPS = 24
+#: Largest h * lambda of a final-pass step (DOP853 is stable to about 5): the error
+#: estimate, not this rate, decides the accuracy.
+MAX_STEP_RATE = 1.0
 #: Scout steps per spring half-period pi sqrt(m/k), at most, and the scout's largest
 #: h * lambda: the scout only brackets the events, so it needs stability, not accuracy.
 SCOUT_STEPS_PER_HALF_PERIOD = 12
@@ -125,15 +128,19 @@ def stiffness_rate(X, u, p) -> float:
     stiffness sqrt(|Kp|/(I + m d^2)), the trunk spin |theta_h_dot| and the leg's sweep
     rate |ydot|/rho0 (``I + m d^2`` is the trunk's inertia about the hip).
     """
-    a, c, pr = APEX.unpack(X), CONTROL.unpack(u), PARAMS.unpack(p)
-    inertia_hip = pr["I"] + pr["m"] * pr["d"] ** 2
+    m, inertia, k, rho0, d = (float(p[PARAMS.index(n)]) for n in ("m", "I", "k", "rho0", "d"))
+    inertia_hip = inertia + m * d**2
     return max(
-        math.sqrt(pr["k"] / pr["m"]),
-        abs(c["Kd"]) / inertia_hip,
-        math.sqrt(abs(c["Kp"]) / inertia_hip),
-        abs(a["theta_h_dot"]),
-        abs(a["ydot"]) / pr["rho0"],
+        math.sqrt(k / m),
+        abs(float(u[_KD])) / inertia_hip,
+        math.sqrt(abs(float(u[_KP])) / inertia_hip),
+        abs(float(X[_SPIN])),
+        abs(float(X[_YDOT])) / rho0,
     )
+
+
+_KP, _KD = CONTROL.index("Kp"), CONTROL.index("Kd")
+_SPIN, _YDOT = APEX.index("theta_h_dot"), APEX.index("ydot")
 
 
 def half_period(p) -> float:
@@ -159,28 +166,28 @@ class StrideFunctions:
         self.bottom_step = flow.event_step(self.step, rhs, bottom, EVENT_NEWTON)
         self.liftoff_step = flow.event_step(self.step, rhs, liftoff, EVENT_NEWTON)
         self._chains: dict[int, ca.Function] = {}
-        self.functions = compile_functions("baslip_stride", self._all(), enabled=compile)
+        self.functions = compile_kernels("baslip_stride", _names(), self._all, _sources(), enabled=compile)
         self.touchdown_state = self.functions["touchdown_state"]
         self.scout = self.functions["stance_scout"]
 
-    def final(self, n: int) -> ca.Function:
+    def final(self, n: int) -> Kernel:
         """(X, u, p, guesses) -> (apex, durations, diagnostics) with ``n`` steps a phase."""
         return self.functions[f"stride_{n}"]
 
-    def jacobian(self, n: int) -> ca.Function:
+    def jacobian(self, n: int) -> Kernel:
         """(X, u, p, guesses) -> (dr/d(X, u, p) 4 x 15, apex, durations, diagnostics)."""
         return self.functions[f"stride_jacobian_{n}"]
 
     def _scout(self) -> ca.Function:
         """(x0, h, theta) -> the M + 1 nodes from x0 (columns), their rates xdot, and each
-        step's least clearances (M columns); M = :data:`SCOUT_STEPS`."""
+        step's least clearances and error estimate (M columns); M = :data:`SCOUT_STEPS`."""
         chained = self.chain(SCOUT_STEPS)
         x0, h, theta = ca.MX.sym("x0", STANCE.size), ca.MX.sym("h"), THETA.sym("theta", ca.MX)
-        steps, _, clearances = chained(x0, h, theta)
+        steps, errors, clearances = chained(x0, h, theta)
         nodes = ca.horzcat(x0, steps)
         rates = self.rhs.map(SCOUT_STEPS + 1)(nodes, ca.repmat(theta, 1, SCOUT_STEPS + 1))
-        return ca.Function("stance_scout", [x0, h, theta], [nodes, rates, clearances],
-                           ["x0", "h", "theta"], ["nodes", "rates", "clearance_min"])
+        return ca.Function("stance_scout", [x0, h, theta], [nodes, rates, clearances, errors],
+                           ["x0", "h", "theta"], ["nodes", "rates", "clearance_min", "error"])
 
     def chain(self, n: int) -> ca.Function:
         """``n`` stance steps, one Function per ``n`` so generated code holds it once."""
@@ -287,3 +294,15 @@ def touchdown_state() -> ca.Function:
          touchdown_guard(at_touchdown, theta_td, p)],
         ["X", "u", "p", "t_descent"], ["x_touchdown", "com_height", "foot_height"],
     )
+
+
+def _names() -> list[str]:
+    """Names of the engine's functions, in the order :meth:`StrideFunctions._all` builds them."""
+    return ["touchdown_state", "stance_scout", *(f"stride_{n}" for n in TIERS),
+            *(f"stride_jacobian_{n}" for n in TIERS)]
+
+
+def _sources() -> list[pathlib.Path]:
+    """The modules the engine's functions are derived from: the compiled library's key."""
+    here = pathlib.Path(__file__).parent
+    return [here / f"{module}.py" for module in ("layout", "model", "control", "outcome", "flow", "stride", "compile")]

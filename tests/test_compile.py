@@ -5,6 +5,7 @@ none touches the user's cache; the compiler is gcc unless a test sets ``CC``.
 """
 
 import os
+import pathlib
 import shutil
 import subprocess
 import sys
@@ -234,3 +235,44 @@ def test_two_processes_compiling_at_once(cache, tmp_path, monkeypatch):
     assert len(list(barrier.iterdir())) == 2  # both compiled
     assert len(libraries(cache)) == 1
     assert [p.name for p in cache.iterdir()] == libraries(cache)  # no temporary files
+
+
+# -- kernels: the same functions called through ctypes ------------------------------------
+
+
+def kernel_functions():
+    """make_functions() plus a function of a matrix with a sparse output."""
+    m = ca.SX.sym("m", 3, 2)
+    sparse = ca.Function("g", [m], [ca.diag(ca.vertcat(m[0, 0] * m[1, 1], ca.sin(m[2, 1]))), m.T @ m])
+    return [*make_functions(), sparse]
+
+
+def test_native_kernels_give_the_virtual_machine_numbers(cache):
+    from baslip.compile import compile_kernels
+
+    functions = kernel_functions()
+    sources = [pathlib.Path(__file__)]
+    native = compile_kernels("kernels", [f.name() for f in functions], lambda: functions, sources)
+    vm = compile_kernels("kernels", [f.name() for f in functions], lambda: functions, sources, enabled=False)
+    assert type(native["f"]).__name__ == "NativeKernel" and type(vm["f"]).__name__ == "VirtualMachineKernel"
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        x, m = rng.normal(size=3), rng.normal(size=(3, 2))
+        for name, args in (("f", [x]), ("f_jac", [x]), ("g", [m])):
+            for got, want in zip(native[name](*args), vm[name](*args)):
+                assert got.shape == want.shape
+                np.testing.assert_allclose(got, want, rtol=1e-15, atol=0)
+
+
+def test_kernels_load_from_the_cache_without_building(cache):
+    from baslip.compile import compile_kernels
+
+    functions = kernel_functions()
+    names, sources = [f.name() for f in functions], [pathlib.Path(__file__)]
+    compile_kernels("kernels", names, lambda: functions, sources)
+
+    def must_not_build():
+        raise AssertionError("a warm cache must not build the functions")
+
+    kernels = compile_kernels("kernels", names, must_not_build, sources)
+    assert kernels["f"]([0.1, 0.2, 0.3])[0].shape == (3, 1)
