@@ -347,32 +347,50 @@ def compile_kernels(
     loads the library without building or generating anything. ``enabled`` and the
     fallback behave as in :func:`compile_functions`; the fallback's kernels run in the VM.
     """
+    return _cached(name, names, build, sources, enabled, _native_kernels, _vm_kernels)
+
+
+def compile_library(
+    name: str,
+    names: Sequence[str],
+    build: Callable[[], Sequence[ca.Function]],
+    sources: Sequence[pathlib.Path],
+    *,
+    enabled: bool | None = None,
+) -> dict[str, ca.Function]:
+    """As :func:`compile_kernels`, but as CasADi Functions (``casadi.external``), for
+    use inside other CasADi objects such as an NLP solver, which call them from C++."""
+    return _cached(name, names, build, sources, enabled, _load, lambda functions: {f.name(): f for f in functions})
+
+
+def _cached(name, names, build, sources, enabled, load, fallback):
+    """The library of ``names`` keyed by ``sources``: loaded, or built, compiled and
+    loaded; ``fallback(build())`` without a compiler or with compiling switched off."""
     if not _NAME.fullmatch(name):
         raise ValueError(f"library name {name!r} is not a C identifier")
     if not _compiling(enabled):
-        return _vm_kernels(build())
+        return fallback(build())
     try:
         compiler = _compiler()
         key = _source_key(sources, names, compiler, _compiler_version(compiler))
         library = cache_dir() / f"{name}-{key[:20]}.so"
         if os.path.isfile(library):
-            kernels = _native_kernels(library, names)
-            if kernels is not None:
-                return kernels
+            loaded = load(library, names)
+            if loaded is not None:
+                return loaded
             _discard(library)
-        functions = build()
-        _build(name, _generate(name, functions), compiler, library)
-        kernels = _native_kernels(library, names)
-        if kernels is None:
+        _build(name, _generate(name, build()), compiler, library)
+        loaded = load(library, names)
+        if loaded is None:
             raise _NoCompiler(f"the freshly compiled {library.name} does not load")
-        return kernels
+        return loaded
     except _NoCompiler as reason:
         print(
             f"baslip: no working C compiler ({reason}); "
             "using CasADi's virtual machine (slower, same results)",
             file=sys.stderr,
         )
-        return _vm_kernels(build())
+        return fallback(build())
 
 
 def _vm_kernels(functions: Sequence[ca.Function]) -> dict[str, Kernel]:

@@ -1,32 +1,37 @@
-"""The periodic-stride NLP: multiple shooting in stance, solved by IPOPT.
+"""The periodic-stride NLP: phase-level multiple shooting over the compiled stance flow,
+solved by IPOPT.
 
 Decision variables (all in SI units and radians):
 
 * the apex state ``X`` (4) and the control ``u`` (5); fixed quantities have equal bounds;
 * the four phase durations ``T = (descent, compression, decompression, ascent)``;
-* shooting-node states in compression and decompression, ``nodes`` intervals each, every
-  interval integrated by ``substeps`` classical RK4 steps of length ``T_phase/(nodes*substeps)``.
+* the stance state at the bottom, where compression meets decompression.
+
+Each stance phase is shot by ``nodes * substeps`` DOP853 steps of the stance flow of
+:mod:`baslip.stride`, with time scaled by the phase's duration.
 
 Constraints:
 
-* continuity at the nodes; the touchdown map at the start of stance;
+* continuity at the bottom; the touchdown map at the start of stance;
 * each guard zero at its phase end, with its crossing direction as an inequality
   (transversality, by ``margin``);
 * periodicity ``r(X, u) = X``, or for an orbit of N strides ``r^N(X, u) = X`` with the
   intermediate apexes as variables; optionally the apex energy;
 * sanity: the foot above ground through descent, the leg compressing in compression and
-  compressed in decompression, ``rho`` above a floor, CoM and hip above ground, rising
-  liftoff, durations bounded away from zero.
+  compressed in decompression, CoM, hip and leg clear of the ground at every stage point,
+  rising liftoff, durations bounded away from zero.
 
 The objective picks one point on the fixed-point manifold (see :data:`OBJECTIVES`).
 The NLP is built once per discretisation; parameters, guess, fixed values, bounds and the
-objective's weights enter as numbers, so one built solver serves every problem.
+objective's weights enter as numbers, so one built solver serves every problem. Its
+functions are compiled to C like the stride engine, so IPOPT's iterations run in C.
 """
 
 from __future__ import annotations
 
 import contextlib
 import io
+import pathlib
 import time
 from dataclasses import dataclass, field
 from typing import Mapping
@@ -34,6 +39,7 @@ from typing import Mapping
 import casadi as ca
 import numpy as np
 
+from .compile import compile_library
 from .control import CONTROL, hip_torque, touchdown_angle
 from .model import (
     APEX,
@@ -47,22 +53,28 @@ from .model import (
     bottom_guard,
     liftoff_guard,
     liftoff_map,
-    stance_com_position,
     stance_dynamics,
-    stance_hip_position,
     touchdown_guard,
     touchdown_guard_rate,
     touchdown_map,
 )
 from .quantities import DEFAULT_BOUNDS, DESIGN, NOMINAL, OBJECTIVES, start_value
-from .returnmap import COLLAPSE_FRACTION, PHASES, ReturnMap, Stride
+from .returnmap import PHASES, ReturnMap, Stride
+from .stride import StanceFlow
+
+#: Hessians IPOPT can be given: ``objective``, the objective's Hessian alone (the
+#: constraints' curvature dropped; Gauss-Newton for the torque term), or IPOPT's
+#: ``limited-memory`` BFGS.
+HESSIANS = ("objective", "limited-memory")
+
 
 @dataclass(frozen=True)
 class ShootingOptions:
     """Discretisation and solver settings of the NLP."""
 
-    nodes: int = 20  # shooting intervals per stance phase
-    substeps: int = 1  # RK4 steps per interval
+    nodes: int = 20  # DOP853 steps per stance phase (times substeps)
+    substeps: int = 1
+    hessian: str = "objective"  # see HESSIANS
     margin: float = 1e-3  # transversality margin on guard rates [SI]
     min_duration: float = 1e-3  # [s]
     max_duration: float = 5.0  # [s]
@@ -131,52 +143,53 @@ def _rk4_interval(substeps: int) -> ca.Function:
 
 
 class ShootingNLP:
-    """The periodic-orbit NLP for one discretisation and stride count, built once and
-    solved many times.
+    """The periodic-orbit NLP for one step count and stride count, built once and solved
+    many times.
 
-    With ``strides = N`` the orbit has N strides under the same control: the apexes
-    X_1..X_{N-1} after the first are decision variables too, each stride is shot as
-    above, consecutive strides are joined (X_{k+1} = r(X_k)) and the last one closes the
-    orbit (r(X_{N-1}) = X_0). The problem's fixed values, guess and objective refer to
-    the first apex X_0.
+    Decision variables per stride: the apex (after the first stride), the four phase
+    durations and the stance state at the bottom. Compression is shot from touchdown to
+    the bottom, decompression from the bottom to liftoff, each by ``steps`` DOP853 steps of
+    the compiled stance flow (time scaled by the phase duration). With ``strides = N``
+    consecutive strides are joined (X_{k+1} = r(X_k)) and the last closes the orbit.
+
+    The NLP's functions (objective and constraints, their gradient and Jacobian, and the
+    Hessian, see :data:`HESSIANS`) are generated as C and cached like the stride engine.
     """
 
-    def __init__(self, options: ShootingOptions = ShootingOptions(), strides: int = 1):
+    def __init__(self, options: ShootingOptions = ShootingOptions(), strides: int = 1, compile: bool | None = None):
         if strides < 1:
             raise ValueError(f"strides must be at least 1, got {strides}")
+        if options.hessian not in HESSIANS:
+            raise ValueError(f"hessian must be one of {HESSIANS}, got {options.hessian!r}")
         self.options = options
         self.strides = strides
-        self._build()
+        self.steps = options.nodes * options.substeps
+        self.interval = _rk4_interval(1)  # for torque_effort, a reporting quadrature
+        self._stance = StanceFlow()
+        self._build(compile)
 
     # -- construction ------------------------------------------------------------------
 
-    def _build(self) -> None:
-        opt = self.options
-        n = opt.nodes
-        # MX keeps one copy of the mapped RK4 interval (and of its derivatives) instead of
-        # inlining it at every node; the small SX pieces are expanded when called.
+    def _build(self, compile: bool | None) -> None:
         u, p = CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
         guess, weights = ca.MX.sym("guess", len(DESIGN)), ca.MX.sym("weights", 2)
-        self.interval = _rk4_interval(opt.substeps)
-
         constraints: list[tuple[ca.MX, float, float]] = []
 
         def constrain(expr, lo, hi):
             constraints.append((ca.vec(expr), lo, hi))
 
-        apexes, blocks, effort, apex_next = [], [], 0, None
+        apexes, blocks, effort, apex_next = [], [], [], None
         for k in range(self.strides):
             X = APEX.sym(f"X{k}", ca.MX)
-            T = ca.vertcat(*(ca.MX.sym(f"T{k}_{ph}") for ph in PHASES))
-            comp_nodes = ca.MX.sym(f"compression_nodes{k}", STANCE.size, n)
-            decomp_nodes = ca.MX.sym(f"decompression_nodes{k}", STANCE.size, n)
+            T = ca.MX.sym(f"T{k}", len(PHASES))
+            x_bottom = STANCE.sym(f"x_bottom{k}", ca.MX)
             if apex_next is not None:
                 constrain(apex_next - X, 0, 0)  # strides join
-            apex_next, stride_effort = self._stride(X, u, p, T, comp_nodes, decomp_nodes, constrain)
-            effort += stride_effort
+            apex_next, stride_effort = self._stride(X, u, p, T, x_bottom, constrain)
+            effort.append(stride_effort)
             apexes.append(X)
             # X_0 and u lead the vector so that the design is w[:len(DESIGN)] for any N.
-            blocks += ([] if k == 0 else [X]) + [T, ca.vec(comp_nodes), ca.vec(decomp_nodes)]
+            blocks += ([] if k == 0 else [X]) + [T, x_bottom]
         X0 = apexes[0]
         self._periodicity_row = sum(c[0].numel() for c in constraints)
         constrain(apex_next - X0, 0, 0)  # the orbit closes
@@ -186,26 +199,39 @@ class ShootingNLP:
         design = ca.vertcat(X0, u)
         scale = ca.DM([NOMINAL[name] for name in DESIGN])
         distance = ca.sumsqr((design - guess) / scale)
-        objective = weights[0] * distance + weights[1] * effort
-
         w = ca.vertcat(X0, u, *blocks)
         self._n_w = w.numel()
         params = ca.vertcat(p, guess, weights)
         g = ca.vertcat(*(c[0] for c in constraints))
         self._lbg = np.concatenate([np.full(c[0].numel(), c[1], dtype=float) for c in constraints])
         self._ubg = np.concatenate([np.full(c[0].numel(), c[2], dtype=float) for c in constraints])
-        ipopt = {"print_level": 0, "sb": "yes", **dict(opt.ipopt)}
-        self._solver = ca.nlpsol(
-            "periodic_orbit", "ipopt", {"x": w, "p": params, "f": objective, "g": g},
-            # Expanding to SX makes each IPOPT iteration several times cheaper than MX.
-            {"ipopt": ipopt, "print_time": False, "error_on_fail": False, "expand": True},
+        functions = compile_library(
+            f"baslip_nlp_{self.strides}_{self.steps}", [f"nlp_{n}" for n in ("fg", "grad_f", "jac_g", "hess_l")],
+            lambda: _nlp_functions(w, params, weights, distance, ca.vertcat(*effort), g), _nlp_sources(), enabled=compile,
         )
+        self._solver = self._nlpsol(functions)
 
-    def _stride(self, X, u, p, T, comp_nodes, decomp_nodes, constrain):
-        """Constrain one shot stride from apex ``X``; return its next apex and its tau^2
-        integral [N^2 m^2 s]."""
-        opt, n = self.options, self.options.nodes
+    def _nlpsol(self, functions: dict[str, ca.Function]) -> ca.Function:
+        """IPOPT over the (compiled) NLP functions; CasADi differentiates nothing itself."""
+        w, params = ca.MX.sym("w", self._n_w), ca.MX.sym("P", functions["nlp_fg"].size1_in(1))
+        f, g = functions["nlp_fg"](w, params)
+        ipopt = {"print_level": 0, "sb": "yes", **dict(self.options.ipopt)}
+        # lam_p would need derivatives of the compiled functions that IPOPT never uses.
+        options = {"ipopt": ipopt, "print_time": False, "error_on_fail": False, "calc_lam_p": False, "no_nlp_grad": True,
+                   "grad_f": functions["nlp_grad_f"], "jac_g": functions["nlp_jac_g"]}
+        if self.options.hessian == "limited-memory":
+            ipopt["hessian_approximation"] = "limited-memory"
+        else:
+            options["hess_lag"] = functions["nlp_hess_l"]
+        return ca.nlpsol("periodic_orbit", "ipopt", {"x": w, "p": params, "f": f, "g": g}, options)
+
+    def _stride(self, X, u, p, T, x_bottom, constrain):
+        """Constrain one shot stride from apex ``X``; return its next apex and the
+        residuals r whose sum of squares is its tau^2 integral [N^2 m^2 s] by the
+        trapezoidal rule over the steps."""
+        opt, n = self.options, self.steps
         t_descent, t_compression, t_decompression, t_ascent = (T[i] for i in range(len(PHASES)))
+        theta = ca.vertcat(u, p)
         theta_td = touchdown_angle(u)
         apex_flight = apex_to_flight(X)
         # Descent: the foot stays above ground until it crosses zero, falling.
@@ -216,48 +242,39 @@ class ShootingNLP:
         constrain(touchdown_guard_rate(at_touchdown, p), -ca.inf, -opt.margin)
         x_td = touchdown_map(at_touchdown, theta_td, p)
 
-        starts_c = ca.horzcat(x_td, comp_nodes[:, :-1])
-        ends_c, effort_c = self.interval.map(n)(starts_c, u, p, t_compression / n)
-        constrain(comp_nodes - ends_c, 0, 0)
-        bottom = comp_nodes[:, -1]
-        constrain(bottom_guard(bottom), 0, 0)
-        rho_accel = STANCE.get(stance_dynamics(bottom, hip_torque(bottom, u), p), "rhodot")
+        nodes_c, _, clearance_c = self._stance.chain(n)(x_td, t_compression / n, theta)
+        constrain(nodes_c[:, -1] - x_bottom, 0, 0)
+        constrain(bottom_guard(x_bottom), 0, 0)
+        rho_accel = STANCE.get(self._stance.rhs(x_bottom, theta), "rhodot")
         constrain(rho_accel, opt.margin, ca.inf)
         # The leg shortens from touchdown (transversally) until the bottom.
         constrain(bottom_guard(x_td), -ca.inf, -opt.margin)
-        constrain(bottom_guard(comp_nodes[:, :-1]), -ca.inf, 0)
+        constrain(bottom_guard(nodes_c[:, :-1]), -ca.inf, 0)
 
-        starts_d = ca.horzcat(bottom, decomp_nodes[:, :-1])
-        ends_d, effort_d = self.interval.map(n)(starts_d, u, p, t_decompression / n)
-        constrain(decomp_nodes - ends_d, 0, 0)
-        x_lo = decomp_nodes[:, -1]
+        nodes_d, _, clearance_d = self._stance.chain(n)(x_bottom, t_decompression / n, theta)
+        x_lo = nodes_d[:, -1]
         constrain(liftoff_guard(x_lo, p), 0, 0)
         constrain(STANCE.get(x_lo, "rhodot"), opt.margin, ca.inf)
         # The leg stays compressed until liftoff.
-        constrain(liftoff_guard(starts_d[:, 1:], p), -ca.inf, 0)
-
-        rho0 = PARAMS.get(p, "rho0")
-        for nodes in (comp_nodes, decomp_nodes):
-            for k in range(n):
-                q = nodes[:3, k]
-                constrain(STANCE.get(q, "rho") - COLLAPSE_FRACTION * rho0, 0, ca.inf)
-                constrain(stance_com_position(q, p)[1], 0, ca.inf)
-                constrain(stance_hip_position(q)[1], 0, ca.inf)
+        constrain(liftoff_guard(nodes_d[:, :-1], p), -ca.inf, 0)
+        # CoM, hip and leg clear of the ground at every stage point of every step.
+        constrain(ca.horzcat(clearance_c, clearance_d), 0, ca.inf)
 
         at_liftoff = liftoff_map(x_lo, p)
         constrain(FLIGHT.get(at_liftoff, "zdot"), opt.margin, ca.inf)
         at_apex = ballistic_flight(at_liftoff, t_ascent, p)
         constrain(FLIGHT.get(at_apex, "zdot"), 0, 0)  # apex guard
         apex_next = ca.vertcat(*(FLIGHT.get(at_apex, name) for name in APEX.names))
-        return apex_next, ca.sum2(effort_c) + ca.sum2(effort_d)
+        effort = ca.vertcat(_effort_residuals(ca.horzcat(x_td, nodes_c), u, t_compression / n),
+                            _effort_residuals(ca.horzcat(x_bottom, nodes_d), u, t_decompression / n))
+        return apex_next, effort
 
     # -- solving -----------------------------------------------------------------------
 
     def _durations_index(self, k: int) -> int:
         """Position of stride k's first phase duration in the NLP vector, laid out as
-        (X_0, u, T_0, nodes_0, X_1, T_1, nodes_1, ...)."""
-        nodes = 2 * STANCE.size * self.options.nodes
-        return len(DESIGN) + k * (APEX.size + len(PHASES) + nodes)
+        (X_0, u, T_0, x_bottom_0, X_1, T_1, x_bottom_1, ...)."""
+        return len(DESIGN) + k * (APEX.size + len(PHASES) + STANCE.size)
 
     def _bounds(self, spec: FixedPointSpec) -> tuple[np.ndarray, np.ndarray]:
         lbx = np.full(self._n_w, -np.inf)
@@ -275,22 +292,31 @@ class ShootingNLP:
 
     def initial_guess(self, spec: FixedPointSpec, rmap: ReturnMap | None = None) -> np.ndarray:
         """Initial point: the guess's design, then for each stride the apex reached by
-        simulating the guess (the guess itself if it falls), its durations, and nodes
-        propagated by RK4 through stance."""
+        simulating the guess (the guess itself if it falls), its durations, and the state
+        at its bottom (propagated through compression)."""
         design = spec.start_design()
         X, u = design[: APEX.size], design[APEX.size :]
         p = spec.params.vector()
-        n = self.options.nodes
         parts = [design]
         for k in range(self.strides):
             stride = rmap.stride(X, u, spec.params) if rmap is not None else None
             durations = _guess_durations(X, u, spec.params, stride)
-            x_td = np.asarray(_touchdown_state(X, u, p, durations[0])).ravel()
-            nodes_c = _propagate(self.interval, x_td, u, p, durations[1], n)
-            nodes_d = _propagate(self.interval, nodes_c[:, -1], u, p, durations[2], n)
-            parts += ([X] if k else []) + [durations, nodes_c.T.ravel(), nodes_d.T.ravel()]
+            x_bottom = np.asarray(self._bottom_state()(X, u, p, durations[0], durations[1])).ravel()
+            parts += ([X] if k else []) + [durations, x_bottom]
             X = stride.apex if stride is not None and stride.ok else X
         return np.concatenate(parts)
+
+    def _bottom_state(self) -> ca.Function:
+        """(X, u, p, t_descent, t_compression) -> the stance state at the end of
+        compression, by the NLP's own steps (built on first use)."""
+        if not hasattr(self, "_bottom_fn"):
+            X, u, p = APEX.sym("X", ca.MX), CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
+            t_d, t_c = ca.MX.sym("t_d"), ca.MX.sym("t_c")
+            at_touchdown = ballistic_flight(apex_to_flight(X), t_d, p)
+            x_td = touchdown_map(at_touchdown, touchdown_angle(u), p)
+            nodes = self._stance.chain(self.steps)(x_td, t_c / self.steps, ca.vertcat(u, p))[0]
+            self._bottom_fn = ca.Function("bottom_state", [X, u, p, t_d, t_c], [nodes[:, -1]])
+        return self._bottom_fn
 
     def solve(self, spec: FixedPointSpec, w0: np.ndarray | None = None, rmap: ReturnMap | None = None) -> NlpSolution:
         """Solve the NLP from ``w0`` (default: :meth:`initial_guess`)."""
@@ -373,15 +399,6 @@ def _touchdown_state(X, u, p, t_descent) -> ca.DM:
     return touchdown_map(xf, float(CONTROL.get(u, "theta_td")), p)
 
 
-def _propagate(interval: ca.Function, x0, u, p, duration, n) -> np.ndarray:
-    """States at the ends of ``n`` equal intervals of ``duration`` from ``x0`` (6 x n)."""
-    states, x = [], np.asarray(x0, dtype=float)
-    for _ in range(n):
-        x = np.asarray(interval(x, u, p, duration / n)[0]).ravel()
-        states.append(x)
-    return np.array(states).T
-
-
 def _guess_durations(X, u, params: Params, stride: Stride | None) -> np.ndarray:
     """Phase durations of the guess's simulated ``stride``, or spring-based estimates if
     it falls (or was not simulated)."""
@@ -391,3 +408,35 @@ def _guess_durations(X, u, params: Params, stride: Stride | None) -> np.ndarray:
     t_down = ReturnMap.touchdown_guess(X, u, p) or 0.1
     quarter = 0.5 * np.pi * np.sqrt(params.m / params.k)
     return np.array([t_down, quarter, quarter, t_down])
+
+
+def _effort_residuals(states, u, h):
+    """r with sum(r^2) = the trapezoidal tau^2 integral over states h apart."""
+    tau = hip_torque(states, u)
+    weights = ca.DM.ones(1, states.size2())
+    weights[0], weights[-1] = 0.5, 0.5
+    return ca.vec(tau * ca.sqrt(h * weights))
+
+
+def _nlp_functions(w, params, weights, distance, effort, g) -> list[ca.Function]:
+    """The NLP's objective and constraints, their first derivatives, and the Hessian of
+    the objective alone: exact for the distance term, Gauss-Newton (2 J^T J) for the
+    torque term. The constraints' curvature is left out (see :data:`HESSIANS`)."""
+    f = weights[0] * distance + weights[1] * ca.sumsqr(effort)
+    lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", g.numel())
+    effort_jacobian = ca.jacobian(effort, w)
+    hessian = lam_f * (weights[0] * ca.hessian(distance, w)[0] + 2 * weights[1] * ca.mtimes(effort_jacobian.T, effort_jacobian))
+    return [
+        ca.Function("nlp_fg", [w, params], [f, g], ["x", "p"], ["f", "g"]),
+        ca.Function("nlp_grad_f", [w, params], [f, ca.gradient(f, w)], ["x", "p"], ["f", "grad_f_x"]),
+        ca.Function("nlp_jac_g", [w, params], [g, ca.jacobian(g, w)], ["x", "p"], ["g", "jac_g_x"]),
+        ca.Function("nlp_hess_l", [w, params, lam_f, lam_g], [ca.triu(hessian)],
+                    ["x", "p", "lam_f", "lam_g"], ["hess_gamma_x_x"]),
+    ]
+
+
+def _nlp_sources() -> list[pathlib.Path]:
+    """The modules the NLP is derived from: the compiled library's key."""
+    here = pathlib.Path(__file__).parent
+    return [here / f"{m}.py" for m in ("layout", "model", "control", "outcome", "flow", "stride", "compile",
+                                       "quantities", "shooting")]

@@ -149,6 +149,29 @@ def half_period(p) -> float:
     return math.pi * math.sqrt(pr["m"] / pr["k"])
 
 
+class StanceFlow:
+    """The symbolic stance flow of the PD-controlled runner, built once: the right-hand
+    side, one DOP853 step, loops of steps, and the steps that end on the bottom and
+    liftoff guards. The compiled stride and the shooting NLP are both built from it."""
+
+    def __init__(self):
+        self.rhs = stance_rhs()
+        x, theta = STANCE.sym("x"), THETA.sym("theta")
+        watch = ca.Function("stance_clearances", [x, theta], [stance_clearances(x, theta)])
+        self.step = flow.step_function(self.rhs, watch)
+        bottom, liftoff = stance_guards()
+        self.bottom_step = flow.event_step(self.step, self.rhs, bottom, EVENT_NEWTON)
+        self.liftoff_step = flow.event_step(self.step, self.rhs, liftoff, EVENT_NEWTON)
+        self._chains: dict[int, ca.Function] = {}
+
+    def chain(self, n: int) -> ca.Function:
+        """``n`` stance steps (x0, h, theta) -> (nodes, errors, clearance minima), one
+        Function per ``n`` so generated code holds it once."""
+        if n not in self._chains:
+            self._chains[n] = flow.chain(self.step, n)
+        return self._chains[n]
+
+
 class StrideFunctions:
     """The Functions of the compiled stride, built and compiled once: the touchdown state,
     the stance scout and, per tier, the final pass and its Jacobian in (X, u, p).
@@ -157,15 +180,7 @@ class StrideFunctions:
     environment (see :func:`baslip.compile.compile_functions`)."""
 
     def __init__(self, compile: bool | None = None):
-        rhs = stance_rhs()
-        x, theta = STANCE.sym("x"), THETA.sym("theta")
-        watch = ca.Function("stance_clearances", [x, theta], [stance_clearances(x, theta)])
-        self.step = flow.step_function(rhs, watch)
-        self.rhs = rhs
-        bottom, liftoff = stance_guards()
-        self.bottom_step = flow.event_step(self.step, rhs, bottom, EVENT_NEWTON)
-        self.liftoff_step = flow.event_step(self.step, rhs, liftoff, EVENT_NEWTON)
-        self._chains: dict[int, ca.Function] = {}
+        self.flow = StanceFlow()
         self.functions = compile_kernels("baslip_stride", _names(), self._all, _sources(), enabled=compile)
         self.touchdown_state = self.functions["touchdown_state"]
         self.scout = self.functions["stance_scout"]
@@ -181,19 +196,13 @@ class StrideFunctions:
     def _scout(self) -> ca.Function:
         """(x0, h, theta) -> the M + 1 nodes from x0 (columns), their rates xdot, and each
         step's least clearances and error estimate (M columns); M = :data:`SCOUT_STEPS`."""
-        chained = self.chain(SCOUT_STEPS)
+        chained = self.flow.chain(SCOUT_STEPS)
         x0, h, theta = ca.MX.sym("x0", STANCE.size), ca.MX.sym("h"), THETA.sym("theta", ca.MX)
         steps, errors, clearances = chained(x0, h, theta)
         nodes = ca.horzcat(x0, steps)
-        rates = self.rhs.map(SCOUT_STEPS + 1)(nodes, ca.repmat(theta, 1, SCOUT_STEPS + 1))
+        rates = self.flow.rhs.map(SCOUT_STEPS + 1)(nodes, ca.repmat(theta, 1, SCOUT_STEPS + 1))
         return ca.Function("stance_scout", [x0, h, theta], [nodes, rates, clearances, errors],
                            ["x0", "h", "theta"], ["nodes", "rates", "clearance_min", "error"])
-
-    def chain(self, n: int) -> ca.Function:
-        """``n`` stance steps, one Function per ``n`` so generated code holds it once."""
-        if n not in self._chains:
-            self._chains[n] = flow.chain(self.step, n)
-        return self._chains[n]
 
     def _jacobian(self, final: ca.Function) -> ca.Function:
         """The final pass's Jacobian of the apex in (X, u, p), with its ordinary outputs."""
@@ -208,15 +217,15 @@ class StrideFunctions:
     def _all(self) -> list[ca.Function]:
         """Every Function of the engine, compiled together so that the step and its
         derivatives are generated once for all tiers."""
-        finals = [_final_pass(self, n) for n in TIERS]
+        finals = [_final_pass(self.flow, n) for n in TIERS]
         return [touchdown_state(), self._scout(), *finals, *(self._jacobian(f) for f in finals)]
 
 
-def _phase(functions: StrideFunctions, event: ca.Function, x0, grid_duration, theta, n: int):
+def _phase(stance: StanceFlow, event: ca.Function, x0, grid_duration, theta, n: int):
     """A stance phase of ``n`` steps: ``n - 1`` on the grid ``grid_duration / n``, then the
     step that ends on the event. Returns (duration, end state, event outputs, node values)."""
     h = grid_duration / n
-    nodes, errors, clearances = functions.chain(n - 1)(x0, h, theta)
+    nodes, errors, clearances = stance.chain(n - 1)(x0, h, theta)
     x_last = nodes[:, -1]
     s, x_end, residual, update, error, clearance_end = event(x_last, h, theta)
     duration = (n - 1) * h + s
@@ -227,7 +236,7 @@ def _phase(functions: StrideFunctions, event: ca.Function, x0, grid_duration, th
     )
 
 
-def _final_pass(functions: StrideFunctions, n: int) -> ca.Function:
+def _final_pass(stance: StanceFlow, n: int) -> ca.Function:
     """(X, u, p, guesses) -> (next apex, durations, diagnostics) with ``n`` steps a phase."""
     X, u, p = APEX.sym("X", ca.MX), CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
     guesses = GUESSES.sym("guesses", ca.MX)
@@ -238,8 +247,8 @@ def _final_pass(functions: StrideFunctions, n: int) -> ca.Function:
     at_touchdown = ballistic_flight(apex_to_flight(X), t_descent, p)
     x_td = touchdown_map(at_touchdown, theta_td, p)
 
-    comp = _phase(functions, functions.bottom_step, x_td, GUESSES.get(guesses, "compression"), theta, n)
-    decomp = _phase(functions, functions.liftoff_step, comp["x_end"], GUESSES.get(guesses, "decompression"), theta, n)
+    comp = _phase(stance, stance.bottom_step, x_td, GUESSES.get(guesses, "compression"), theta, n)
+    decomp = _phase(stance, stance.liftoff_step, comp["x_end"], GUESSES.get(guesses, "decompression"), theta, n)
 
     at_liftoff = liftoff_map(decomp["x_end"], p)
     zdot_lo = FLIGHT.get(at_liftoff, "zdot")
