@@ -19,6 +19,7 @@ from .stride import (
     DIAGNOSTICS,
     MAX_SCOUT_STEP_RATE,
     MAX_STEP_RATE,
+    PREDICTION_MARGIN,
     SCOUT_STEPS,
     SCOUT_STEPS_PER_HALF_PERIOD,
     TIERS,
@@ -116,7 +117,7 @@ class CompiledEngine:
         longest = max(scouted.bottom, scouted.liftoff - scouted.bottom)
         stable = [n for n in TIERS if longest * scouted.rate / n <= MAX_STEP_RATE]
         predicted = [scouted.error * (longest / n / scouted.step) ** DOP853.order for n in stable]
-        first = next((i for i, e in enumerate(predicted) if e <= self.tolerance), len(stable) - 1)
+        first = next((i for i, e in enumerate(predicted) if PREDICTION_MARGIN * e <= self.tolerance), len(stable) - 1)
         return stable[max(first, 0):]
 
     def _scout(self, x0, theta, X, u, p) -> Scouted | Fall | None:

@@ -1,8 +1,8 @@
 """Verified fixed points: NLP, Newton polish on the return map, independent check, stability.
 
-1. IPOPT solves the multiple-shooting NLP (:mod:`baslip.shooting`), whose RK4
-   discretisation is accurate to about 1e-6.
-2. Gauss-Newton on the integrator-based return map polishes the free quantities until
+1. IPOPT solves the multiple-shooting NLP (:mod:`baslip.shooting`), whose fixed-step
+   DOP853 discretisation is accurate to about 1e-10.
+2. Gauss-Newton on the compiled return map polishes the free quantities until
    ``r(X, u) = X`` to integrator accuracy. The step is the minimum-norm least-squares step
    in scaled variables (truncated SVD), so rank-deficient equations (no torque: energy
    conservation; the SLIP limit) converge too. Quantities at an active bound stay there.

@@ -69,6 +69,8 @@ class ReturnMap:
 
             self._compiled = CompiledEngine(tolerance, compile)
         self._events = None if plugin == COMPILED else EventMap(tolerances, plugin)
+        self._compile = compile
+        self._batch = None  # the batched compiled engine, built on first use
         self.fallbacks = 0  # strides the compiled engine handed to the event map
 
     @property
@@ -160,6 +162,50 @@ class ReturnMap:
         return dX, du, dp if with_parameters else None
 
     # -- many strides ----------------------------------------------------------------
+
+    def strides(self, X, U, params) -> list[Stride]:
+        """One stride from each row of ``X`` (n x 4) under the row of ``U`` (n x 5, or
+        one control for all): the compiled engine takes them in batches on both cores."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        U = np.broadcast_to(np.asarray(U, dtype=float), (len(X), CONTROL.size))
+        p = param_vector(params)
+        if self._compiled is None:
+            return [self.stride(x, u, p) for x, u in zip(X, U)]
+        if self._batch is None:
+            from .batch import BatchEngine
+
+            self._batch = BatchEngine(self._compiled, compile=self._compile)
+        results = self._batch.strides(X, U, p)
+        for i, result in enumerate(results):
+            if result is None:
+                self.fallbacks += 1
+                results[i] = self.event_map.stride(X[i], U[i], p, precheck(X[i], U[i], p)[1])
+        return results
+
+    def simulate_many(self, X0, U, params, strides: int) -> list[Simulation]:
+        """:meth:`simulate` from each row of ``X0`` (under the rows of ``U``, or one
+        control), run in lockstep so that every stride is one batch."""
+        X0 = np.atleast_2d(np.asarray(X0, dtype=float))
+        U = np.broadcast_to(np.asarray(U, dtype=float), (len(X0), CONTROL.size))
+        apexes = [[x] for x in X0]
+        durations: list[list[dict]] = [[] for _ in X0]
+        falls: dict[int, tuple[Fall, int]] = {}
+        alive = np.arange(len(X0))
+        for n in range(strides):
+            if not alive.size:
+                break
+            results = self.strides(np.array([apexes[i][-1] for i in alive]), U[alive], params)
+            for i, result in zip(alive, results):
+                if result.fall is not None:
+                    falls[i] = (result.fall, n)
+                else:
+                    apexes[i].append(result.apex)
+                    durations[i].append(result.durations)
+            alive = np.array([i for i in alive if i not in falls], dtype=int)
+        return [
+            Simulation(np.array(apexes[i]), durations[i], *falls.get(i, (None, None)))
+            for i in range(len(X0))
+        ]
 
     def simulate(self, X0, u, params, strides: int) -> Simulation:
         """Apply ``u`` for up to ``strides`` strides from apex ``X0``."""

@@ -363,7 +363,7 @@ def implied_periodicity(spec: FixedPointSpec) -> tuple[str, ...]:
     Without hip torque (Kp = Kd = 0 fixed) energy is conserved, so a periodic ydot and
     theta_h_dot make z periodic. With d = 0 as well, the trunk spins freely: theta_h_dot is
     always periodic, and theta_h is too when theta_h_dot is fixed at zero. These rows are
-    exactly dependent on the others; the RK4 discretisation breaks the dependence by its
+    exactly dependent on the others; the discretisation breaks the dependence by its
     truncation error, which makes IPOPT declare the problem infeasible. So the NLP leaves
     them out of the row that closes the orbit (the joins of a multi-stride orbit keep all
     four, or its intermediate apexes would float); the Newton polish and the verification

@@ -151,7 +151,7 @@ def test_the_two_stride_branch_ends_where_the_low_apex_grazes_touchdown(slip_per
 
 
 def test_the_two_stride_nlp_finds_the_switched_branch_orbit(slip_period_2_branch, solver):
-    """Two methods, one orbit: multiple shooting over two strides (IPOPT, RK4) from a
+    """Two methods, one orbit: multiple shooting over two strides (IPOPT, DOP853) from a
     rounded guess lands on the orbit that branch switching found."""
     doubled, _, branch = slip_period_2_branch
     X, u, params, angle = doubled.unpack(branch.points[3].v)

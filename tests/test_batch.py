@@ -1,0 +1,61 @@
+"""Specification of baslip.batch and ReturnMap.strides / simulate_many: many strides at
+once, in threads, with the outcomes of one stride at a time."""
+
+import math
+
+import numpy as np
+import pytest
+
+from baslip import Params, ReturnMap, Tolerances
+
+PARAMS = Params()
+GAIT_X = np.array([0.4, -1.5657, 0.5, 0.164274])
+GAIT_U = np.array([-0.751879, 1.50002, -0.05246, 1.42038, 0.11471])
+
+
+@pytest.fixture(scope="module")
+def rmap():
+    return ReturnMap(Tolerances(1e-12, 1e-12))
+
+
+def mixed_starts(n: int, seed: int = 4):
+    """Starts near the downward gait and all over the box, falls included."""
+    rng = np.random.default_rng(seed)
+    near = GAIT_X + rng.normal(scale=[0.01, 0.05, 0.05, 0.2], size=(n // 2, 4))
+    far = np.column_stack([rng.uniform(0.05, 1.0, n - n // 2), rng.uniform(-math.pi, math.pi, n - n // 2),
+                           rng.uniform(-1, 2, n - n // 2), rng.uniform(-10, 10, n - n // 2)])
+    U = np.repeat(GAIT_U[None], n, axis=0)
+    U[n // 2 :, 0] = rng.uniform(-10, 10, n - n // 2)
+    return np.vstack([near, far]), U
+
+
+def test_batched_strides_are_the_single_strides(rmap):
+    X, U = mixed_starts(150)
+    batched = rmap.strides(X, U, PARAMS)
+    outcomes = set()
+    for x, u, ours in zip(X, U, batched):
+        single = rmap.stride(x, u, PARAMS)
+        assert ours.fall == single.fall
+        outcomes.add(ours.fall)
+        if ours.ok:
+            assert np.max(np.abs(ours.apex - single.apex)) <= 1e-12
+    assert None in outcomes and len(outcomes) >= 3  # apexes and at least two kinds of fall
+
+
+def test_simulate_many_runs_each_start_as_simulate(rmap):
+    X, U = mixed_starts(20, seed=9)
+    runs = rmap.simulate_many(X, U, PARAMS, strides=5)
+    for x, u, run in zip(X, U, runs):
+        alone = rmap.simulate(x, u, PARAMS, strides=5)
+        assert (run.fall, run.fall_stride) == (alone.fall, alone.fall_stride)
+        assert run.apexes.shape == alone.apexes.shape
+        assert np.max(np.abs(run.apexes - alone.apexes)) <= 1e-11
+
+
+def test_batch_in_the_virtual_machine_matches_the_compiled_batch(rmap):
+    X, U = mixed_starts(6, seed=2)
+    vm = ReturnMap(Tolerances(1e-12, 1e-12), compile=False)
+    for ours, theirs in zip(vm.strides(X, U, PARAMS), rmap.strides(X, U, PARAMS)):
+        assert ours.fall == theirs.fall
+        if ours.ok:
+            assert np.array_equal(ours.apex, theirs.apex)
