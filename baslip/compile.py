@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import fcntl
 import hashlib
 import os
 import pathlib
@@ -81,15 +82,8 @@ def compile_functions(
     if not _compiling(enabled):
         return originals
     c_text = _generate(name, functions)
-    try:
-        return _load_or_build(name, c_text, list(originals))
-    except _NoCompiler as reason:
-        print(
-            f"baslip: no working C compiler ({reason}); "
-            "using CasADi's virtual machine (slower, same results)",
-            file=sys.stderr,
-        )
-        return originals
+    return _cached(name, list(originals), lambda: functions, [c_text.encode()], True, _load, lambda _: originals,
+                   generated=c_text)
 
 
 def _by_name(name: str, functions: Sequence[ca.Function]) -> dict[str, ca.Function]:
@@ -153,32 +147,6 @@ def _run(command: list[str]) -> subprocess.CompletedProcess:
         first = (result.stderr.strip().splitlines() or [""])[0]
         raise _NoCompiler(f"{command[0]} exited with status {result.returncode}: {first}")
     return result
-
-
-def _cache_key(c_text: str, compiler: list[str], version: str) -> str:
-    """sha256 of everything that decides the library's contents."""
-    digest = hashlib.sha256()
-    for part in (c_text, ca.__version__, shlex.join([*compiler, *CFLAGS, *LDLIBS]), version):
-        digest.update(part.encode())
-        digest.update(b"\0")
-    return digest.hexdigest()
-
-
-def _load_or_build(name: str, c_text: str, names: list[str]) -> dict[str, ca.Function]:
-    """Load the cached library for ``c_text``, building it first if missing or unloadable."""
-    compiler = _compiler()
-    key = _cache_key(c_text, compiler, _compiler_version(compiler))
-    library = cache_dir() / f"{name}-{key[:20]}.so"
-    if os.path.isfile(library):
-        loaded = _load(library, names)
-        if loaded is not None:
-            return loaded
-        _discard(library)  # corrupt, truncated by something else, or stale: rebuild once
-    _build(name, c_text, compiler, library)
-    loaded = _load(library, names)
-    if loaded is None:
-        raise _NoCompiler(f"the freshly compiled {library.name} does not load")
-    return loaded
 
 
 def _load(library: pathlib.Path, names: list[str]) -> dict[str, ca.Function] | None:
@@ -347,7 +315,7 @@ def compile_kernels(
     loads the library without building or generating anything. ``enabled`` and the
     fallback behave as in :func:`compile_functions`; the fallback's kernels run in the VM.
     """
-    return _cached(name, names, build, sources, enabled, _native_kernels, _vm_kernels)
+    return _cached(name, names, build, _read(sources), enabled, _native_kernels, _vm_kernels)
 
 
 def compile_library(
@@ -360,26 +328,32 @@ def compile_library(
 ) -> dict[str, ca.Function]:
     """As :func:`compile_kernels`, but as CasADi Functions (``casadi.external``), for
     use inside other CasADi objects such as an NLP solver, which call them from C++."""
-    return _cached(name, names, build, sources, enabled, _load, lambda functions: {f.name(): f for f in functions})
+    return _cached(name, names, build, _read(sources), enabled, _load, lambda functions: {f.name(): f for f in functions})
 
 
-def _cached(name, names, build, sources, enabled, load, fallback):
-    """The library of ``names`` keyed by ``sources``: loaded, or built, compiled and
-    loaded; ``fallback(build())`` without a compiler or with compiling switched off."""
+def _cached(name, names, build, fingerprint: Sequence[bytes], enabled, load, fallback, generated: str | None = None):
+    """The library of ``names``, keyed by ``fingerprint`` (the generated C, or the sources
+    it is derived from) with the CasADi version and the compiler: loaded, or else built
+    under a lock, compiled and loaded; ``fallback(build())`` without a compiler or with
+    compiling switched off. ``generated`` is the C text when the caller has it already."""
     if not _NAME.fullmatch(name):
         raise ValueError(f"library name {name!r} is not a C identifier")
     if not _compiling(enabled):
         return fallback(build())
     try:
         compiler = _compiler()
-        key = _source_key(sources, names, compiler, _compiler_version(compiler))
+        key = _key(fingerprint, names, compiler, _compiler_version(compiler))
         library = cache_dir() / f"{name}-{key[:20]}.so"
-        if os.path.isfile(library):
-            loaded = load(library, names)
+        loaded = load(library, names) if os.path.isfile(library) else None
+        if loaded is not None:
+            return loaded
+        with _build_lock(library):
+            # Another process may have built it while this one waited for the lock.
+            loaded = load(library, names) if os.path.isfile(library) else None
             if loaded is not None:
                 return loaded
-            _discard(library)
-        _build(name, _generate(name, build()), compiler, library)
+            _discard(library)  # corrupt, truncated or stale: rebuild once
+            _build(name, generated if generated is not None else _generate(name, build()), compiler, library)
         loaded = load(library, names)
         if loaded is None:
             raise _NoCompiler(f"the freshly compiled {library.name} does not load")
@@ -406,13 +380,33 @@ def _native_kernels(library: pathlib.Path, names: Sequence[str]) -> dict[str, Ke
         return None
 
 
-def _source_key(sources: Sequence[pathlib.Path], names: Sequence[str], compiler: list[str], version: str) -> str:
-    """sha256 of the sources, the function names, CasADi, the compiler and its flags."""
+def _read(sources: Sequence[pathlib.Path]) -> list[bytes]:
+    return [pathlib.Path(source).read_bytes() for source in sources]
+
+
+def _key(fingerprint: Sequence[bytes], names: Sequence[str], compiler: list[str], version: str) -> str:
+    """sha256 of everything that decides a library's contents."""
     digest = hashlib.sha256()
-    parts = [pathlib.Path(s).read_bytes() for s in sources]
-    parts += [" ".join(names).encode(), ca.__version__.encode(),
-              shlex.join([*compiler, *CFLAGS, *LDLIBS]).encode(), version.encode()]
+    parts = [*fingerprint, " ".join(names).encode(), ca.__version__.encode(),
+             shlex.join([*compiler, *CFLAGS, *LDLIBS]).encode(), version.encode()]
     for part in parts:
         digest.update(part)
         digest.update(b"\0")
     return digest.hexdigest()
+
+
+@contextlib.contextmanager
+def _build_lock(library: pathlib.Path):
+    """Hold an exclusive lock beside ``library`` while it is built, so that processes
+    starting together compile it once; without locking (or a writable cache) each process
+    builds its own copy, which the atomic rename still makes safe."""
+    try:
+        library.parent.mkdir(parents=True, exist_ok=True)
+        handle = open(library.with_suffix(".lock"), "w")
+    except OSError:
+        yield
+        return
+    with handle:
+        with contextlib.suppress(OSError):
+            fcntl.flock(handle, fcntl.LOCK_EX)
+        yield

@@ -15,7 +15,7 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Mapping
 
 import casadi as ca
@@ -142,7 +142,7 @@ class FixedPointSolver:
     def __init__(self, options: ShootingOptions = ShootingOptions()):
         self.options = options
         self.nlp = ShootingNLP(options)
-        self._multi_stride_nlps: dict[int, ShootingNLP] = {}
+        self._nlps: dict[tuple[int, str], ShootingNLP] = {}
         self.residual_map = ReturnMap(Tolerances(1e-12, 1e-12))
         # The compiled engine's Jacobian at 1e-12 costs a few ms once per solve; a second
         # map at 1e-10 would cost a second build of the engine in every process.
@@ -156,11 +156,12 @@ class FixedPointSolver:
         """Solve ``spec`` from its guess (or from the NLP point ``w0``) and verify the answer."""
         nlp = self.nlp_for(spec.strides)  # built once, outside the timed solve
         start = time.perf_counter()
-        try:
-            sol = nlp.solve(spec, w0=w0, rmap=self.residual_map)
-        except RuntimeError as err:  # CasADi could not even run IPOPT
-            sol = NlpSolution(spec.start_design()[: APEX.size], spec.start_design()[APEX.size :],
-                              np.full(len(PHASES), np.nan), f"Error: {_first_line(err)}", 0, 0.0)
+        sol = self._run_nlp(nlp, spec, w0)
+        if sol.return_status not in ACCEPTED_IPOPT and nlp.options.hessian != "exact":
+            # The fast NLP drops the constraints' curvature; from a poor start the exact
+            # Hessian succeeds more often (measured in the README), so it gets a second try.
+            retry = self._run_nlp(self.nlp_for(spec.strides, exact=True), spec, w0)
+            sol = replace(retry, iterations=sol.iterations + retry.iterations)
         if sol.return_status not in ACCEPTED_IPOPT:
             return self._result(spec, name, "failed", f"IPOPT: {sol.return_status}", sol, start, sol.X, sol.u)
         X, u, iterations, note = self._polish(spec, sol)
@@ -179,13 +180,21 @@ class FixedPointSolver:
             message += f"; it repeats after {period} stride{'s' if period > 1 else ''}"
         return self._result(spec, name, "converged", message, sol, start, X, u, iterations, check, stability)
 
-    def nlp_for(self, strides: int) -> ShootingNLP:
-        """The NLP for orbits of ``strides`` strides, built on first use."""
-        if strides == 1:
-            return self.nlp
-        if strides not in self._multi_stride_nlps:
-            self._multi_stride_nlps[strides] = ShootingNLP(self.options, strides)
-        return self._multi_stride_nlps[strides]
+    def nlp_for(self, strides: int, exact: bool = False) -> ShootingNLP:
+        """The NLP for orbits of ``strides`` strides, built on first use; ``exact`` gives
+        its exact-Hessian variant, the second try after a failure."""
+        options = replace(self.options, hessian="exact") if exact else self.options
+        key = (strides, options.hessian)
+        if key not in self._nlps:
+            self._nlps[key] = self.nlp if key == (1, self.options.hessian) else ShootingNLP(options, strides)
+        return self._nlps[key]
+
+    def _run_nlp(self, nlp: ShootingNLP, spec: FixedPointSpec, w0) -> NlpSolution:
+        try:
+            return nlp.solve(spec, w0=w0, rmap=self.residual_map)
+        except RuntimeError as err:  # CasADi could not even run IPOPT
+            return NlpSolution(spec.start_design()[: APEX.size], spec.start_design()[APEX.size :],
+                               np.full(len(PHASES), np.nan), f"Error: {_first_line(err)}", 0, 0.0)
 
     # -- pieces --------------------------------------------------------------------------
 

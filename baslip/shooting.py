@@ -5,14 +5,13 @@ Decision variables (all in SI units and radians):
 
 * the apex state ``X`` (4) and the control ``u`` (5); fixed quantities have equal bounds;
 * the four phase durations ``T = (descent, compression, decompression, ascent)``;
-* the stance state at the bottom, where compression meets decompression.
-
-Each stance phase is shot by ``nodes * substeps`` DOP853 steps of the stance flow of
-:mod:`baslip.stride`, with time scaled by the phase's duration.
+* shooting-node states in compression and decompression, ``nodes`` intervals each, every
+  interval integrated by ``substeps`` DOP853 steps of the stance flow of
+  :mod:`baslip.stride`, of length ``T_phase / (nodes * substeps)``.
 
 Constraints:
 
-* continuity at the bottom; the touchdown map at the start of stance;
+* continuity at the nodes; the touchdown map at the start of stance;
 * each guard zero at its phase end, with its crossing direction as an inequality
   (transversality, by ``margin``);
 * periodicity ``r(X, u) = X``, or for an orbit of N strides ``r^N(X, u) = X`` with the
@@ -60,21 +59,24 @@ from .model import (
 )
 from .quantities import DEFAULT_BOUNDS, DESIGN, NOMINAL, OBJECTIVES, start_value
 from .returnmap import PHASES, ReturnMap, Stride
-from .stride import StanceFlow
+from .stride import StanceFlow, stance_clearances
 
 #: Hessians IPOPT can be given: ``objective``, the objective's Hessian alone (the
-#: constraints' curvature dropped; Gauss-Newton for the torque term), or IPOPT's
-#: ``limited-memory`` BFGS.
-HESSIANS = ("objective", "limited-memory")
+#: constraints' curvature dropped; Gauss-Newton for the torque term), with every NLP
+#: function compiled to C; IPOPT's ``limited-memory`` BFGS, compiled likewise; or
+#: ``exact``, CasADi's exact Hessian of the Lagrangian in its virtual machine (nothing
+#: compiled; slower, but the most robust from a poor start).
+HESSIANS = ("exact", "objective", "limited-memory")
 
 
 @dataclass(frozen=True)
 class ShootingOptions:
     """Discretisation and solver settings of the NLP."""
 
-    nodes: int = 20  # DOP853 steps per stance phase (times substeps)
-    substeps: int = 1
+    nodes: int = 20  # shooting intervals per stance phase
+    substeps: int = 1  # steps of the scheme per interval
     hessian: str = "objective"  # see HESSIANS
+    scheme: str = "rk4"  # the interval's steps: "rk4" or "dop853" (see the README's measurements)
     margin: float = 1e-3  # transversality margin on guard rates [SI]
     min_duration: float = 1e-3  # [s]
     max_duration: float = 5.0  # [s]
@@ -147,10 +149,10 @@ class ShootingNLP:
     many times.
 
     Decision variables per stride: the apex (after the first stride), the four phase
-    durations and the stance state at the bottom. Compression is shot from touchdown to
-    the bottom, decompression from the bottom to liftoff, each by ``steps`` DOP853 steps of
-    the compiled stance flow (time scaled by the phase duration). With ``strides = N``
-    consecutive strides are joined (X_{k+1} = r(X_k)) and the last closes the orbit.
+    durations and the shooting nodes of compression and decompression, each interval
+    ``substeps`` DOP853 steps of the stance flow (time scaled by the phase duration). With
+    ``strides = N`` consecutive strides are joined (X_{k+1} = r(X_k)) and the last closes
+    the orbit.
 
     The NLP's functions (objective and constraints, their gradient and Jacobian, and the
     Hessian, see :data:`HESSIANS`) are generated as C and cached like the stride engine.
@@ -163,12 +165,21 @@ class ShootingNLP:
             raise ValueError(f"hessian must be one of {HESSIANS}, got {options.hessian!r}")
         self.options = options
         self.strides = strides
-        self.steps = options.nodes * options.substeps
         self.interval = _rk4_interval(1)  # for torque_effort, a reporting quadrature
         self._stance = StanceFlow()
+        self._interval = self._shooting_interval()
         self._build(compile)
 
     # -- construction ------------------------------------------------------------------
+
+    def _shooting_interval(self) -> ca.Function:
+        """One shooting interval, ``substeps`` steps of the scheme: (x0, h, theta) -> end state."""
+        x0, h, theta = STANCE.sym("x0", ca.MX), ca.MX.sym("h"), ca.MX.sym("theta", CONTROL.size + PARAMS.size)
+        if self.options.scheme == "rk4":
+            end = _rk4_interval(self.options.substeps)(x0, theta[: CONTROL.size], theta[CONTROL.size :], h)[0]
+        else:
+            end = self._stance.chain(self.options.substeps)(x0, h, theta)[0][:, -1]
+        return ca.Function("shooting_interval", [x0, h, theta], [end])
 
     def _build(self, compile: bool | None) -> None:
         u, p = CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
@@ -182,14 +193,15 @@ class ShootingNLP:
         for k in range(self.strides):
             X = APEX.sym(f"X{k}", ca.MX)
             T = ca.MX.sym(f"T{k}", len(PHASES))
-            x_bottom = STANCE.sym(f"x_bottom{k}", ca.MX)
+            comp_nodes = ca.MX.sym(f"compression_nodes{k}", STANCE.size, self.options.nodes)
+            decomp_nodes = ca.MX.sym(f"decompression_nodes{k}", STANCE.size, self.options.nodes)
             if apex_next is not None:
                 constrain(apex_next - X, 0, 0)  # strides join
-            apex_next, stride_effort = self._stride(X, u, p, T, x_bottom, constrain)
+            apex_next, stride_effort = self._stride(X, u, p, T, comp_nodes, decomp_nodes, constrain)
             effort.append(stride_effort)
             apexes.append(X)
             # X_0 and u lead the vector so that the design is w[:len(DESIGN)] for any N.
-            blocks += ([] if k == 0 else [X]) + [T, x_bottom]
+            blocks += ([] if k == 0 else [X]) + [T, ca.vec(comp_nodes), ca.vec(decomp_nodes)]
         X0 = apexes[0]
         self._periodicity_row = sum(c[0].numel() for c in constraints)
         constrain(apex_next - X0, 0, 0)  # the orbit closes
@@ -205,11 +217,27 @@ class ShootingNLP:
         g = ca.vertcat(*(c[0] for c in constraints))
         self._lbg = np.concatenate([np.full(c[0].numel(), c[1], dtype=float) for c in constraints])
         self._ubg = np.concatenate([np.full(c[0].numel(), c[2], dtype=float) for c in constraints])
-        functions = compile_library(
-            f"baslip_nlp_{self.strides}_{self.steps}", [f"nlp_{n}" for n in ("fg", "grad_f", "jac_g", "hess_l")],
-            lambda: _nlp_functions(w, params, weights, distance, ca.vertcat(*effort), g), _nlp_sources(), enabled=compile,
+        f = weights[0] * distance + weights[1] * ca.sumsqr(ca.vertcat(*effort))
+        if self.options.hessian == "exact":
+            self.functions = None
+            self._solver = self._exact_nlpsol(w, params, f, g)
+            return
+        self.functions = compile_library(  # objective, constraints and derivatives
+            f"baslip_nlp_{self.strides}_{self.options.nodes}x{self.options.substeps}_{self.options.scheme}_"
+            f"{self.options.hessian.replace('-', '_')}",
+            [f"nlp_{n}" for n in ("fg", "grad_f", "jac_g", "hess_l")],
+            lambda: _nlp_functions(w, params, weights, distance, ca.vertcat(*effort), g),
+            _nlp_sources(), enabled=compile,
         )
-        self._solver = self._nlpsol(functions)
+        self._solver = self._nlpsol(self.functions)
+
+    def _exact_nlpsol(self, w, params, f, g) -> ca.Function:
+        """IPOPT with CasADi's exact Hessian of the Lagrangian, the graph expanded to SX
+        and evaluated in the virtual machine: slower per iteration than the compiled
+        functions, but the most robust from a poor start, and nothing to compile."""
+        ipopt = {"print_level": 0, "sb": "yes", **dict(self.options.ipopt)}
+        return ca.nlpsol("periodic_orbit", "ipopt", {"x": w, "p": params, "f": f, "g": g},
+                         {"ipopt": ipopt, "print_time": False, "error_on_fail": False, "expand": True})
 
     def _nlpsol(self, functions: dict[str, ca.Function]) -> ca.Function:
         """IPOPT over the (compiled) NLP functions; CasADi differentiates nothing itself."""
@@ -225,13 +253,13 @@ class ShootingNLP:
             options["hess_lag"] = functions["nlp_hess_l"]
         return ca.nlpsol("periodic_orbit", "ipopt", {"x": w, "p": params, "f": f, "g": g}, options)
 
-    def _stride(self, X, u, p, T, x_bottom, constrain):
+    def _stride(self, X, u, p, T, comp_nodes, decomp_nodes, constrain):
         """Constrain one shot stride from apex ``X``; return its next apex and the
         residuals r whose sum of squares is its tau^2 integral [N^2 m^2 s] by the
-        trapezoidal rule over the steps."""
-        opt, n = self.options, self.steps
+        trapezoidal rule over the nodes."""
+        opt, n = self.options, self.options.nodes
         t_descent, t_compression, t_decompression, t_ascent = (T[i] for i in range(len(PHASES)))
-        theta = ca.vertcat(u, p)
+        theta = ca.repmat(ca.vertcat(u, p), 1, n)
         theta_td = touchdown_angle(u)
         apex_flight = apex_to_flight(X)
         # Descent: the foot stays above ground until it crosses zero, falling.
@@ -242,39 +270,47 @@ class ShootingNLP:
         constrain(touchdown_guard_rate(at_touchdown, p), -ca.inf, -opt.margin)
         x_td = touchdown_map(at_touchdown, theta_td, p)
 
-        nodes_c, _, clearance_c = self._stance.chain(n)(x_td, t_compression / n, theta)
-        constrain(nodes_c[:, -1] - x_bottom, 0, 0)
-        constrain(bottom_guard(x_bottom), 0, 0)
-        rho_accel = STANCE.get(self._stance.rhs(x_bottom, theta), "rhodot")
+        starts_c = ca.horzcat(x_td, comp_nodes[:, :-1])
+        ends_c = self._interval.map(n)(starts_c, ca.repmat(t_compression / n, 1, n), theta)
+        constrain(comp_nodes - ends_c, 0, 0)
+        bottom = comp_nodes[:, -1]
+        constrain(bottom_guard(bottom), 0, 0)
+        rho_accel = STANCE.get(self._stance.rhs(bottom, ca.vertcat(u, p)), "rhodot")
         constrain(rho_accel, opt.margin, ca.inf)
         # The leg shortens from touchdown (transversally) until the bottom.
         constrain(bottom_guard(x_td), -ca.inf, -opt.margin)
-        constrain(bottom_guard(nodes_c[:, :-1]), -ca.inf, 0)
+        constrain(bottom_guard(comp_nodes[:, :-1]), -ca.inf, 0)
 
-        nodes_d, _, clearance_d = self._stance.chain(n)(x_bottom, t_decompression / n, theta)
-        x_lo = nodes_d[:, -1]
+        starts_d = ca.horzcat(bottom, decomp_nodes[:, :-1])
+        ends_d = self._interval.map(n)(starts_d, ca.repmat(t_decompression / n, 1, n), theta)
+        constrain(decomp_nodes - ends_d, 0, 0)
+        x_lo = decomp_nodes[:, -1]
         constrain(liftoff_guard(x_lo, p), 0, 0)
         constrain(STANCE.get(x_lo, "rhodot"), opt.margin, ca.inf)
         # The leg stays compressed until liftoff.
-        constrain(liftoff_guard(nodes_d[:, :-1], p), -ca.inf, 0)
-        # CoM, hip and leg clear of the ground at every stage point of every step.
-        constrain(ca.horzcat(clearance_c, clearance_d), 0, ca.inf)
+        constrain(liftoff_guard(starts_d[:, 1:], p), -ca.inf, 0)
+        # CoM, hip and leg clear of the ground at the nodes (smooth constraints; the
+        # compiled map checks every stage point when it polishes and re-simulates).
+        for nodes in (comp_nodes, decomp_nodes):
+            for k in range(n):
+                constrain(stance_clearances(nodes[:, k], ca.vertcat(u, p)), 0, ca.inf)
 
         at_liftoff = liftoff_map(x_lo, p)
         constrain(FLIGHT.get(at_liftoff, "zdot"), opt.margin, ca.inf)
         at_apex = ballistic_flight(at_liftoff, t_ascent, p)
         constrain(FLIGHT.get(at_apex, "zdot"), 0, 0)  # apex guard
         apex_next = ca.vertcat(*(FLIGHT.get(at_apex, name) for name in APEX.names))
-        effort = ca.vertcat(_effort_residuals(ca.horzcat(x_td, nodes_c), u, t_compression / n),
-                            _effort_residuals(ca.horzcat(x_bottom, nodes_d), u, t_decompression / n))
+        effort = ca.vertcat(_effort_residuals(ca.horzcat(x_td, comp_nodes), u, t_compression / n),
+                            _effort_residuals(ca.horzcat(bottom, decomp_nodes), u, t_decompression / n))
         return apex_next, effort
 
     # -- solving -----------------------------------------------------------------------
 
     def _durations_index(self, k: int) -> int:
         """Position of stride k's first phase duration in the NLP vector, laid out as
-        (X_0, u, T_0, x_bottom_0, X_1, T_1, x_bottom_1, ...)."""
-        return len(DESIGN) + k * (APEX.size + len(PHASES) + STANCE.size)
+        (X_0, u, T_0, nodes_0, X_1, T_1, nodes_1, ...)."""
+        nodes = 2 * STANCE.size * self.options.nodes
+        return len(DESIGN) + k * (APEX.size + len(PHASES) + nodes)
 
     def _bounds(self, spec: FixedPointSpec) -> tuple[np.ndarray, np.ndarray]:
         lbx = np.full(self._n_w, -np.inf)
@@ -292,8 +328,8 @@ class ShootingNLP:
 
     def initial_guess(self, spec: FixedPointSpec, rmap: ReturnMap | None = None) -> np.ndarray:
         """Initial point: the guess's design, then for each stride the apex reached by
-        simulating the guess (the guess itself if it falls), its durations, and the state
-        at its bottom (propagated through compression)."""
+        simulating the guess (the guess itself if it falls), its durations, and nodes
+        propagated through stance by the NLP's own steps."""
         design = spec.start_design()
         X, u = design[: APEX.size], design[APEX.size :]
         p = spec.params.vector()
@@ -301,22 +337,25 @@ class ShootingNLP:
         for k in range(self.strides):
             stride = rmap.stride(X, u, spec.params) if rmap is not None else None
             durations = _guess_durations(X, u, spec.params, stride)
-            x_bottom = np.asarray(self._bottom_state()(X, u, p, durations[0], durations[1])).ravel()
-            parts += ([X] if k else []) + [durations, x_bottom]
+            comp, decomp = (np.asarray(v) for v in self._guess_nodes()(X, u, p, durations[:3]))
+            parts += ([X] if k else []) + [durations, comp.T.ravel(), decomp.T.ravel()]
             X = stride.apex if stride is not None and stride.ok else X
         return np.concatenate(parts)
 
-    def _bottom_state(self) -> ca.Function:
-        """(X, u, p, t_descent, t_compression) -> the stance state at the end of
-        compression, by the NLP's own steps (built on first use)."""
-        if not hasattr(self, "_bottom_fn"):
+    def _guess_nodes(self) -> ca.Function:
+        """(X, u, p, (t_descent, t_compression, t_decompression)) -> the nodes of both
+        stance phases (6 x nodes each), propagated without the bottom guard (built on
+        first use)."""
+        if not hasattr(self, "_guess_nodes_fn"):
             X, u, p = APEX.sym("X", ca.MX), CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
-            t_d, t_c = ca.MX.sym("t_d"), ca.MX.sym("t_c")
-            at_touchdown = ballistic_flight(apex_to_flight(X), t_d, p)
-            x_td = touchdown_map(at_touchdown, touchdown_angle(u), p)
-            nodes = self._stance.chain(self.steps)(x_td, t_c / self.steps, ca.vertcat(u, p))[0]
-            self._bottom_fn = ca.Function("bottom_state", [X, u, p, t_d, t_c], [nodes[:, -1]])
-        return self._bottom_fn
+            T = ca.MX.sym("T", 3)
+            n, steps = self.options.nodes, self.options.substeps
+            x_td = touchdown_map(ballistic_flight(apex_to_flight(X), T[0], p), touchdown_angle(u), p)
+            chain = self._stance.chain(n * steps)
+            comp = chain(x_td, T[1] / (n * steps), ca.vertcat(u, p))[0][:, steps - 1 :: steps]
+            decomp = chain(comp[:, -1], T[2] / (n * steps), ca.vertcat(u, p))[0][:, steps - 1 :: steps]
+            self._guess_nodes_fn = ca.Function("guess_nodes", [X, u, p, T], [comp, decomp])
+        return self._guess_nodes_fn
 
     def solve(self, spec: FixedPointSpec, w0: np.ndarray | None = None, rmap: ReturnMap | None = None) -> NlpSolution:
         """Solve the NLP from ``w0`` (default: :meth:`initial_guess`)."""
@@ -421,11 +460,12 @@ def _effort_residuals(states, u, h):
 def _nlp_functions(w, params, weights, distance, effort, g) -> list[ca.Function]:
     """The NLP's objective and constraints, their first derivatives, and the Hessian of
     the objective alone: exact for the distance term, Gauss-Newton (2 J^T J) for the
-    torque term. The constraints' curvature is left out (see :data:`HESSIANS`)."""
+    torque term, the constraints' curvature left out (see :data:`HESSIANS`)."""
     f = weights[0] * distance + weights[1] * ca.sumsqr(effort)
     lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", g.numel())
     effort_jacobian = ca.jacobian(effort, w)
-    hessian = lam_f * (weights[0] * ca.hessian(distance, w)[0] + 2 * weights[1] * ca.mtimes(effort_jacobian.T, effort_jacobian))
+    hessian = lam_f * (weights[0] * ca.hessian(distance, w)[0]
+                       + 2 * weights[1] * ca.mtimes(effort_jacobian.T, effort_jacobian))
     return [
         ca.Function("nlp_fg", [w, params], [f, g], ["x", "p"], ["f", "g"]),
         ca.Function("nlp_grad_f", [w, params], [f, ca.gradient(f, w)], ["x", "p"], ["f", "grad_f_x"]),
