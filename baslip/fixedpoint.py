@@ -1,7 +1,7 @@
 """Verified fixed points: NLP, Newton polish on the return map, independent check, stability.
 
-1. IPOPT solves the multiple-shooting NLP (:mod:`baslip.shooting`), whose fixed-step
-   DOP853 discretisation is accurate to about 1e-10.
+1. IPOPT solves the multiple-shooting NLP (:mod:`baslip.shooting`), whose RK4
+   discretisation is accurate to about 1e-6.
 2. Gauss-Newton on the compiled return map polishes the free quantities until
    ``r(X, u) = X`` to integrator accuracy. The step is the minimum-norm least-squares step
    in scaled variables (truncated SVD), so rank-deficient equations (no torque: energy
@@ -15,7 +15,7 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Mapping
 
 import casadi as ca
@@ -35,6 +35,8 @@ VERIFY_TOLERANCES = Tolerances(rtol=1e-12, atol=1e-12)
 #: Gauss-Newton stops once eps is below this (well inside VERIFY_EPS).
 POLISH_EPS = 1e-12
 POLISH_MAX_ITER = 10
+#: Halvings of a polish step before the polish gives up.
+POLISH_BACKTRACKS = 8
 #: Relative singular-value cutoff of the polish step (rank-deficient fixed-point equations).
 POLISH_RCOND = 1e-9
 #: IPOPT outcomes whose point goes on to polish and verification ("Feasible_Point_Found"
@@ -142,7 +144,7 @@ class FixedPointSolver:
     def __init__(self, options: ShootingOptions = ShootingOptions()):
         self.options = options
         self.nlp = ShootingNLP(options)
-        self._nlps: dict[tuple[int, str], ShootingNLP] = {}
+        self._multi_stride_nlps: dict[int, ShootingNLP] = {}
         self.residual_map = ReturnMap(Tolerances(1e-12, 1e-12))
         # The compiled engine's Jacobian at 1e-12 costs a few ms once per solve; a second
         # map at 1e-10 would cost a second build of the engine in every process.
@@ -156,12 +158,11 @@ class FixedPointSolver:
         """Solve ``spec`` from its guess (or from the NLP point ``w0``) and verify the answer."""
         nlp = self.nlp_for(spec.strides)  # built once, outside the timed solve
         start = time.perf_counter()
-        sol = self._run_nlp(nlp, spec, w0)
-        if sol.return_status not in ACCEPTED_IPOPT and nlp.options.hessian != "exact":
-            # The fast NLP drops the constraints' curvature; from a poor start the exact
-            # Hessian succeeds more often (measured in the README), so it gets a second try.
-            retry = self._run_nlp(self.nlp_for(spec.strides, exact=True), spec, w0)
-            sol = replace(retry, iterations=sol.iterations + retry.iterations)
+        try:
+            sol = nlp.solve(spec, w0=w0, rmap=self.residual_map)
+        except RuntimeError as err:  # CasADi could not even run IPOPT
+            sol = NlpSolution(spec.start_design()[: APEX.size], spec.start_design()[APEX.size :],
+                              np.full(len(PHASES), np.nan), f"Error: {_first_line(err)}", 0, 0.0)
         if sol.return_status not in ACCEPTED_IPOPT:
             return self._result(spec, name, "failed", f"IPOPT: {sol.return_status}", sol, start, sol.X, sol.u)
         X, u, iterations, note = self._polish(spec, sol)
@@ -180,26 +181,20 @@ class FixedPointSolver:
             message += f"; it repeats after {period} stride{'s' if period > 1 else ''}"
         return self._result(spec, name, "converged", message, sol, start, X, u, iterations, check, stability)
 
-    def nlp_for(self, strides: int, exact: bool = False) -> ShootingNLP:
-        """The NLP for orbits of ``strides`` strides, built on first use; ``exact`` gives
-        its exact-Hessian variant, the second try after a failure."""
-        options = replace(self.options, hessian="exact") if exact else self.options
-        key = (strides, options.hessian)
-        if key not in self._nlps:
-            self._nlps[key] = self.nlp if key == (1, self.options.hessian) else ShootingNLP(options, strides)
-        return self._nlps[key]
-
-    def _run_nlp(self, nlp: ShootingNLP, spec: FixedPointSpec, w0) -> NlpSolution:
-        try:
-            return nlp.solve(spec, w0=w0, rmap=self.residual_map)
-        except RuntimeError as err:  # CasADi could not even run IPOPT
-            return NlpSolution(spec.start_design()[: APEX.size], spec.start_design()[APEX.size :],
-                               np.full(len(PHASES), np.nan), f"Error: {_first_line(err)}", 0, 0.0)
+    def nlp_for(self, strides: int) -> ShootingNLP:
+        """The NLP for orbits of ``strides`` strides, built on first use."""
+        if strides == 1:
+            return self.nlp
+        if strides not in self._multi_stride_nlps:
+            self._multi_stride_nlps[strides] = ShootingNLP(self.options, strides)
+        return self._multi_stride_nlps[strides]
 
     # -- pieces --------------------------------------------------------------------------
 
     def _polish(self, spec: FixedPointSpec, sol: NlpSolution) -> tuple[np.ndarray, np.ndarray, int, str]:
-        """Gauss-Newton on r^N(X, u) - X (and the energy) over the free, inactive quantities."""
+        """Gauss-Newton on r^N(X, u) - X (and the energy) over the free, inactive quantities,
+        with a backtracking line search on the residual's norm: where the NLP's RK4 point
+        is far from the exact map's manifold, a full step can overshoot into a fall."""
         design = np.concatenate([sol.X, sol.u])
         # IPOPT relaxes bounds by ~1e-8, so fixed quantities come back slightly off: reset them.
         for i, name in enumerate(DESIGN):
@@ -209,28 +204,44 @@ class FixedPointSolver:
         energy_target = self._energy_target(spec, design[: APEX.size])
         scale = np.array([NOMINAL[n] for n in DESIGN])[movable]
         nx = APEX.size
+        rows, fall = self._polish_rows(spec, design, energy_target)
+        if fall is not None:
+            return design[:nx], design[nx:], 0, f" (polish stopped: {fall.value})"
         for iteration in range(POLISH_MAX_ITER + 1):
             X, u = design[:nx], design[nx:]
-            orbit = self.residual_map.simulate(X, u, spec.params, spec.strides)
-            if orbit.fall is not None:
-                return X, u, iteration, f" (polish stopped: {orbit.fall.value})"
-            residual = orbit.apexes[-1] - X
-            energy_row = 0.0 if energy_target is None else self.energy(X, spec.params) - energy_target
-            if _eps(orbit.apexes[-1], X) <= POLISH_EPS and abs(energy_row) <= POLISH_EPS:
+            if _eps(X + rows[:nx], X) <= POLISH_EPS and np.all(np.abs(rows[nx:]) <= POLISH_EPS):
                 return X, u, iteration, ""
             if iteration == POLISH_MAX_ITER or not movable.any():
                 break
             dr_dX, dr_du = self.jacobian_map.jacobians(X, u, spec.params, spec.strides)
             jac = np.hstack([dr_dX - np.eye(nx), dr_du])
-            rows = [residual]
             if energy_target is not None:
                 gradient = np.asarray(self._energy_gradient(X, spec.params.vector())).ravel()
                 jac = np.vstack([jac, np.concatenate([gradient, np.zeros(CONTROL.size)])])
-                rows.append([energy_row])
-            step = np.linalg.lstsq(jac[:, movable] * scale, -np.concatenate(rows), rcond=POLISH_RCOND)[0]
-            design = design.copy()
-            design[movable] += step * scale
+            step = np.linalg.lstsq(jac[:, movable] * scale, -rows, rcond=POLISH_RCOND)[0]
+            for _ in range(POLISH_BACKTRACKS + 1):
+                trial = design.copy()
+                trial[movable] += step * scale
+                trial_rows, fall = self._polish_rows(spec, trial, energy_target)
+                if fall is None and np.linalg.norm(trial_rows) < np.linalg.norm(rows):
+                    break
+                step = step / 2
+            else:
+                reason = f"a fall: {fall.value}" if fall is not None else "no step reduces the residual"
+                return X, u, iteration, f" (polish stopped: {reason})"
+            design, rows = trial, trial_rows
         return design[:nx], design[nx:], POLISH_MAX_ITER, f" (polish reached {POLISH_MAX_ITER} iterations)"
+
+    def _polish_rows(self, spec: FixedPointSpec, design: np.ndarray, energy_target: float | None):
+        """(r^N(X, u) - X with the energy row if the energy is held, or None; the fall)."""
+        X, u = design[: APEX.size], design[APEX.size :]
+        orbit = self.residual_map.simulate(X, u, spec.params, spec.strides)
+        if orbit.fall is not None:
+            return None, orbit.fall
+        rows = [orbit.apexes[-1] - X]
+        if energy_target is not None:
+            rows.append([self.energy(X, spec.params) - energy_target])
+        return np.concatenate(rows), None
 
     def _energy_target(self, spec: FixedPointSpec, X) -> float | None:
         """The apex energy the polish must hold: the fixed value, or a bound IPOPT ended on."""

@@ -51,7 +51,7 @@ class ProblemError(ValueError):
 class SolverSettings:
     """Discretisation and IPOPT settings.
 
-    nodes: DOP853 steps per stance phase in the NLP, multiplied by substeps;
+    nodes: shooting intervals per stance phase; substeps: RK4 steps per interval;
     max_iter: IPOPT iteration limit; tol: IPOPT tolerance; print_level: IPOPT verbosity.
     """
 

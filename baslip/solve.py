@@ -180,8 +180,8 @@ def _solve_and_write(problem, out_dir: Path, quiet: bool) -> int:
     if not quiet:
         s = problem.solver
         orbit = "" if problem.strides == 1 else f", {problem.strides}-stride orbits"
-        print(f"{problem.name}: loading the compiled model and NLP ({s.nodes * s.substeps} DOP853 steps per stance "
-              f"phase{orbit}; the first run on a machine compiles them)...", file=sys.stderr)
+        print(f"{problem.name}: loading the compiled model and NLP ({s.nodes} nodes x {s.substeps} RK4 steps per "
+              f"stance phase{orbit}; the first run on a machine compiles them)...", file=sys.stderr)
     solver = FixedPointSolver(shooting_options(problem))
     solver.nlp_for(problem.strides)
     if not quiet:

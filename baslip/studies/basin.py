@@ -54,17 +54,45 @@ def run_from(rmap: ReturnMap, X0, X_star, u_star, params: Params, strides: int, 
     return (arrived if eps <= tolerance else "bounded"), strides, eps, np.array(apexes)
 
 
+def run_many(rmap: ReturnMap, X0, X_star, u_star, params: Params, strides: int, tolerance: float):
+    """:func:`run_from` for each row of ``X0`` (with the rows of ``X_star`` and ``u_star``),
+    all runs in lockstep so that each stride of every run still going is one batched call.
+    Yields (row, outcome, strides run, final eps) as each run ends."""
+    X0, X_star, u_star = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (X0, X_star, u_star))
+    current, alive = X0.copy(), np.arange(len(X0))
+    eps = np.full(len(X0), np.nan)
+    for n in range(strides):
+        if not alive.size:
+            return
+        results = rmap.strides(current[alive], u_star[alive], params)
+        still = []
+        for i, stride in zip(alive, results):
+            if not stride.ok:
+                yield i, "fell", n, float("nan")
+                continue
+            current[i] = stride.apex
+            eps[i] = np.linalg.norm(stride.apex - X_star[i]) / np.linalg.norm(X_star[i])
+            if eps[i] <= tolerance:
+                yield i, "converged", n + 1, float(eps[i])
+            else:
+                still.append(i)
+        alive = np.array(still, dtype=int)
+    for i in alive:
+        yield i, "bounded", strides, float(eps[i])
+
+
 def basin_worker(chunk: list[dict], context: tuple, queue) -> None:
-    """Worker process: simulate each (point, ydot, z) task and put its row on the queue."""
+    """Worker process: simulate the (point, ydot, z) tasks of its chunk in lockstep and put
+    each row on the queue as its run ends."""
     points, params, strides, tolerance = context
     try:
         rmap = ReturnMap(SIMULATION_TOLERANCES)
-        for task in chunk:
-            X_star, u_star = points[int(task["point"])]
-            X0 = np.array(X_star, dtype=float)
-            X0[APEX.index("ydot")] = task[key_column("ydot")]
-            X0[APEX.index("z")] = task[key_column("z")]
-            outcome, n, eps, _ = run_from(rmap, X0, X_star, u_star, params, strides, tolerance)
-            queue.put({**task, "outcome": outcome, "strides_run": n, "final_eps": eps})
+        X_star = np.array([points[int(task["point"])][0] for task in chunk], dtype=float)
+        u_star = np.array([points[int(task["point"])][1] for task in chunk], dtype=float)
+        X0 = X_star.copy()
+        X0[:, APEX.index("ydot")] = [task[key_column("ydot")] for task in chunk]
+        X0[:, APEX.index("z")] = [task[key_column("z")] for task in chunk]
+        for i, outcome, n, eps in run_many(rmap, X0, X_star, u_star, params, strides, tolerance):
+            queue.put({**chunk[i], "outcome": outcome, "strides_run": n, "final_eps": eps})
     finally:
         queue.put(None)
