@@ -64,7 +64,8 @@ from .stride import StanceFlow, stance_clearances
 #: Hessians IPOPT can be given: ``exact``, the Hessian of the Lagrangian through the
 #: intervals; ``objective``, the objective's Hessian alone (the constraints' curvature
 #: dropped; Gauss-Newton for the torque term); or IPOPT's ``limited-memory`` BFGS. The
-#: README's table measures them; ``exact`` is the default.
+#: README's table measures them; ``objective`` is the default, with ``exact`` as the
+#: second try after a failure (see :class:`baslip.fixedpoint.FixedPointSolver`).
 HESSIANS = ("exact", "objective", "limited-memory")
 
 
@@ -74,7 +75,7 @@ class ShootingOptions:
 
     nodes: int = 20  # shooting intervals per stance phase
     substeps: int = 1  # steps of the scheme per interval
-    hessian: str = "exact"  # see HESSIANS
+    hessian: str = "objective"  # see HESSIANS
     scheme: str = "rk4"  # the interval's steps: "rk4" or "dop853" (see the README's measurements)
     margin: float = 1e-3  # transversality margin on guard rates [SI]
     min_duration: float = 1e-3  # [s]
