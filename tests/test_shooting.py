@@ -1,0 +1,68 @@
+"""Specification of baslip.shooting: the multiple-shooting NLP whose functions are
+compiled to C. Their derivatives are those of the functions themselves (checked against
+central differences), and its solution is a fixed point of the exact map to the
+accuracy of its RK4 intervals."""
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from baslip import load_problem
+from baslip.api import fixed_point_spec
+from baslip.quantities import OBJECTIVES
+from baslip.shooting import ShootingNLP, ShootingOptions
+
+
+@pytest.fixture(scope="module")
+def downward_spec():
+    return fixed_point_spec(load_problem("problems/downward.yaml"))
+
+
+def lagrangian_gradient(functions, w, P, lam):
+    grad_f = np.asarray(functions["nlp_grad_f"](w, P)[1]).ravel()
+    jac_g = np.asarray(ca.densify(functions["nlp_jac_g"](w, P)[1]))
+    return grad_f + jac_g.T @ lam
+
+
+def test_compiled_derivatives_match_central_differences(solver, downward_spec):
+    nlp = solver.nlp
+    w = nlp.initial_guess(downward_spec, solver.residual_map)
+    P = np.concatenate([downward_spec.params.vector(), downward_spec.start_design(), OBJECTIVES["min_torque"]])
+    F = nlp.functions
+    f0, g0 = (np.asarray(v).ravel() for v in F["nlp_fg"](w, P))
+    jac = np.asarray(ca.densify(F["nlp_jac_g"](w, P)[1]))
+    lam = np.random.default_rng(1).normal(size=len(g0))
+    step = 1e-6
+    for i in range(0, len(w), 11):
+        e = np.zeros(len(w))
+        e[i] = step
+        g_plus, g_minus = (np.asarray(F["nlp_fg"](w + s * e, P)[1]).ravel() for s in (1, -1))
+        assert np.max(np.abs((g_plus - g_minus) / (2 * step) - jac[:, i])) <= 1e-5 * max(1.0, np.max(np.abs(jac[:, i])))
+
+
+def test_exact_hessian_matches_differences_of_the_lagrangian_gradient(downward_spec, solver):
+    nlp = solver.nlp_for(1, exact=True)
+    w = nlp.initial_guess(downward_spec, solver.residual_map)
+    P = np.concatenate([downward_spec.params.vector(), downward_spec.start_design(), OBJECTIVES["nearest_guess"]])
+    F = nlp.functions
+    lam = np.random.default_rng(2).normal(size=F["nlp_fg"].size1_out(1))
+    upper = np.asarray(ca.densify(F["nlp_hess_l"](w, P, 1.0, lam)))
+    hessian = np.triu(upper) + np.triu(upper, 1).T
+    step = 1e-6
+    for i in range(0, len(w), 13):
+        e = np.zeros(len(w))
+        e[i] = step
+        column = (lagrangian_gradient(F, w + e, P, lam) - lagrangian_gradient(F, w - e, P, lam)) / (2 * step)
+        assert np.max(np.abs(column - hessian[:, i])) <= 1e-5 * max(1.0, np.max(np.abs(column)))
+
+
+def test_nlp_solution_is_a_fixed_point_to_rk4_accuracy(solver, downward_spec):
+    sol = solver.nlp.solve(downward_spec, rmap=solver.residual_map)
+    assert sol.return_status == "Solve_Succeeded" and sol.iterations <= 10
+    apex = solver.residual_map(sol.X, sol.u, downward_spec.params)
+    assert np.linalg.norm(apex - sol.X) / np.linalg.norm(sol.X) <= 1e-5
+
+
+def test_unknown_hessian_is_refused():
+    with pytest.raises(ValueError, match="hessian"):
+        ShootingNLP(ShootingOptions(hessian="newton"))
