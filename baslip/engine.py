@@ -82,14 +82,14 @@ class CompiledEngine:
         if verdict is None or not verdict.ok:
             return None if verdict is None else (None, verdict)
         jac, *outputs = self.functions.jacobian(n)(X, u, p, plan[1])
-        return jac, self._judge(*outputs)
+        return jac, self.judge(*outputs)
 
     # -- pieces ----------------------------------------------------------------------
 
     def _final(self, X, u, p, tiers, guesses) -> tuple[int, Stride | None]:
         """The final pass at the first tier whose error estimate is within the tolerance."""
         for n in tiers:
-            verdict = self._judge(*self.functions.final(n)(X, u, p, guesses))
+            verdict = self.judge(*self.functions.final(n)(X, u, p, guesses))
             if verdict != "refine":
                 return n, verdict
         return tiers[-1], None
@@ -97,11 +97,10 @@ class CompiledEngine:
     def _plan(self, X, u, p, t_guess):
         """Touchdown checks and the scout: a fall, None, or (tiers to try, guesses)."""
         x_td, com_height, _ = (np.asarray(v).ravel() for v in self.functions.touchdown_state(X, u, p, t_guess))
+        fall = touchdown_fall(x_td, float(com_height[0]), t_guess)
+        if fall is not None:
+            return fall
         descent = {"descent": float(t_guess)}
-        if com_height[0] <= 0.0:
-            return Stride(None, descent, Fall.COM_HITS_GROUND)
-        if STANCE.get(x_td, "rhodot") >= 0.0:
-            return Stride(None, descent, Fall.LEG_EXTENDING_AT_TOUCHDOWN)
         scouted = self._scout(x_td, np.concatenate([u, p]), X, u, p)
         if not isinstance(scouted, Scouted):
             return scouted if scouted is None else Stride(None, descent, scouted)
@@ -134,26 +133,26 @@ class CompiledEngine:
             times = t0 + h * np.arange(SCOUT_STEPS + 1)
             rhodot = STANCE.get(nodes, "rhodot")
             if bottom is None:
-                j = _first_rise(rhodot)
+                j = first_rise(rhodot)
                 if j is not None:
-                    bottom = _hermite_root(times[j - 1 : j + 1], rhodot[j - 1 : j + 1], rates[3, j - 1 : j + 1])
+                    bottom = hermite_root(times[j - 1 : j + 1], rhodot[j - 1 : j + 1], rates[3, j - 1 : j + 1])
             liftoff_step = None
             if bottom is not None:
                 stretch = np.where(times >= bottom, STANCE.get(nodes, "rho") - rho0, -1.0)
-                liftoff_step = _first_rise(stretch)
-                graze = _first_grazing_step(stretch, rhodot, h)
+                liftoff_step = first_rise(stretch)
+                graze = first_grazing_step(stretch, rhodot, h)
                 if graze is not None and (liftoff_step is None or graze < liftoff_step - 1):
                     liftoff = self._liftoff_in_step(nodes[:, graze], times[graze], h, theta, rho0)
                     if liftoff is not None:
                         return Scouted(bottom, liftoff, rate, h, error + float(np.sum(errors[0, : graze + 1])))
             # The liftoff step itself is left to the final pass, whose last step ends on
             # the event: the runner may touch the ground after leaving it.
-            fall_step = _first_fall_step(clearance, None if liftoff_step is None else liftoff_step - 1)
+            fall_step = first_fall_step(clearance, None if liftoff_step is None else liftoff_step - 1)
             if fall_step is not None:
                 return self._fall_in_step(nodes[:, fall_step], h, theta)
             if liftoff_step is not None:
                 k = liftoff_step
-                liftoff = _hermite_root(times[k - 1 : k + 1], stretch[k - 1 : k + 1], rhodot[k - 1 : k + 1])
+                liftoff = hermite_root(times[k - 1 : k + 1], stretch[k - 1 : k + 1], rhodot[k - 1 : k + 1])
                 return Scouted(bottom, liftoff, rate, h, error + float(np.sum(errors[0, :k])))
             error += float(np.sum(errors))
             x0, t0 = nodes[:, -1], times[-1]
@@ -167,10 +166,10 @@ class CompiledEngine:
         nodes = self.functions.scout(x0, fine, theta)[0]
         times = t0 + fine * np.arange(SCOUT_STEPS + 1)
         stretch, rhodot = STANCE.get(nodes, "rho") - rho0, STANCE.get(nodes, "rhodot")
-        k = _first_rise(stretch)
+        k = first_rise(stretch)
         if k is not None:
-            return _hermite_root(times[k - 1 : k + 1], stretch[k - 1 : k + 1], rhodot[k - 1 : k + 1])
-        graze = _first_grazing_step(stretch, rhodot, fine)
+            return hermite_root(times[k - 1 : k + 1], stretch[k - 1 : k + 1], rhodot[k - 1 : k + 1])
+        graze = first_grazing_step(stretch, rhodot, fine)
         if graze is None or depth <= 1:
             return None
         return self._liftoff_in_step(nodes[:, graze], times[graze], fine, theta, rho0, depth - 1)
@@ -180,7 +179,7 @@ class CompiledEngine:
         several do within the step, the step is re-scouted in finer steps to order them."""
         fine = h / SCOUT_STEPS
         nodes, _, clearance, _ = self.functions.scout(x0, fine, theta)
-        step = _first_fall_step(clearance, None)
+        step = first_fall_step(clearance, None)
         if step is None:  # the step's stage points saw it, the finer steps' did not
             step = clearance.shape[1] - 1
         hit = clearance[:, step] <= 0.0
@@ -189,7 +188,7 @@ class CompiledEngine:
         which = int(np.argmax(hit)) if hit.any() else int(np.argmin(clearance[:, step]))
         return _CLEARANCE_FALLS[CLEARANCES[which]]
 
-    def _judge(self, apex, durations, diagnostics) -> Stride | str | None:
+    def judge(self, apex, durations, diagnostics) -> Stride | str | None:
         """The stride, "refine" (error estimate too large) or None (cannot vouch for it)."""
         apex, durations = np.asarray(apex).ravel(), np.asarray(durations).ravel()
         d = DIAGNOSTICS.to_dict(diagnostics)
@@ -221,7 +220,7 @@ def _events_in_last_step(d: dict, reached: dict) -> bool:
     )
 
 
-def _first_grazing_step(stretch: np.ndarray, rhodot: np.ndarray, h: float) -> int | None:
+def first_grazing_step(stretch: np.ndarray, rhodot: np.ndarray, h: float) -> int | None:
     """The first step where rho peaks (rhodot falls through 0) with both nodes below rho0
     but within the rise that the step's speed allows: rho may touch rho0 in between."""
     peak = (rhodot[:-1] > 0.0) & (rhodot[1:] <= 0.0) & (stretch[:-1] < 0.0) & (stretch[1:] < 0.0)
@@ -230,20 +229,31 @@ def _first_grazing_step(stretch: np.ndarray, rhodot: np.ndarray, h: float) -> in
     return int(steps[0]) if len(steps) else None
 
 
-def _first_rise(values: np.ndarray) -> int | None:
+def touchdown_fall(x_touchdown, com_height: float, t_descent: float) -> Stride | None:
+    """The fall seen at touchdown: the CoM already below ground, where no crossing in
+    stance could see it, or the leg extending (rhodot >= 0); else None."""
+    descent = {"descent": float(t_descent)}
+    if com_height <= 0.0:
+        return Stride(None, descent, Fall.COM_HITS_GROUND)
+    if STANCE.get(x_touchdown, "rhodot") >= 0.0:
+        return Stride(None, descent, Fall.LEG_EXTENDING_AT_TOUCHDOWN)
+    return None
+
+
+def first_rise(values: np.ndarray) -> int | None:
     """The first index j >= 1 with values[j] >= 0 after values[j - 1] < 0, or None."""
     rises = np.nonzero((values[1:] >= 0.0) & (values[:-1] < 0.0))[0]
     return int(rises[0]) + 1 if len(rises) else None
 
 
-def _first_fall_step(clearance: np.ndarray, last_step: int | None) -> int | None:
+def first_fall_step(clearance: np.ndarray, last_step: int | None) -> int | None:
     """The earliest step (up to the liftoff step) in which a clearance reaches zero."""
     steps = clearance.shape[1] if last_step is None else last_step
     hit = np.nonzero(np.any(clearance[:, :steps] <= 0.0, axis=0))[0]
     return int(hit[0]) if len(hit) else None
 
 
-def _hermite_root(t, g, dg) -> float:
+def hermite_root(t, g, dg) -> float:
     """The root in [t0, t1] of the cubic Hermite interpolant of g (g0 < 0 <= g1)."""
     t0, span = float(t[0]), float(t[1] - t[0])
     g0, g1 = float(g[0]), float(g[1])
