@@ -36,6 +36,8 @@ _CLEARANCE_FALLS = {
 #: Newton on an event step is converged when its last update is below this fraction of
 #: the phase duration.
 NEWTON_CONVERGED = 1e-13
+#: Times the scout starts again with a quarter of its step after its state blows up.
+SCOUT_REFINEMENTS = 2
 #: The event must end the phase within this many grid steps of the grid's end.
 LAST_STEP_RANGE = (0.0, 2.0)
 
@@ -125,11 +127,16 @@ class CompiledEngine:
         h = min(half_period(p) / SCOUT_STEPS_PER_HALF_PERIOD, MAX_SCOUT_STEP_RATE / rate)
         horizon = STANCE_HORIZON_HALF_PERIODS * half_period(p)
         rho0 = PARAMS.get(p, "rho0")
-        t0, bottom, error = 0.0, None, 0.0
+        t0, bottom, error, x_td, refinements = 0.0, None, 0.0, x0, SCOUT_REFINEMENTS
         while t0 < horizon:
             nodes, rates, clearance, errors = self.functions.scout(x0, h, theta)
-            if not np.all(np.isfinite(nodes)):
-                return None
+            if not (np.all(np.isfinite(nodes)) and np.all(np.isfinite(rates))):
+                # Unstable steps: the stiffness estimate missed a faster rate. Finer steps
+                # from touchdown, a few times; garbage before the blow-up is never read.
+                if refinements == 0:
+                    return None
+                refinements, h, t0, x0, bottom, error = refinements - 1, h / 4, 0.0, x_td, None, 0.0
+                continue
             times = t0 + h * np.arange(SCOUT_STEPS + 1)
             rhodot = STANCE.get(nodes, "rhodot")
             if bottom is None:
@@ -174,19 +181,23 @@ class CompiledEngine:
             return None
         return self._liftoff_in_step(nodes[:, graze], times[graze], fine, theta, rho0, depth - 1)
 
-    def _fall_in_step(self, x0, h, theta, depth: int = 3) -> Fall:
-        """Which clearance reaches zero first in the step of size ``h`` from ``x0``: when
-        several do within the step, the step is re-scouted in finer steps to order them."""
+    def _fall_in_step(self, x0, h, theta, depth: int = 3) -> Fall | None:
+        """Which clearance reaches zero first in the step of size ``h`` from ``x0``, by
+        re-scouting the step in finer steps (again, as often as ``depth`` times, while
+        several clearances fall in one step). None if the finer steps see no fall: the
+        coarse step's stage states, rough for fast motion, raised a false alarm, and the
+        careful path decides."""
         fine = h / SCOUT_STEPS
         nodes, _, clearance, _ = self.functions.scout(x0, fine, theta)
+        if not np.all(np.isfinite(nodes)):
+            return None
         step = first_fall_step(clearance, None)
-        if step is None:  # the step's stage points saw it, the finer steps' did not
-            step = clearance.shape[1] - 1
+        if step is None:
+            return None
         hit = clearance[:, step] <= 0.0
         if np.count_nonzero(hit) > 1 and depth > 1:
             return self._fall_in_step(nodes[:, step], fine, theta, depth - 1)
-        which = int(np.argmax(hit)) if hit.any() else int(np.argmin(clearance[:, step]))
-        return _CLEARANCE_FALLS[CLEARANCES[which]]
+        return _CLEARANCE_FALLS[CLEARANCES[int(np.argmax(hit))]]
 
     def judge(self, apex, durations, diagnostics) -> Stride | str | None:
         """The stride, "refine" (error estimate too large) or None (cannot vouch for it)."""
@@ -195,9 +206,11 @@ class CompiledEngine:
         reached = dict(zip(PHASES, durations.tolist()))
         if not _events_in_last_step(d, reached):
             return None
-        for name in CLEARANCES:
-            if d[f"{name}_min"] <= 0.0:
-                return Stride(None, {"descent": reached["descent"]}, _CLEARANCE_FALLS[name])
+        fallen = [name for name in CLEARANCES if d[f"{name}_min"] <= 0.0]
+        if len(fallen) > 1:
+            return None  # the pass knows which clearances fell, not which fell first
+        if fallen:
+            return Stride(None, {"descent": reached["descent"]}, _CLEARANCE_FALLS[fallen[0]])
         if d["zdot_lo"] <= 0.0:
             return Stride(None, {k: reached[k] for k in PHASES[:3]}, Fall.LIFTOFF_DESCENDING)
         if not np.all(np.isfinite(apex)) or not np.isfinite(d["error"]):
