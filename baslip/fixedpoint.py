@@ -3,10 +3,9 @@
 1. IPOPT solves the multiple-shooting NLP (:mod:`baslip.shooting`), whose RK4
    discretisation is accurate to about 1e-6; if IPOPT fails with the default objective
    Hessian, the exact-Hessian NLP gets a second try.
-2. Gauss-Newton on the compiled return map polishes the free quantities until
-   ``r(X, u) = X`` to integrator accuracy. The step is the minimum-norm least-squares step
-   in scaled variables (truncated SVD), so rank-deficient equations (no torque: energy
-   conservation; the SLIP limit) converge too. Quantities at an active bound stay there.
+2. Gauss-Newton on the compiled return map (:mod:`baslip.polish`) polishes the free
+   quantities until ``r(X, u) = X`` to integrator accuracy. Quantities at an active
+   bound stay there.
 3. An independent return map, a different integrator (Rosenbrock) at rtol = atol = 1e-12,
    re-simulates the stride; only ``eps = |r(X) - X| / |X| <= 1e-10`` (thesis eq. 4.1) is
    reported as ``converged``.
@@ -19,13 +18,13 @@ import time
 from dataclasses import dataclass, replace
 from typing import Mapping
 
-import casadi as ca
 import numpy as np
 
 from .control import CONTROL
-from .model import APEX, PARAMS, Params, apex_energy
+from .model import APEX, Params
 from .returnmap import PHASES, ReturnMap, Tolerances
 from .quantities import DESIGN, NOMINAL
+from .polish import Polish, eps as _eps
 from .shooting import FixedPointSpec, NlpSolution, ShootingNLP, ShootingOptions, torque_effort
 from .stability import Stability, classify
 
@@ -33,15 +32,6 @@ from .stability import Stability, classify
 VERIFY_EPS = 1e-10
 #: Tolerances of the independent verification map.
 VERIFY_TOLERANCES = Tolerances(rtol=1e-12, atol=1e-12)
-#: Gauss-Newton stops once eps is below this (well inside VERIFY_EPS).
-POLISH_EPS = 1e-12
-POLISH_MAX_ITER = 10
-#: Halvings of a polish step before the polish gives up, and the growth of the
-#: residual's norm that makes a step back off.
-POLISH_BACKTRACKS = 8
-POLISH_GROWTH = 10.0
-#: Relative singular-value cutoff of the polish step (rank-deficient fixed-point equations).
-POLISH_RCOND = 1e-9
 #: IPOPT outcomes whose point goes on to polish and verification ("Feasible_Point_Found"
 #: is IPOPT's success for square problems, e.g. the SLIP limit at fixed energy).
 ACCEPTED_IPOPT = ("Solve_Succeeded", "Solved_To_Acceptable_Level", "Feasible_Point_Found")
@@ -153,9 +143,7 @@ class FixedPointSolver:
         # map at 1e-10 would cost a second build of the engine in every process.
         self.jacobian_map = self.residual_map
         self.verify_map = ReturnMap(VERIFY_TOLERANCES, plugin="rosenbrock")
-        X, p = APEX.sym("X"), PARAMS.sym("p")
-        self._energy = ca.Function("apex_energy", [X, p], [apex_energy(X, p)])
-        self._energy_gradient = ca.Function("energy_gradient", [X, p], [ca.gradient(apex_energy(X, p), X)])
+        self._polish = Polish(self.residual_map, self.jacobian_map)
 
     def solve(self, spec: FixedPointSpec, name: str = "problem", w0: np.ndarray | None = None) -> FixedPointResult:
         """Solve ``spec`` from its guess (or from the NLP point ``w0``) and verify the answer."""
@@ -170,7 +158,7 @@ class FixedPointSolver:
             sol = replace(retry, iterations=sol.iterations + retry.iterations)
         if sol.return_status not in ACCEPTED_IPOPT:
             return self._result(spec, name, "failed", f"IPOPT: {sol.return_status}", sol, start, sol.X, sol.u)
-        X, u, iterations, note = self._polish(spec, sol)
+        X, u, iterations, note = self._polish.run(spec, sol.X, sol.u)
         check = self.verify_map.simulate(X, u, spec.params, spec.strides)
         if check.fall is not None:
             return self._result(spec, name, "not_verified", f"re-simulation falls: {check.fall.value}", sol, start, X, u, iterations)
@@ -204,71 +192,6 @@ class FixedPointSolver:
 
     # -- pieces --------------------------------------------------------------------------
 
-    def _polish(self, spec: FixedPointSpec, sol: NlpSolution) -> tuple[np.ndarray, np.ndarray, int, str]:
-        """Gauss-Newton on r^N(X, u) - X (and the energy) over the free, inactive quantities.
-        A step that falls or multiplies the residual's norm by :data:`POLISH_GROWTH` is
-        halved: where the NLP's RK4 point is far from the exact map's manifold, a full step
-        can overshoot into a fall."""
-        design = np.concatenate([sol.X, sol.u])
-        # IPOPT relaxes bounds by ~1e-8, so fixed quantities come back slightly off: reset them.
-        for i, name in enumerate(DESIGN):
-            if name in spec.fixed:
-                design[i] = spec.fixed[name]
-        movable = self._movable(spec, design)
-        energy_target = self._energy_target(spec, design[: APEX.size])
-        scale = np.array([NOMINAL[n] for n in DESIGN])[movable]
-        nx = APEX.size
-        rows, fall = self._polish_rows(spec, design, energy_target)
-        if fall is not None:
-            return design[:nx], design[nx:], 0, f" (polish stopped: {fall.value})"
-        for iteration in range(POLISH_MAX_ITER + 1):
-            X, u = design[:nx], design[nx:]
-            if _eps(X + rows[:nx], X) <= POLISH_EPS and np.all(np.abs(rows[nx:]) <= POLISH_EPS):
-                return X, u, iteration, ""
-            if iteration == POLISH_MAX_ITER or not movable.any():
-                break
-            dr_dX, dr_du = self.jacobian_map.jacobians(X, u, spec.params, spec.strides)
-            jac = np.hstack([dr_dX - np.eye(nx), dr_du])
-            if energy_target is not None:
-                gradient = np.asarray(self._energy_gradient(X, spec.params.vector())).ravel()
-                jac = np.vstack([jac, np.concatenate([gradient, np.zeros(CONTROL.size)])])
-            step = np.linalg.lstsq(jac[:, movable] * scale, -rows, rcond=POLISH_RCOND)[0]
-            for _ in range(POLISH_BACKTRACKS + 1):
-                trial = design.copy()
-                trial[movable] += step * scale
-                trial_rows, fall = self._polish_rows(spec, trial, energy_target)
-                # Gauss-Newton may raise the residual for a step before it falls
-                # quadratically; only a fall or a blow-up makes it backtrack.
-                if fall is None and np.linalg.norm(trial_rows) < POLISH_GROWTH * np.linalg.norm(rows):
-                    break
-                step = step / 2
-            else:
-                reason = f"a fall: {fall.value}" if fall is not None else "no step reduces the residual"
-                return X, u, iteration, f" (polish stopped: {reason})"
-            design, rows = trial, trial_rows
-        return design[:nx], design[nx:], POLISH_MAX_ITER, f" (polish reached {POLISH_MAX_ITER} iterations)"
-
-    def _polish_rows(self, spec: FixedPointSpec, design: np.ndarray, energy_target: float | None):
-        """(r^N(X, u) - X with the energy row if the energy is held, or None; the fall)."""
-        X, u = design[: APEX.size], design[APEX.size :]
-        orbit = self.residual_map.simulate(X, u, spec.params, spec.strides)
-        if orbit.fall is not None:
-            return None, orbit.fall
-        rows = [orbit.apexes[-1] - X]
-        if energy_target is not None:
-            rows.append([self.energy(X, spec.params) - energy_target])
-        return np.concatenate(rows), None
-
-    def _energy_target(self, spec: FixedPointSpec, X) -> float | None:
-        """The apex energy the polish must hold: the fixed value, or a bound IPOPT ended on."""
-        if "energy" in spec.fixed:
-            return spec.fixed["energy"]
-        energy = self.energy(X, spec.params)
-        for bound in spec.bounds.get("energy", ()):
-            if np.isfinite(bound) and abs(energy - bound) <= 1e-7 * max(1.0, abs(bound)):
-                return bound
-        return None
-
     def _violation(self, spec: FixedPointSpec, X, u) -> str | None:
         """What the polished point breaks, if anything: a fixed energy or any bound."""
         energy = self.energy(X, spec.params)
@@ -285,16 +208,6 @@ class FixedPointSolver:
                 return f"{name} = {value:.12g} lies outside its bounds [{lo:g}, {hi:g}]"
         return None
 
-    @staticmethod
-    def _movable(spec: FixedPointSpec, design: np.ndarray) -> np.ndarray:
-        """Free design quantities not sitting on one of their bounds."""
-        movable = np.ones(len(DESIGN), dtype=bool)
-        for i, name in enumerate(DESIGN):
-            lo, hi = spec.bounds_of(name)
-            on_bound = min(abs(design[i] - lo), abs(design[i] - hi)) <= 1e-7 * NOMINAL[name]
-            movable[i] = name not in spec.fixed and not on_bound
-        return movable
-
     def torque_effort(self, result: FixedPointResult) -> float:
         """Integral of tau^2 dt over the stance of a result's (first) stride [N^2 m^2 s]."""
         durations = [result.durations[ph] for ph in PHASES]
@@ -302,7 +215,7 @@ class FixedPointSolver:
 
     def energy(self, X, params: Params) -> float:
         """Total mechanical energy at apex ``X`` [J]."""
-        return float(self._energy(X, params.vector()))
+        return self._polish.energy(X, params)
 
     def _result(self, spec, name, status, message, sol, start, X, u, polish_iterations=0, check=None, stability=None):
         if check is not None and check.fall is None:
@@ -356,8 +269,3 @@ def _describe(rmap: ReturnMap) -> str:
 def _first_line(err: Exception) -> str:
     lines = str(err).strip().splitlines()
     return lines[-1] if lines else type(err).__name__
-
-
-def _eps(apex_next, X) -> float:
-    """Thesis eq. 4.1: |X[n+1] - X[n]| / |X[n]|."""
-    return float(np.linalg.norm(np.asarray(apex_next) - np.asarray(X)) / np.linalg.norm(X))

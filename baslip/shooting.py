@@ -199,7 +199,8 @@ class ShootingNLP:
             decomp_nodes = ca.MX.sym(f"decompression_nodes{k}", STANCE.size, self.options.nodes)
             if apex_next is not None:
                 constrain(apex_next - X, 0, 0)  # strides join
-            apex_next, stride_effort = self._stride(X, u, p, T, comp_nodes, decomp_nodes, constrain)
+            apex_next, stride_effort = _shoot_stride(self._stance, self._interval, self.options, X, u, p, T,
+                                                     comp_nodes, decomp_nodes, constrain)
             effort.append(stride_effort)
             apexes.append(X)
             # X_0 and u lead the vector so that the design is w[:len(DESIGN)] for any N.
@@ -241,57 +242,6 @@ class ShootingNLP:
         else:
             options["hess_lag"] = functions["nlp_hess_l"]
         return ca.nlpsol("periodic_orbit", "ipopt", {"x": w, "p": params, "f": f, "g": g}, options)
-
-    def _stride(self, X, u, p, T, comp_nodes, decomp_nodes, constrain):
-        """Constrain one shot stride from apex ``X``; return its next apex and the
-        residuals r whose sum of squares is its tau^2 integral [N^2 m^2 s] by the
-        trapezoidal rule over the nodes."""
-        opt, n = self.options, self.options.nodes
-        t_descent, t_compression, t_decompression, t_ascent = (T[i] for i in range(len(PHASES)))
-        theta = ca.repmat(ca.vertcat(u, p), 1, n)
-        theta_td = touchdown_angle(u)
-        apex_flight = apex_to_flight(X)
-        # Descent: the foot stays above ground until it crosses zero, falling.
-        for fraction in (0.0, 0.25, 0.5, 0.75):
-            constrain(touchdown_guard(ballistic_flight(apex_flight, fraction * t_descent, p), theta_td, p), 0, ca.inf)
-        at_touchdown = ballistic_flight(apex_flight, t_descent, p)
-        constrain(touchdown_guard(at_touchdown, theta_td, p), 0, 0)
-        constrain(touchdown_guard_rate(at_touchdown, p), -ca.inf, -opt.margin)
-        x_td = touchdown_map(at_touchdown, theta_td, p)
-
-        starts_c = ca.horzcat(x_td, comp_nodes[:, :-1])
-        ends_c = self._interval.map(n)(starts_c, ca.repmat(t_compression / n, 1, n), theta)
-        constrain(comp_nodes - ends_c, 0, 0)
-        bottom = comp_nodes[:, -1]
-        constrain(bottom_guard(bottom), 0, 0)
-        rho_accel = STANCE.get(self._stance.rhs(bottom, ca.vertcat(u, p)), "rhodot")
-        constrain(rho_accel, opt.margin, ca.inf)
-        # The leg shortens from touchdown (transversally) until the bottom.
-        constrain(bottom_guard(x_td), -ca.inf, -opt.margin)
-        constrain(bottom_guard(comp_nodes[:, :-1]), -ca.inf, 0)
-
-        starts_d = ca.horzcat(bottom, decomp_nodes[:, :-1])
-        ends_d = self._interval.map(n)(starts_d, ca.repmat(t_decompression / n, 1, n), theta)
-        constrain(decomp_nodes - ends_d, 0, 0)
-        x_lo = decomp_nodes[:, -1]
-        constrain(liftoff_guard(x_lo, p), 0, 0)
-        constrain(STANCE.get(x_lo, "rhodot"), opt.margin, ca.inf)
-        # The leg stays compressed until liftoff.
-        constrain(liftoff_guard(starts_d[:, 1:], p), -ca.inf, 0)
-        # CoM, hip and leg clear of the ground at the nodes (smooth constraints; the
-        # compiled map checks every stage point when it polishes and re-simulates).
-        for nodes in (comp_nodes, decomp_nodes):
-            for k in range(n):
-                constrain(stance_clearances(nodes[:, k], ca.vertcat(u, p)), 0, ca.inf)
-
-        at_liftoff = liftoff_map(x_lo, p)
-        constrain(FLIGHT.get(at_liftoff, "zdot"), opt.margin, ca.inf)
-        at_apex = ballistic_flight(at_liftoff, t_ascent, p)
-        constrain(FLIGHT.get(at_apex, "zdot"), 0, 0)  # apex guard
-        apex_next = ca.vertcat(*(FLIGHT.get(at_apex, name) for name in APEX.names))
-        effort = ca.vertcat(_effort_residuals(ca.horzcat(x_td, comp_nodes), u, t_compression / n),
-                            _effort_residuals(ca.horzcat(bottom, decomp_nodes), u, t_decompression / n))
-        return apex_next, effort
 
     # -- solving -----------------------------------------------------------------------
 
@@ -383,6 +333,59 @@ class ShootingNLP:
             time_s=elapsed,
             w=w,
         )
+
+
+def _shoot_stride(stance: StanceFlow, interval: ca.Function, opt: ShootingOptions, X, u, p, T, comp_nodes,
+                  decomp_nodes, constrain):
+    """Constrain one shot stride from apex ``X`` through ``constrain(expr, lo, hi)``; return
+    its next apex and the residuals r whose sum of squares is its tau^2 integral
+    [N^2 m^2 s] by the trapezoidal rule over the nodes."""
+    n = opt.nodes
+    t_descent, t_compression, t_decompression, t_ascent = (T[i] for i in range(len(PHASES)))
+    theta = ca.repmat(ca.vertcat(u, p), 1, n)
+    theta_td = touchdown_angle(u)
+    apex_flight = apex_to_flight(X)
+    # Descent: the foot stays above ground until it crosses zero, falling.
+    for fraction in (0.0, 0.25, 0.5, 0.75):
+        constrain(touchdown_guard(ballistic_flight(apex_flight, fraction * t_descent, p), theta_td, p), 0, ca.inf)
+    at_touchdown = ballistic_flight(apex_flight, t_descent, p)
+    constrain(touchdown_guard(at_touchdown, theta_td, p), 0, 0)
+    constrain(touchdown_guard_rate(at_touchdown, p), -ca.inf, -opt.margin)
+    x_td = touchdown_map(at_touchdown, theta_td, p)
+
+    starts_c = ca.horzcat(x_td, comp_nodes[:, :-1])
+    ends_c = interval.map(n)(starts_c, ca.repmat(t_compression / n, 1, n), theta)
+    constrain(comp_nodes - ends_c, 0, 0)
+    bottom = comp_nodes[:, -1]
+    constrain(bottom_guard(bottom), 0, 0)
+    rho_accel = STANCE.get(stance.rhs(bottom, ca.vertcat(u, p)), "rhodot")
+    constrain(rho_accel, opt.margin, ca.inf)
+    # The leg shortens from touchdown (transversally) until the bottom.
+    constrain(bottom_guard(x_td), -ca.inf, -opt.margin)
+    constrain(bottom_guard(comp_nodes[:, :-1]), -ca.inf, 0)
+
+    starts_d = ca.horzcat(bottom, decomp_nodes[:, :-1])
+    ends_d = interval.map(n)(starts_d, ca.repmat(t_decompression / n, 1, n), theta)
+    constrain(decomp_nodes - ends_d, 0, 0)
+    x_lo = decomp_nodes[:, -1]
+    constrain(liftoff_guard(x_lo, p), 0, 0)
+    constrain(STANCE.get(x_lo, "rhodot"), opt.margin, ca.inf)
+    # The leg stays compressed until liftoff.
+    constrain(liftoff_guard(starts_d[:, 1:], p), -ca.inf, 0)
+    # CoM, hip and leg clear of the ground at the nodes (smooth constraints; the
+    # compiled map checks every stage point when it polishes and re-simulates).
+    for nodes in (comp_nodes, decomp_nodes):
+        for k in range(n):
+            constrain(stance_clearances(nodes[:, k], ca.vertcat(u, p)), 0, ca.inf)
+
+    at_liftoff = liftoff_map(x_lo, p)
+    constrain(FLIGHT.get(at_liftoff, "zdot"), opt.margin, ca.inf)
+    at_apex = ballistic_flight(at_liftoff, t_ascent, p)
+    constrain(FLIGHT.get(at_apex, "zdot"), 0, 0)  # apex guard
+    apex_next = ca.vertcat(*(FLIGHT.get(at_apex, name) for name in APEX.names))
+    effort = ca.vertcat(_effort_residuals(ca.horzcat(x_td, comp_nodes), u, t_compression / n),
+                        _effort_residuals(ca.horzcat(bottom, decomp_nodes), u, t_decompression / n))
+    return apex_next, effort
 
 
 def implied_periodicity(spec: FixedPointSpec) -> tuple[str, ...]:
