@@ -1,11 +1,14 @@
-"""Benchmark of the core: return map, its Jacobian, and a verified fixed-point solve.
+"""Benchmark of the adaptive event map (the reference and fallback engine): return map,
+its Jacobian, and a verified fixed-point solve. The compiled engine has its own,
+``bench_engine.py``.
 
     python benchmarks/bench_core.py [--repeats N]
 
 Prints medians over repeated runs in one process, after everything is built. Also compares
 the two ways of locating stance events that CasADi offers (see README, "Event location"):
 
-* A: one ``erk`` integrator with zero-crossing events and a transition function (used);
+* A: one ``erk`` integrator with zero-crossing events and a transition function (the
+  event map's route);
 * B: a ``cvodes`` integrator over a time-scaled horizon, with a Newton ``rootfinder`` on
   the liftoff guard (each Newton iteration re-integrates the stance).
 """
@@ -73,7 +76,7 @@ def bench_event_routes(params: Params, repeats: int) -> None:
     print("\nEvent location, stance only (touchdown state of a running stride):")
     print(f"  {'route':<28} {'tol':>6} {'value ms':>9} {'+Jacobian ms':>13} {'hop event error s':>18}")
     for tol in (1e-10, 1e-12):
-        rmap = ReturnMap(Tolerances(tol, tol))
+        rmap = ReturnMap(Tolerances(tol, tol), plugin="erk")
         t_td = rmap.touchdown_guess(X_RUN, U_RUN, p)
         # Route A in isolation: the stance integrator of the return map.
         stride = rmap.stride(X_RUN, U_RUN, params)
@@ -120,9 +123,9 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=10)
     args = parser.parse_args()
     params = Params()
-    print("Return map r(X, u) of a running stride, median per evaluation:")
+    print("Return map r(X, u) of a running stride by the erk event map, median per evaluation:")
     for tol in (1e-8, 1e-10, 1e-12):
-        rmap = ReturnMap(Tolerances(tol, tol))
+        rmap = ReturnMap(Tolerances(tol, tol), plugin="erk")
         value = median_ms(lambda: rmap.stride(X_RUN, U_RUN, params), args.repeats)
         both = median_ms(lambda: (rmap.stride(X_RUN, U_RUN, params), rmap.jacobians(X_RUN, U_RUN, params)), max(3, args.repeats // 3))
         print(f"  rtol = atol = {tol:.0e}: r {value:6.2f} ms | r + dr/dX + dr/du {both:7.1f} ms")
