@@ -149,6 +149,9 @@ class CompiledEngine:
                 liftoff_step = first_rise(stretch)
                 graze = first_grazing_step(stretch, rhodot, h)
                 if graze is not None and (liftoff_step is None or graze < liftoff_step - 1):
+                    fall_step = first_fall_step(clearance, graze)
+                    if fall_step is not None:
+                        return self._fall_in_step(nodes[:, fall_step], h, theta)
                     liftoff = self._liftoff_in_step(nodes[:, graze], times[graze], h, theta, rho0)
                     if liftoff is not None:
                         return Scouted(bottom, liftoff, rate, h, error + float(np.sum(errors[0, : graze + 1])))
