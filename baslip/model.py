@@ -72,7 +72,8 @@ class Params:
     g: float = 9.81
 
     def vector(self) -> np.ndarray:
-        return PARAMS.pack(asdict(self))
+        """The parameters in :data:`PARAMS` order (called for every stride: no asdict)."""
+        return np.array([self.m, self.I, self.k, self.rho0, self.d, self.g], dtype=float)
 
     def to_dict(self) -> dict[str, float]:
         return {k: float(v) for k, v in asdict(self).items()}
