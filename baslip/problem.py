@@ -24,18 +24,24 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Mapping
 
-import yaml
+import itertools
+from dataclasses import replace
 
+from .inputs import InputError, NonScalarKey, clip, excerpt, read_yaml
 from .model import PARAMS, Params
-from .quantities import DEFAULT_BOUNDS, DESIGN, OBJECTIVES, QUANTITIES, start_value
-from .studies.schema import Study, StudyError, parse_study
+from .quantities import DEFAULT_BOUNDS, DESIGN, OBJECTIVES, PARAM_RANGES, QUANTITIES, UNITS, physical_range, start_value
+from .studies.schema import Basin, Study, StudyError, Sweep, parse_study
 
 ANGLES = ("theta_h", "theta2_des", "theta_td")
 RATES = ("theta_h_dot", "theta2_dot_des")
-POSITIVE_PARAMS = ("m", "I", "k", "rho0", "g")
 TOP_LEVEL_KEYS = ("name", "params", "fix", "guess", "bounds", "objective", "strides", "solver", "study", "continuation")
 #: Longest orbit, in strides, that a problem may ask for.
 MAX_STRIDES = 16
+#: Most fixed points one sweep may ask for (a day of solving on two cores).
+MAX_SWEEP_POINTS = 100_000
+#: Range of IPOPT's tolerance, and the largest first continuation step (scaled units).
+TOLERANCES = (1e-16, 1e-2)
+MAX_STEP = 10.0
 
 class ProblemError(ValueError):
     """An invalid problem; ``key`` is the dotted path of the offending entry."""
@@ -44,7 +50,7 @@ class ProblemError(ValueError):
         text = f"{key}: {message}" if key else message
         # One line, whatever the file contained (keys or values may hold newlines).
         super().__init__(text.replace("\r", "\\r").replace("\n", "\\n"))
-        self.key = key
+        self.key, self.message = key, message
 
 
 @dataclass(frozen=True)
@@ -97,50 +103,28 @@ def load_problem(path: str | Path) -> Problem:
         raise ProblemError("", f"problem file {path} is not UTF-8 text") from None
     except OSError as err:
         raise ProblemError("", f"cannot read problem file {path}: {err.strerror}") from None
-    if not text.strip():
-        raise ProblemError("", f"problem file {path} is empty")
     try:
-        data = yaml.load(text, Loader=_StrictLoader)
-    except yaml.YAMLError as err:
-        mark = getattr(err, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        problem = getattr(err, "problem", None) or "cannot parse"
-        raise ProblemError("", f"malformed YAML{where}: {problem}") from None
-    except RecursionError:
-        raise ProblemError("", "malformed YAML: nested too deeply") from None
+        data = read_yaml(text)
+    except InputError as err:
+        raise ProblemError("", str(err)) from None
+    if data is None:
+        raise ProblemError("", f"problem file {path} is empty (it holds no YAML mapping, only comments or null)")
     return parse_problem(data, default_name=re.sub(r"[^A-Za-z0-9_.-]", "_", path.stem))
-
-
-class _StrictLoader(yaml.SafeLoader):
-    """YAML's safe loader, but a repeated key is an error instead of silently last-wins."""
-
-    def construct_mapping(self, node, deep=False):
-        seen = set()
-        for key_node, _ in node.value:
-            key = self.construct_object(key_node, deep=deep)
-            if key in seen:
-                raise yaml.constructor.ConstructorError(
-                    None, None, f"duplicate key {key!r}", key_node.start_mark
-                )
-            seen.add(key)
-        return super().construct_mapping(node, deep=deep)
 
 
 def parse_problem(data: Any, default_name: str = "problem") -> Problem:
     """Validate a problem given as plain data (as read from YAML)."""
-    if data is None:
-        data = {}
     top = _mapping(data, "", TOP_LEVEL_KEYS)
     name = top.get("name", default_name)
-    if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9_.-]+", name) or set(name) == {"."}:
-        raise ProblemError("name", f"expected a name of letters, digits, '_', '-' or '.', got {name!r}")
+    if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9_.-]{1,100}", name) or set(name) == {"."}:
+        raise ProblemError("name", f"expected up to 100 letters, digits, '_', '-' or '.', got {excerpt(name)}")
     params = _params(top.get("params", {}))
     fix = _quantities(top.get("fix", {}), "fix", QUANTITIES)
     guess = _quantities(top.get("guess", {}), "guess", DESIGN)
     bounds = _bounds(top.get("bounds", {}))
     objective = top.get("objective", "nearest_guess")
     if not isinstance(objective, str) or objective not in OBJECTIVES:
-        raise ProblemError("objective", f"expected one of {', '.join(OBJECTIVES)}, got {objective!r}")
+        raise ProblemError("objective", f"expected one of {', '.join(OBJECTIVES)}, got {excerpt(objective)}")
     problem = Problem(
         name=name,
         params=params,
@@ -158,6 +142,9 @@ def parse_problem(data: Any, default_name: str = "problem") -> Problem:
     if problem.study is not None and problem.strides != 1:
         raise ProblemError("strides", "studies solve one-stride gaits; remove strides or the study")
     _check_consistency(problem)
+    _check_sweep(problem)
+    _check_basin(problem)
+    _check_continuation(problem)
     return problem
 
 
@@ -169,8 +156,10 @@ def _mapping(value: Any, key: str, allowed: tuple[str, ...]) -> dict[str, Any]:
     if not isinstance(value, dict):
         raise ProblemError(key, f"expected a mapping for {where}, got {type(value).__name__}")
     for name in value:
+        dotted = f"{key}.{clip(str(name))}" if key else clip(str(name))
+        if isinstance(name, NonScalarKey):
+            raise ProblemError(dotted, f"a key must be a plain name, not a {name.kind}")
         if name not in allowed:
-            dotted = f"{key}.{name}" if key else str(name)
             raise ProblemError(dotted, f"unknown key (expected one of {', '.join(allowed)})")
     return value
 
@@ -181,7 +170,7 @@ def _number(value: Any, key: str) -> float:
     if isinstance(value, str):
         value = _plain_or_with_unit(value, key, quantity)
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ProblemError(key, f"expected a number, got {type(value).__name__} {value!r}")
+        raise ProblemError(key, f"expected a number, got {type(value).__name__} {excerpt(value)}")
     try:
         value = float(value)
     except OverflowError:
@@ -205,27 +194,45 @@ def _with_unit(text: str, key: str, quantity: str) -> float:
         units = {"deg/s": math.pi / 180, "rad/s": 1.0}
     if not match or match.group(2) not in units:
         accepted = f" or a string with unit {' / '.join(units)}" if units else ""
-        raise ProblemError(key, f"expected a number{accepted}, got {text!r}")
+        raise ProblemError(key, f"expected a number{accepted}, got {excerpt(text)}")
     try:
-        return float(match.group(1)) * units[match.group(2)]
+        value = float(match.group(1)) * units[match.group(2)]
     except ValueError:
-        raise ProblemError(key, f"expected a number, got {text!r}") from None
+        raise ProblemError(key, f"expected a number, got {excerpt(text)}") from None
+    if not math.isfinite(value):
+        raise ProblemError(key, f"expected a finite number, got {excerpt(text)}")
+    return value
 
 
 def _params(value: Any) -> Params:
     raw = _mapping(value, "params", PARAMS.names)
-    values = {name: _number(v, f"params.{name}") for name, v in raw.items()}
-    for name, v in values.items():
-        if name in POSITIVE_PARAMS and v <= 0:
-            raise ProblemError(f"params.{name}", f"must be positive, got {v}")
-        if name == "d" and v < 0:
-            raise ProblemError("params.d", f"must be zero or positive, got {v}")
-    return Params(**values)
+    return Params(**{name: _physical(name, _number(v, f"params.{name}"), f"params.{name}") for name, v in raw.items()})
+
+
+def _physical(name: str, value: float, key: str) -> float:
+    """``value`` if it lies in the documented physical range of ``name``, else an error."""
+    unit = UNITS[name]
+    if name in PARAM_RANGES:
+        lo, hi, closed = PARAM_RANGES[name]
+        if value < lo or (value == lo and not closed):
+            raise ProblemError(key, f"must be {'zero or ' if closed else ''}positive, got {value:g} {unit}")
+        if value > hi:
+            raise ProblemError(key, f"{value:g} {unit} exceeds the physical range (at most {hi:g} {unit})")
+        return value
+    lo, hi = physical_range(name)
+    if not lo <= value <= hi:
+        hint = ""
+        if name in ANGLES and abs(value) > 2 * math.pi:  # looks like degrees
+            hint = ' (angles are in radians; write "-90 deg" for degrees)'
+        elif name in RATES:
+            hint = ' (rates are in rad/s; write "30 deg/s" for degrees)'
+        raise ProblemError(key, f"{value:g} {unit} lies outside the physical range [{lo:g}, {hi:g}] {unit}{hint}")
+    return value
 
 
 def _quantities(value: Any, key: str, allowed: tuple[str, ...]) -> dict[str, float]:
     raw = _mapping(value, key, allowed)
-    return {name: _number(v, f"{key}.{name}") for name, v in raw.items()}
+    return {name: _physical(name, _number(v, f"{key}.{name}"), f"{key}.{name}") for name, v in raw.items()}
 
 
 def _bounds(value: Any) -> dict[str, tuple[float, float]]:
@@ -234,15 +241,12 @@ def _bounds(value: Any) -> dict[str, tuple[float, float]]:
     for name, pair in raw.items():
         key = f"bounds.{name}"
         if not isinstance(pair, (list, tuple)) or len(pair) != 2:
-            raise ProblemError(key, f"expected [lo, hi], got {pair!r}")
-        lo = -math.inf if pair[0] is None else _number(pair[0], key)
-        hi = math.inf if pair[1] is None else _number(pair[1], key)
+            raise ProblemError(key, f"expected [lo, hi] (null for no bound), got {excerpt(pair)}")
+        # A missing end is the physical limit; a written one must lie within the range.
+        lo = -math.inf if pair[0] is None else _physical(name, _number(pair[0], key), key)
+        hi = math.inf if pair[1] is None else _physical(name, _number(pair[1], key), key)
         if lo > hi:
             raise ProblemError(key, f"lower bound {lo:g} exceeds upper bound {hi:g}")
-        if name in DEFAULT_BOUNDS:
-            physical_lo, physical_hi = DEFAULT_BOUNDS[name]
-            if max(lo, physical_lo) > min(hi, physical_hi):
-                raise ProblemError(key, f"[{lo:g}, {hi:g}] lies outside the physical range [{physical_lo:g}, {physical_hi:g}]")
         bounds[name] = (lo, hi)
     return bounds
 
@@ -276,34 +280,35 @@ def _continuation(value: Any) -> ContinuationSpec:
     raw = _mapping(value, "continuation", ("parameter", "range", "step", "max_points", "direction", "plot", "switch"))
     parameter = raw.get("parameter")
     if parameter not in QUANTITIES + PARAMS.names:
-        raise ProblemError("continuation.parameter", f"expected a quantity or a model parameter, got {parameter!r}")
+        raise ProblemError("continuation.parameter", f"expected a quantity or a model parameter, got {excerpt(parameter)}")
     bounds = raw.get("range")
     if not isinstance(bounds, (list, tuple)) or len(bounds) != 2:
-        raise ProblemError("continuation.range", f"expected [lo, hi], got {bounds!r}")
-    lo, hi = (_number(b, f"continuation.range.{parameter}") for b in bounds)
+        raise ProblemError("continuation.range", f"expected [lo, hi], got {excerpt(bounds)}")
+    where = f"continuation.range.{parameter}"
+    lo, hi = (_physical(parameter, _number(b, where), where) for b in bounds)
     if lo >= hi:
         raise ProblemError("continuation.range", f"expected lo < hi, got [{lo:g}, {hi:g}]")
     step = _number(raw.get("step", 0.05), "continuation.step")
-    if step <= 0:
-        raise ProblemError("continuation.step", f"must be positive, got {step}")
+    if not 0 < step <= MAX_STEP:
+        raise ProblemError("continuation.step", f"expected a step in (0, {MAX_STEP:g}] (scaled units), got {step:g}")
     max_points = raw.get("max_points", 300)
     if isinstance(max_points, bool) or not isinstance(max_points, int) or not 2 <= max_points <= 100000:
-        raise ProblemError("continuation.max_points", f"expected an integer in [2, 100000], got {max_points!r}")
+        raise ProblemError("continuation.max_points", f"expected an integer in [2, 100000], got {excerpt(max_points)}")
     direction = raw.get("direction", 1)
     if direction not in (1, -1) or isinstance(direction, bool):
-        raise ProblemError("continuation.direction", f"expected 1 or -1, got {direction!r}")
+        raise ProblemError("continuation.direction", f"expected 1 or -1, got {excerpt(direction)}")
     plot = raw.get("plot", "z")
     if plot not in DESIGN:
-        raise ProblemError("continuation.plot", f"expected a design quantity, got {plot!r}")
+        raise ProblemError("continuation.plot", f"expected a design quantity, got {excerpt(plot)}")
     switch = raw.get("switch")
     if switch is not None and switch not in SWITCHES:
-        raise ProblemError("continuation.switch", f"expected one of {', '.join(SWITCHES)}, got {switch!r}")
+        raise ProblemError("continuation.switch", f"expected one of {', '.join(SWITCHES)}, got {excerpt(switch)}")
     return ContinuationSpec(parameter, lo, hi, step, max_points, direction, plot, switch)
 
 
 def _strides(value: Any) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_STRIDES:
-        raise ProblemError("strides", f"expected an integer in [1, {MAX_STRIDES}], got {value!r}")
+        raise ProblemError("strides", f"expected an integer in [1, {MAX_STRIDES}], got {excerpt(value)}")
     return value
 
 
@@ -322,12 +327,12 @@ def _solver(value: Any) -> SolverSettings:
         key = f"solver.{name}"
         if name == "tol":
             settings[name] = _number(v, key)
-            if settings[name] <= 0:
-                raise ProblemError(key, f"must be positive, got {settings[name]}")
+            if not TOLERANCES[0] <= settings[name] <= TOLERANCES[1]:
+                raise ProblemError(key, f"expected a tolerance in [{TOLERANCES[0]:g}, {TOLERANCES[1]:g}], got {settings[name]:g}")
             continue
         lo, hi = limits[name]
         if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
-            raise ProblemError(key, f"expected an integer in [{lo}, {hi}], got {v!r}")
+            raise ProblemError(key, f"expected an integer in [{lo}, {hi}], got {excerpt(v)}")
         settings[name] = v
     return SolverSettings(**settings)
 
@@ -383,4 +388,66 @@ def _check_energy(problem: Problem) -> None:
         raise ProblemError(
             "fix.energy",
             f"{energy:g} J contradicts fix.z, fix.ydot and fix.theta_h_dot, which make it {lowest:.12g} J",
+        )
+
+
+def check_point(problem: Problem, values: Mapping[str, float]) -> None:
+    """Raise :class:`ProblemError` unless ``problem`` with ``values`` fixed on top of its own
+    fixed values passes every check a written ``fix`` gets (physical range, the problem's
+    bounds, touchdown angle, foot above ground at apex, reachable energy)."""
+    for name, value in values.items():
+        _physical(name, value, f"fix.{name}")
+    guess = {n: v for n, v in problem.guess.items() if n not in values}
+    variant = replace(problem, fix=MappingProxyType({**problem.fix, **values}), guess=MappingProxyType(guess))
+    _check_consistency(variant)
+
+
+def _check_sweep(problem: Problem) -> None:
+    """Every point of a sweep must be a problem that would be accepted written out."""
+    if not isinstance(problem.study, Sweep):
+        return
+    axes = problem.study.axes
+    points = math.prod(len(a.values) for a in axes)
+    if points > MAX_SWEEP_POINTS:
+        raise ProblemError("study.vary", f"{points} points is more than {MAX_SWEEP_POINTS}")
+    for point in itertools.product(*(a.values for a in axes)):
+        values = {a.name: v for a, v in zip(axes, point)}
+        try:
+            check_point(problem, values)
+        except ProblemError as err:
+            name = err.key.rsplit(".", 1)[-1]
+            where = ", ".join(f"{n} = {v:g}" for n, v in values.items())
+            key = f"study.vary.{name}" if name in values else "study.vary"
+            raise ProblemError(key, f"at {where}: {err.message}") from None
+
+
+def _check_basin(problem: Problem) -> None:
+    """Basin start states lie in the physical ranges of ydot and z."""
+    study = problem.study
+    if not isinstance(study, Basin):
+        return
+    for axis in study.grid:
+        for value in axis.values:
+            _physical(axis.name, value, f"study.grid.{axis.name}")
+    for key, (ydot, z) in (("study.stable_at", study.stable_at), ("study.unstable_at", study.unstable_at)):
+        _physical("ydot", ydot, f"{key}.ydot")
+        _physical("z", z, f"{key}.z")
+
+
+def _check_continuation(problem: Problem) -> None:
+    """A branch starts at the problem's own value of its parameter, inside its range."""
+    spec = problem.continuation
+    if spec is None:
+        return
+    if spec.parameter in PARAMS.names:
+        start = getattr(problem.params, spec.parameter)
+    elif spec.parameter in problem.fix:
+        start = problem.fix[spec.parameter]
+    else:
+        return  # not fixed: refused with its own message when the branch is checked
+    if not spec.lo <= start <= spec.hi:
+        raise ProblemError(
+            "continuation.range",
+            f"the branch starts at {spec.parameter} = {start:g} {UNITS[spec.parameter]}, "
+            f"outside [{spec.lo:g}, {spec.hi:g}]; widen the range or change the start",
         )

@@ -35,6 +35,40 @@ DEFAULT_BOUNDS = {
     "theta_td": (-1.5, 1.5),
 }
 
+#: Physical range of each model parameter: (lo, hi, whether lo itself is allowed).
+#: Mass [kg], inertia [kg m^2], stiffness [N/m], rest length [m], hip offset [m], gravity [m/s^2].
+PARAM_RANGES = {
+    "m": (0.0, 1e4, False),
+    "I": (0.0, 1e4, False),
+    "k": (0.0, 1e8, False),
+    "rho0": (0.0, 10.0, False),
+    "d": (0.0, 10.0, True),
+    "g": (0.0, 100.0, False),
+}
+
+#: Physical range of the apex energy [J] (z, ydot and theta_h_dot within their bounds
+#: and the parameters within theirs never give more).
+ENERGY_RANGE = (0.0, 1e8)
+
+
+#: SI unit of each quantity and parameter, for messages and axis labels.
+UNITS = {
+    "z": "m", "theta_h": "rad", "ydot": "m/s", "theta_h_dot": "rad/s",
+    "Kp": "N m/rad", "Kd": "N m s/rad", "theta2_des": "rad", "theta2_dot_des": "rad/s", "theta_td": "rad",
+    "energy": "J", "m": "kg", "I": "kg m^2", "k": "N/m", "rho0": "m", "d": "m", "g": "m/s^2",
+}
+
+
+def physical_range(name: str) -> tuple[float, float]:
+    """Documented range of a design quantity, ``energy`` or a model parameter."""
+    if name in DEFAULT_BOUNDS:
+        return DEFAULT_BOUNDS[name]
+    if name == "energy":
+        return ENERGY_RANGE
+    lo, hi, _ = PARAM_RANGES[name]
+    return lo, hi
+
+
 #: Starting values of design quantities that a problem neither fixes nor guesses (they are
 #: clipped into the problem's bounds).
 DEFAULT_GUESS = {

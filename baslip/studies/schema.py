@@ -16,9 +16,14 @@ Kinds:
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 
+from ..inputs import NonScalarKey, clip, excerpt
 from ..quantities import DESIGN
+
+#: Most values along one axis of a sweep or a basin grid.
+MAX_AXIS_VALUES = 100_000
 
 
 class StudyError(ValueError):
@@ -78,8 +83,8 @@ def parse_study(data, number) -> Study:
     if not isinstance(data, dict):
         raise StudyError("study", f"expected a mapping, got {type(data).__name__}")
     kind = data.get("kind")
-    if kind not in KINDS:
-        raise StudyError("study.kind", f"expected one of {', '.join(KINDS)}, got {kind!r}")
+    if not isinstance(kind, str) or kind not in KINDS:
+        raise StudyError("study.kind", f"expected one of {', '.join(KINDS)}, got {excerpt(kind)}")
     allowed = {
         "sweep": ("kind", "vary"),
         "random": ("kind", "region", "count", "seed"),
@@ -87,8 +92,10 @@ def parse_study(data, number) -> Study:
         "adaptive": ("kind", "strides", "frozen_strides"),
     }[kind]
     for key in data:
+        if isinstance(key, NonScalarKey):
+            raise StudyError(f"study.{key}", f"a key must be a plain name, not a {key.kind}")
         if key not in allowed:
-            raise StudyError(f"study.{key}", f"unknown key for a {kind} study (expected one of {', '.join(allowed)})")
+            raise StudyError(f"study.{clip(str(key))}", f"unknown key for a {kind} study (expected one of {', '.join(allowed)})")
     if kind == "sweep":
         axes = _axes(data.get("vary"), "study.vary", number, DESIGN)
         if not 1 <= len(axes) <= 2:
@@ -110,7 +117,7 @@ def parse_study(data, number) -> Study:
             stable_at=_pair(data.get("stable_at"), "study.stable_at", number),
             unstable_at=_pair(data.get("unstable_at"), "study.unstable_at", number),
             strides=_integer(data.get("strides", 40), "study.strides", 1, 100000),
-            tolerance=_positive(data.get("tolerance", 1e-6), "study.tolerance", number),
+            tolerance=_fraction(data.get("tolerance", 1e-6), "study.tolerance", number),
         )
     return Adaptive(
         strides=_integer(data.get("strides", 2048), "study.strides", 1, 1000000),
@@ -123,41 +130,44 @@ def _axes(data, key, number, allowed) -> tuple[Axis, ...]:
         raise StudyError(key, "expected a mapping of quantity to [start, stop, step]")
     axes = []
     for name, spec in data.items():
-        where = f"{key}.{name}"
+        where = f"{key}.{clip(str(name))}"
+        if isinstance(name, NonScalarKey):
+            raise StudyError(where, f"a key must be a plain name, not a {name.kind}")
         if name not in allowed:
             raise StudyError(where, f"unknown quantity (expected one of {', '.join(allowed)})")
         if not isinstance(spec, (list, tuple)) or len(spec) != 3:
-            raise StudyError(where, f"expected [start, stop, step], got {spec!r}")
+            raise StudyError(where, f"expected [start, stop, step], got {excerpt(spec)}")
         start, stop, step = (number(v, where) for v in spec)
         if step <= 0 or stop < start:
             raise StudyError(where, "expected start <= stop and a positive step")
-        count = math.floor((stop - start) / step + 1e-9) + 1
-        if count > 100000:
-            raise StudyError(where, f"{count} values is too many")
+        ratio = (stop - start) / step
+        if not ratio < MAX_AXIS_VALUES:  # also catches an infinite ratio from a tiny step
+            raise StudyError(where, f"[{start:g}, {stop:g}] in steps of {step:g} is more than {MAX_AXIS_VALUES} values")
+        count = math.floor(ratio + 1e-9) + 1
         axes.append(Axis(name, tuple(round(start + i * step, 12) for i in range(count))))
     return tuple(axes)
 
 
 def _pair(data, key, number) -> tuple[float, float]:
-    if not isinstance(data, dict) or set(data) != {"ydot", "z"}:
+    if not isinstance(data, dict) or set(map(str, data)) != {"ydot", "z"} or len(data) != 2:
         raise StudyError(key, "expected {ydot: ..., z: ...}")
     return number(data["ydot"], f"{key}.ydot"), number(data["z"], f"{key}.z")
 
 
 def _name(value, key) -> str:
-    if not isinstance(value, str) or not value or "/" in value or set(value) == {"."}:
-        raise StudyError(key, f"expected the name of another study, got {value!r}")
+    if not isinstance(value, str) or not re.fullmatch(r"[A-Za-z0-9_.-]{1,100}", value) or set(value) == {"."}:
+        raise StudyError(key, f"expected the name of another study, got {excerpt(value)}")
     return value
 
 
 def _integer(value, key, lo, hi) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-        raise StudyError(key, f"expected an integer in [{lo}, {hi}], got {value!r}")
+        raise StudyError(key, f"expected an integer in [{lo}, {hi}], got {excerpt(value)}")
     return value
 
 
-def _positive(value, key, number) -> float:
+def _fraction(value, key, number) -> float:
     value = number(value, key)
-    if value <= 0:
-        raise StudyError(key, f"must be positive, got {value}")
+    if not 0 < value <= 1:
+        raise StudyError(key, f"expected a relative tolerance in (0, 1], got {value:g}")
     return value
