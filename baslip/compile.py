@@ -103,6 +103,17 @@ def _compiling(enabled: bool | None) -> bool:
     return os.environ.get("BASLIP_NO_COMPILE", "") in ("", "0")
 
 
+def code_path() -> str:
+    """What evaluates the model in this environment: compiled C, or CasADi's virtual
+    machine and why (the same decision :func:`compile_kernels` makes)."""
+    if not _compiling(None):
+        return "CasADi virtual machine (BASLIP_NO_COMPILE is set)"
+    try:
+        return f"compiled C ({_compiler_version(_compiler())})"
+    except _NoCompiler as reason:
+        return f"CasADi virtual machine (no working C compiler: {reason})"
+
+
 def _generate(name: str, functions: Sequence[ca.Function]) -> str:
     """The C source of one file holding all ``functions``."""
     generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})

@@ -68,10 +68,14 @@ def multipliers_csv(result: FixedPointResult) -> str:
     return buffer.getvalue()
 
 
-def write_result(result: FixedPointResult, out_dir: Path) -> list[Path]:
-    """Write ``result.json`` and ``multipliers.csv`` into ``out_dir``; return their paths."""
+def write_result(result: FixedPointResult, out_dir: Path, provenance: dict | None = None) -> list[Path]:
+    """Write ``result.json`` (with ``provenance``, if given, as its last key) and
+    ``multipliers.csv`` into ``out_dir``; return their paths."""
+    record = result.to_json_dict()
+    if provenance is not None:
+        record["provenance"] = provenance
     files = {
-        out_dir / "result.json": json_text(result.to_json_dict()),
+        out_dir / "result.json": json_text(record),
         out_dir / "multipliers.csv": multipliers_csv(result),
     }
     write_files_atomically(files)

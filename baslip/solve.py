@@ -1,7 +1,13 @@
-"""Command line: ``python -m baslip.solve PROBLEM.yaml [--out DIR]``.
+"""Command line: ``python -m baslip.solve PROBLEM.yaml [--out DIR] [--fresh]``.
 
-Exit codes: 0 for a verified fixed point, 1 when the solver fails or the answer does not
-verify, 2 for bad input (one line on stderr naming the key; nothing is written).
+Exit codes:
+
+* 0: a verified fixed point; or a study or continuation that ran to the end (a point with
+  no fixed point is data, listed with its reason);
+* 1: the solver failed or the answer did not verify; a study that solved nothing or
+  stopped short (Ctrl-C, a killed worker); a branch whose start did not converge;
+* 2: bad input, a busy output folder, or a folder holding results of another problem
+  (one line on stderr naming the key or folder; nothing is written).
 """
 
 from __future__ import annotations
@@ -13,9 +19,10 @@ import tempfile
 from pathlib import Path
 
 from .fixedpoint import VERIFY_EPS, FixedPointResult
+from .folder import FolderBusy, hold
 from .problem import ProblemError, load_problem
 
-EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
+EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
 
 
 class _OneLineParser(argparse.ArgumentParser):
@@ -34,13 +41,21 @@ def _parser() -> argparse.ArgumentParser:
             f"re-simulation (eps <= {VERIFY_EPS:g}) and report its stability."
         ),
         epilog=(
-            "Writes DIR/result.json and DIR/multipliers.csv. Exit status: 0 verified fixed "
-            "point, 1 solver failure or not verified, 2 bad input."
+            "Writes DIR/result.json and DIR/multipliers.csv; a problem with a study: or "
+            "continuation: section writes its CSV files, result.json and figures instead. "
+            "Exit status: 0 verified fixed point or completed study/branch, 1 solver failure, "
+            "not verified, or a study that solved nothing or stopped short, 2 bad input or a "
+            "busy or stale output folder."
         ),
     )
     parser.add_argument("problem", type=Path, help="YAML problem file (see README: Problem files)")
     parser.add_argument("--out", type=Path, metavar="DIR", help="output folder (default: results/<name>/)")
     parser.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    parser.add_argument(
+        "--fresh", action="store_true",
+        help="discard what DIR holds from an earlier run instead of resuming it (a study "
+             "refuses to resume results of a changed problem without this)",
+    )
     return parser
 
 
@@ -107,13 +122,16 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     try:
         if problem.study is not None:
-            return _run_study(problem, args.problem, out_dir, args.quiet)
+            return _run_study(problem, args.problem, out_dir, args.quiet, args.fresh)
         if problem.continuation is not None:
             return _run_continuation(problem, out_dir, args.quiet)
         return _solve_and_write(problem, out_dir, args.quiet)
+    except FolderBusy as err:
+        print(f"error: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print(f"{problem.name}: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return EXIT_NOT_CONVERGED
     except Exception as err:  # a bug, not a result: say so in one line, write nothing
         print(f"error: {problem.name}: internal error: {type(err).__name__}: {err}".splitlines()[0], file=sys.stderr)
         return EXIT_NOT_CONVERGED
@@ -130,19 +148,31 @@ def _unwritable(out_dir: Path) -> str | None:
     return None
 
 
-def _run_study(problem, problem_path: Path, out_dir: Path, quiet: bool) -> int:
-    from .studies.run import StudyFailed, run_study
+def _run_study(problem, problem_path: Path, out_dir: Path, quiet: bool, fresh: bool) -> int:
+    from .studies.run import StaleFolder, StudyFailed, outcome, run_study
 
     try:
-        summary = run_study(problem, problem_path, out_dir, quiet)
+        summary = run_study(problem, problem_path, out_dir, quiet, fresh)
+    except StaleFolder as err:
+        print(f"error: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     except StudyFailed as err:
         print(f"error: {problem.name}: {err}", file=sys.stderr)
         return EXIT_NOT_CONVERGED
+    failure = outcome(summary)
     if not quiet:
         counts = ", ".join(f"{k} {v}" for k, v in summary.items() if isinstance(v, int) and not isinstance(v, bool))
         print(f"{problem.name}: {problem.study.kind} study {'complete' if summary.get('complete', True) else 'incomplete'}: {counts}")
+        for row in summary.get("not_solved", [])[:10]:
+            where = ", ".join(f"{k[len('sweep_'):]} = {v:g}" for k, v in row.items() if k.startswith("sweep_"))
+            print(f"  no fixed point at {where}: {row['status']} ({row['reason']})")
+        if len(summary.get("not_solved", [])) > 10:
+            print(f"  ... and {len(summary['not_solved']) - 10} more points without a fixed point (see points.csv, column reason)")
         print(f"  wrote {out_dir}/ (result.json, CSV and PNG figures), {summary['wall_time_s']:.1f} s")
-    return EXIT_OK if summary.get("complete", True) else EXIT_INTERRUPTED
+    if failure is not None:
+        print(f"error: {problem.name}: {failure}", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
+    return EXIT_OK
 
 
 def _run_continuation(problem, out_dir: Path, quiet: bool) -> int:
@@ -170,9 +200,15 @@ def _run_continuation(problem, out_dir: Path, quiet: bool) -> int:
 
 
 def _solve_and_write(problem, out_dir: Path, quiet: bool) -> int:
+    with hold(out_dir):
+        return _solve_and_write_held(problem, out_dir, quiet)
+
+
+def _solve_and_write_held(problem, out_dir: Path, quiet: bool) -> int:
     from .api import shooting_options, solve_problem
     from .fixedpoint import FixedPointSolver
     from .output import RESULT_FILES, write_result
+    from .provenance import provenance
 
     for stale in RESULT_FILES:  # never leave an older run's result beside this one
         (out_dir / stale).unlink(missing_ok=True)
@@ -187,7 +223,7 @@ def _solve_and_write(problem, out_dir: Path, quiet: bool) -> int:
     if not quiet:
         print(f"{problem.name}: solving ({problem.objective}) and verifying...", file=sys.stderr)
     result = solve_problem(problem, solver)
-    written = write_result(result, out_dir)
+    written = write_result(result, out_dir, provenance(problem))
     if not quiet:
         print(summary(result))
         print(f"  wrote {', '.join(str(p) for p in written)}")

@@ -17,7 +17,7 @@ from baslip.solve import main
 ROOT = Path(__file__).resolve().parents[1]
 RESULT_KEYS = [
     "name", "status", "solver", "params", "apex", "control", "durations",
-    "energy", "residual", "eigenvalues", "spectral_radius", "stable",
+    "energy", "residual", "eigenvalues", "spectral_radius", "stable", "provenance",
 ]
 
 
@@ -34,6 +34,10 @@ def test_downward_end_to_end(tmp_path):
     record = json.loads((out / "result.json").read_text())
     assert list(record) == RESULT_KEYS
     assert record["status"] == "converged" and record["residual"] <= 1e-10
+    provenance = record["provenance"]
+    assert provenance["problem"]["fix"] == {"ydot": 0.5, "z": 0.4} and len(provenance["problem_hash"]) == 64
+    assert set(provenance["versions"]) == {"baslip", "casadi", "ipopt", "numpy", "python"}
+    assert provenance["versions"]["ipopt"].count(".") == 2 and provenance["code"]
     assert record["apex"]["z"] == 0.4 and record["apex"]["ydot"] == 0.5
     assert "converged" in proc.stdout and "spectral radius" in proc.stdout
     assert (out / "multipliers.csv").read_text().startswith("re,im,abs,label\n")

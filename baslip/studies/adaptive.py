@@ -55,14 +55,17 @@ def run_adaptive(solver, X0, u0, params, strides: int, frozen_strides: int, tabl
     adaptive = [r for r in rows if r["phase"] == "adaptive"]
     frozen = [r for r in rows if r["phase"] == "frozen"]
     X, u = np.asarray(X0, dtype=float), np.asarray(u0, dtype=float)
-    if adaptive:
-        last = adaptive[-1]
-        X = np.array([float(last[n]) for n in APEX.names])
-        u = np.array([float(last[n]) for n in CONTROL.names])
     start = time.perf_counter()
     failure = None
+    if adaptive:  # resume: the apex after the last saved stride, as the run had it
+        last = adaptive[-1]
+        u = np.array([float(last[n]) for n in CONTROL.names])
+        stride = solver.residual_map.stride(_apex(last), u, params)
+        X = stride.apex
+        if not stride.ok:
+            failure = f"stride {len(adaptive) - 1}: the runner falls ({stride.fall.value})"
     for n in range(len(adaptive), strides):
-        if frozen:
+        if frozen or failure:
             break
         t0 = time.perf_counter()
         try:

@@ -85,6 +85,7 @@ def basin_worker(chunk: list[dict], context: tuple, queue) -> None:
     """Worker process: simulate the (point, ydot, z) tasks of its chunk in lockstep and put
     each row on the queue as its run ends."""
     points, params, strides, tolerance = context
+    chunk = [task for task in chunk if not task.get("done")]  # runs are independent
     try:
         rmap = ReturnMap(SIMULATION_TOLERANCES)
         X_star = np.array([points[int(task["point"])][0] for task in chunk], dtype=float)

@@ -22,6 +22,7 @@ import numpy as np
 
 from ..continuation import Branch, CorrectionFailed, Point, Settings, continue_branch, switch_branch
 from ..control import CONTROL
+from ..folder import hold
 from ..model import APEX
 from ..output import json_text, write_files_atomically
 from ..stability import STABILITY_MARGIN
@@ -54,8 +55,15 @@ class TracedBranch:
 
 def run_continuation(problem, out_dir: Path, quiet: bool = False) -> dict:
     """Trace the problem's branches, write branch.csv, result.json and diagram.png to
-    ``out_dir`` together, and return the summary that result.json holds."""
+    ``out_dir`` together, and return the summary that result.json holds. Raises
+    :class:`baslip.folder.FolderBusy` if another process is writing into ``out_dir``."""
+    with hold(out_dir):
+        return _run_continuation(problem, out_dir, quiet)
+
+
+def _run_continuation(problem, out_dir: Path, quiet: bool) -> dict:
     from .. import plots
+    from ..provenance import provenance
     from ..api import fixed_point_spec, shooting_options, solve_problem
     from ..branches import FixedPointSystem
     from ..fixedpoint import FixedPointSolver
@@ -107,6 +115,7 @@ def run_continuation(problem, out_dir: Path, quiet: bool = False) -> dict:
         "failed_switches": failed_switches,
         "special_points": [_special(r, spec.parameter) for r in rows if r["special"]],
         "wall_time_s": time.perf_counter() - start_time,
+        "provenance": provenance(problem),
     }
     # All three files or none: an error before this point leaves the old ones as they were.
     write_files_atomically({

@@ -7,25 +7,39 @@ Writes into the study's folder ``results/<name>/``:
 * ``result.json``: counts, wall time and the study's own numbers;
 * PNG figures.
 
-Rerunning a finished study does no new solves; an interrupted one resumes.
+Rerunning a finished study does no new solves; an interrupted one resumes, giving the
+same answers as an uninterrupted run. The folder is held by one run at a time
+(:mod:`baslip.folder`). ``result.json`` is written first, with ``complete: false`` and the
+``provenance`` of the run; a rerun whose problem differs from the one recorded there is
+refused (:class:`StaleFolder`) unless it is asked to start afresh.
 """
 
 from __future__ import annotations
 
+import contextlib
 import time
 from pathlib import Path
 
 import numpy as np
 
+import csv
+import json
+import sys
+
 from ..control import CONTROL
+from ..folder import busy, hold
 from ..model import APEX
 from ..output import json_text, write_files_atomically
-from ..problem import Problem
+from ..problem import Problem, ProblemError, check_point
+from ..provenance import changed_entries, provenance
 from .. import plots
 from .basin import BASIN_COLUMNS, basin_tasks, basin_worker, run_from, SIMULATION_TOLERANCES
-from .runner import ResumableCsv, RunReport, run_tasks, split_lanes
+from .runner import LANES, ResumableCsv, RunReport, run_tasks, split_lanes
 from .schema import Adaptive, Basin, RandomSample, Sweep
 from .sweep import RESULT_COLUMNS, key_column, random_tasks, read_points, solve_worker, sweep_lanes
+
+#: Files a study writes besides its figures; ``--fresh`` removes them before starting.
+DATA_FILES = ("points.csv", "basin.csv", "trajectories.csv", "strides.csv")
 
 
 class StudyInputError(ValueError):
@@ -40,46 +54,123 @@ class StudyFailed(RuntimeError):
     """A study could not start: e.g. its starting fixed point did not converge."""
 
 
+class StaleFolder(ValueError):
+    """The output folder holds results of another problem (or of unknown origin)."""
+
+
 def check_study_inputs(problem: Problem, out_dir: Path) -> None:
-    """Raise :class:`StudyInputError` if a study it depends on has not been run."""
+    """Raise :class:`StudyInputError` if a study it depends on has not been run (to the
+    end), is being run, cannot be read, or gives points this problem would refuse."""
     study = problem.study
     if isinstance(study, RandomSample):
-        _source_points(out_dir, study.region, "study.region")
+        rows, names = _source_points(out_dir, study.region, "study.region")
+        for task in random_tasks(study, rows, names):
+            values = {n: task[key_column(n)] for n in names}
+            try:
+                check_point(problem, values)
+            except ProblemError as err:
+                where = ", ".join(f"{n} = {v:g}" for n, v in values.items())
+                raise StudyInputError("study.region", f"the draw at {where}: {err.message}") from None
     elif isinstance(study, Basin):
         _source_points(out_dir, study.source, "study.source")
 
 
-def run_study(problem: Problem, problem_path: Path, out_dir: Path, quiet: bool = False) -> dict:
-    """Run (or resume) the study of ``problem``; return its summary (also in result.json)."""
+def run_study(problem: Problem, problem_path: Path, out_dir: Path, quiet: bool = False, fresh: bool = False) -> dict:
+    """Run (or resume) the study of ``problem``; return its summary (also in result.json).
+
+    ``fresh`` discards what the folder holds first; without it, results of another
+    problem there raise :class:`StaleFolder`. Raises :class:`baslip.folder.FolderBusy`
+    if another process is writing into ``out_dir``.
+    """
+    with hold(out_dir):
+        record = _claim(problem, out_dir, fresh)
+        start = time.perf_counter()
+        summary = _run(problem, problem_path, out_dir, quiet, record["lanes"])
+        summary = {"name": problem.name, "kind": problem.study.kind, **summary,
+                   "wall_time_s": time.perf_counter() - start, "provenance": record}
+        write_files_atomically({out_dir / "result.json": json_text(summary)})
+    return summary
+
+
+def _run(problem: Problem, problem_path: Path, out_dir: Path, quiet: bool, lanes: int) -> dict:
     study = problem.study
-    start = time.perf_counter()
     if isinstance(study, Sweep):
         origin = {a.name: problem.start_value(a.name) for a in study.axes}
-        summary = _run_points(problem, problem_path, out_dir, sweep_lanes(study, origin), [a.name for a in study.axes], quiet)
-        plots.sweep_figures(read_points(out_dir / "points.csv"), [a.name for a in study.axes], out_dir)
+        names = [a.name for a in study.axes]
+        summary = _run_points(problem, problem_path, out_dir, sweep_lanes(study, origin, lanes), names, quiet)
+        plots.sweep_figures(read_points(out_dir / "points.csv"), names, out_dir)
     elif isinstance(study, RandomSample):
         region_rows, names = _source_points(out_dir, study.region, "study.region")
-        lanes = split_lanes(random_tasks(study, region_rows, names))
-        summary = _run_points(problem, problem_path, out_dir, lanes, list(names), quiet)
+        tasks = split_lanes(random_tasks(study, region_rows, names), lanes)
+        summary = _run_points(problem, problem_path, out_dir, tasks, list(names), quiet)
         summary["region"] = study.region
         plots.random_figure(read_points(out_dir / "points.csv"), region_rows, names, out_dir)
     elif isinstance(study, Basin):
-        summary = _run_basin(problem, study, out_dir, quiet)
+        summary = _run_basin(problem, study, out_dir, quiet, lanes)
     elif isinstance(study, Adaptive):
         summary = _run_adaptive(problem, study, out_dir, quiet)
     else:  # pragma: no cover - the schema admits no other kind
         raise TypeError(study)
-    summary = {"name": problem.name, "kind": study.kind, **summary, "wall_time_s": time.perf_counter() - start}
-    write_files_atomically({out_dir / "result.json": json_text(summary)})
     return summary
 
 
+def _claim(problem: Problem, out_dir: Path, fresh: bool) -> dict:
+    """Check that ``out_dir`` holds nothing but earlier results of this same problem (or
+    clear it if ``fresh``); record this run's provenance in result.json; return it."""
+    record = {**provenance(problem), "lanes": LANES}
+    data = [out_dir / name for name in DATA_FILES if (out_dir / name).exists()]
+    old = _recorded_provenance(out_dir)
+    if fresh:
+        for path in data + [out_dir / "result.json"]:
+            path.unlink(missing_ok=True)
+            path.with_name(f".{path.name}.states").unlink(missing_ok=True)
+    elif data:
+        if old is None:
+            raise StaleFolder(f"{out_dir} holds results with no provenance record (from an older baslip?); "
+                              "rerun with --fresh to discard them, or choose another --out")
+        if old.get("problem_hash") != record["problem_hash"]:
+            ignored = ("name", "solver.print_level")
+            changed = [n for n in changed_entries(old.get("problem", {}), record["problem"]) if n not in ignored]
+            raise StaleFolder(f"{out_dir} holds results of a different problem (changed: {', '.join(changed[:4]) or 'unknown'}); "
+                              "rerun with --fresh to discard them, or choose another --out")
+        record["lanes"] = old.get("lanes", LANES)
+        if old.get("versions") != record["versions"] or old.get("code") != record["code"]:
+            record["earlier_runs"] = [{"versions": old.get("versions"), "code": old.get("code")}, *old.get("earlier_runs", [])]
+    write_files_atomically({out_dir / "result.json": json_text(
+        {"name": problem.name, "kind": problem.study.kind, "complete": False, "provenance": record})})
+    return record
+
+
+def _recorded_provenance(out_dir: Path) -> dict | None:
+    try:
+        record = json.loads((out_dir / "result.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return record.get("provenance") if isinstance(record, dict) else None
+
+
 def _source_points(out_dir: Path, name: str, key: str) -> tuple[list[dict], tuple[str, str]]:
-    path = out_dir.parent / name / "points.csv"
+    folder = out_dir.parent / name
+    path = folder / "points.csv"
     if not path.exists():
         raise StudyInputError(key, f"{path} does not exist: run the study {name!r} first")
-    rows = read_points(path)
-    names = tuple(c[len("sweep_"):] for c in rows[0] if c.startswith("sweep_")) if rows else ()
+    holder = busy(folder)
+    if holder is not None:
+        raise StudyInputError(key, f"the study {name!r} is still being run by {holder}; wait for it to finish")
+    record = {}
+    with contextlib.suppress(OSError, ValueError):
+        record = json.loads((folder / "result.json").read_text())
+    if not isinstance(record, dict) or record.get("complete") is not True:
+        raise StudyInputError(key, f"the study {name!r} has not run to the end ({folder / 'result.json'} does not say complete); rerun it first")
+    try:
+        rows = read_points(path)
+        names = tuple(c[len("sweep_"):] for c in rows[0] if c.startswith("sweep_")) if rows else ()
+        for row in rows:
+            for column in (*APEX.names, *CONTROL.names, "spectral_radius"):
+                if row[column] != "" and not isinstance(row[column], float):
+                    raise ValueError(f"column {column} holds {row[column]!r:.20}")
+    except (UnicodeDecodeError, csv.Error, KeyError, ValueError) as err:
+        raise StudyInputError(key, f"{path} is not a points.csv written by baslip ({type(err).__name__}: {str(err)[:60]})") from None
     if len(names) != 2:
         raise StudyInputError(key, f"{path} is not a sweep over two quantities")
     return rows, names
@@ -98,10 +189,21 @@ def _counts(rows: list[dict]) -> dict:
 
 def _run_points(problem, problem_path, out_dir, lanes, names, quiet) -> dict:
     keys = [key_column(n) for n in names]
-    table = ResumableCsv(out_dir / "points.csv", keys + RESULT_COLUMNS, keys)
+    table = _table(out_dir / "points.csv", keys + RESULT_COLUMNS, keys, quiet)
     report = run_tasks(lanes, solve_worker, str(problem_path), table, problem.name, quiet=quiet)
     rows = read_points(out_dir / "points.csv")
-    return {**_counts(rows), **_run_info(report), "swept": names}
+    not_solved = [{**{k: r[k] for k in keys}, "status": r["status"], "reason": r["reason"]}
+                  for r in rows if r["status"] != "converged"]
+    return {**_counts(rows), **_run_info(report), "swept": names, "not_solved": not_solved}
+
+
+def _table(path: Path, columns, keys, quiet: bool) -> ResumableCsv:
+    """The study's resumable CSV, saying what was repaired in it."""
+    table = ResumableCsv(path, columns, keys)
+    if not quiet:
+        for note in table.notes:
+            print(f"note: {note}", file=sys.stderr)
+    return table
 
 
 def _run_info(report: RunReport) -> dict:
@@ -109,8 +211,22 @@ def _run_info(report: RunReport) -> dict:
         "tasks": report.total,
         "done_before_this_run": report.skipped,
         "done_in_this_run": report.ran,
-        "complete": not report.interrupted and report.skipped + report.ran == report.total,
+        "complete": report.complete,
     }
+
+
+def outcome(summary: dict) -> str | None:
+    """Why a study's run is not a success (None if it is): it stopped short, or it
+    solved nothing at all."""
+    if not summary.get("complete", True):
+        return f"stopped short: {summary['done_before_this_run'] + summary['done_in_this_run']} of {summary['tasks']} tasks done; rerun to resume"
+    if summary["kind"] in ("sweep", "random") and summary["solved"] == 0:
+        return f"no fixed point was found at any of the {summary['points']} points"
+    if summary["kind"] == "basin" and summary["stable_points"] == 0:
+        return f"the source study {summary['source']!r} has no stable fixed point to simulate"
+    if summary["kind"] == "adaptive" and summary["adaptive_strides"] == 0:
+        return f"no adaptive stride was taken: {summary['adaptive_failure']}"
+    return None
 
 
 def _point(row: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -123,7 +239,7 @@ def _nearest(rows: list[dict], at: tuple[float, float]) -> dict | None:
     return min(rows, key=lambda r: ((r["ydot"] - at[0]) / 0.1) ** 2 + ((r["z"] - at[1]) / 0.05) ** 2)
 
 
-def _run_basin(problem: Problem, study: Basin, out_dir: Path, quiet: bool) -> dict:
+def _run_basin(problem: Problem, study: Basin, out_dir: Path, quiet: bool, lanes: int) -> dict:
     from ..returnmap import ReturnMap
 
     rows, names = _source_points(out_dir, study.source, "study.source")
@@ -133,11 +249,10 @@ def _run_basin(problem: Problem, study: Basin, out_dir: Path, quiet: bool) -> di
     stable = [r for r in converged if r["stable"] is True]
     unstable = [r for r in converged if r["stable"] is False]
     points = [_point(r) for r in stable]
-    table = ResumableCsv(out_dir / "basin.csv", ["point", key_column("ydot"), key_column("z"), *BASIN_COLUMNS[1:]],
-                         ["point", key_column("ydot"), key_column("z")])
+    table = _table(out_dir / "basin.csv", ["point", key_column("ydot"), key_column("z"), *BASIN_COLUMNS[1:]],
+                   ["point", key_column("ydot"), key_column("z")], quiet)
     context = (points, problem.params, study.strides, study.tolerance)
-    lanes = split_lanes(basin_tasks(study, len(points)))
-    report = run_tasks(lanes, basin_worker, context, table, problem.name, quiet=quiet)
+    report = run_tasks(split_lanes(basin_tasks(study, len(points)), lanes), basin_worker, context, table, problem.name, quiet=quiet)
 
     example_stable, example_unstable = _nearest(stable, study.stable_at), _nearest(unstable, study.unstable_at)
     rmap = ReturnMap(SIMULATION_TOLERANCES)
@@ -188,7 +303,7 @@ def _run_adaptive(problem: Problem, study: Adaptive, out_dir: Path, quiet: bool)
     result = solve_problem(problem, solver)
     if not result.converged:
         raise StudyFailed(f"the starting fixed point did not converge: {result.status} ({result.message})")
-    table = ResumableCsv(out_dir / "strides.csv", STRIDE_COLUMNS, ["phase", "n"])
+    table = _table(out_dir / "strides.csv", STRIDE_COLUMNS, ["phase", "n"], quiet)
     summary = run_adaptive(solver, result.X, result.u, problem.params, study.strides, study.frozen_strides, table, quiet)
     plots.adaptive_figures(table.rows, out_dir)
     return {

@@ -3,51 +3,105 @@
 * Each finished task becomes one CSV row, appended, flushed and synced at once, so an
   interruption (Ctrl-C, a kill) loses only tasks that were still running.
 * On a rerun, rows already in the CSV are skipped: a finished study does no new work. A
-  last line cut short by a kill is dropped before appending.
-* Tasks come in lanes, one per worker process, so that each worker can warm-start a task
-  from the one before it in its lane.
+  last line cut short by a kill is dropped; a file that is empty, has a torn or foreign
+  header or cannot be decoded is set aside with a message and started afresh; rows with a
+  repeated key are dropped (the first is kept) with a message.
+* Tasks come in a fixed number of lanes (:data:`LANES`, whatever the number of cores), one
+  worker process per lane, so that each worker can warm-start a task from the one before
+  it in its lane. The state a task hands on (``row["state"]``) is saved beside the CSV
+  before its row, and a resumed lane replays the saved states of its finished tasks, so
+  every task starts exactly as it would have in an uninterrupted run.
+* Workers die with the process that started them, even under ``kill -9``.
+* When every task is done the CSV is rewritten in task order and the saved states are
+  removed: two complete runs give the same file whatever the interruptions.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import ctypes
 import io
+import json
 import multiprocessing
+import multiprocessing.connection
 import os
+import signal
 import sys
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from queue import Empty
 from typing import Callable, Sequence
 
 import numpy as np
 
-#: Number of worker processes (the machines this runs on have two cores).
-WORKERS = min(2, os.cpu_count() or 1)
+from ..output import write_files_atomically
+
+#: Lanes a study's tasks are cut into. Fixed, so that the warm starts (and so the answers)
+#: do not depend on the machine; it is recorded with the study.
+LANES = 2
+#: Worker processes: one per lane, at most one per core.
+WORKERS = min(LANES, os.cpu_count() or 1)
 
 
 class ResumableCsv:
-    """A CSV file of result rows, keyed by some columns, that can be appended to safely."""
+    """A CSV file of result rows, keyed by some columns, that can be appended to safely.
+
+    ``rows`` are the rows read and appended so far (cells as strings); ``notes`` are the
+    messages about what was repaired when the file was read.
+    """
 
     def __init__(self, path: Path, columns: Sequence[str], key_columns: Sequence[str]):
         self.path, self.columns, self.key_columns = Path(path), list(columns), list(key_columns)
         self.rows: list[dict[str, str]] = []
+        self.notes: list[str] = []
+        self.states = StateLog(self.path.with_name(f".{self.path.name}.states"))
         if self.path.exists():
             self._load()
-        else:
+        if not self.path.exists():
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._write_text(",".join(self.columns) + "\n", mode="w")
+            self._write_text(self._header(), mode="w")
+
+    def _header(self) -> str:
+        return ",".join(self.columns) + "\n"
 
     def _load(self) -> None:
         raw = self.path.read_bytes()
         if raw and not raw.endswith(b"\n"):  # a row cut short by a kill: drop it
             raw = raw[: raw.rfind(b"\n") + 1]
-            with open(self.path, "r+b") as handle:
-                handle.truncate(len(raw))
-        reader = csv.DictReader(io.StringIO(raw.decode()))
-        if reader.fieldnames != self.columns:
-            raise ValueError(f"{self.path} has columns {reader.fieldnames}, expected {self.columns}; move it away to start afresh")
-        self.rows = list(reader)
+            self.notes.append(f"{self.path.name}: dropped a last row cut short")
+        try:
+            lines = list(csv.reader(io.StringIO(raw.decode("utf-8"))))
+        except (UnicodeDecodeError, csv.Error):
+            return self._set_aside("it is not UTF-8 CSV")
+        if not lines:  # empty, or only a header cut short
+            self.states.clear()
+            self._write_text(self._header(), mode="w")
+            return
+        if lines[0] != self.columns:
+            return self._set_aside("its columns are not this study's")
+        rows = [dict(zip(self.columns, cells)) for cells in lines[1:] if len(cells) == len(self.columns)]
+        dropped = len(lines) - 1 - len(rows)
+        unique, seen = [], set()
+        for row in rows:
+            if self.key(row) not in seen:
+                seen.add(self.key(row))
+                unique.append(row)
+        if dropped:
+            self.notes.append(f"{self.path.name}: dropped {dropped} rows with the wrong number of cells")
+        if len(unique) < len(rows):
+            self.notes.append(f"{self.path.name}: {len(rows) - len(unique)} rows repeat a key; kept the first of each")
+        self.rows = unique
+        if len(raw) != self.path.stat().st_size or dropped or len(unique) < len(rows):
+            self.rewrite(self.rows)
+
+    def _set_aside(self, why: str) -> None:
+        aside = self.path.with_name(f"{self.path.name}.set-aside-{time.strftime('%Y%m%dT%H%M%S')}")
+        os.replace(self.path, aside)
+        self.states.clear()
+        self.notes.append(f"{self.path.name}: {why}; moved it to {aside.name} and started afresh")
 
     def key(self, row: dict) -> tuple[str, ...]:
         return tuple(format_value(row[c]) for c in self.key_columns)
@@ -56,16 +110,63 @@ class ResumableCsv:
         return {self.key(row) for row in self.rows}
 
     def append(self, row: dict) -> None:
+        """Append one finished task: its hand-on state first (if any), then its row."""
+        if row.get("state") is not None:
+            self.states.append(self.key(row), row["state"])
         line = io.StringIO()
         csv.writer(line, lineterminator="\n").writerow([format_value(row.get(c, "")) for c in self.columns])
         self._write_text(line.getvalue(), mode="a")
         self.rows.append({c: format_value(row.get(c, "")) for c in self.columns})
+
+    def rewrite(self, rows: list[dict]) -> None:
+        """Replace the file by ``rows`` (atomically)."""
+        buffer = io.StringIO()
+        writer = csv.writer(buffer, lineterminator="\n")
+        writer.writerow(self.columns)
+        writer.writerows([[format_value(r.get(c, "")) for c in self.columns] for r in rows])
+        write_files_atomically({self.path: buffer.getvalue()})
+        self.rows = [{c: format_value(r.get(c, "")) for c in self.columns} for r in rows]
+
+    def finish(self, order: Sequence[dict]) -> None:
+        """All tasks done: rewrite the rows in task order and drop the saved states."""
+        position = {self.key(task): i for i, task in enumerate(order)}
+        self.rewrite(sorted(self.rows, key=lambda r: position.get(self.key(r), len(position))))
+        self.states.clear()
 
     def _write_text(self, text: str, mode: str) -> None:
         with open(self.path, mode) as handle:
             handle.write(text)
             handle.flush()
             os.fsync(handle.fileno())
+
+
+class StateLog:
+    """Saved hand-on states of finished tasks: one JSON line per task, appended and synced
+    (floats round-trip exactly through JSON)."""
+
+    def __init__(self, path: Path):
+        self.path = path
+
+    def append(self, key: tuple[str, ...], state) -> None:
+        with open(self.path, "a") as handle:
+            handle.write(json.dumps({"key": list(key), "state": state}) + "\n")
+            handle.flush()
+            os.fsync(handle.fileno())
+
+    def read(self) -> dict[tuple[str, ...], list]:
+        states = {}
+        if not self.path.exists():
+            return states
+        for line in self.path.read_text(errors="replace").splitlines():
+            try:
+                entry = json.loads(line)
+                states[tuple(entry["key"])] = entry["state"]
+            except (ValueError, KeyError, TypeError):
+                continue  # a line cut short by a kill: its task is redone
+        return states
+
+    def clear(self) -> None:
+        self.path.unlink(missing_ok=True)
 
 
 def format_value(value) -> str:
@@ -92,6 +193,10 @@ class RunReport:
     wall_time_s: float
     interrupted: bool
 
+    @property
+    def complete(self) -> bool:
+        return not self.interrupted and self.skipped + self.ran == self.total
+
 
 def run_tasks(
     lanes: Sequence[Sequence[dict]],
@@ -103,54 +208,138 @@ def run_tasks(
 ) -> RunReport:
     """Run the tasks not yet in ``table``, one worker process per lane.
 
-    A lane is an ordered list of tasks that one worker takes in turn (so it can warm-start
-    each from the one before). ``worker(lane, context, queue)`` puts one row per task, and
-    then None, on the queue.
+    A lane is an ordered list of tasks that one worker takes in turn. The worker gets
+    the whole lane: a task already done is marked ``done`` and carries the ``state`` it
+    handed on (None if it handed on nothing), so the worker can replay it instead of
+    running it. ``worker(lane, context, queue)`` puts one row per task it ran, and then
+    None, on the queue; a row's ``state`` entry, if not None, is saved for later resumes.
+    When all tasks are done the table is put in task order (:meth:`ResumableCsv.finish`).
     """
-    done = table.done()
+    done, states = table.done(), table.states.read()
     total = sum(len(lane) for lane in lanes)
-    todo = [[t for t in lane if table.key(t) not in done] for lane in lanes]
-    todo = [lane for lane in todo if lane]
-    skipped = total - sum(len(lane) for lane in todo)
+    marked = [[_marked(task, table.key(task), done, states) for task in lane] for lane in lanes]
+    todo = [lane for lane in marked if any(not t.get("done") for t in lane)]
+    skipped = total - sum(sum(1 for t in lane if not t.get("done")) for lane in todo)
     start = time.perf_counter()
-    if not todo:
-        return RunReport(total, skipped, 0, 0.0, False)
+    ran, interrupted = 0, False
+    if todo:
+        ran, interrupted = _run_lanes(todo, worker, context, table, label, quiet, skipped, total, start)
+    report = RunReport(total, skipped, ran, time.perf_counter() - start, interrupted)
+    if report.complete:
+        table.finish([task for lane in lanes for task in lane])
+    return report
+
+
+def _marked(task: dict, key, done: set, states: dict) -> dict:
+    if key not in done:
+        return task
+    return {**task, "done": True, "state": states.get(key)}
+
+
+def _run_lanes(todo, worker, context, table, label, quiet, skipped, total, start) -> tuple[int, bool]:
     ctx = multiprocessing.get_context("spawn")
     queue = ctx.Queue()
-    processes = [ctx.Process(target=worker, args=(lane, context, queue), daemon=True) for lane in todo]
+    processes = [ctx.Process(target=_worker_main, args=(worker, lane, context, queue), daemon=True) for lane in todo]
+    progress = Progress(label, total, quiet)
     for process in processes:
         process.start()
     finished, ran = 0, 0
     try:
         while finished < len(processes):
-            row = queue.get()
+            row = _next_row(queue, processes)
             if row is None:
                 finished += 1
                 continue
             table.append(row)
             ran += 1
-            if not quiet:
-                _progress(label, skipped + ran, total, ran, time.perf_counter() - start)
+            progress.update(skipped + ran, ran, time.perf_counter() - start)
     except KeyboardInterrupt:
+        progress.interrupted(skipped + ran)
+        return ran, True
+    except WorkerDied as err:
+        progress.interrupted(skipped + ran, str(err))
+        return ran, True
+    finally:
         for process in processes:
-            process.terminate()
-        if not quiet:
-            print(f"\n{label}: interrupted; {skipped + ran} of {total} rows are saved", file=sys.stderr)
-        return RunReport(total, skipped, ran, time.perf_counter() - start, True)
-    for process in processes:
-        process.join()
-    if not quiet:
-        print(file=sys.stderr)
-    return RunReport(total, skipped, ran, time.perf_counter() - start, False)
+            if process.is_alive():
+                process.terminate()
+            process.join(timeout=5)
+    progress.close()
+    return ran, False
 
 
-def split_lanes(tasks: Sequence[dict], n: int = WORKERS) -> list[list[dict]]:
+class WorkerDied(RuntimeError):
+    """A worker process ended without finishing its lane."""
+
+
+def _next_row(queue, processes, poll: float = 1.0):
+    """The next row from the workers; raises :class:`WorkerDied` if one died silently."""
+    while True:
+        with contextlib.suppress(Empty):
+            return queue.get(timeout=poll)
+        dead = [p for p in processes if p.exitcode not in (None, 0)]
+        if dead and queue.empty():
+            raise WorkerDied(f"a worker process ended with exit code {dead[0].exitcode}")
+
+
+def _worker_main(worker, lane, context, queue) -> None:
+    """Entry of a worker process: die with the parent, leave Ctrl-C to the parent."""
+    die_with_parent()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent stops the workers itself
+    worker(lane, context, queue)
+
+
+def die_with_parent() -> None:
+    """Make this (child) process end when the process that started it ends, however it
+    ends: the kernel's parent-death signal on Linux, and a watcher thread everywhere."""
+    parent = multiprocessing.parent_process()
+    if parent is None:
+        return
+    with contextlib.suppress(OSError, AttributeError):
+        PR_SET_PDEATHSIG = 1
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    if os.getppid() != parent.pid:  # it died before the signal was set up
+        os._exit(1)
+
+    def watch():
+        multiprocessing.connection.wait([parent.sentinel])
+        os._exit(1)
+
+    threading.Thread(target=watch, name="die-with-parent", daemon=True).start()
+
+
+def split_lanes(tasks: Sequence[dict], n: int = LANES) -> list[list[dict]]:
     """``n`` contiguous lanes of nearly equal length, in order."""
     size = -(-len(tasks) // n) if tasks else 1
     return [list(tasks[i : i + size]) for i in range(0, len(tasks), size)]
 
 
-def _progress(label: str, done: int, total: int, ran: int, elapsed: float) -> None:
-    rate = ran / elapsed if elapsed > 0 else 0.0
-    eta = (total - done) / rate if rate > 0 else float("inf")
-    print(f"\r{label}: {done}/{total} done, {rate:.2f}/s, about {eta:.0f} s left   ", end="", file=sys.stderr, flush=True)
+class Progress:
+    """Progress on stderr: a line rewritten in place on a terminal, and a plain line at
+    most every few seconds otherwise (log files stay readable)."""
+
+    def __init__(self, label: str, total: int, quiet: bool, every_s: float = 10.0):
+        self.label, self.total, self.quiet, self.every_s = label, total, quiet, every_s
+        self.terminal = sys.stderr.isatty()
+        self._last = -every_s
+
+    def update(self, done: int, ran: int, elapsed: float) -> None:
+        if self.quiet:
+            return
+        rate = ran / elapsed if elapsed > 0 else 0.0
+        eta = (self.total - done) / rate if rate > 0 else float("inf")
+        text = f"{self.label}: {done}/{self.total} done, {rate:.2f}/s, about {eta:.0f} s left"
+        if self.terminal:
+            print(f"\r{text}   ", end="", file=sys.stderr, flush=True)
+        elif elapsed - self._last >= self.every_s or done == self.total:
+            self._last = elapsed
+            print(text, file=sys.stderr, flush=True)
+
+    def interrupted(self, saved: int, why: str = "interrupted") -> None:
+        if not self.quiet:
+            print(f"{chr(10) if self.terminal else ''}{self.label}: {why}; {saved} of {self.total} rows are saved",
+                  file=sys.stderr)
+
+    def close(self) -> None:
+        if not self.quiet and self.terminal:
+            print(file=sys.stderr)

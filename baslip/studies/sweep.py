@@ -21,12 +21,12 @@ from ..fixedpoint import FixedPointResult
 from ..model import APEX
 from ..quantities import DESIGN
 from ..returnmap import PHASES
-from .runner import split_lanes
+from .runner import LANES, split_lanes
 from .schema import RandomSample, Sweep
 
 RESULT_COLUMNS = [
     *APEX.names, *CONTROL.names, *PHASES,
-    "energy", "residual", "spectral_radius", "stable", "status", "time_s",
+    "energy", "residual", "spectral_radius", "stable", "status", "reason", "time_s",
 ]
 
 
@@ -35,12 +35,12 @@ def key_column(name: str) -> str:
     return f"sweep_{name}"
 
 
-def sweep_lanes(study: Sweep, start: dict) -> list[list[dict]]:
+def sweep_lanes(study: Sweep, start: dict, lanes: int = LANES) -> list[list[dict]]:
     """Lanes of neighbouring points, one per worker.
 
     One quantity: two lanes walking outwards from the value nearest its starting value
     (``start[name]``), like a continuation in each direction. Two quantities: the grid in
-    snake order, cut in two.
+    snake order, cut into ``lanes`` lanes.
     """
     if len(study.axes) == 1:
         (axis,) = study.axes
@@ -48,7 +48,7 @@ def sweep_lanes(study: Sweep, start: dict) -> list[list[dict]]:
         centre = min(range(len(values)), key=lambda i: abs(values[i] - start[axis.name]))
         up, down = values[centre:], values[:centre][::-1]
         return [[{key_column(axis.name): v} for v in lane] for lane in (up, down) if lane]
-    return split_lanes(sweep_tasks(study))
+    return split_lanes(sweep_tasks(study), lanes)
 
 
 def sweep_tasks(study: Sweep) -> list[dict]:
@@ -144,13 +144,15 @@ def result_row(task: dict, result: FixedPointResult) -> dict:
         spectral_radius=result.spectral_radius,
         stable=result.stable,
         status=result.status,
+        reason="" if result.converged else result.message,
         time_s=result.solver.time_s,
     )
     return row
 
 
 def solve_worker(chunk: list[dict], problem_path: str, queue) -> None:
-    """Worker process: build the solver once, solve each task, put its row on the queue."""
+    """Worker process: build the solver once, solve each task not yet done, put its row
+    (with the IPOPT point it hands on to the next task as ``state``) on the queue."""
     from ..api import fixed_point_spec, shooting_options
     from ..fixedpoint import FixedPointSolver
     from ..problem import load_problem
@@ -161,11 +163,15 @@ def solve_worker(chunk: list[dict], problem_path: str, queue) -> None:
         base = fixed_point_spec(problem)
         warm = None
         for task in chunk:
+            if task.get("done"):  # solved in an earlier run: hand on what it handed on then
+                warm = np.array(task["state"]) if task["state"] is not None else warm
+                continue
             swept = {k[len("sweep_"):]: v for k, v in task.items() if k.startswith("sweep_")}
             spec = replace(base, fixed={**base.fixed, **swept}, guess={**base.guess, **task.get("guess", {})})
             # A task with its own guess starts from it; the others from their predecessor.
             result = solver.solve(spec, name=problem.name, w0=None if "guess" in task else warm)
             warm = result.nlp_w if result.converged else warm
-            queue.put(result_row(task, result))
+            state = result.nlp_w.tolist() if result.converged else None
+            queue.put({**result_row(task, result), "state": state})
     finally:
         queue.put(None)
