@@ -14,6 +14,7 @@ import fcntl
 import os
 import socket
 import sys
+import time
 from pathlib import Path
 
 from .inputs import clip
@@ -25,10 +26,15 @@ class FolderBusy(RuntimeError):
     """Another process is writing into the folder."""
 
 
-def _holder(handle) -> str:
-    handle.seek(0)
-    text = handle.read(400).strip()
-    return clip(text, 120) if text else "an unknown process"
+def _holder(handle, attempts: int = 20) -> str:
+    """The holder's description; it writes it just after locking, so wait a moment."""
+    for _ in range(attempts):
+        handle.seek(0)
+        text = handle.read(400).strip()
+        if text:
+            return clip(text, 120)
+        time.sleep(0.025)
+    return "an unknown process"
 
 
 @contextlib.contextmanager

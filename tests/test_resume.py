@@ -1,0 +1,217 @@
+"""Specification of a study's life on the command line: killed, resumed, raced, changed.
+
+* A study killed with SIGKILL at any moment and run again gives the same points.csv as an
+  uninterrupted run, bit for bit (the timing column aside).
+* Its worker processes (and multiprocessing's helper) do not outlive it.
+* One run writes into a folder at a time; a second is refused naming the holder, and a
+  lock left by a dead process is taken over.
+* A folder holding results of a changed problem is refused unless ``--fresh`` is given.
+* Exit codes: 0 complete, 1 solved nothing or stopped short, 2 bad input or busy/stale
+  folder; every failed row says why.
+"""
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from baslip.folder import LOCK_NAME
+from baslip.solve import main
+
+ROOT = Path(__file__).resolve().parents[1]
+# 10 x 3 = 30 fixed points of the hanging-trunk grid: a couple of seconds on two cores.
+GRID = (ROOT / "problems" / "grid_downward.yaml").read_text().replace(
+    "vary: {ydot: [0.1, 1.0, 0.1], z: [0.3, 0.7, 0.05]}", "vary: {ydot: [0.1, 1.0, 0.1], z: [0.4, 0.5, 0.05]}"
+).replace("name: grid_downward", "name: small_grid")
+POINTS = 30
+
+pytestmark = pytest.mark.skipif(not os.path.isdir("/proc"), reason="needs /proc to watch processes")
+
+
+def start(problem: Path, out: Path, *extra) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "baslip.solve", str(problem), "--out", str(out), "--quiet", *extra],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def rows_written(out: Path) -> int:
+    try:
+        return max(len((out / "points.csv").read_text().splitlines()) - 1, 0)
+    except FileNotFoundError:
+        return 0
+
+
+def kill_after(process: subprocess.Popen, out: Path, rows: int) -> None:
+    """SIGKILL ``process`` as soon as ``rows`` rows are in points.csv."""
+    deadline = time.monotonic() + 300
+    while process.poll() is None and rows_written(out) < rows and time.monotonic() < deadline:
+        time.sleep(0.002)
+    process.kill()
+    process.wait()
+
+
+def table_without_timing(out: Path) -> list[list[str]]:
+    with open(out / "points.csv", newline="") as handle:
+        table = list(csv.reader(handle))
+    drop = table[0].index("time_s")
+    return [row[:drop] + row[drop + 1:] for row in table]
+
+
+def descendants(pid: int) -> set[int]:
+    """Every living process whose ancestry leads to ``pid``."""
+    parents = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat") as handle:
+                    parents[int(entry)] = int(handle.read().rsplit(")", 1)[1].split()[1])
+            except (OSError, IndexError, ValueError):
+                continue
+    found, frontier = set(), {pid}
+    while frontier:
+        frontier = {child for child, parent in parents.items() if parent in frontier} - found
+        found |= frontier
+    return found
+
+
+def gone(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as handle:
+            return handle.read().rsplit(")", 1)[1].split()[0] == "Z"
+    except FileNotFoundError:
+        return True
+
+
+@pytest.fixture(scope="module")
+def grid(tmp_path_factory):
+    """The problem file and one uninterrupted run of it."""
+    folder = tmp_path_factory.mktemp("resume")
+    problem = folder / "small_grid.yaml"
+    problem.write_text(GRID)
+    reference = folder / "uninterrupted"
+    run = start(problem, reference)
+    assert run.wait() == 0, run.stderr.read()
+    return problem, reference
+
+
+def test_killed_three_times_and_resumed_gives_the_same_answers(grid, tmp_path):
+    problem, reference = grid
+    out = tmp_path / "resumed"
+    for rows in (2, 9, 20):
+        kill_after(start(problem, out), out, rows)
+        assert rows <= rows_written(out) < POINTS  # killed mid-study, rows saved
+    assert start(problem, out).wait() == 0
+    assert table_without_timing(out) == table_without_timing(reference)
+    assert len(table_without_timing(out)) == POINTS + 1
+    assert not any(p.name.endswith(".states") for p in out.iterdir())  # nothing left to resume
+    record = json.loads((out / "result.json").read_text())
+    assert record["complete"] and record["done_before_this_run"] >= 20
+
+
+def test_workers_do_not_outlive_a_killed_run(grid, tmp_path):
+    problem, _ = grid
+    out = tmp_path / "orphans"
+    run = start(problem, out)
+    deadline = time.monotonic() + 120
+    while rows_written(out) < 1 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    children = descendants(run.pid)
+    assert len(children) >= 2  # the workers (and multiprocessing's resource tracker)
+    run.kill()
+    run.wait()
+    deadline = time.monotonic() + 10
+    while not all(gone(pid) for pid in children) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert [pid for pid in children if not gone(pid)] == []
+
+
+def test_two_runs_started_together_give_one_writer(grid, tmp_path):
+    problem, reference = grid
+    out = tmp_path / "race"
+    first, second = start(problem, out), start(problem, out)
+    codes = sorted([first.wait(), second.wait()])
+    assert codes == [0, 2]
+    loser = first if first.returncode == 2 else second
+    message = loser.stderr.read()
+    assert message.count("\n") == 1 and f"{out} is in use by process" in message
+    assert table_without_timing(out) == table_without_timing(reference)
+    assert json.loads((out / "result.json").read_text())["points"] == POINTS
+    assert not (out / LOCK_NAME).exists()
+
+
+def test_a_busy_folder_is_refused_naming_the_process(grid, tmp_path, capsys):
+    problem, _ = grid
+    out = tmp_path / "busy"
+    run = start(problem, out)
+    deadline = time.monotonic() + 60
+    while not (out / LOCK_NAME).exists() and time.monotonic() < deadline:
+        time.sleep(0.005)
+    assert main([str(problem), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"process {run.pid} " in err
+    run.wait()
+
+
+def test_a_lock_left_by_a_dead_process_is_taken_over(tmp_path):
+    out = tmp_path / "downward"
+    out.mkdir()
+    (out / LOCK_NAME).write_text("process 999999 on elsewhere (python -m baslip.solve)\n")
+    assert main([str(ROOT / "problems" / "downward.yaml"), "--out", str(out), "--quiet"]) == 0
+    assert json.loads((out / "result.json").read_text())["status"] == "converged"
+    assert not (out / LOCK_NAME).exists()
+
+
+def test_a_changed_problem_is_refused_unless_fresh(grid, tmp_path, capsys):
+    problem, reference = grid
+    out = tmp_path / "stale"
+    kill_after(start(problem, out), out, 4)
+    changed = tmp_path / "changed.yaml"
+    changed.write_text(GRID.replace("k: 1000.0", "k: 1200.0"))
+    assert main([str(changed), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "params.k" in err and "--fresh" in err
+    assert main([str(changed), "--out", str(out), "--quiet", "--fresh"]) == 0
+    record = json.loads((out / "result.json").read_text())
+    assert record["provenance"]["problem"]["params"]["k"] == 1200.0
+    assert record["done_before_this_run"] == 0 and record["points"] == POINTS
+
+
+def test_results_without_provenance_are_not_resumed(grid, tmp_path, capsys):
+    problem, reference = grid
+    out = tmp_path / "legacy"
+    out.mkdir()
+    (out / "points.csv").write_text((reference / "points.csv").read_text())
+    assert main([str(problem), "--out", str(out)]) == 2
+    assert "no provenance" in capsys.readouterr().err
+
+
+def test_a_study_that_solves_nothing_exits_1_and_says_why_per_row(tmp_path, capsys):
+    problem = tmp_path / "hopeless.yaml"
+    problem.write_text(GRID.replace("vary: {ydot: [0.1, 1.0, 0.1], z: [0.4, 0.5, 0.05]}", "vary: {ydot: [0.4, 0.5, 0.1]}")
+                       .replace("objective: nearest_guess", "objective: nearest_guess\nsolver: {max_iter: 1}"))
+    out = tmp_path / "out"
+    assert main([str(problem), "--out", str(out), "--quiet"]) == 1
+    assert "no fixed point was found" in capsys.readouterr().err
+    with open(out / "points.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 2 and all(r["status"] == "failed" and "Maximum_Iterations_Exceeded" in r["reason"] for r in rows)
+    record = json.loads((out / "result.json").read_text())
+    assert record["complete"] and [r["status"] for r in record["not_solved"]] == ["failed", "failed"]
+
+
+def test_a_study_stopped_short_exits_1(grid, tmp_path):
+    problem, _ = grid
+    out = tmp_path / "short"
+    run = start(problem, out)
+    deadline = time.monotonic() + 120
+    while rows_written(out) < 3 and time.monotonic() < deadline:
+        time.sleep(0.005)
+    run.send_signal(signal.SIGINT)
+    assert run.wait() == 1
+    assert "stopped short" in run.stderr.read() or rows_written(out) == POINTS
+    assert json.loads((out / "result.json").read_text())["complete"] is (rows_written(out) == POINTS)

@@ -1,0 +1,111 @@
+"""Specification of baslip.studies.runner: the resumable CSV and the worker processes.
+
+A study's CSV survives anything a kill or a crash can leave: a row cut short, an empty
+file, a torn header, junk, repeated keys. What cannot be repaired is set aside, never
+lost and never an internal error. Workers never outlive the process that started them.
+"""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from baslip.studies.runner import ResumableCsv, StateLog
+
+
+def test_an_empty_file_gets_its_header_back(tmp_path):
+    path = tmp_path / "points.csv"
+    path.write_bytes(b"")
+    table = ResumableCsv(path, ["a", "b"], ["a"])
+    assert table.rows == [] and path.read_text() == "a,b\n"
+
+
+def test_a_header_cut_short_is_written_again(tmp_path):
+    path = tmp_path / "points.csv"
+    path.write_text("a,")
+    table = ResumableCsv(path, ["a", "b"], ["a"])
+    assert table.rows == [] and path.read_text() == "a,b\n"
+    assert "cut short" in " ".join(table.notes)
+
+
+@pytest.mark.parametrize("content", [b"\x89PNG\r\n\x1a\n\x00\x00\xff\xfe", b"x,y\n1,2\n"], ids=["binary", "foreign header"])
+def test_an_unreadable_file_is_set_aside_and_started_afresh(tmp_path, content):
+    path = tmp_path / "points.csv"
+    path.write_bytes(content)
+    table = ResumableCsv(path, ["a", "b"], ["a"])
+    assert table.rows == [] and path.read_text() == "a,b\n"
+    (aside,) = [p for p in tmp_path.iterdir() if p.name.startswith("points.csv.set-aside-")]
+    assert aside.read_bytes() == content
+    assert aside.name in table.notes[-1]
+
+
+def test_repeated_keys_keep_the_first_row_and_say_so(tmp_path):
+    path = tmp_path / "points.csv"
+    path.write_text("a,b\n0.1,1.0\n0.2,2.0\n0.1,9.0\n0.2,9.0\n0.3,3.0\n")
+    table = ResumableCsv(path, ["a", "b"], ["a"])
+    assert [(r["a"], r["b"]) for r in table.rows] == [("0.1", "1.0"), ("0.2", "2.0"), ("0.3", "3.0")]
+    assert "2 rows repeat a key" in table.notes[-1]
+    assert path.read_text() == "a,b\n0.1,1.0\n0.2,2.0\n0.3,3.0\n"
+
+
+def test_rows_with_the_wrong_number_of_cells_are_dropped(tmp_path):
+    path = tmp_path / "points.csv"
+    path.write_text("a,b\n0.1,1.0\n0.2\n0.3,3.0,extra\n")
+    table = ResumableCsv(path, ["a", "b"], ["a"])
+    assert table.done() == {("0.1",)} and "2 rows" in table.notes[-1]
+
+
+def test_saved_states_round_trip_exactly_and_finish_orders_the_rows(tmp_path):
+    path = tmp_path / "points.csv"
+    table = ResumableCsv(path, ["a", "b"], ["a"])
+    state = [0.1 + 0.2, 1e-310, -2.0 / 3.0]
+    table.append({"a": 0.2, "b": 2.0, "state": state})
+    table.append({"a": 0.1, "b": 1.0})
+    assert StateLog(table.states.path).read() == {("0.2",): state}
+    table.finish([{"a": 0.1}, {"a": 0.2}])
+    assert path.read_text() == "a,b\n0.1,1.0\n0.2,2.0\n"
+    assert not table.states.path.exists()
+
+
+CHILD = """
+import multiprocessing, sys, time
+from baslip.studies.runner import _worker_main
+
+def sleeper(lane, context, queue):
+    time.sleep(60)
+
+if __name__ == "__main__":
+    ctx = multiprocessing.get_context("spawn")
+    child = ctx.Process(target=_worker_main, args=(sleeper, [], None, None))
+    child.start()
+    print(child.pid, flush=True)
+    time.sleep(60)
+"""
+
+
+def _gone(pid: int) -> bool:
+    """True if the process has ended (a zombie waiting to be reaped has ended too)."""
+    try:
+        with open(f"/proc/{pid}/stat") as handle:
+            return handle.read().rsplit(")", 1)[1].split()[0] == "Z"
+    except FileNotFoundError:
+        return True
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc"), reason="needs /proc to watch processes")
+def test_a_worker_dies_when_its_parent_is_killed(tmp_path):
+    script = tmp_path / "parent.py"
+    script.write_text(CHILD)
+    parent = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
+    child = int(parent.stdout.readline())
+    time.sleep(1.0)  # let the child set up its watch
+    assert not _gone(child)
+    os.kill(parent.pid, signal.SIGKILL)
+    parent.wait()
+    deadline = time.monotonic() + 10
+    while not _gone(child) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert _gone(child)
