@@ -108,7 +108,7 @@ def load_problem(path: str | Path) -> Problem:
     except InputError as err:
         raise ProblemError("", str(err)) from None
     if data is None:
-        raise ProblemError("", f"problem file {path} is empty (it holds no YAML mapping, only comments or null)")
+        raise ProblemError("", "the problem file is empty (it holds only comments, '---' or null)")
     return parse_problem(data, default_name=re.sub(r"[^A-Za-z0-9_.-]", "_", path.stem))
 
 

@@ -161,16 +161,24 @@ def _source_points(out_dir: Path, name: str, key: str) -> tuple[list[dict], tupl
     with contextlib.suppress(OSError, ValueError):
         record = json.loads((folder / "result.json").read_text())
     if not isinstance(record, dict) or record.get("complete") is not True:
-        raise StudyInputError(key, f"the study {name!r} has not run to the end ({folder / 'result.json'} does not say complete); rerun it first")
+        raise StudyInputError(key, f"the study {name!r} has not run to the end (its result.json does not say complete); rerun it first")
     try:
         rows = read_points(path)
         names = tuple(c[len("sweep_"):] for c in rows[0] if c.startswith("sweep_")) if rows else ()
         for row in rows:
-            for column in (*APEX.names, *CONTROL.names, "spectral_radius"):
+            for column in (*APEX.names, *CONTROL.names, "spectral_radius", "stable", "status"):
+                if column not in row:
+                    raise ValueError(f"it has no column {column}")
+                if column in ("stable", "status"):
+                    continue
                 if row[column] != "" and not isinstance(row[column], float):
-                    raise ValueError(f"column {column} holds {row[column]!r:.20}")
-    except (UnicodeDecodeError, csv.Error, KeyError, ValueError) as err:
-        raise StudyInputError(key, f"{path} is not a points.csv written by baslip ({type(err).__name__}: {str(err)[:60]})") from None
+                    raise ValueError(f"its column {column} holds {str(row[column])[:20]!r}")
+    except UnicodeDecodeError:
+        raise StudyInputError(key, f"{path} is not a points.csv written by baslip (it is not UTF-8 text)") from None
+    except csv.Error:
+        raise StudyInputError(key, f"{path} is not a points.csv written by baslip (it is not CSV)") from None
+    except ValueError as err:
+        raise StudyInputError(key, f"{path} is not a points.csv written by baslip ({err})") from None
     if len(names) != 2:
         raise StudyInputError(key, f"{path} is not a sweep over two quantities")
     return rows, names

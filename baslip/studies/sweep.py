@@ -66,7 +66,7 @@ def sweep_tasks(study: Sweep) -> list[dict]:
 
 def read_points(path: Path) -> list[dict]:
     """Rows of a points.csv as dicts of floats (status and empty cells kept as strings)."""
-    with open(path) as handle:
+    with open(path, encoding="utf-8", newline="") as handle:
         return [{k: _number_or_text(v) for k, v in row.items()} for row in csv.DictReader(handle)]
 
 
