@@ -23,6 +23,7 @@ import pytest
 
 from baslip.folder import LOCK_NAME
 from baslip.solve import main
+from processes import descendants, gone
 
 ROOT = Path(__file__).resolve().parents[1]
 # 10 x 3 = 30 fixed points of the hanging-trunk grid: a couple of seconds on two cores.
@@ -46,11 +47,16 @@ def rows_written(out: Path) -> int:
         return 0
 
 
-def kill_after(process: subprocess.Popen, out: Path, rows: int) -> None:
-    """SIGKILL ``process`` as soon as ``rows`` rows are in points.csv."""
+def wait_for_rows(process: subprocess.Popen, out: Path, rows: int) -> None:
+    """Return as soon as ``rows`` rows are in points.csv (or the run has ended)."""
     deadline = time.monotonic() + 300
     while process.poll() is None and rows_written(out) < rows and time.monotonic() < deadline:
         time.sleep(0.002)
+
+
+def kill_after(process: subprocess.Popen, out: Path, rows: int) -> None:
+    """SIGKILL ``process`` as soon as ``rows`` rows are in points.csv."""
+    wait_for_rows(process, out, rows)
     process.kill()
     process.wait()
 
@@ -60,31 +66,6 @@ def table_without_timing(out: Path) -> list[list[str]]:
         table = list(csv.reader(handle))
     drop = table[0].index("time_s")
     return [row[:drop] + row[drop + 1:] for row in table]
-
-
-def descendants(pid: int) -> set[int]:
-    """Every living process whose ancestry leads to ``pid``."""
-    parents = {}
-    for entry in os.listdir("/proc"):
-        if entry.isdigit():
-            try:
-                with open(f"/proc/{entry}/stat") as handle:
-                    parents[int(entry)] = int(handle.read().rsplit(")", 1)[1].split()[1])
-            except (OSError, IndexError, ValueError):
-                continue
-    found, frontier = set(), {pid}
-    while frontier:
-        frontier = {child for child, parent in parents.items() if parent in frontier} - found
-        found |= frontier
-    return found
-
-
-def gone(pid: int) -> bool:
-    try:
-        with open(f"/proc/{pid}/stat") as handle:
-            return handle.read().rsplit(")", 1)[1].split()[0] == "Z"
-    except FileNotFoundError:
-        return True
 
 
 @pytest.fixture(scope="module")
@@ -117,9 +98,7 @@ def test_workers_do_not_outlive_a_killed_run(grid, tmp_path):
     problem, _ = grid
     out = tmp_path / "orphans"
     run = start(problem, out)
-    deadline = time.monotonic() + 120
-    while rows_written(out) < 1 and time.monotonic() < deadline:
-        time.sleep(0.01)
+    wait_for_rows(run, out, 1)
     children = descendants(run.pid)
     assert len(children) >= 2  # the workers (and multiprocessing's resource tracker)
     run.kill()
@@ -208,9 +187,7 @@ def test_a_study_stopped_short_exits_1(grid, tmp_path):
     problem, _ = grid
     out = tmp_path / "short"
     run = start(problem, out)
-    deadline = time.monotonic() + 120
-    while rows_written(out) < 3 and time.monotonic() < deadline:
-        time.sleep(0.005)
+    wait_for_rows(run, out, 3)
     run.send_signal(signal.SIGINT)
     assert run.wait() == 1
     assert "stopped short" in run.stderr.read() or rows_written(out) == POINTS

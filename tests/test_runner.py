@@ -14,6 +14,7 @@ import time
 import pytest
 
 from baslip.studies.runner import ResumableCsv, StateLog
+from processes import gone
 
 
 def test_an_empty_file_gets_its_header_back(tmp_path):
@@ -86,15 +87,6 @@ if __name__ == "__main__":
 """
 
 
-def _gone(pid: int) -> bool:
-    """True if the process has ended (a zombie waiting to be reaped has ended too)."""
-    try:
-        with open(f"/proc/{pid}/stat") as handle:
-            return handle.read().rsplit(")", 1)[1].split()[0] == "Z"
-    except FileNotFoundError:
-        return True
-
-
 @pytest.mark.skipif(not os.path.isdir("/proc"), reason="needs /proc to watch processes")
 def test_a_worker_dies_when_its_parent_is_killed(tmp_path):
     script = tmp_path / "parent.py"
@@ -102,10 +94,10 @@ def test_a_worker_dies_when_its_parent_is_killed(tmp_path):
     parent = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
     child = int(parent.stdout.readline())
     time.sleep(1.0)  # let the child set up its watch
-    assert not _gone(child)
+    assert not gone(child)
     os.kill(parent.pid, signal.SIGKILL)
     parent.wait()
     deadline = time.monotonic() + 10
-    while not _gone(child) and time.monotonic() < deadline:
+    while not gone(child) and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert _gone(child)
+    assert gone(child)

@@ -31,7 +31,6 @@ def test_compiled_derivatives_match_central_differences(solver, downward_spec):
     F = nlp.functions
     f0, g0 = (np.asarray(v).ravel() for v in F["nlp_fg"](w, P))
     jac = np.asarray(ca.densify(F["nlp_jac_g"](w, P)[1]))
-    lam = np.random.default_rng(1).normal(size=len(g0))
     step = 1e-6
     for i in range(0, len(w), 11):
         e = np.zeros(len(w))

@@ -174,6 +174,27 @@ def test_adaptive_study_resolves_the_control_each_stride(tmp_path):
     assert again["adaptive_strides"] == 3 and len(open(out / "strides.csv").read().splitlines()) == len(phases) + 1
 
 
+def test_a_resumed_adaptive_run_continues_from_the_apex_after_its_last_row(tmp_path):
+    """Cut after three adaptive strides, the resumed run re-solves the control at the
+    fourth apex (not the third again) and matches an uninterrupted run row for row."""
+    text = (Path(__file__).resolve().parents[1] / "problems" / "adaptive_upright.yaml").read_text()
+    problem_path = tmp_path / "adaptive.yaml"
+    problem_path.write_text(text.replace("strides: 2048", "strides: 6").replace("frozen_strides: 1000", "frozen_strides: 50"))
+    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    run_study(load_problem(problem_path), problem_path, whole, quiet=True)
+    run_study(load_problem(problem_path), problem_path, cut, quiet=True)
+    lines = (cut / "strides.csv").read_text().splitlines(keepends=True)
+    (cut / "strides.csv").write_text("".join(lines[:4]))  # header and three adaptive rows
+    run_study(load_problem(problem_path), problem_path, cut, quiet=True)
+
+    def rows(folder):
+        with open(folder / "strides.csv", newline="") as handle:
+            return [{k: v for k, v in r.items() if k != "solve_time_s"} for r in csv.DictReader(handle)]
+
+    assert [r["n"] for r in rows(cut) if r["phase"] == "adaptive"] == ["0", "1", "2", "3", "4", "5"]
+    assert rows(cut) == rows(whole)
+
+
 def test_one_quantity_sweeps_walk_outwards_from_the_start():
     from baslip.studies.sweep import sweep_lanes
 
