@@ -17,14 +17,13 @@ refused (:class:`StaleFolder`) unless it is asked to start afresh.
 from __future__ import annotations
 
 import contextlib
+import csv
+import json
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
-
-import csv
-import json
-import sys
 
 from ..control import CONTROL
 from ..folder import busy, hold

@@ -42,8 +42,6 @@ from ..output import write_files_atomically
 #: Lanes a study's tasks are cut into. Fixed, so that the warm starts (and so the answers)
 #: do not depend on the machine; it is recorded with the study.
 LANES = 2
-#: Worker processes: one per lane, at most one per core.
-WORKERS = min(LANES, os.cpu_count() or 1)
 
 
 class ResumableCsv:
