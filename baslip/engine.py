@@ -86,6 +86,15 @@ class CompiledEngine:
         jac, *outputs = self.functions.jacobian(n)(X, u, p, plan[1])
         return jac, self.judge(*outputs)
 
+    def settled_pass(self, X, u, p, t_guess) -> tuple[int, np.ndarray] | None:
+        """(step count, guesses) of the final pass that :meth:`stride` accepts for a clean
+        stride, to evaluate other functions of that same pass; None if there is none."""
+        plan = self._plan(X, u, p, t_guess)
+        if not isinstance(plan, tuple):
+            return None
+        n, verdict = self._final(X, u, p, *plan)
+        return None if verdict is None or not verdict.ok else (n, plan[1])
+
     # -- pieces ----------------------------------------------------------------------
 
     def _final(self, X, u, p, tiers, guesses) -> tuple[int, Stride | None]:

@@ -158,6 +158,17 @@ class FixedPointSolver:
             sol = replace(retry, iterations=sol.iterations + retry.iterations)
         if sol.return_status not in ACCEPTED_IPOPT:
             return self._result(spec, name, "failed", f"IPOPT: {sol.return_status}", sol, start, sol.X, sol.u)
+        return self._polish_and_verify(spec, name, sol, start)
+
+    def verify_point(self, spec: FixedPointSpec, X, u, name: str = "problem") -> FixedPointResult:
+        """The same polish, independent re-simulation and stability as :meth:`solve`, for a
+        point found some other way (IPOPT does not run; its report says so)."""
+        start = time.perf_counter()
+        X, u = np.asarray(X, dtype=float), np.asarray(u, dtype=float)
+        given = NlpSolution(X, u, np.full(len(PHASES), np.nan), "not run (point given)", 0, 0.0)
+        return self._polish_and_verify(spec, name, given, start)
+
+    def _polish_and_verify(self, spec: FixedPointSpec, name: str, sol: NlpSolution, start: float) -> FixedPointResult:
         X, u, iterations, note = self._polish.run(spec, sol.X, sol.u)
         check = self.verify_map.simulate(X, u, spec.params, spec.strides)
         if check.fall is not None:

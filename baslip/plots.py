@@ -325,3 +325,21 @@ def _orbit_value(row: dict, k: int, quantity: str) -> float:
     """``quantity`` at apex k of the row's orbit (controls and model parameters are the
     same at every apex)."""
     return row["orbit"][k][quantity] if quantity in row["orbit"][k] else row[quantity]
+
+
+# --- stability-optimal gaits ----------------------------------------------------------------
+
+
+def trunk_motion_figure(motions: list[tuple[str, np.ndarray, np.ndarray]], out_dir: Path) -> Path:
+    """Trunk angle over one stride of each gait: (label, t [s], theta_h [rad]), with the
+    band of 'upright throughout' (within 45 deg of vertical) shaded."""
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    ax.axhspan(45, 135, color="0.92", label="within 45 deg of vertical")
+    for label, t, theta_h in motions:
+        ax.plot(t, shown("theta_h", theta_h), lw=1.2, label=label)
+    ax.set_xlabel("time from apex t [s]")
+    ax.set_ylabel(LABELS["theta_h"])
+    ax.legend(fontsize=7, loc="best")
+    path = out_dir / "best_gaits_trunk.png"
+    _save(fig, path)
+    return path

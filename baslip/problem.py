@@ -30,7 +30,7 @@ from dataclasses import replace
 from .inputs import InputError, NonScalarKey, clip, excerpt, read_yaml
 from .model import PARAMS, Params
 from .quantities import DEFAULT_BOUNDS, DESIGN, OBJECTIVES, PARAM_RANGES, QUANTITIES, UNITS, physical_range, start_value
-from .studies.schema import Basin, Study, StudyError, Sweep, parse_study
+from .studies.schema import Basin, Optimal, Study, StudyError, Sweep, parse_study
 
 ANGLES = ("theta_h", "theta2_des", "theta_td")
 RATES = ("theta_h_dot", "theta2_dot_des")
@@ -403,11 +403,12 @@ def check_point(problem: Problem, values: Mapping[str, float]) -> None:
 
 
 def _check_sweep(problem: Problem) -> None:
-    """Every point of a sweep must be a problem that would be accepted written out."""
-    if not isinstance(problem.study, Sweep):
+    """Every point of a sweep (or an optimal-gait search) must be a problem that would be
+    accepted written out."""
+    if not isinstance(problem.study, (Sweep, Optimal)):
         return
     axes = problem.study.axes
-    points = math.prod(len(a.values) for a in axes)
+    points = math.prod(len(a.values) for a in axes) * getattr(problem.study, "starts", 1)
     if points > MAX_SWEEP_POINTS:
         raise ProblemError("study.vary", f"{points} points is more than {MAX_SWEEP_POINTS}")
     for point in itertools.product(*(a.values for a in axes)):

@@ -80,6 +80,12 @@ class ReturnMap:
             self._events = EventMap(self.tolerances, "erk")
         return self._events
 
+    @property
+    def compiled_engine(self):
+        """The compiled engine (:class:`baslip.engine.CompiledEngine`), or None for an
+        event-map plugin."""
+        return self._compiled
+
     def describe(self) -> str:
         """One phrase naming the engine and its tolerance."""
         if self.plugin == COMPILED:

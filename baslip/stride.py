@@ -187,7 +187,7 @@ class StrideFunctions:
 
     def __init__(self, compile: bool | None = None):
         self.flow = StanceFlow()
-        self.functions = compile_kernels("baslip_stride", _names(), self._all, _sources(), enabled=compile)
+        self.functions = compile_kernels("baslip_stride", _names(), self._all, sources(), enabled=compile)
         self.touchdown_state = self.functions["touchdown_state"]
         self.scout = self.functions["stance_scout"]
 
@@ -291,6 +291,19 @@ def _final_pass(stance: StanceFlow, n: int) -> ca.Function:
     )
 
 
+def multiplier_gradient_function(stance: StanceFlow, n: int) -> ca.Function:
+    """(X, u, p, guesses, G) -> the gradient in (X, u) of sum(G * dr/dX), with ``n`` steps a
+    phase: second derivatives of the final pass (reverse over forward mode), for the
+    sensitivities of the multipliers. G is a 4 x 4 seed."""
+    final = _final_pass(stance, n)
+    X, u, p, guesses = final.mx_in()
+    seed = ca.MX.sym("G", APEX.size, APEX.size)
+    dr_dX = ca.jacobian(final(X, u, p, guesses)[0], X)
+    gradient = ca.gradient(ca.dot(seed, dr_dX), ca.vertcat(X, u))
+    return ca.Function(f"multiplier_gradient_{n}", [X, u, p, guesses, seed], [gradient],
+                       ["X", "u", "p", "guesses", "G"], ["gradient"])
+
+
 def _touchdown_time(X, u, p, t_guess):
     """The touchdown time [s]: Newton on the closed-form foot height from a converged guess,
     so that its derivative is the implicit-function-theorem one."""
@@ -323,7 +336,7 @@ def _names() -> list[str]:
     return [*singles, *(f"stride_jacobian_{n}" for n in TIERS), *(f"batch_{name}" for name in singles)]
 
 
-def _sources() -> list[pathlib.Path]:
+def sources() -> list[pathlib.Path]:
     """The modules the engine's functions are derived from: the compiled library's key."""
     here = pathlib.Path(__file__).parent
     return [here / f"{module}.py" for module in ("layout", "model", "control", "outcome", "flow", "stride", "compile")]

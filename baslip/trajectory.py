@@ -85,3 +85,11 @@ def _flight_samples(model, xf, ts, t0, y0, theta_td, params: Params):
     foot_y = hip_y + params.rho0 * np.sin(theta_td)
     foot_z = hip_z - params.rho0 * np.cos(theta_td)
     return ts + t0, y, z, th, foot_y, foot_z, np.zeros(len(ts), dtype=bool)
+
+
+def trunk_angle_range(rmap: ReturnMap, X, u, params: Params, samples: int = 100) -> tuple[float, float]:
+    """Least and greatest trunk angle theta_h [rad] over one stride from apex ``X``, from
+    ``samples`` points in each of flight down, stance and flight up (flight is linear in
+    time, so its ends are exact; stance is sampled)."""
+    theta_h = stride_trajectory(rmap, X, u, params, strides=1, samples=samples).theta_h
+    return float(np.min(theta_h)), float(np.max(theta_h))

@@ -201,3 +201,31 @@ def test_one_quantity_sweeps_walk_outwards_from_the_start():
     problem = parse_problem({"study": {"kind": "sweep", "vary": {"ydot": [0.0, 1.0, 0.25]}}})
     lanes = sweep_lanes(problem.study, {"ydot": 0.5})
     assert [[t["sweep_ydot"] for t in lane] for lane in lanes] == [[0.5, 0.75, 1.0], [0.25, 0.0]]
+
+
+def test_an_optimal_study_descends_from_every_start(tmp_path, monkeypatch):
+    """One cell, three starts, two descent steps each, in CasADi's virtual machine (so
+    that the test compiles nothing): each row is its start's verified end point, never
+    less stable than the gait it started from, and result.json names the least radius."""
+    monkeypatch.setenv("BASLIP_NO_COMPILE", "1")
+    text = (Path(__file__).resolve().parents[1] / "problems" / "optimal_downward.yaml").read_text()
+    text = text.replace("vary: {ydot: [0.3, 0.7, 0.2], z: [0.35, 0.45, 0.05]}", "vary: {ydot: [0.5, 0.5, 0.1], z: [0.4, 0.4, 0.1]}")
+    text = text.replace("starts: 12", "starts: 3\n  iterations: 2")
+    problem_path = tmp_path / "optimal.yaml"
+    problem_path.write_text(text)
+    out = tmp_path / "results" / "optimal"
+    summary = run_study(load_problem(problem_path), problem_path, out, quiet=True)
+    assert summary["complete"] and summary["points"] == 3
+    with open(out / "points.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    assert [r["start"] for r in rows] == ["0", "1", "2"]
+    solved = [r for r in rows if r["status"] == "converged"]
+    assert solved, "no start gave a fixed point"
+    for row in solved:
+        assert float(row["residual"]) <= 1e-10
+        if row["start_radius"]:
+            assert float(row["spectral_radius"]) <= float(row["start_radius"]) * (1 + 1e-9)
+        assert float(row["trunk_min_deg"]) <= float(row["theta_h"]) * 180 / math.pi <= float(row["trunk_max_deg"])
+    least = min(float(r["spectral_radius"]) for r in solved)
+    assert summary["least"]["spectral_radius"] == pytest.approx(least)
+    assert (out / "best_gaits_trunk.png").stat().st_size > 0

@@ -34,7 +34,8 @@ from ..provenance import changed_entries, provenance
 from .. import plots
 from .basin import BASIN_COLUMNS, basin_tasks, basin_worker, run_from, SIMULATION_TOLERANCES
 from .runner import LANES, ResumableCsv, RunReport, run_tasks, split_lanes
-from .schema import Adaptive, Basin, RandomSample, Sweep
+from .optimal import OPTIMAL_COLUMNS, best_rows, optimal_tasks, optimal_worker
+from .schema import Adaptive, Basin, Optimal, RandomSample, Sweep
 from .sweep import RESULT_COLUMNS, key_column, random_tasks, read_points, solve_worker, sweep_lanes
 
 #: Files a study writes besides its figures; ``--fresh`` removes them before starting.
@@ -108,6 +109,8 @@ def _run(problem: Problem, problem_path: Path, out_dir: Path, quiet: bool, lanes
         summary = _run_basin(problem, study, out_dir, quiet, lanes)
     elif isinstance(study, Adaptive):
         summary = _run_adaptive(problem, study, out_dir, quiet)
+    elif isinstance(study, Optimal):
+        summary = _run_optimal(problem, study, problem_path, out_dir, quiet, lanes)
     else:  # pragma: no cover - the schema admits no other kind
         raise TypeError(study)
     return summary
@@ -227,7 +230,7 @@ def outcome(summary: dict) -> str | None:
     solved nothing at all."""
     if not summary.get("complete", True):
         return f"stopped short: {summary['done_before_this_run'] + summary['done_in_this_run']} of {summary['tasks']} tasks done; rerun to resume"
-    if summary["kind"] in ("sweep", "random") and summary["solved"] == 0:
+    if summary["kind"] in ("sweep", "random", "optimal") and summary["solved"] == 0:
         return f"no fixed point was found at any of the {summary['points']} points"
     if summary["kind"] == "basin" and summary["stable_points"] == 0:
         return f"the source study {summary['source']!r} has no stable fixed point to simulate"
@@ -299,6 +302,52 @@ def _write_trajectories(path: Path, trajectories: dict) -> None:
     for name, (_, _, _, apexes) in trajectories.items():
         lines += [f"{name},{n}," + ",".join(repr(float(v)) for v in X) for n, X in enumerate(apexes)]
     write_files_atomically({path: "\n".join(lines) + "\n"})
+
+
+def _run_optimal(problem: Problem, study: Optimal, problem_path: Path, out_dir: Path, quiet: bool, lanes: int) -> dict:
+    from ..returnmap import ReturnMap, Tolerances
+    from ..trajectory import stride_trajectory
+
+    names = [a.name for a in study.axes]
+    keys = [key_column(n) for n in names]
+    table = _table(out_dir / "points.csv", keys + OPTIMAL_COLUMNS, keys + ["start"], quiet)
+    report = run_tasks(split_lanes(optimal_tasks(study), lanes), optimal_worker, str(problem_path), table,
+                       problem.name, quiet=quiet)
+    rows = read_points(out_dir / "points.csv")
+    best = best_rows(rows, names)
+    plots.sweep_figures(best, names, out_dir)
+    rmap = ReturnMap(Tolerances(1e-12, 1e-12))
+    motions = []
+    for row in sorted(best, key=lambda r: r["spectral_radius"])[:6]:
+        X, u = _point(row)
+        motion = stride_trajectory(rmap, X, u, problem.params, strides=1, samples=100)
+        where = ", ".join(f"{n} = {row[key_column(n)]:g}" for n in names)
+        motions.append((f"{where}: radius {row['spectral_radius']:.3g}", motion.t, motion.theta_h))
+    plots.trunk_motion_figure(motions, out_dir)
+
+    def least(where) -> dict | None:
+        candidates = best_rows(rows, names, where)
+        if not candidates:
+            return None
+        row = min(candidates, key=lambda r: r["spectral_radius"])
+        return {**{n: row[key_column(n)] for n in names}, "start": int(row["start"]),
+                "spectral_radius": row["spectral_radius"], "stable": row["stable"],
+                "apex": {n: row[n] for n in APEX.names}, "control": {n: row[n] for n in CONTROL.names},
+                "trunk_range_deg": [row["trunk_min_deg"], row["trunk_max_deg"]]}
+
+    not_solved = [{**{k: r[k] for k in keys}, "start": r["start"], "status": r["status"], "reason": r["reason"]}
+                  for r in rows if r["status"] != "converged"]
+    return {
+        **_counts(rows), **_run_info(report), "swept": names, "starts": study.starts,
+        "descended": sum(1 for r in rows if r["descent_steps"] != "" and r["status"] == "converged"),
+        "least_per_point": [{**{n: r[key_column(n)] for n in names}, "spectral_radius": r["spectral_radius"],
+                             "stable": r["stable"], "trunk_range_deg": [r["trunk_min_deg"], r["trunk_max_deg"]]}
+                            for r in best],
+        "least": least(lambda r: True),
+        "least_upright_at_apex": least(lambda r: r["upright_apex"] is True),
+        "least_upright_throughout": least(lambda r: r["upright_throughout"] is True),
+        "not_solved": not_solved,
+    }
 
 
 def _run_adaptive(problem: Problem, study: Adaptive, out_dir: Path, quiet: bool) -> dict:

@@ -10,7 +10,11 @@ Kinds:
   sweep (``source``) over a ``grid`` of (ydot, z) apex states; ``stable_at`` and
   ``unstable_at`` pick the example points; ``strides`` and ``tolerance`` decide convergence;
 * ``adaptive``: re-solve the control at every apex for ``strides`` strides from the
-  problem's fixed point, then hold the last control for at most ``frozen_strides``.
+  problem's fixed point, then hold the last control for at most ``frozen_strides``;
+* ``optimal``: at every point of a grid of one or two quantities (``vary``, as a sweep),
+  ``starts`` fixed points with gains drawn over their whole bounds, each followed by a
+  descent of at most ``iterations`` steps to the least spectral radius nearby
+  (:mod:`baslip.optimal`); ``seed`` makes the draws repeatable.
 """
 
 from __future__ import annotations
@@ -74,8 +78,17 @@ class Adaptive:
     kind: str = "adaptive"
 
 
-Study = Sweep | RandomSample | Basin | Adaptive
-KINDS = ("sweep", "random", "basin", "adaptive")
+@dataclass(frozen=True)
+class Optimal:
+    axes: tuple[Axis, ...]
+    starts: int = 16
+    seed: int = 0
+    iterations: int = 60  # most quasi-Newton iterations of each descent
+    kind: str = "optimal"
+
+
+Study = Sweep | RandomSample | Basin | Adaptive | Optimal
+KINDS = ("sweep", "random", "basin", "adaptive", "optimal")
 
 
 def parse_study(data, number) -> Study:
@@ -90,22 +103,31 @@ def parse_study(data, number) -> Study:
         "random": ("kind", "region", "count", "seed"),
         "basin": ("kind", "source", "grid", "stable_at", "unstable_at", "strides", "tolerance"),
         "adaptive": ("kind", "strides", "frozen_strides"),
+        "optimal": ("kind", "vary", "starts", "seed", "iterations"),
     }[kind]
     for key in data:
         if isinstance(key, NonScalarKey):
             raise StudyError(f"study.{key}", f"a key must be a plain name, not a {key.kind}")
         if key not in allowed:
             raise StudyError(f"study.{clip(str(key))}", f"unknown key for a {kind} study (expected one of {', '.join(allowed)})")
-    if kind == "sweep":
+    if kind in ("sweep", "optimal"):
         axes = _axes(data.get("vary"), "study.vary", number, DESIGN)
         if not 1 <= len(axes) <= 2:
             raise StudyError("study.vary", f"expected one or two quantities, got {len(axes)}")
-        return Sweep(axes)
+        if kind == "sweep":
+            return Sweep(axes)
+        return Optimal(
+            axes,
+            starts=_integer(data.get("starts", 16), "study.starts", 1, 10000),
+            seed=_integer(data.get("seed", 0), "study.seed", 0, 2**31 - 1),
+            iterations=_integer(data.get("iterations", 60), "study.iterations", 1, 10000),
+        )
     if kind == "random":
         return RandomSample(
             region=_name(data.get("region"), "study.region"),
             count=_integer(data.get("count"), "study.count", 1, 100000),
             seed=_integer(data.get("seed", 0), "study.seed", 0, 2**31 - 1),
+            iterations=_integer(data.get("iterations", 60), "study.iterations", 1, 10000),
         )
     if kind == "basin":
         grid = _axes(data.get("grid"), "study.grid", number, ("ydot", "z"))

@@ -1,0 +1,107 @@
+"""The ``optimal`` study: the most stable gait at every point of a grid.
+
+Each task is one start at one grid point: gains drawn over their whole bounds (seeded by
+the study's seed, the grid point and the start number, so a task draws the same gains in
+any lane and on any resume), the fixed point solved with them held, the
+descent to the least spectral radius nearby, and the independent verification of where it
+ended (:mod:`baslip.optimal`). Each row also gives the trunk's angle range over the stride,
+and whether the gait is upright at the apex (|theta_h - 90 deg| <= 30 deg) and upright
+throughout (within 45 deg of vertical at every sampled instant of the stride).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from .schema import Optimal
+from .sweep import RESULT_COLUMNS, key_column, result_row, sweep_tasks
+
+#: Upright at the apex: |theta_h - 90 deg| within this; upright throughout: the trunk
+#: within UPRIGHT_THROUGHOUT of vertical at every instant of the stride [rad].
+UPRIGHT_AT_APEX = math.radians(30)
+UPRIGHT_THROUGHOUT = math.radians(45)
+
+OPTIMAL_COLUMNS = [
+    "start", *RESULT_COLUMNS, "drawn_Kp", "drawn_Kd", "start_status", "start_radius", "descent_steps", "descent_stop",
+    "trunk_min_deg", "trunk_max_deg", "upright_apex", "upright_throughout",
+]
+
+
+def optimal_tasks(study: Optimal) -> list[dict]:
+    """Every (grid point, start), grid points in snake order, starts within each."""
+    return [{**point, "start": start} for point in sweep_tasks(study) for start in range(study.starts)]
+
+
+def task_rng(study: Optimal, task: dict) -> np.random.Generator:
+    """The task's own random stream: from the seed, its grid values and its start."""
+    values = [int(round(v * 1e9)) % 2**32 for k, v in sorted(task.items()) if k.startswith("sweep_")]
+    return np.random.default_rng([study.seed, task["start"], *values])
+
+
+def optimal_row(task: dict, gait, rmap, params) -> dict:
+    """The CSV row of one start (see :data:`OPTIMAL_COLUMNS`)."""
+    from ..trajectory import trunk_angle_range
+
+    final = gait.end if gait.end is not None else gait.start
+    row = {**result_row(task, final), "start": task["start"]}
+    row.update(
+        drawn_Kp=gait.held.get("Kp"), drawn_Kd=gait.held.get("Kd"),
+        start_status=gait.start.status,
+        start_radius=gait.start.spectral_radius,
+        descent_steps=None if gait.descent is None else len(gait.descent.steps) - 1,
+        descent_stop=gait.note,
+    )
+    if final.converged:
+        low, high = trunk_angle_range(rmap, final.X, final.u, params)
+        upright = math.pi / 2
+        row.update(
+            trunk_min_deg=math.degrees(low), trunk_max_deg=math.degrees(high),
+            upright_apex=abs(final.X[1] - upright) <= UPRIGHT_AT_APEX,
+            upright_throughout=max(abs(low - upright), abs(high - upright)) <= UPRIGHT_THROUGHOUT,
+        )
+    return row
+
+
+def optimal_worker(chunk: list[dict], problem_path: str, queue) -> None:
+    """Worker process: for each task not yet done, draw its start, solve, descend,
+    verify, and put its row on the queue."""
+    from ..api import fixed_point_spec, shooting_options
+    from ..fixedpoint import FixedPointSolver
+    from ..optimal import StabilityDescent, optimise_from, random_start
+    from ..problem import load_problem
+
+    try:
+        problem = load_problem(problem_path)
+        solver = FixedPointSolver(shooting_options(problem))
+        descent = StabilityDescent(solver.residual_map, max_iterations=problem.study.iterations)
+        base = fixed_point_spec(problem)
+        for task in chunk:
+            if task.get("done"):
+                continue
+            swept = {k[len("sweep_"):]: v for k, v in task.items() if k.startswith("sweep_")}
+            spec = replace(base, fixed={**base.fixed, **swept})
+            held = random_start(spec, task_rng(problem.study, task))
+            started = time.perf_counter()
+            gait = optimise_from(solver, descent, spec, held, problem.name)
+            row = optimal_row(task, gait, solver.residual_map, problem.params)
+            queue.put({**row, "time_s": time.perf_counter() - started})
+    finally:
+        queue.put(None)
+
+
+def best_rows(rows: list[dict], names: list[str], where=lambda row: True) -> list[dict]:
+    """Per grid point, the verified row of least spectral radius among those ``where``
+    accepts (grid points with none are left out)."""
+    keys = [key_column(n) for n in names]
+    best: dict[tuple, dict] = {}
+    for row in rows:
+        if row["status"] != "converged" or not isinstance(row["spectral_radius"], float) or not where(row):
+            continue
+        cell = tuple(row[k] for k in keys)
+        if cell not in best or row["spectral_radius"] < best[cell]["spectral_radius"]:
+            best[cell] = row
+    return [best[cell] for cell in sorted(best)]
