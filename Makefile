@@ -3,7 +3,8 @@
 #   make clean-studies  (removes the study results, to start afresh)
 PY ?= .venv/bin/python
 STUDIES = grid_downward grid_upward speed_sweep stable_region_random convergence_regions \
-          body_angle_scan body_angle_fine_scan adaptive_upright
+          body_angle_scan body_angle_fine_scan adaptive_upright adaptive_upright_tracking \
+          optimal_downward optimal_upright controllers_downward controllers_upright
 BRANCHES = continuation_slip_attack continuation_downward_speed continuation_downward_height
 GAITS = downward upward downward_period2
 

@@ -30,8 +30,12 @@ from .control import CONTROL
 from .model import APEX
 from .quantities import DESIGN, NOMINAL
 
-#: Singular values below this fraction of the largest count as zero. The Jacobians come
-#: from AD through an integrator at rtol = atol = 1e-10, so entries carry about 1e-9 error.
+#: Singular values below this fraction of the largest count as zero: a *practical* rank.
+#: Numerically the Jacobians are far better (two independent integrators' AD Jacobians
+#: of dr/du agree to about 1e-12 of the largest singular value), so a ratio of 1e-9 is a
+#: real direction. But moving the apex by 1e-4 (relative) along a direction of ratio below
+#: 1e-7 needs a control change of more than 1e3 nominal units (Kp by 1000 N m/rad, Kd by
+#: 100 N m s/rad): beyond the controls' physical range. Such a direction cannot be used.
 RANK_TOLERANCE = 1e-7
 
 
@@ -78,3 +82,43 @@ def manifold_dimension(dr_dX: np.ndarray, dr_du: np.ndarray, u: np.ndarray | Non
         control_rank=control_rank,
         singular_values=tuple(float(v) for v in s),
     )
+
+
+#: The independent controls: the hip law's torque is c - Kp theta2 - Kd theta2_dot with
+#: c = Kp theta2_des + Kd theta2_dot_des, so these four decide the motion. Nominal sizes
+#: for scaling (c in N m).
+INDEPENDENT_CONTROLS = ("Kp", "Kd", "c", "theta_td")
+INDEPENDENT_SCALE = np.array([NOMINAL["Kp"], NOMINAL["Kd"], 0.1, NOMINAL["theta_td"]])
+
+
+def independent_control_jacobian(dr_du: np.ndarray, u: np.ndarray, via: str | None = None) -> np.ndarray:
+    """dr/d(Kp, Kd, c, theta_td) (4 x 4) from dr/du (4 x 5) at control ``u``.
+
+    With r(u) = R(Kp, Kd, c(u), theta_td): dr/dtheta2_des = R_c Kp and dr/dtheta2_dot_des
+    = R_c Kd give R_c (``via`` the gain of larger size unless given), and then
+    R_Kp = dr/dKp - R_c theta2_des and R_Kd = dr/dKd - R_c theta2_dot_des.
+    """
+    index = {name: i for i, name in enumerate(CONTROL.names)}
+    Kp, Kd = u[index["Kp"]], u[index["Kd"]]
+    via = via or ("Kp" if abs(Kp) >= abs(Kd) else "Kd")
+    if via == "Kp":
+        R_c = dr_du[:, index["theta2_des"]] / Kp
+    else:
+        R_c = dr_du[:, index["theta2_dot_des"]] / Kd
+    R_Kp = dr_du[:, index["Kp"]] - R_c * u[index["theta2_des"]]
+    R_Kd = dr_du[:, index["Kd"]] - R_c * u[index["theta2_dot_des"]]
+    return np.column_stack([R_Kp, R_Kd, R_c, dr_du[:, index["theta_td"]]])
+
+
+def controllability(dr_du: np.ndarray, u: np.ndarray) -> dict:
+    """Rank of dr/du and sigma_min/sigma_max, in the five controls (scaled by their
+    nominal sizes) and in the four independent ones."""
+    scale = np.array([NOMINAL[n] for n in CONTROL.names])
+    s_u = np.linalg.svd(np.asarray(dr_du) * scale, compute_uv=False)
+    s_v = np.linalg.svd(independent_control_jacobian(np.asarray(dr_du), np.asarray(u)) * INDEPENDENT_SCALE, compute_uv=False)
+    return {
+        "rank_controls": int(np.sum(s_u > RANK_TOLERANCE * s_u[0])),
+        "ratio_controls": float(s_u[-1] / s_u[0]),
+        "rank_independent": int(np.sum(s_v > RANK_TOLERANCE * s_v[0])),
+        "ratio_independent": float(s_v[-1] / s_v[0]),
+    }

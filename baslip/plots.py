@@ -343,3 +343,47 @@ def trunk_motion_figure(motions: list[tuple[str, np.ndarray, np.ndarray]], out_d
     path = out_dir / "best_gaits_trunk.png"
     _save(fig, path)
     return path
+
+
+# --- controllers ----------------------------------------------------------------------------
+
+OUTCOME_STYLE = {"converged": ("o", "tab:blue"), "bounded": ("s", "tab:orange"), "fell": ("x", "tab:red")}
+
+
+def controllers_figure(rows: list[dict], perturbation: dict, out_dir: Path) -> Path:
+    """Left: the share of perturbed starts each controller brings back to the gait, keeps
+    up without converging, or lets fall. Right, per controller: the starts in the plane of
+    the two most perturbed apex quantities, marked by outcome."""
+    names = [n for n in ("constant", "feedback", "resolve") if any(r["controller"] == n for r in rows)]
+    axes_names = sorted(perturbation, key=lambda n: -perturbation[n] / _NOMINAL_APEX[n])[:2]
+    if len(axes_names) < 2:
+        axes_names = (axes_names + ["z", "ydot"])[:2]
+    fig, axes = plt.subplots(1, 1 + len(names), figsize=(4.0 * (1 + len(names)), 3.8))
+    outcomes = ("converged", "bounded", "fell")
+    bottom = np.zeros(len(names))
+    for outcome in outcomes:
+        share = np.array([np.mean([r["outcome"] == outcome for r in rows if r["controller"] == n]) for n in names])
+        axes[0].bar(names, share, bottom=bottom, color=OUTCOME_STYLE[outcome][1], label=outcome)
+        bottom += share
+    axes[0].set_ylabel("share of perturbed starts")
+    axes[0].set_ylim(0, 1)
+    axes[0].legend(fontsize=8)
+    for ax, name in zip(axes[1:], names):
+        mine = [r for r in rows if r["controller"] == name]
+        for outcome in outcomes:
+            pick = [r for r in mine if r["outcome"] == outcome]
+            if pick:
+                marker, color = OUTCOME_STYLE[outcome]
+                ax.plot(shown(axes_names[0], [r[f"d_{axes_names[0]}"] for r in pick]),
+                        shown(axes_names[1], [r[f"d_{axes_names[1]}"] for r in pick]),
+                        marker, color=color, ms=4, ls="none", label=outcome)
+        ax.set_title(name, fontsize=9)
+        ax.set_xlabel("change of " + LABELS[axes_names[0]])
+        ax.set_ylabel("change of " + LABELS[axes_names[1]])
+        ax.legend(fontsize=7)
+    path = out_dir / "controllers.png"
+    _save(fig, path)
+    return path
+
+
+_NOMINAL_APEX = {"z": 0.1, "theta_h": 0.1, "ydot": 0.1, "theta_h_dot": 1.0}

@@ -296,25 +296,163 @@ def dimension_claim(ev: Evidence) -> list[str]:
     )]
 
 
+def controllability_claim(ev: Evidence) -> list[str]:
+    """The controllability atlas: rank and conditioning of dr/du over the grids, in the
+    five controls and in the four independent ones (Kp, Kd, c, theta_td)."""
+    from .manifold import RANK_TOLERANCE, controllability
+
+    rmap = ReturnMap(Tolerances(1e-12, 1e-12))
+    parts = []
+    for name in ("grid_downward", "grid_upward"):
+        found = []
+        for row in converged(ev.points(name)):
+            X = np.array([row[n] for n in APEX.names])
+            u = np.array([row[n] for n in CONTROL.names])
+            found.append(controllability(rmap.jacobians(X, u, Params())[1], u))
+        if not found:
+            continue
+        ratios = np.array([f["ratio_independent"] for f in found])
+        parts.append(
+            f"{name}: {len(found)} points; rank 4 in the five controls at {sum(f['rank_controls'] == 4 for f in found)}, "
+            f"in (Kp, Kd, c, theta_td) at {sum(f['rank_independent'] == 4 for f in found)}; sigma_min/sigma_max in "
+            f"(Kp, Kd, c, theta_td) from {ratios.min():.1e} to {ratios.max():.1e} (median {np.median(ratios):.1e})"
+        )
+    if not parts:
+        return []
+    return [claim(
+        "Controllability atlas: which apexes a control can make periodic",
+        "not addressed; the per-stride control of sec. 4.7 assumes a control exists for the current state.",
+        "; ".join(parts) + f". Rank counts use sigma_min/sigma_max > {RANK_TOLERANCE:g}.",
+        "goes further",
+        "The motion depends on the controls only through (Kp, Kd, c, theta_td), c = Kp theta2_des + Kd "
+        "theta2_dot_des (dr/dc computed via Kp and via Kd agrees to 1e-15), so dr/du has rank at most 4. Numerically "
+        "it has rank 4 almost everywhere: two independent integrators' Jacobians agree to about 1e-12 of the largest "
+        "singular value, far below these ratios. But at upright gaits the fourth direction is 1e-10 to 1e-7 as "
+        "effective as the first: moving the apex by 1e-4 along it would need controls beyond their physical range. "
+        "The rank counted here is that practical rank (tolerance 1e-7). Where it is 3, the apexes reachable as fixed "
+        "points form a 3-dimensional set, and a per-stride re-solve can only reach the nearest of them: its "
+        "least-squares residual stays (see sec. 4.7 below). Written in c, the gains need not be large for c to act; "
+        "in (theta2_des, theta2_dot_des) with gains near 1e-4 it cannot, which is why the upright gaits lose rank in "
+        "the five controls more often than in the four.",
+    )]
+
+
 def adaptive_claims(ev: Evidence) -> list[str]:
-    summary = ev.summary("adaptive_upright")
-    if not summary:
+    thesis, tracking = ev.summary("adaptive_upright"), ev.summary("adaptive_upright_tracking")
+    if not thesis:
         return ["### Time-varying control\n\nNot run.\n"]
-    timing = summary.get("solve_time_per_stride_s") or {}
+
+    def account(summary: dict) -> str:
+        timing = summary.get("solve_time_per_stride_s") or {}
+        drift = summary.get("eps_to_gait") or {}
+        text = (f"{summary['adaptive_strides']} strides with u re-solved at every apex "
+                f"(median solve {1e3 * timing.get('median', float('nan')):.1f} ms, max {1e3 * timing.get('max', float('nan')):.0f} ms a stride; "
+                f"least-squares residual up to {summary['max_eps'] or float('inf'):.1e}; distance from the gait {drift.get('first', float('nan')):.1e} "
+                f"at the start, {drift.get('last', float('nan')):.1e} at the end)")
+        if summary["adaptive_failure"]:
+            text += f", then it fell ({summary['adaptive_failure']})"
+        elif summary["frozen_strides_before_fall"] is not None:
+            text += f"; holding the last u, it falls after {summary['frozen_strides_before_fall']} strides ({summary['frozen_fall']})"
+        recovered = summary.get("largest_recovered") or {}
+        if recovered.get("factor"):
+            text += f"; largest recovered start: {recovered['factor']:.3g} times the perturbation ({recovered['note']})"
+        return text
+
+    offsets = ", ".join(f"{k} {v:+g}" for k, v in thesis["perturbation"].items())
+    ours = (f"from the upright gait (largest |multiplier| {thesis['start']['spectral_radius']:.3g}) moved by {offsets} "
+            f"(SI units, rad): with the thesis's criterion, {account(thesis)}.")
+    if tracking:
+        ours += f" With tracking (next apex as near as possible to the gait), {account(tracking)}."
+    kept = tracking is not None and tracking["adaptive_strides"] >= 2048 and tracking["frozen_strides_before_fall"] is not None
     return [claim(
         "Time-varying control keeps an upright runner hopping; the frozen control falls (figs. 4.20-4.22)",
         "re-optimising u at every apex keeps an unstable upright runner going for over 2048 strides; holding "
-        "u_2048 fixed, it falls after 23 strides.",
-        f"{summary['adaptive_strides']} strides with u re-solved at every apex (largest eps {summary['max_eps']:.1e}, "
-        f"median solve {1e3 * timing.get('median', float('nan')):.0f} ms, max {1e3 * timing.get('max', float('nan')):.0f} ms "
-        f"a stride); holding the last u, the runner falls after {summary['frozen_strides_before_fall']} strides "
-        f"({summary['frozen_fall']}). The start point's largest |multiplier| is {summary['start']['spectral_radius']:.3g}.",
-        "agreed" if summary["adaptive_strides"] >= 2048 and summary["frozen_strides_before_fall"] is not None else "differs",
-        "Re-solving keeps every apex a fixed point to eps <= 1e-12, so the state barely drifts. Once u is frozen, "
-        "round-off grows by the largest |multiplier| at every stride until the runner falls. How many strides "
-        "that takes depends on that multiplier and on how exact the last solve was.",
-        ["adaptive_upright/adaptive_states.png", "adaptive_upright/adaptive_controls.png", "adaptive_upright/frozen_control.png"],
+        "u_2048 fixed, it falls after 23 strides. The re-optimisation finds 'the control parameters that best fit "
+        "the current state' (sec. 4.7.1): the next apex as near as possible to the current one.",
+        ours,
+        ("agreed with tracking; differs with the thesis's own criterion" if thesis["adaptive_failure"] else "agreed")
+        if kept else "differs",
+        "Both criteria are least-squares problems: dr/du has rank 3 at this gait, so no control makes an arbitrary "
+        "apex periodic, and the residual left is recorded. The thesis's criterion makes the current apex (nearly) "
+        "periodic, so nothing pulls the runner back: its apex height drifts until the foot touches the ground at "
+        "apex. The thesis started exactly on the fixed point, where there is nothing to drift from but round-off. "
+        "Tracking aims every stride at the gait and keeps the runner within the perturbation's size of it. Frozen, "
+        "the unstable gait falls within a few strides either way.",
+        ["adaptive_upright/adaptive_states.png", "adaptive_upright/adaptive_controls.png",
+         "adaptive_upright_tracking/adaptive_states.png", "adaptive_upright_tracking/adaptive_controls.png",
+         "adaptive_upright_tracking/frozen_control.png"],
     )]
+
+
+def upright_section(ev: Evidence) -> list[str]:
+    """Can an upright BA-SLIP run stably? Under constant PD, per-stride re-solve, feedback."""
+    out = []
+    upright, hanging = ev.summary("optimal_upright"), ev.summary("optimal_downward")
+    if upright and upright.get("least"):
+        least, problem = upright["least"], upright["provenance"]["problem"]
+        bounds = problem["bounds"]
+        through = upright.get("least_upright_throughout")
+        study = problem["study"]
+        through_text = f"{through['spectral_radius']:.3f}" if through else "none found"
+        hanging_text = ""
+        if hanging and hanging.get("least"):
+            hanging_text = (f" For comparison, the same search with the trunk hanging finds stable gaits in every cell "
+                            f"({sum(1 for p in hanging['least_per_point'] if p['stable'])} of {len(hanging['least_per_point'])}), "
+                            f"least radius {hanging['least']['spectral_radius']:.3f}.")
+        out.append(claim(
+            "Under constant PD: no stable upright gait was found",
+            "every upright fixed point found was unstable under the constant PD hip law (sec. 4.4.3.1, 4.7).",
+            f"the most stable gait was searched for at {len(upright['least_per_point'])} (ydot, z) cells, "
+            f"{study['starts']} starts each with Kp in [{bounds['Kp'][0]:g}, {bounds['Kp'][1]:g}] N m/rad and Kd in "
+            f"[{bounds['Kd'][0]:g}, {bounds['Kd'][1]:g}] N m s/rad drawn over their whole range, each descended for at "
+            f"most {study['iterations']} quasi-Newton steps ({upright['solved']} verified end points). Least spectral "
+            f"radius, upright at the apex: {least['spectral_radius']:.3f} at ydot = {least['ydot']:g} m/s, z = {least['z']:g} m "
+            f"(trunk between {least['trunk_range_deg'][0]:.1f} and {least['trunk_range_deg'][1]:.1f} deg over the stride); "
+            f"upright throughout (within 45 deg of vertical at every instant): {through_text}. Per cell: "
+            + ", ".join(f"({p['ydot']:g}, {p['z']:g}): {p['spectral_radius']:.3g}" for p in upright["least_per_point"])
+            + "." + hanging_text,
+            "agreed (within the search's limits)" if least["spectral_radius"] >= 1 else "differs: a stable upright gait exists",
+            "The search minimises a smooth bound of the spectral radius on the manifold of fixed points (gradient from "
+            "AD second derivatives of the stride), from many starts, then polishes the radius itself by a compass "
+            "search. It is local: a narrow valley between starts can be missed, and gains beyond the bounds were not "
+            "searched. Within them, the least radius stays above 1 in every cell, while the hanging trunk reaches "
+            "0.5-0.9.",
+            ["optimal_upright/spectral_radius_map.png", "optimal_upright/best_gaits_trunk.png",
+             "optimal_downward/spectral_radius_map.png"],
+        ))
+    controllers = {name: ev.summary(name) for name in ("controllers_upright", "controllers_downward")}
+    if all(controllers.values()):
+        rows = ["| gait | controller | converged | kept up, not converged | fell | median strides to converge | median cost a stride |",
+                "|---|---|---|---|---|---|---|"]
+        for name, summary in controllers.items():
+            for controller, tally in summary["controllers"].items():
+                strides = tally["median_strides_to_converge"]
+                rows.append(f"| {name.split('_')[1]} | {controller} | {tally['basin_fraction']:.0%} | {tally['bounded_fraction']:.0%} | "
+                            f"{tally['fell_fraction']:.0%} | {'-' if strides is None else f'{strides:g}'} | "
+                            f"{tally['median_ms_per_stride']:.2f} ms |")
+        up = controllers["controllers_upright"]
+        box = ", ".join(f"{k} +-{v:g}" for k, v in up["perturbation"].items())
+        feedback = up["feedback"]
+        out.append(claim(
+            "Under per-stride re-solve and under event-based feedback: yes, near the gait",
+            "time-varying control kept an upright runner hopping; chapter 5 asks for cheaper functional control laws.",
+            f"{up['controllers']['constant']['samples']} apex states drawn from the box X* {box} (SI units, rad) around each "
+            f"shipped gait, run for at most {up['strides']} strides; converged means within {up['tolerance']:g} (eq. 4.1) of "
+            f"the gait. Upright: dr/du has rank {up['gait']['rank_dr_du']}, so the feedback is {feedback['kind']}; its "
+            f"closed-loop multipliers have largest modulus {feedback['closed_loop_radius']:.3f} (open loop "
+            f"{up['gait']['spectral_radius']:.3g}). Hanging: {controllers['controllers_downward']['feedback']['kind']}, "
+            f"closed-loop radius {controllers['controllers_downward']['feedback']['closed_loop_radius']:.1e}.\n\n"
+            + "\n".join(rows) + "\n",
+            "goes further",
+            "The linear feedback u = u* + K (X - X*) makes the upright gait asymptotically stable: every closed-loop "
+            "multiplier is inside the unit circle, and starts near enough converge. Its basin is limited by the "
+            "nonlinearity: of this box, the share above converges, the rest falls. The per-stride re-solve "
+            "(tracking) keeps every start of the box hopping, but it does not converge to the gait: with dr/du of "
+            "rank 3 one direction cannot be corrected in a single stride, and the re-solve is greedy. It costs "
+            "several times more per stride. The constant PD law lets every start fall at the upright gait.",
+            ["controllers_upright/controllers.png", "controllers_downward/controllers.png"],
+        ))
+    return out or ["Not run.\n"]
 
 
 BRANCHES = ("continuation_slip_attack", "continuation_downward_speed", "continuation_downward_height")
@@ -408,8 +546,9 @@ def build_report(results: Path) -> str:
         ("Sec. 4.3: fixed points for a given speed", speed_claims(ev)),
         ("Sec. 4.4: fixed points for a given speed and height", angle_claims(ev)),
         ("Sec. 4.5: stability region and convergence regions", region_claims(ev) + basin_claims(ev)),
-        ("Sec. 4.6: the fixed-point manifold", scan_claims(ev) + dimension_claim(ev)),
+        ("Sec. 4.6: the fixed-point manifold", scan_claims(ev) + dimension_claim(ev) + controllability_claim(ev)),
         ("Sec. 4.7: time-varying control", adaptive_claims(ev)),
+        ("Can an upright BA-SLIP run stably?", upright_section(ev)),
         ("Beyond the thesis: branches of fixed points and their bifurcations", branch_sections(ev)),
     ]
     body = "".join(f"## {title}\n\n" + "\n".join(parts) + "\n" for title, parts in sections)

@@ -159,14 +159,32 @@ def test_basin_study_on_a_finished_grid(tiny_grid):
     assert json.loads((basin_out / "result.json").read_text())["complete"]
 
 
-def test_adaptive_study_resolves_the_control_each_stride(tmp_path):
-    problem_path = tmp_path / "adaptive.yaml"
+def adaptive_problem(tmp_path, strides: int, frozen: int, criterion: str = "thesis") -> Path:
     text = (Path(__file__).resolve().parents[1] / "problems" / "adaptive_upright.yaml").read_text()
-    problem_path.write_text(text.replace("strides: 2048", "strides: 3").replace("frozen_strides: 1000", "frozen_strides: 200"))
+    text = text.replace("strides: 2048", f"strides: {strides}").replace("frozen_strides: 1000", f"frozen_strides: {frozen}")
+    text = text.replace("probe_strides: 200", "probe_strides: 4").replace("criterion: thesis", f"criterion: {criterion}")
+    problem_path = tmp_path / "adaptive.yaml"
+    problem_path.write_text(text)
+    return problem_path
+
+
+@pytest.mark.parametrize("criterion", ["thesis", "tracking"])
+def test_adaptive_study_resolves_the_control_each_stride(tmp_path, criterion):
+    """From the perturbed upright gait, u is re-solved at every apex: the controls change,
+    the least-squares residual is recorded (not zero: dr/du has rank 3), tracking pulls
+    the apex back towards the gait, and the frozen control falls."""
+    problem_path = adaptive_problem(tmp_path, 3, 200, criterion)
     out = tmp_path / "results" / "adaptive_upright"
     summary = run_study(load_problem(problem_path), problem_path, out, quiet=True)
-    assert summary["adaptive_strides"] == 3 and summary["max_eps"] <= 1e-12
+    assert summary["adaptive_strides"] == 3 and 0 < summary["max_eps"] < 1e-2
+    assert summary["eps_to_gait"]["first"] > 5e-3  # it starts off the gait
+    if criterion == "tracking":
+        assert summary["eps_to_gait"]["last"] < summary["eps_to_gait"]["first"] / 5
     assert summary["frozen_strides_before_fall"] is not None  # an unstable gait falls once frozen
+    assert summary["largest_recovered"]["factor"] >= 1
+    with open(out / "strides.csv") as handle:
+        controls = [r["Kp"] for r in csv.DictReader(handle) if r["phase"] == "adaptive"]
+    assert len(set(controls)) == 3  # the control really changes from stride to stride
     with open(out / "strides.csv") as handle:
         phases = [r["phase"] for r in csv.DictReader(handle)]
     assert phases[:3] == ["adaptive"] * 3 and phases[-1] == "fall"
@@ -177,9 +195,7 @@ def test_adaptive_study_resolves_the_control_each_stride(tmp_path):
 def test_a_resumed_adaptive_run_continues_from_the_apex_after_its_last_row(tmp_path):
     """Cut after three adaptive strides, the resumed run re-solves the control at the
     fourth apex (not the third again) and matches an uninterrupted run row for row."""
-    text = (Path(__file__).resolve().parents[1] / "problems" / "adaptive_upright.yaml").read_text()
-    problem_path = tmp_path / "adaptive.yaml"
-    problem_path.write_text(text.replace("strides: 2048", "strides: 6").replace("frozen_strides: 1000", "frozen_strides: 50"))
+    problem_path = adaptive_problem(tmp_path, 6, 50)
     whole, cut = tmp_path / "whole", tmp_path / "cut"
     run_study(load_problem(problem_path), problem_path, whole, quiet=True)
     run_study(load_problem(problem_path), problem_path, cut, quiet=True)
@@ -229,3 +245,27 @@ def test_an_optimal_study_descends_from_every_start(tmp_path, monkeypatch):
     least = min(float(r["spectral_radius"]) for r in solved)
     assert summary["least"]["spectral_radius"] == pytest.approx(least)
     assert (out / "best_gaits_trunk.png").stat().st_size > 0
+
+
+def test_a_controllers_study_compares_three_controllers_on_the_same_starts(tmp_path, monkeypatch):
+    """In CasADi's virtual machine, so that nothing is compiled: four perturbed starts of
+    the hanging gait, each run by the three controllers; dr/du has rank 4 there, so the
+    feedback is deadbeat with closed-loop multipliers at zero."""
+    monkeypatch.setenv("BASLIP_NO_COMPILE", "1")
+    text = (Path(__file__).resolve().parents[1] / "problems" / "controllers_downward.yaml").read_text()
+    text = text.replace("samples: 100", "samples: 4").replace("strides: 100", "strides: 6")
+    problem_path = tmp_path / "controllers.yaml"
+    problem_path.write_text(text)
+    out = tmp_path / "results" / "controllers"
+    summary = run_study(load_problem(problem_path), problem_path, out, quiet=True)
+    assert summary["complete"] and summary["feedback"]["kind"] == "deadbeat"
+    assert summary["feedback"]["closed_loop_radius"] < 1e-6
+    with open(out / "controllers.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    assert [r["controller"] for r in rows] == ["constant"] * 4 + ["feedback"] * 4 + ["resolve"] * 4
+    by_sample = {}
+    for r in rows:  # the same perturbed start for every controller
+        by_sample.setdefault(r["sample"], set()).add(tuple(r[f"d_{n}"] for n in ("z", "theta_h", "ydot", "theta_h_dot")))
+    assert all(len(starts) == 1 for starts in by_sample.values())
+    assert set(summary["controllers"]) == {"constant", "feedback", "resolve"}
+    assert (out / "controllers.png").stat().st_size > 0

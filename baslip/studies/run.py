@@ -35,7 +35,8 @@ from .. import plots
 from .basin import BASIN_COLUMNS, basin_tasks, basin_worker, run_from, SIMULATION_TOLERANCES
 from .runner import LANES, ResumableCsv, RunReport, run_tasks, split_lanes
 from .optimal import OPTIMAL_COLUMNS, best_rows, optimal_tasks, optimal_worker
-from .schema import Adaptive, Basin, Optimal, RandomSample, Sweep
+from .controllers import CONTROLLER_COLUMNS, CONTROLLERS, controller_tasks, controllers_worker, lqr_weights
+from .schema import Adaptive, Basin, Controllers, Optimal, RandomSample, Sweep
 from .sweep import RESULT_COLUMNS, key_column, random_tasks, read_points, solve_worker, sweep_lanes
 
 #: Files a study writes besides its figures; ``--fresh`` removes them before starting.
@@ -111,6 +112,8 @@ def _run(problem: Problem, problem_path: Path, out_dir: Path, quiet: bool, lanes
         summary = _run_adaptive(problem, study, out_dir, quiet)
     elif isinstance(study, Optimal):
         summary = _run_optimal(problem, study, problem_path, out_dir, quiet, lanes)
+    elif isinstance(study, Controllers):
+        summary = _run_controllers(problem, study, out_dir, quiet, lanes)
     else:  # pragma: no cover - the schema admits no other kind
         raise TypeError(study)
     return summary
@@ -234,6 +237,8 @@ def outcome(summary: dict) -> str | None:
         return f"no fixed point was found at any of the {summary['points']} points"
     if summary["kind"] == "basin" and summary["stable_points"] == 0:
         return f"the source study {summary['source']!r} has no stable fixed point to simulate"
+    if summary["kind"] == "controllers" and summary["done_before_this_run"] + summary["done_in_this_run"] == 0:
+        return "no controller run was made"
     if summary["kind"] == "adaptive" and summary["adaptive_strides"] == 0:
         return f"no adaptive stride was taken: {summary['adaptive_failure']}"
     return None
@@ -350,19 +355,92 @@ def _run_optimal(problem: Problem, study: Optimal, problem_path: Path, out_dir: 
     }
 
 
-def _run_adaptive(problem: Problem, study: Adaptive, out_dir: Path, quiet: bool) -> dict:
-    from ..api import shooting_options, solve_problem
+def _run_controllers(problem: Problem, study: Controllers, out_dir: Path, quiet: bool, lanes: int) -> dict:
+    from ..api import fixed_point_spec, shooting_options, solve_problem
+    from ..feedback import CONTROL_SCALE, closed_loop_multipliers, control_rank, deadbeat_gain, lqr_gain
     from ..fixedpoint import FixedPointSolver
-    from .adaptive import STRIDE_COLUMNS, run_adaptive
+
+    solver = FixedPointSolver(shooting_options(problem))
+    gait = solve_problem(problem, solver)
+    if not gait.converged:
+        raise StudyFailed(f"the gait did not converge: {gait.status} ({gait.message})")
+    A, B = solver.jacobian_map.jacobians(gait.X, gait.u, problem.params)
+    rank = control_rank(B)
+    try:
+        K = deadbeat_gain(A, B) if rank == APEX.size else lqr_gain(A, B, lqr_weights(study), np.diag(1 / CONTROL_SCALE**2))
+    except ValueError as err:
+        raise StudyFailed(f"no linear feedback for this gait: {err}") from None
+    spec = fixed_point_spec(problem)
+    bounds = np.array([spec.bounds_of(n) for n in CONTROL.names])
+    context = {
+        "X": gait.X, "u": gait.u, "K": K, "params": problem.params, "strides": study.strides,
+        "tolerance": study.tolerance, "criterion": study.criterion, "lower": bounds[:, 0], "upper": bounds[:, 1],
+        "held": tuple(i for i, n in enumerate(CONTROL.names) if n in problem.fix),
+    }
+    table = _table(out_dir / "controllers.csv", CONTROLLER_COLUMNS, ["controller", "sample"], quiet)
+    report = run_tasks(split_lanes(controller_tasks(study), lanes), controllers_worker, context, table,
+                       problem.name, quiet=quiet)
+    rows = read_points(out_dir / "controllers.csv")
+    plots.controllers_figure(rows, dict(study.perturbation), out_dir)
+    multipliers = closed_loop_multipliers(A, B, K)
+
+    def tally(name: str) -> dict:
+        mine = [r for r in rows if r["controller"] == name]
+        converged = [r for r in mine if r["outcome"] == "converged"]
+        return {
+            "samples": len(mine),
+            "basin_fraction": len(converged) / len(mine) if mine else None,
+            "bounded_fraction": sum(r["outcome"] == "bounded" for r in mine) / len(mine) if mine else None,
+            "fell_fraction": sum(r["outcome"] == "fell" for r in mine) / len(mine) if mine else None,
+            "median_strides_to_converge": float(np.median([r["strides_to_converge"] for r in converged])) if converged else None,
+            "median_ms_per_stride": float(np.median([r["ms_per_stride"] for r in mine])) if mine else None,
+        }
+
+    return {
+        "gait": {"apex": gait.apex, "control": gait.control, "spectral_radius": gait.spectral_radius,
+                 "rank_dr_du": rank},
+        "feedback": {"kind": "deadbeat" if rank == APEX.size else "lqr", "K": K.tolist(),
+                     "rows": list(CONTROL.names), "columns": list(APEX.names),
+                     "closed_loop_multipliers": [[float(m.real), float(m.imag)] for m in multipliers],
+                     "closed_loop_radius": float(np.max(np.abs(multipliers)))},
+        "perturbation": dict(study.perturbation), "tolerance": study.tolerance, "strides": study.strides,
+        "resolve_criterion": study.criterion,
+        "controllers": {name: tally(name) for name in CONTROLLERS},
+        **_run_info(report),
+    }
+
+
+def _run_adaptive(problem: Problem, study: Adaptive, out_dir: Path, quiet: bool) -> dict:
+    from ..api import fixed_point_spec, shooting_options, solve_problem
+    from ..feedback import ResolvedControl
+    from ..fixedpoint import FixedPointSolver
+    from .adaptive import STRIDE_COLUMNS, largest_recovered, run_adaptive
 
     solver = FixedPointSolver(shooting_options(problem))
     result = solve_problem(problem, solver)
     if not result.converged:
         raise StudyFailed(f"the starting fixed point did not converge: {result.status} ({result.message})")
+    spec = fixed_point_spec(problem)
+    bounds = np.array([spec.bounds_of(n) for n in CONTROL.names])
+    held = tuple(i for i, n in enumerate(CONTROL.names) if n in problem.fix)
+
+    def controller():
+        return ResolvedControl(solver.residual_map, problem.params, result.X, result.u, study.criterion,
+                               fixed=held, lower=bounds[:, 0], upper=bounds[:, 1])
+
+    offset = np.array([dict(study.perturbation).get(n, 0.0) for n in APEX.names])
     table = _table(out_dir / "strides.csv", STRIDE_COLUMNS, ["phase", "n"], quiet)
-    summary = run_adaptive(solver, result.X, result.u, problem.params, study.strides, study.frozen_strides, table, quiet)
+    summary = run_adaptive(controller(), result.X + offset, problem.params, study.strides, study.frozen_strides, table, quiet)
     plots.adaptive_figures(table.rows, out_dir)
+    recovery = None
+    if offset.any():
+        if not quiet:
+            print(f"{problem.name}: bisecting the largest recovered perturbation...", file=sys.stderr)
+        recovery = largest_recovered(controller, solver.residual_map, problem.params, result.X, offset, study.probe_strides)
     return {
         "start": {"apex": result.apex, "control": result.control, "spectral_radius": result.spectral_radius},
+        "perturbation": dict(study.perturbation),
+        "criterion": study.criterion,
         **summary,
+        "largest_recovered": recovery,
     }

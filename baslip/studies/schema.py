@@ -75,6 +75,9 @@ class Basin:
 class Adaptive:
     strides: int = 2048
     frozen_strides: int = 1000
+    perturbation: tuple[tuple[str, float], ...] = ()  # offsets of the first apex from the gait
+    criterion: str = "thesis"  # "thesis": next apex near the current one; "tracking": near the gait
+    probe_strides: int = 200  # strides a perturbed start must survive to count as recovered
     kind: str = "adaptive"
 
 
@@ -87,8 +90,20 @@ class Optimal:
     kind: str = "optimal"
 
 
-Study = Sweep | RandomSample | Basin | Adaptive | Optimal
-KINDS = ("sweep", "random", "basin", "adaptive", "optimal")
+@dataclass(frozen=True)
+class Controllers:
+    perturbation: tuple[tuple[str, float], ...]  # half-width of the box in each apex quantity
+    samples: int = 200
+    seed: int = 0
+    strides: int = 100
+    tolerance: float = 1e-3
+    criterion: str = "tracking"  # of the per-stride re-solve: "thesis" or "tracking"
+    lqr_scale: tuple[tuple[str, float], ...] = ()  # apex deviation costing as much as a nominal control change
+    kind: str = "controllers"
+
+
+Study = Sweep | RandomSample | Basin | Adaptive | Optimal | Controllers
+KINDS = ("sweep", "random", "basin", "adaptive", "optimal", "controllers")
 
 
 def parse_study(data, number) -> Study:
@@ -102,8 +117,9 @@ def parse_study(data, number) -> Study:
         "sweep": ("kind", "vary"),
         "random": ("kind", "region", "count", "seed"),
         "basin": ("kind", "source", "grid", "stable_at", "unstable_at", "strides", "tolerance"),
-        "adaptive": ("kind", "strides", "frozen_strides"),
+        "adaptive": ("kind", "strides", "frozen_strides", "perturbation", "criterion", "probe_strides"),
         "optimal": ("kind", "vary", "starts", "seed", "iterations"),
+        "controllers": ("kind", "perturbation", "samples", "seed", "strides", "tolerance", "criterion", "lqr_scale"),
     }[kind]
     for key in data:
         if isinstance(key, NonScalarKey):
@@ -141,9 +157,23 @@ def parse_study(data, number) -> Study:
             strides=_integer(data.get("strides", 40), "study.strides", 1, 100000),
             tolerance=_fraction(data.get("tolerance", 1e-6), "study.tolerance", number),
         )
+    if kind == "controllers":
+        criterion = _criterion(data.get("criterion", "tracking"))
+        return Controllers(
+            perturbation=_apex_map(data.get("perturbation"), "study.perturbation", number, required=True),
+            samples=_integer(data.get("samples", 200), "study.samples", 1, 100000),
+            seed=_integer(data.get("seed", 0), "study.seed", 0, 2**31 - 1),
+            strides=_integer(data.get("strides", 100), "study.strides", 1, 100000),
+            tolerance=_fraction(data.get("tolerance", 1e-3), "study.tolerance", number),
+            criterion=criterion,
+            lqr_scale=_apex_map(data.get("lqr_scale", {}), "study.lqr_scale", number, required=False),
+        )
     return Adaptive(
         strides=_integer(data.get("strides", 2048), "study.strides", 1, 1000000),
         frozen_strides=_integer(data.get("frozen_strides", 1000), "study.frozen_strides", 1, 1000000),
+        perturbation=_offsets(data.get("perturbation", {}), "study.perturbation", number),
+        criterion=_criterion(data.get("criterion", "thesis")),
+        probe_strides=_integer(data.get("probe_strides", 200), "study.probe_strides", 1, 100000),
     )
 
 
@@ -168,6 +198,46 @@ def _axes(data, key, number, allowed) -> tuple[Axis, ...]:
         count = math.floor(ratio + 1e-9) + 1
         axes.append(Axis(name, tuple(round(start + i * step, 12) for i in range(count))))
     return tuple(axes)
+
+
+def _criterion(value) -> str:
+    if value not in ("thesis", "tracking"):
+        raise StudyError("study.criterion", f"expected thesis or tracking, got {excerpt(value)}")
+    return value
+
+
+def _offsets(data, key, number) -> tuple[tuple[str, float], ...]:
+    """A map of apex quantity to an offset (any sign, at most 10 in size)."""
+    apex = ("z", "theta_h", "ydot", "theta_h_dot")
+    if not isinstance(data, dict):
+        raise StudyError(key, f"expected a mapping of apex quantity ({', '.join(apex)}) to an offset")
+    pairs = []
+    for name, value in data.items():
+        where = f"{key}.{clip(str(name))}"
+        if isinstance(name, NonScalarKey) or name not in apex:
+            raise StudyError(where, f"unknown apex quantity (expected one of {', '.join(apex)})")
+        offset = number(value, f"{key}.{name}")
+        if not abs(offset) <= 10:
+            raise StudyError(where, f"expected an offset of at most 10 in size, got {offset:g}")
+        pairs.append((name, offset))
+    return tuple(pairs)
+
+
+def _apex_map(data, key, number, required: bool) -> tuple[tuple[str, float], ...]:
+    """A map of apex quantity to a positive size (SI units; angles may carry units)."""
+    apex = ("z", "theta_h", "ydot", "theta_h_dot")
+    if not isinstance(data, dict) or (required and not data):
+        raise StudyError(key, f"expected a mapping of apex quantity ({', '.join(apex)}) to a size")
+    pairs = []
+    for name, value in data.items():
+        where = f"{key}.{clip(str(name))}"
+        if isinstance(name, NonScalarKey) or name not in apex:
+            raise StudyError(where, f"unknown apex quantity (expected one of {', '.join(apex)})")
+        size = number(value, f"{key}.{name}")
+        if not 0 < size <= 10:
+            raise StudyError(where, f"expected a size in (0, 10], got {size:g}")
+        pairs.append((name, size))
+    return tuple(pairs)
 
 
 def _pair(data, key, number) -> tuple[float, float]:
