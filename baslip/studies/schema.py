@@ -143,7 +143,6 @@ def parse_study(data, number) -> Study:
             region=_name(data.get("region"), "study.region"),
             count=_integer(data.get("count"), "study.count", 1, 100000),
             seed=_integer(data.get("seed", 0), "study.seed", 0, 2**31 - 1),
-            iterations=_integer(data.get("iterations", 60), "study.iterations", 1, 10000),
         )
     if kind == "basin":
         grid = _axes(data.get("grid"), "study.grid", number, ("ydot", "z"))
