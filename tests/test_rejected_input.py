@@ -180,6 +180,33 @@ for key, values in {"strides": {"zero": 0, "negative": -1, "text": "x", "huge": 
     for label, value in values.items():
         CASES.append((f"adaptive study.{key}={label}", dump(put(base(ADAPTIVE), f"study.{key}", value)), f"study.{key}"))
 CASES.append(("adaptive study.vary", dump(put(base(ADAPTIVE), "study.vary", {"z": [0.3, 0.4, 0.1]})), "study.vary"))
+for key, value, names in [
+    ("perturbation", {"speed": 0.1}, "study.perturbation.speed"),
+    ("perturbation", {"z": 1e300}, "study.perturbation.z"),
+    ("perturbation", [0.1], "study.perturbation"),
+    ("criterion", "greedy", "study.criterion"),
+    ("criterion", ["thesis"], "study.criterion"),
+    ("probe_strides", 0, "study.probe_strides"),
+]:
+    CASES.append((f"adaptive study.{key}={value!r}", dump(put(base(ADAPTIVE), f"study.{key}", value)), names))
+OPTIMAL = "optimal_upright"
+for key, value, names in [
+    ("starts", 0, "study.starts"), ("starts", "many", "study.starts"), ("iterations", 0, "study.iterations"),
+    ("seed", -3, "study.seed"), ("vary", {"z": [-0.3, 0.4, 0.1]}, "study.vary.z"),
+    ("vary", {"theta_h": [60, 120, 10]}, "study.vary.theta_h"), ("count", 3, "study.count"),
+]:
+    CASES.append((f"optimal study.{key}={value!r}", dump(put(base(OPTIMAL), f"study.{key}", value)), names))
+CONTROLS = "controllers_upright"
+for key, value, names in [
+    ("perturbation", {}, "study.perturbation"), ("perturbation", {"z": 0}, "study.perturbation.z"),
+    ("perturbation", {"z": -0.1}, "study.perturbation.z"), ("perturbation", {"Kp": 1.0}, "study.perturbation.Kp"),
+    ("samples", 0, "study.samples"), ("strides", 0, "study.strides"), ("tolerance", 0, "study.tolerance"),
+    ("criterion", "best", "study.criterion"), ("lqr_scale", {"z": math.inf}, "study.lqr_scale.z"),
+    ("lqr_scale", "z", "study.lqr_scale"),
+]:
+    CASES.append((f"controllers study.{key}={value!r}", dump(put(base(CONTROLS), f"study.{key}", value)), names))
+CASES.append(("controllers study without perturbation",
+              dump({**base(CONTROLS), "study": {"kind": "controllers"}}), "study.perturbation"))
 
 # --- continuation -------------------------------------------------------------------------
 BRANCH = "continuation_downward_speed"
