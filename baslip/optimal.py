@@ -34,7 +34,7 @@ the end point independently.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -108,11 +108,12 @@ class Descent:
     stop_reason: str
     gradient_norm: float = float("nan")
     evaluations: int = 0
-    history: tuple[float, ...] = field(default=())
 
     @property
     def best(self) -> DescentStep:
-        return self.steps[-1]
+        """The accepted point of least spectral radius (BFGS lowers the surrogate, which
+        may let rho itself rise slightly on a step)."""
+        return min(self.steps, key=lambda step: step.spectral_radius)
 
 
 class StabilityDescent:
@@ -248,7 +249,7 @@ class StabilityDescent:
     def _constraints(self, spec: FixedPointSpec, design) -> np.ndarray:
         """The fixed-point equations' Jacobian in all nine scaled design quantities."""
         energy_target = self.polish.energy_target(spec, design[:4])
-        return self.polish._jacobian(spec, design[:4], design[4:], energy_target) * self.scale
+        return self.polish.equations_jacobian(spec, design[:4], design[4:], energy_target) * self.scale
 
     def _chart(self, spec: FixedPointSpec, design) -> np.ndarray:
         """Chart quantities: the free ones left after picking, column by column (greedy

@@ -72,7 +72,7 @@ class Polish:
                 return X, u, iteration, ""
             if iteration == POLISH_MAX_ITER or not movable.any():
                 break
-            step = np.linalg.lstsq(self._jacobian(spec, X, u, energy_target)[:, movable] * scale, -rows,
+            step = np.linalg.lstsq(self.equations_jacobian(spec, X, u, energy_target)[:, movable] * scale, -rows,
                                    rcond=POLISH_RCOND)[0]
             for _ in range(POLISH_BACKTRACKS + 1):
                 trial = design.copy()
@@ -112,7 +112,7 @@ class Polish:
             rows.append([self.energy(X, spec.params) - energy_target])
         return np.concatenate(rows), None
 
-    def _jacobian(self, spec: FixedPointSpec, X, u, energy_target: float | None) -> np.ndarray:
+    def equations_jacobian(self, spec: FixedPointSpec, X, u, energy_target: float | None) -> np.ndarray:
         """d(rows)/d(X, u): [dr/dX - I, dr/du], and the energy gradient row if held."""
         dr_dX, dr_du = self.jacobian_map.jacobians(X, u, spec.params, spec.strides)
         jac = np.hstack([dr_dX - np.eye(APEX.size), dr_du])

@@ -337,6 +337,16 @@ def controllability_claim(ev: Evidence) -> list[str]:
     )]
 
 
+def _largest_gain(feedback: dict) -> float:
+    """Largest entry of K in nominal units (control size per apex size)."""
+    from .quantities import NOMINAL
+
+    K = np.array(feedback["K"])
+    rows = np.array([NOMINAL[n] for n in feedback["rows"]])
+    columns = np.array([NOMINAL[n] for n in feedback["columns"]])
+    return float(np.max(np.abs(K * columns[None, :] / rows[:, None])))
+
+
 def adaptive_claims(ev: Evidence) -> list[str]:
     thesis, tracking = ev.summary("adaptive_upright"), ev.summary("adaptive_upright_tracking")
     if not thesis:
@@ -355,7 +365,8 @@ def adaptive_claims(ev: Evidence) -> list[str]:
             text += f"; holding the last u, it falls after {summary['frozen_strides_before_fall']} strides ({summary['frozen_fall']})"
         recovered = summary.get("largest_recovered") or {}
         if recovered.get("factor"):
-            text += f"; largest recovered start: {recovered['factor']:.3g} times the perturbation ({recovered['note']})"
+            text += (f"; largest start still hopping after {recovered.get('probe_strides', '?')} re-solved strides: "
+                     f"{recovered['factor']:.3g} times the perturbation ({recovered['note']})")
         return text
 
     offsets = ", ".join(f"{k} {v:+g}" for k, v in thesis["perturbation"].items())
@@ -446,10 +457,14 @@ def upright_section(ev: Evidence) -> list[str]:
             "goes further",
             "The linear feedback u = u* + K (X - X*) makes the upright gait asymptotically stable: every closed-loop "
             "multiplier is inside the unit circle, and starts near enough converge. Its basin is limited by the "
-            "nonlinearity: of this box, the share above converges, the rest falls. The per-stride re-solve "
-            "(tracking) keeps every start of the box hopping, but it does not converge to the gait: with dr/du of "
-            "rank 3 one direction cannot be corrected in a single stride, and the re-solve is greedy. It costs "
-            "several times more per stride. The constant PD law lets every start fall at the upright gait.",
+            "nonlinearity: of this box, the share in the table converges, the rest falls. The per-stride re-solve "
+            "(tracking) keeps the starts hopping but mostly does not converge to within the tolerance: with dr/du "
+            "of practical rank 3 one direction cannot be corrected in a single stride, and the re-solve is greedy. "
+            "It costs several times more per stride. The constant PD law lets every start fall at the upright gait. "
+            f"On the hanging gait, which the constant law already stabilises, deadbeat feedback is a poor choice: "
+            f"dr/du is badly conditioned there, so K is large (its largest entry, in nominal units, is "
+            f"{_largest_gain(controllers['controllers_downward']['feedback']):.3g}) and most starts of the box fall "
+            f"before the linearisation holds.",
             ["controllers_upright/controllers.png", "controllers_downward/controllers.png"],
         ))
     return out or ["Not run.\n"]

@@ -92,13 +92,18 @@ def test_lqr_feedback_recovers_the_upright_gait_from_a_perturbation(tight_map, l
     assert run.outcome == "converged" and run.strides_to_converge < 100
 
 
+SHIPPED = np.array([1e-3, 1e-2, 1e-2, 0.0])  # the adaptive study's perturbation
+RANDOM = np.random.default_rng(11).choice([-1.0, 1.0], size=4) * np.abs(SHIPPED)  # same size, random signs
+
+
 @pytest.mark.parametrize("criterion", ["thesis", "tracking"])
-def test_the_per_stride_re_solve_keeps_a_perturbed_upright_runner_hopping(tight_map, criterion):
+@pytest.mark.parametrize("offset", [SHIPPED, RANDOM], ids=["shipped", "random"])
+def test_the_per_stride_re_solve_keeps_a_perturbed_upright_runner_hopping(tight_map, criterion, offset):
     """The open-loop gait, perturbed like this, falls within a few strides; re-solving u at
     every apex keeps it up. With dr/du of rank 3 the re-solve cannot zero its residual: it
     reports what it leaves (about 1e-4 here)."""
     X, u = gait("upward")
-    X0 = X + np.array([1e-3, 1e-2, 1e-2, 0.0])
+    X0 = X + offset
     from baslip.feedback import ConstantControl
 
     assert run_closed_loop(tight_map, Params(), ConstantControl(u), X0, X, 40).outcome == "fell"

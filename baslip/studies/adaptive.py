@@ -91,17 +91,24 @@ def largest_recovered(controller_for, rmap, params, X_star, perturbation: np.nda
             X = stride.apex
         return True
 
+    found = _bisect(recovered)
+    return {**found, "probe_strides": probe_strides,
+            "perturbation": None if found["factor"] is None else (found["factor"] * perturbation).tolist()}
+
+
+def _bisect(recovered) -> dict:
+    """The largest factor for which ``recovered`` holds: doubling from 1, then bisection."""
     if not recovered(1.0):
-        return {"factor": None, "note": "the shipped perturbation itself is not recovered"}
+        return {"factor": None, "note": "the perturbation itself is not recovered"}
     low, high = 1.0, 2.0
     while high <= LARGEST_FACTOR and recovered(high):
         low, high = high, 2 * high
     if high > LARGEST_FACTOR:
-        return {"factor": low, "perturbation": (low * perturbation).tolist(), "note": f"recovered up to the largest factor tried, {low:g}"}
+        return {"factor": low, "note": f"recovered up to the largest factor tried, {low:g}"}
     for _ in range(BISECTIONS):
         middle = (low + high) / 2
         low, high = (middle, high) if recovered(middle) else (low, middle)
-    return {"factor": low, "perturbation": (low * perturbation).tolist(), "first_not_recovered": high,
+    return {"factor": low, "first_not_recovered": high,
             "note": f"recovered at {low:.4g} times the perturbation, not at {high:.4g}"}
 
 
@@ -116,7 +123,8 @@ def summarise(rows: list[dict], failure: str | None = None) -> dict:
         "adaptive_strides": len(adaptive),
         "adaptive_failure": failure,
         "solve_time_per_stride_s": {"median": float(np.median(times)), "max": float(np.max(times))} if times else None,
-        "max_eps": max((float(r["eps"]) for r in adaptive), default=None),
+        # The last solve before a fall can leave no finite residual (every trial fell).
+        "max_eps": max((float(r["eps"]) for r in adaptive if np.isfinite(float(r["eps"]))), default=None),
         "eps_to_gait": {"first": to_gait[0], "last": to_gait[-1], "max": max(to_gait)} if to_gait else None,
         "frozen_strides_before_fall": int(float(fall[0]["n"])) if fall else None,
         "frozen_fall": fall[0]["note"] if fall else None,
