@@ -52,7 +52,7 @@ from .stride import sources as stride_sources
 #: q of the surrogate (see the module docstring).
 SURROGATE_POWER = 8
 #: Armijo constant, largest step (scaled units), halvings per iteration, and the
-#: projected-gradient norm and step length at which the descent stops.
+#: reduced-gradient norm and step length at which the descent stops.
 ARMIJO = 1e-4
 MAX_STEP = 2.0
 HALVINGS = 10
@@ -177,14 +177,17 @@ class StabilityDescent:
         evaluations, chart, norm = 1, None, float("nan")
         for _ in range(self.max_iterations):
             if chart is None:
-                chart = self._chart(spec, design)
+                chart, fresh_chart = self._chart(spec, design), True
                 if not chart.size:
                     return Descent(tuple(steps), "the manifold has no free direction here", 0.0, evaluations)
                 inverse_hessian = np.eye(chart.size)
             reduced = self._reduced_gradient(spec, design, grad, chart)
-            if reduced is None:  # the chart degenerated: choose another
+            if reduced is None:  # the chart degenerated here: choose another, once
+                if fresh_chart:
+                    break
                 chart = None
                 continue
+            fresh_chart = False
             norm = float(np.linalg.norm(reduced))
             if norm < GRADIENT_TOLERANCE:
                 return Descent(tuple(steps), "stationary: reduced gradient below tolerance", norm, evaluations)
