@@ -159,18 +159,18 @@ def parse_study(data, number) -> Study:
     if kind == "controllers":
         criterion = _criterion(data.get("criterion", "tracking"))
         return Controllers(
-            perturbation=_apex_map(data.get("perturbation"), "study.perturbation", number, required=True),
+            perturbation=_apex_map(data.get("perturbation"), "study.perturbation", number, positive=True, required=True),
             samples=_integer(data.get("samples", 200), "study.samples", 1, 100000),
             seed=_integer(data.get("seed", 0), "study.seed", 0, 2**31 - 1),
             strides=_integer(data.get("strides", 100), "study.strides", 1, 100000),
             tolerance=_fraction(data.get("tolerance", 1e-3), "study.tolerance", number),
             criterion=criterion,
-            lqr_scale=_apex_map(data.get("lqr_scale", {}), "study.lqr_scale", number, required=False),
+            lqr_scale=_apex_map(data.get("lqr_scale", {}), "study.lqr_scale", number, positive=True),
         )
     return Adaptive(
         strides=_integer(data.get("strides", 2048), "study.strides", 1, 1000000),
         frozen_strides=_integer(data.get("frozen_strides", 1000), "study.frozen_strides", 1, 1000000),
-        perturbation=_offsets(data.get("perturbation", {}), "study.perturbation", number),
+        perturbation=_apex_map(data.get("perturbation", {}), "study.perturbation", number, positive=False),
         criterion=_criterion(data.get("criterion", "thesis")),
         probe_strides=_integer(data.get("probe_strides", 200), "study.probe_strides", 1, 100000),
     )
@@ -205,37 +205,22 @@ def _criterion(value) -> str:
     return value
 
 
-def _offsets(data, key, number) -> tuple[tuple[str, float], ...]:
-    """A map of apex quantity to an offset (any sign, at most 10 in size)."""
+def _apex_map(data, key, number, positive: bool, required: bool = False) -> tuple[tuple[str, float], ...]:
+    """A map of apex quantity to a size (``positive``: in (0, 10]) or an offset (any sign,
+    at most 10 in size); SI units, and angles may carry units."""
     apex = ("z", "theta_h", "ydot", "theta_h_dot")
-    if not isinstance(data, dict):
-        raise StudyError(key, f"expected a mapping of apex quantity ({', '.join(apex)}) to an offset")
-    pairs = []
-    for name, value in data.items():
-        where = f"{key}.{clip(str(name))}"
-        if isinstance(name, NonScalarKey) or name not in apex:
-            raise StudyError(where, f"unknown apex quantity (expected one of {', '.join(apex)})")
-        offset = number(value, f"{key}.{name}")
-        if not abs(offset) <= 10:
-            raise StudyError(where, f"expected an offset of at most 10 in size, got {offset:g}")
-        pairs.append((name, offset))
-    return tuple(pairs)
-
-
-def _apex_map(data, key, number, required: bool) -> tuple[tuple[str, float], ...]:
-    """A map of apex quantity to a positive size (SI units; angles may carry units)."""
-    apex = ("z", "theta_h", "ydot", "theta_h_dot")
+    what = "a size" if positive else "an offset"
     if not isinstance(data, dict) or (required and not data):
-        raise StudyError(key, f"expected a mapping of apex quantity ({', '.join(apex)}) to a size")
+        raise StudyError(key, f"expected a mapping of apex quantity ({', '.join(apex)}) to {what}")
     pairs = []
     for name, value in data.items():
         where = f"{key}.{clip(str(name))}"
         if isinstance(name, NonScalarKey) or name not in apex:
             raise StudyError(where, f"unknown apex quantity (expected one of {', '.join(apex)})")
-        size = number(value, f"{key}.{name}")
-        if not 0 < size <= 10:
-            raise StudyError(where, f"expected a size in (0, 10], got {size:g}")
-        pairs.append((name, size))
+        value = number(value, f"{key}.{name}")
+        if not (0 < value <= 10 if positive else abs(value) <= 10):
+            raise StudyError(where, f"expected {'a size in (0, 10]' if positive else 'an offset of at most 10 in size'}, got {value:g}")
+        pairs.append((name, value))
     return tuple(pairs)
 
 
