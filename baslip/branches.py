@@ -31,6 +31,11 @@ from .shooting import FixedPointSpec, implied_periodicity
 from .stability import classify
 
 
+#: A phase lasting less than this fraction of its flight (descent) or stance (compression,
+#: decompression) counts as grazing: the branch is about to lose or gain an event.
+GRAZING_FRACTION = 0.02
+
+
 class BranchError(ValueError):
     """The problem does not define a one-dimensional branch; ``key`` names the entry."""
 
@@ -178,6 +183,25 @@ class FixedPointSystem:
         period = minimal_period(check.apexes)
         if period < strides:
             return f"the orbit repeats after {period} of its {strides} strides"
+        return None
+
+    def grazing(self, v: np.ndarray) -> str | None:
+        """If the orbit at ``v`` is close to grazing, where: an apex at the touchdown
+        height (its descent lasting under :data:`GRAZING_FRACTION` of its flight) or a
+        stance phase shrinking to nothing. None otherwise (or if the orbit falls)."""
+        X, u, params, _ = self.unpack(v)
+        orbit = self.residual_map.simulate(X, u, params, self.spec.strides)
+        if orbit.fall is not None:
+            return None
+        for k, d in enumerate(orbit.durations):
+            flight = d["descent"] + d["ascent"]
+            if d["descent"] < GRAZING_FRACTION * flight:
+                return (f"grazing: the apex of stride {k + 1} (z = {orbit.apexes[k][0]:.6g} m) is at the touchdown "
+                        f"height (descent {1e3 * d['descent']:.3g} ms of a {1e3 * flight:.3g} ms flight)")
+            stance = d["compression"] + d["decompression"]
+            for phase in ("compression", "decompression"):
+                if d[phase] < GRAZING_FRACTION * stance:
+                    return f"grazing: the {phase} of stride {k + 1} lasts {1e3 * d[phase]:.3g} ms of a {1e3 * stance:.3g} ms stance"
         return None
 
     def multipliers(self, v: np.ndarray) -> tuple[np.ndarray, list[bool]]:

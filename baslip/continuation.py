@@ -10,7 +10,11 @@ through folds, where lambda turns back.
 Special points, found by sign changes of test functions between consecutive points, and
 then located by regula falsi (Illinois) on the arclength until lambda is known to 1e-7:
 
-* ``fold``: the lambda component of the tangent;
+* ``fold``: the lambda component of the tangent changes sign *and* a multiplier crosses +1
+  (the product of (mu - 1) over the non-trivial real multipliers changes sign): a
+  saddle-node of the map. Without that evidence the point is a ``turning_point``: the
+  path turns back in lambda, which happens when lambda is an apex coordinate (the branch
+  folds over in that coordinate) without any multiplier at +1;
 * ``period_doubling``: det(I + dr/dX) (a multiplier crosses -1);
 * ``neimark_sacker``: the product of (|mu|^2 - 1) over the complex pairs;
 * ``branch_point``: det of the bordered Jacobian [dF/dv; t].
@@ -29,8 +33,8 @@ import numpy as np
 
 SPECIAL_TYPES = ("fold", "period_doubling", "neimark_sacker", "branch_point")
 #: How special points are named in text and figures.
-SPECIAL_NAMES = {"fold": "fold", "period_doubling": "period doubling", "neimark_sacker": "Neimark-Sacker",
-                 "branch_point": "branch point"}
+SPECIAL_NAMES = {"fold": "fold", "turning_point": "turning point", "period_doubling": "period doubling",
+                 "neimark_sacker": "Neimark-Sacker", "branch_point": "branch point"}
 LOCATE_TOLERANCE = 1e-7  # on lambda (scaled units)
 LOCATE_MAX_NEWTON = 60
 
@@ -92,8 +96,10 @@ def tangent_of(jac: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
 def test_functions(jac: np.ndarray, tangent: np.ndarray, multipliers: np.ndarray, trivial: list[bool]) -> dict[str, float]:
     nontrivial = np.array([m for m, t in zip(multipliers, trivial) if not t])
     complex_pairs = [m for m in nontrivial if m.imag > 1e-9]
+    real = [m.real for m in nontrivial if abs(m.imag) <= 1e-9]
     return {
         "fold": float(tangent[-1]),
+        "multiplier_one": float(np.prod([m - 1.0 for m in real])) if real else math.nan,
         "period_doubling": float(np.real(np.prod(1.0 + multipliers))),
         "neimark_sacker": float(np.prod([abs(m) ** 2 - 1.0 for m in complex_pairs])) if complex_pairs else math.nan,
         "branch_point": float(np.linalg.det(np.vstack([jac, tangent]))),
@@ -164,14 +170,45 @@ def continue_branch(
                 return branch
             h /= 2
             continue
-        for kind in _crossings(here, point):
-            branch.points.append(locate(system, here, point, kind, settings))
-        branch.points.append(point)
-        progress(len(branch.points), point)
-        if not lo <= point.v[-1] <= hi:
+        outside = not lo <= point.v[-1] <= hi
+        if outside:  # end exactly on the range's end, never beyond it
+            bound = hi if point.v[-1] > hi else lo
+            point = _on_bound(system, here, point, bound, settings, accept)
+        for kind in _crossings(here, point) if point is not None else ():
+            located = locate(system, here, point, kind, settings)
+            if lo <= located.v[-1] <= hi:
+                branch.points.append(located)
+        if point is not None:
+            branch.points.append(point)
+            progress(len(branch.points), point)
+        if outside:
             branch.stop_reason = "end of range"
             return branch
         h = min(h * 1.5, settings.max_step) if iterations <= 3 else max(h * 0.7, settings.min_step)
+
+
+def _on_bound(system: System, here: Point, beyond: Point, bound: float, settings: Settings, accept) -> Point | None:
+    """The branch's point at lambda = ``bound`` between ``here`` and ``beyond`` (Newton
+    with lambda held, from the chord), if it converges and is accepted."""
+    fraction = (bound - here.v[-1]) / (beyond.v[-1] - here.v[-1])
+    start = here.v + fraction * (beyond.v - here.v)
+    start[-1] = bound
+    held = np.zeros(len(start))
+    held[-1] = 1.0
+    try:
+        v, _ = correct(system, start, held, settings)
+    except CorrectionFailed:
+        return None
+    if accept(v):
+        return None
+    return make_point(system, v, here.tangent)
+
+
+def join(lower: Branch, upper: Branch) -> Branch:
+    """One branch from two traced from the same start in opposite directions: ``lower``'s
+    points reversed, then ``upper``'s (the start once)."""
+    points = list(reversed(lower.points)) + upper.points[1:]
+    return Branch(points, f"lower end: {lower.stop_reason}; upper end: {upper.stop_reason}")
 
 
 def switch_direction(system: System, point: Point) -> np.ndarray:
@@ -251,4 +288,12 @@ def locate(system: System, a: Point, b: Point, kind: str, settings: Settings) ->
         if (abs(lam_hi - lam_lo) < LOCATE_TOLERANCE and abs(s_hi - s_lo) < 1e-5) or value == 0.0:
             break
     best.special = kind
+    if kind == "fold" and not _multiplier_crosses_one(a, b):
+        best.special = "turning_point"
     return best
+
+
+def _multiplier_crosses_one(a: Point, b: Point) -> bool:
+    """Whether a non-trivial real multiplier crosses +1 between ``a`` and ``b``."""
+    x, y = a.tests["multiplier_one"], b.tests["multiplier_one"]
+    return math.isfinite(x) and math.isfinite(y) and x * y < 0

@@ -302,7 +302,7 @@ def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path) -
         for style, word, present in (("-", "stable", any(stable)), ("--", "unstable", not all(stable))):
             if present:  # only the styles drawn get a legend entry
                 ax.plot([], [], style, color=color, label=f"{strides}-stride orbits, {word}")
-    markers = {"fold": ("s", "tab:red"), "period_doubling": ("D", "tab:green"),
+    markers = {"fold": ("s", "tab:red"), "turning_point": ("<", "tab:brown"), "period_doubling": ("D", "tab:green"),
                "neimark_sacker": ("^", "tab:purple"), "branch_point": ("o", "tab:orange")}
     for i, r in enumerate(r for r in rows if r["special"]):
         marker, color = markers[r["special"]]

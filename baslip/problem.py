@@ -267,7 +267,7 @@ class ContinuationSpec:
     hi: float
     step: float = 0.05
     max_points: int = 300
-    direction: int = 1
+    direction: int | str = 1
     plot: str = "z"
     switch: str | None = None  # "period_doubling": also trace the doubled-period branches
 
@@ -295,8 +295,8 @@ def _continuation(value: Any) -> ContinuationSpec:
     if isinstance(max_points, bool) or not isinstance(max_points, int) or not 2 <= max_points <= 100000:
         raise ProblemError("continuation.max_points", f"expected an integer in [2, 100000], got {excerpt(max_points)}")
     direction = raw.get("direction", 1)
-    if direction not in (1, -1) or isinstance(direction, bool):
-        raise ProblemError("continuation.direction", f"expected 1 or -1, got {excerpt(direction)}")
+    if isinstance(direction, bool) or direction not in (1, -1, "both"):
+        raise ProblemError("continuation.direction", f"expected 1, -1 or both, got {excerpt(direction)}")
     plot = raw.get("plot", "z")
     if plot not in DESIGN:
         raise ProblemError("continuation.plot", f"expected a design quantity, got {excerpt(plot)}")

@@ -505,6 +505,10 @@ def branch_sections(ev: Evidence) -> list[str]:
             stable = sum(r["stable"] is True for r in doubled)
             lines.append(f"- On the switched branches: {stable} of {len(doubled)} points stable; spectral radius "
                          f"{min(radii):.4g} to {max(radii):.4g} (multipliers of each orbit's own N-stride map).")
+        if any(p["type"] == "turning_point" for p in summary["special_points"]):
+            lines.append(f"- A turning point is where the path turns back in `{parameter}` with no multiplier "
+                         "crossing +1: the branch folds over in that apex coordinate, but the map has no "
+                         "saddle-node there (earlier versions of this report called it a fold).")
         out.append("\n".join(lines) + "\n")
     out.append(period_two_gait(ev))
     return out

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import csv
 import io
+import math
 import sys
 import time
 from dataclasses import dataclass, replace
@@ -20,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..continuation import Branch, CorrectionFailed, Point, Settings, continue_branch, switch_branch
+from ..continuation import Branch, CorrectionFailed, Point, Settings, continue_branch, join, switch_branch
 from ..control import CONTROL
 from ..folder import hold
 from ..model import APEX
@@ -129,19 +130,48 @@ def _run_continuation(problem, out_dir: Path, quiet: bool) -> dict:
 def _trace(system, v0, direction, settings, solver, number, origin, quiet) -> TracedBranch:
     """Trace one branch, every point verified independently."""
 
+    started, lam0 = time.perf_counter(), v0[-1]
+    lo, hi = settings.lam_range
+    shown = [-math.inf]
+
     def progress(n, point):
-        if not quiet:
-            lam = point.v[-1] * system.lam_scale
-            print(f"\rbranch {number} ({system.spec.strides} stride{'s' if system.spec.strides > 1 else ''}): "
-                  f"{n} points, {system.parameter} = {lam:.6g}   ", end="", file=sys.stderr, flush=True)
+        if quiet:
+            return
+        lam, elapsed = point.v[-1], time.perf_counter() - started
+        end = hi if lam >= lam0 else lo
+        rate = abs(lam - lam0) / elapsed if elapsed > 0 else 0.0
+        eta = f", about {abs(end - lam) / rate:.0f} s to the end of the range" if rate > 0 and math.isfinite(end) else ""
+        text = (f"branch {number} ({system.spec.strides} stride{'s' if system.spec.strides > 1 else ''}): "
+                f"{n} points, {system.parameter} = {lam * system.lam_scale:.6g}{eta}")
+        if sys.stderr.isatty():
+            print(f"\r{text}   ", end="", file=sys.stderr, flush=True)
+        elif elapsed - shown[0] >= 10.0:  # a log file gets a plain line every 10 s
+            shown[0] = elapsed
+            print(text, file=sys.stderr, flush=True)
 
     def verified(v):
         return system.verification_failure(v, solver.verify_map)
 
-    branch = continue_branch(system, v0, direction, settings, accept=verified, progress=progress)
-    if not quiet:
+    if isinstance(direction, str):  # "both": down first, then up, joined at the start
+        lower = continue_branch(system, v0, -1.0, settings, accept=verified, progress=progress)
+        upper = continue_branch(system, v0, 1.0, settings, accept=verified, progress=progress)
+        lower.stop_reason = _named(system, lower)
+        upper.stop_reason = _named(system, upper)
+        branch = join(lower, upper)
+    else:
+        branch = continue_branch(system, v0, direction, settings, accept=verified, progress=progress)
+        branch.stop_reason = _named(system, branch)
+    if not quiet and sys.stderr.isatty():
         print(file=sys.stderr)
     return TracedBranch(number, system, branch, origin)
+
+
+def _named(system, branch) -> str:
+    """The stop reason, with the grazing it comes from named when the last point grazes."""
+    if branch.stop_reason in ("end of range", "maximum number of points") or not branch.points:
+        return branch.stop_reason
+    grazing = system.grazing(branch.points[-1].v)
+    return f"{grazing}; then {branch.stop_reason}" if grazing else branch.stop_reason
 
 
 def _switch(system, point: Point, settings: Settings, solver) -> tuple[np.ndarray, np.ndarray]:
