@@ -22,16 +22,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .control import CONTROL
 from .model import Params
 from .polish import eps
-from .quantities import DESIGN, NOMINAL
+from .quantities import NOMINAL
 from .returnmap import ReturnMap, RunnerFell
 
 #: Relative singular-value cutoff for rank decisions on B (scaled by the nominal sizes).
 #: Measured on the grids: B's fourth singular value is 1e-4 or more of the first where
 #: it counts, and 1e-9 or less where it does not (upright gaits with gains near 1e-4).
 RANK_TOLERANCE = 1e-7
-CONTROL_SCALE = np.array([NOMINAL[n] for n in DESIGN[4:]])
+CONTROL_SCALE = np.array([NOMINAL[n] for n in CONTROL.names])
 #: A re-solve stops once a step lowers its eps by less than this factor (the residual
 #: has reached the least-squares floor, which is not zero where dr/du has rank 3).
 STALL = 0.99
