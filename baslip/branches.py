@@ -61,49 +61,76 @@ def check_branch(spec: FixedPointSpec, parameter: str) -> None:
 
 
 class FixedPointSystem:
-    """F(v) = 0 for v = (free design quantities, lambda), all scaled."""
+    """F(v) = 0 for v = (free design quantities, lambda), all scaled.
 
-    def __init__(self, spec: FixedPointSpec, parameter: str, residual_map: ReturnMap, jacobian_map: ReturnMap):
+    With a ``second`` parameter, v = (free design quantities, lambda_1, lambda_2): the
+    fixed points then form a surface, on which a bifurcation curve is one more equation
+    (:mod:`baslip.curves`). The Jacobian has one column per parameter.
+    """
+
+    def __init__(self, spec: FixedPointSpec, parameter: str, residual_map: ReturnMap, jacobian_map: ReturnMap,
+                 second: str | None = None):
         check_branch(spec, parameter)
+        if second is not None:
+            if second == parameter:
+                raise BranchError("continuation.second", f"the second parameter must differ from the first ({parameter})")
+            try:
+                check_branch(spec, second)
+            except BranchError as err:
+                raise BranchError("continuation.second", str(err).split(": ", 1)[1]) from None
         self.spec, self.parameter = spec, parameter
+        self.parameters = (parameter,) if second is None else (parameter, second)
         self.residual_map, self.jacobian_map = residual_map, jacobian_map
-        self.free = [n for n in DESIGN if n not in spec.fixed]
+        self.free = [n for n in DESIGN if n not in spec.fixed and n not in self.parameters]
         self.rows = [n for n in APEX.names if n not in implied_periodicity(spec)]
         self.energy_row = "energy" in spec.fixed
-        value = self.start_value()
-        self.lam_scale = NOMINAL.get(parameter, 1.0) if parameter != "energy" else 0.1
-        if parameter in PARAMS.names:
-            self.lam_scale = 0.1 * abs(value) if value else 0.01
-        self.scale = np.array([NOMINAL[n] for n in self.free] + [self.lam_scale])
+        self.lam_scales = [self._scale_of(name) for name in self.parameters]
+        self.lam_scale = self.lam_scales[0]
+        self.scale = np.array([NOMINAL[n] for n in self.free] + self.lam_scales)
         X, p = APEX.sym("X"), PARAMS.sym("p")
         energy = apex_energy(X, p)
         self._energy = ca.Function("E", [X, p], [energy])
         self._energy_gradient = ca.Function("dE", [X, p], [ca.gradient(energy, X), ca.gradient(energy, p)])
         self._cache: tuple[bytes, tuple] | None = None
 
+    def _scale_of(self, name: str) -> float:
+        if name in PARAMS.names:
+            value = self.start_value(name)
+            return 0.1 * abs(value) if value else 0.01
+        return NOMINAL.get(name, 1.0) if name != "energy" else 0.1
+
     # -- unknowns -------------------------------------------------------------------------
 
-    def start_value(self) -> float:
-        if self.parameter in PARAMS.names:
-            return float(getattr(self.spec.params, self.parameter))
-        return float(self.spec.fixed[self.parameter])
+    def start_value(self, name: str | None = None) -> float:
+        """The problem's own value of parameter ``name`` (the first one by default)."""
+        name = name or self.parameter
+        if name in PARAMS.names:
+            return float(getattr(self.spec.params, name))
+        return float(self.spec.fixed[name])
 
-    def pack(self, X, u, lam: float) -> np.ndarray:
+    def pack(self, X, u, *lams: float) -> np.ndarray:
+        """Scaled unknowns from an apex, a control and the parameters' values."""
         design = dict(zip(DESIGN, np.concatenate([X, u])))
-        return np.array([design[n] for n in self.free] + [lam]) / self.scale
+        return np.array([design[n] for n in self.free] + list(lams)) / self.scale
+
+    def values(self, v: np.ndarray) -> dict[str, float]:
+        """The parameters' values at ``v``, by name."""
+        count = len(self.parameters)
+        return dict(zip(self.parameters, (float(x) for x in (v * self.scale)[-count:])))
 
     def unpack(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, Params, float]:
+        """(apex, control, model parameters, value of the first parameter) at ``v``."""
         physical = v * self.scale
-        lam = float(physical[-1])
         values = dict(self.spec.fixed)
-        values.update(zip(self.free, physical[:-1]))
+        values.update(zip(self.free, physical[: len(self.free)]))
         params = self.spec.params
-        if self.parameter in PARAMS.names:
-            params = replace(params, **{self.parameter: lam})
-        elif self.parameter != "energy":
-            values[self.parameter] = lam
+        for name, value in self.values(v).items():
+            if name in PARAMS.names:
+                params = replace(params, **{name: value})
+            elif name != "energy":
+                values[name] = value
         design = np.array([values[n] for n in DESIGN])
-        return design[: APEX.size], design[APEX.size :], params, lam
+        return design[: APEX.size], design[APEX.size :], params, self.values(v)[self.parameter]
 
     # -- equations ------------------------------------------------------------------------
 
@@ -111,59 +138,118 @@ class FixedPointSystem:
         """Apex energy [J]."""
         return float(self._energy(X, params.vector()))
 
-    def _energy_target(self, lam: float) -> float:
-        return lam if self.parameter == "energy" else self.spec.fixed.get("energy", 0.0)
+    def _energy_target(self, v: np.ndarray) -> float:
+        return self.values(v).get("energy", self.spec.fixed.get("energy", 0.0))
 
     def residual(self, v: np.ndarray) -> np.ndarray:
-        X, u, params, lam = self.unpack(v)
+        X, u, params, _ = self.unpack(v)
         orbit = self.residual_map.simulate(X, u, params, self.spec.strides)
         if orbit.fall is not None:
             raise CorrectionFailed(f"the runner falls ({orbit.fall.value})")
         periodic = orbit.apexes[-1] - X
         rows = [periodic[APEX.index(n)] for n in self.rows]
         if self.energy_row:
-            rows.append(self.energy(X, params) - self._energy_target(lam))
+            rows.append(self.energy(X, params) - self._energy_target(v))
         return np.array(rows)
 
     def _jacobians(self, v: np.ndarray):
         key = v.tobytes()
         if self._cache is None or self._cache[0] != key:
             X, u, params, _ = self.unpack(v)
-            try:
-                strides = self.spec.strides
-                if self.parameter in PARAMS.names:  # one pass gives all three
-                    dr_dX, dr_du, dr_dp = self.jacobian_map.all_jacobians(X, u, params, strides)
-                else:
-                    (dr_dX, dr_du), dr_dp = self.jacobian_map.jacobians(X, u, params, strides), None
-            except RunnerFell as err:
-                raise CorrectionFailed(f"the runner falls ({err.fall.value})") from None
-            self._cache = (key, (X, u, params, dr_dX, dr_du, dr_dp))
+            self._cache = (key, (X, u, params, *self._map_jacobians(X, u, params)))
         return self._cache[1]
 
+    def _map_jacobians(self, X, u, params):
+        """(dr^N/dX, dr^N/du, dr^N/dp or None) at (X, u, params)."""
+        try:
+            strides = self.spec.strides
+            if any(name in PARAMS.names for name in self.parameters):  # one pass gives all three
+                return self.jacobian_map.all_jacobians(X, u, params, strides)
+            return (*self.jacobian_map.jacobians(X, u, params, strides), None)
+        except RunnerFell as err:
+            raise CorrectionFailed(f"the runner falls ({err.fall.value})") from None
+
     def jacobian(self, v: np.ndarray) -> np.ndarray:
+        """dF/dv, scaled: one column per free quantity, then one per parameter."""
         X, u, params, dr_dX, dr_du, dr_dp = self._jacobians(v)
         full = np.hstack([dr_dX - np.eye(APEX.size), dr_du])  # d(r - X)/d(X, u)
         rows = [APEX.index(n) for n in self.rows]
         columns = [DESIGN.index(n) for n in self.free]
         jac = full[np.ix_(rows, columns)]
-        if self.parameter in PARAMS.names:
-            lam_column = dr_dp[rows, PARAMS.index(self.parameter)]
-        elif self.parameter == "energy":
-            lam_column = np.zeros(len(rows))
-        else:
-            lam_column = full[rows, DESIGN.index(self.parameter)]
-        jac = np.column_stack([jac, lam_column])
+        for name in self.parameters:
+            if name in PARAMS.names:
+                lam_column = dr_dp[rows, PARAMS.index(name)]
+            elif name == "energy":
+                lam_column = np.zeros(len(rows))
+            else:
+                lam_column = full[rows, DESIGN.index(name)]
+            jac = np.column_stack([jac, lam_column])
         if self.energy_row:
             by_X, by_p = (np.asarray(g).ravel() for g in self._energy_gradient(X, params.vector()))
             energy = np.concatenate([by_X, np.zeros(CONTROL.size)])
-            if self.parameter == "energy":
-                lam_energy = -1.0
-            elif self.parameter in PARAMS.names:
-                lam_energy = by_p[PARAMS.index(self.parameter)]
-            else:
-                lam_energy = energy[DESIGN.index(self.parameter)]
-            jac = np.vstack([jac, np.concatenate([energy[columns], [lam_energy]])])
+            lam_energy = []
+            for name in self.parameters:
+                if name == "energy":
+                    lam_energy.append(-1.0)
+                elif name in PARAMS.names:
+                    lam_energy.append(by_p[PARAMS.index(name)])
+                else:
+                    lam_energy.append(energy[DESIGN.index(name)])
+            jac = np.vstack([jac, np.concatenate([energy[columns], lam_energy])])
         return jac * self.scale
+
+    # -- the map itself, for bifurcation curves -------------------------------------------
+
+    def dynamic_coordinates(self, u, params: Params) -> tuple[str, ...]:
+        """Apex coordinates in which the map has no multiplier that is 1 by structure.
+
+        With a hip torque, all four. Without one, energy is conserved: z follows from the
+        energy and the others, so it is left out; with d = 0 as well, the trunk spins
+        freely and only ydot is left. On these coordinates (at the orbit's energy) a
+        multiplier at +1, -1 or on the unit circle is a bifurcation of the map, never
+        structure (see :mod:`baslip.stability`).
+        """
+        control = CONTROL.unpack(np.asarray(u, dtype=float))
+        if not (control["Kp"] == 0.0 and control["Kd"] == 0.0):
+            return APEX.names
+        return ("ydot", "theta_h", "theta_h_dot") if params.d != 0.0 else ("ydot",)
+
+    def map_jacobian(self, v: np.ndarray, shift: np.ndarray | None = None) -> np.ndarray:
+        """Jacobian of the N-stride map on :meth:`dynamic_coordinates`, at the orbit's
+        start displaced by ``shift`` (in those coordinates, physical units) at the same
+        energy and control: the matrix whose multipliers decide the curves, and (through
+        ``shift``) the map's higher derivatives for the normal-form coefficients."""
+        X, u, params, _ = self.unpack(v)
+        names = self.dynamic_coordinates(u, params)
+        index = [APEX.index(n) for n in names]
+        lifted = self._lift(X, index, shift, params, len(names) < APEX.size)
+        if shift is None and v.tobytes() == (self._cache[0] if self._cache else None):
+            dr_dX = self._cache[1][3]
+        else:
+            dr_dX = self._map_jacobians(lifted, u, params)[0]
+        return dr_dX[index, :] @ self._lift_jacobian(lifted, index, params, len(names) < APEX.size)
+
+    def _lift(self, X, index, shift, params, conserved: bool) -> np.ndarray:
+        """The apex at dynamic coordinates X[index] + shift: z moves to keep the energy
+        (exactly, as the apex energy is affine in z) when energy is conserved."""
+        if shift is None:
+            return np.asarray(X, dtype=float)
+        lifted = np.array(X, dtype=float)
+        lifted[index] += shift
+        if conserved:
+            z = APEX.index("z")
+            slope = float(self._energy_gradient(lifted, params.vector())[0][z])
+            lifted[z] += (self.energy(X, params) - self.energy(lifted, params)) / slope
+        return lifted
+
+    def _lift_jacobian(self, X, index, params, conserved: bool) -> np.ndarray:
+        """d(apex)/d(dynamic coordinates) at ``X``: 4 x k."""
+        lift = np.eye(APEX.size)[:, index]
+        if conserved:
+            gradient = np.asarray(self._energy_gradient(X, params.vector())[0]).ravel()
+            z = APEX.index("z")
+            lift[z, :] -= gradient[index] / gradient[z]
+        return lift
 
     def verification_failure(self, v: np.ndarray, verify_map: ReturnMap) -> str | None:
         """Why ``v`` is not a verified orbit of its period, or None if it is.

@@ -57,7 +57,10 @@ class Settings:
     min_step: float = 1e-6
     max_step: float = 0.5
     max_points: int = 200
-    lam_range: tuple[float, float] = (-math.inf, math.inf)  # scaled lambda
+    lam_range: tuple[float, float] = (-math.inf, math.inf)  # scaled lambda (the last unknown)
+    #: Further ranges, (index of the unknown, lo, hi) in scaled units: a curve in two
+    #: parameters keeps both inside their ranges.
+    other_ranges: tuple[tuple[int, float, float], ...] = ()
     tolerance: float = 1e-10  # on |F|
     max_newton: int = 8
 
@@ -114,7 +117,10 @@ def correct(system: System, v_pred: np.ndarray, tangent: np.ndarray, settings: S
         f = system.residual(v)
         g = np.concatenate([f, [np.dot(tangent, v - v_pred)]])
         jac = np.vstack([system.jacobian(v), tangent])
-        dv = np.linalg.solve(jac, -g)
+        try:
+            dv = np.linalg.solve(jac, -g)
+        except np.linalg.LinAlgError:
+            raise CorrectionFailed("singular Newton matrix") from None
         v = v + dv
         if np.linalg.norm(dv) < 1e-10 and np.linalg.norm(system.residual(v)) <= settings.tolerance:
             return v, iteration
@@ -124,10 +130,35 @@ def correct(system: System, v_pred: np.ndarray, tangent: np.ndarray, settings: S
 
 
 def make_point(system: System, v: np.ndarray, previous_tangent: np.ndarray | None) -> Point:
+    """The point at the solution ``v``, with its tangent and test functions (the
+    system's own, if it defines ``test_functions``, else those of a branch)."""
     jac = system.jacobian(v)
     t = tangent_of(jac, previous_tangent)
     multipliers, trivial = system.multipliers(v)
-    return Point(v, t, multipliers, trivial, test_functions(jac, t, multipliers, trivial))
+    tests = getattr(system, "test_functions", None)
+    values = tests(v, jac, t) if tests else test_functions(jac, t, multipliers, trivial)
+    return Point(v, t, multipliers, trivial, values)
+
+
+def special_types(system: System) -> tuple[str, ...]:
+    """The special points ``system`` is searched for."""
+    return getattr(system, "special_types", SPECIAL_TYPES)
+
+
+def _ranges(settings: Settings) -> list[tuple[int, float, float]]:
+    return [(-1, *settings.lam_range), *settings.other_ranges]
+
+
+def _outside(v: np.ndarray, settings: Settings) -> tuple[int, float] | None:
+    """The first range ``v`` leaves, as (index, the bound it passes), or None."""
+    for index, lo, hi in _ranges(settings):
+        if not lo <= v[index] <= hi:
+            return index, (hi if v[index] > hi else lo)
+    return None
+
+
+def _inside(v: np.ndarray, settings: Settings) -> bool:
+    return _outside(v, settings) is None
 
 
 def continue_branch(
@@ -148,7 +179,6 @@ def continue_branch(
     first = make_point(system, v0, np.asarray(direction, dtype=float))
     branch = Branch([first])
     h = settings.step
-    lo, hi = settings.lam_range
     while True:
         if len(branch.points) >= settings.max_points:
             branch.stop_reason = "maximum number of points"
@@ -170,13 +200,12 @@ def continue_branch(
                 return branch
             h /= 2
             continue
-        outside = not lo <= point.v[-1] <= hi
+        outside = _outside(point.v, settings)
         if outside:  # end exactly on the range's end, never beyond it
-            bound = hi if point.v[-1] > hi else lo
-            point = _on_bound(system, here, point, bound, settings, accept)
-        for kind in _crossings(here, point) if point is not None else ():
+            point = _on_bound(system, here, point, *outside, settings, accept)
+        for kind in _crossings(system, here, point) if point is not None else ():
             located = locate(system, here, point, kind, settings)
-            if lo <= located.v[-1] <= hi:
+            if _inside(located.v, settings):
                 branch.points.append(located)
         if point is not None:
             branch.points.append(point)
@@ -187,19 +216,22 @@ def continue_branch(
         h = min(h * 1.5, settings.max_step) if iterations <= 3 else max(h * 0.7, settings.min_step)
 
 
-def _on_bound(system: System, here: Point, beyond: Point, bound: float, settings: Settings, accept) -> Point | None:
-    """The branch's point at lambda = ``bound`` between ``here`` and ``beyond`` (Newton
-    with lambda held, from the chord), if it converges and is accepted."""
-    fraction = (bound - here.v[-1]) / (beyond.v[-1] - here.v[-1])
+def _on_bound(system: System, here: Point, beyond: Point, index: int, bound: float, settings: Settings,
+              accept) -> Point | None:
+    """The branch's point with unknown ``index`` at ``bound``, between ``here`` and
+    ``beyond`` (Newton with that unknown held, from the chord), if it converges, is
+    accepted and lies inside the other ranges."""
+    fraction = (bound - here.v[index]) / (beyond.v[index] - here.v[index])
     start = here.v + fraction * (beyond.v - here.v)
-    start[-1] = bound
+    start[index] = bound
     held = np.zeros(len(start))
-    held[-1] = 1.0
+    held[index] = 1.0
     try:
         v, _ = correct(system, start, held, settings)
     except CorrectionFailed:
         return None
-    if accept(v):
+    v[index] = bound  # exactly: Newton holds it to round-off
+    if accept(v) or not _inside(v, settings):
         return None
     return make_point(system, v, here.tangent)
 
@@ -234,12 +266,15 @@ def switch_branch(system: System, point: Point, amplitude: float, settings: Sett
     return v, direction
 
 
-def _crossings(a: Point, b: Point) -> list[str]:
+def _crossings(system: System, a: Point, b: Point) -> list[str]:
     kinds = []
-    for kind in SPECIAL_TYPES:
+    for kind in special_types(system):
         x, y = a.tests[kind], b.tests[kind]
         if kind == "neimark_sacker" and a.tests["complex_pairs"] != b.tests["complex_pairs"]:
             continue  # a pair turned real: not a crossing of the unit circle
+        veto = getattr(system, "crossing_veto", None)
+        if veto and veto(kind, a, b):
+            continue
         if math.isfinite(x) and math.isfinite(y) and x * y < 0:
             kinds.append(kind)
     return kinds
@@ -260,7 +295,9 @@ def locate(system: System, a: Point, b: Point, kind: str, settings: Settings) ->
     # linearly close to it: allow it the iterations that takes.
     settings = replace(settings, max_newton=max(settings.max_newton, LOCATE_MAX_NEWTON))
     known = [(0.0, a), (span, b)]
-    best, lam_lo, lam_hi, last_moved = b, a.v[-1], b.v[-1], ""
+    # The parameters are the last unknowns: one on a branch, two on a curve.
+    params = slice(-getattr(system, "parameter_count", 1), None)
+    best, lam_lo, lam_hi, last_moved = b, a.v[params], b.v[params], ""
     for _ in range(60):
         s = s_lo - f_lo * (s_hi - s_lo) / (f_hi - f_lo)
         if not min(s_lo, s_hi) < s < max(s_lo, s_hi):
@@ -277,18 +314,18 @@ def locate(system: System, a: Point, b: Point, kind: str, settings: Settings) ->
         # Illinois rule: when the same end moves twice running, halve the other end's
         # value, so that the bracket shrinks from both sides.
         if value * f_lo < 0:
-            s_hi, f_hi, lam_hi = s, value, best.v[-1]
+            s_hi, f_hi, lam_hi = s, value, best.v[params]
             f_lo = f_lo / 2 if last_moved == "hi" else f_lo
             last_moved = "hi"
         else:
-            s_lo, f_lo, lam_lo = s, value, best.v[-1]
+            s_lo, f_lo, lam_lo = s, value, best.v[params]
             f_hi = f_hi / 2 if last_moved == "lo" else f_hi
             last_moved = "lo"
         # At a fold lambda is extremal, so it settles long before s does: both must.
-        if (abs(lam_hi - lam_lo) < LOCATE_TOLERANCE and abs(s_hi - s_lo) < 1e-5) or value == 0.0:
+        if (np.max(np.abs(lam_hi - lam_lo)) < LOCATE_TOLERANCE and abs(s_hi - s_lo) < 1e-5) or value == 0.0:
             break
     best.special = kind
-    if kind == "fold" and not _multiplier_crosses_one(a, b):
+    if kind == "fold" and "multiplier_one" in a.tests and not _multiplier_crosses_one(a, b):
         best.special = "turning_point"
     return best
 
