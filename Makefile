@@ -5,16 +5,19 @@ PY ?= .venv/bin/python
 STUDIES = grid_downward grid_upward speed_sweep stable_region_random convergence_regions \
           body_angle_scan body_angle_fine_scan adaptive_upright adaptive_upright_tracking \
           optimal_downward optimal_upright controllers_downward controllers_upright
-BRANCHES = continuation_slip_attack continuation_downward_speed continuation_downward_height
+BRANCHES = continuation_slip_attack continuation_downward_speed continuation_downward_height \
+           curve_slip_band curve_downward_boundary curve_downward_neimark_sacker
+# Studies that read the curves' results.
+AFTER_CURVES = stable_region_traced
 GAITS = downward upward downward_period2
 
 .PHONY: studies clean-studies
 
 studies:
-	@for s in $(STUDIES) $(BRANCHES); do $(PY) -m baslip.solve problems/$$s.yaml || exit 1; done
+	@for s in $(STUDIES) $(BRANCHES) $(AFTER_CURVES); do $(PY) -m baslip.solve problems/$$s.yaml || exit 1; done
 	@for g in $(GAITS); do $(PY) -m baslip.solve problems/$$g.yaml || exit 1; done
 	$(PY) -m baslip.animate problems/downward.yaml problems/upward.yaml --out results/animation
 	$(PY) -m baslip.report
 
 clean-studies:
-	rm -rf $(addprefix results/,$(STUDIES) $(BRANCHES)) results/animation results/REPORT.md
+	rm -rf $(addprefix results/,$(STUDIES) $(BRANCHES) $(AFTER_CURVES)) results/animation results/REPORT.md

@@ -44,20 +44,47 @@ class BranchError(ValueError):
         self.key = key
 
 
-def check_branch(spec: FixedPointSpec, parameter: str) -> None:
-    """Raise :class:`BranchError` unless the problem defines a one-dimensional branch."""
-    if parameter not in DESIGN + ("energy",) + PARAMS.names:
-        raise BranchError("continuation.parameter", f"{parameter!r} cannot be varied")
-    if parameter in DESIGN + ("energy",) and parameter not in spec.fixed:
-        raise BranchError("continuation.parameter", f"{parameter} must be fixed (at its starting value)")
-    free = [n for n in DESIGN if n not in spec.fixed]
-    equations = len([n for n in APEX.names if n not in implied_periodicity(spec)]) + ("energy" in spec.fixed)
-    if len(free) != equations:
+def check_branch(spec: FixedPointSpec, parameter: str, key: str = "continuation.parameter") -> None:
+    """Raise :class:`BranchError` unless the problem defines a one-dimensional branch in
+    ``parameter`` (named by ``key`` in the problem file): as many free quantities as
+    equations, or more with the ``nearest_guess`` objective, which then picks the family
+    (:class:`NearestGuessSystem`)."""
+    _check_parameter(spec, parameter, key)
+    free, equations = _free(spec), _equation_count(spec)
+    if len(free) < equations or (len(free) > equations and spec.objective != "nearest_guess"):
         raise BranchError(
             "fix",
-            f"a branch needs as many free quantities as equations: {len(free)} free "
-            f"({', '.join(free)}) but {equations} equations; fix or free quantities to match",
+            f"a branch needs as many free quantities as equations (or more, with objective nearest_guess): "
+            f"{len(free)} free ({', '.join(free)}) but {equations} equations; fix or free quantities to match",
         )
+
+
+def _check_parameter(spec: FixedPointSpec, parameter: str, key: str) -> None:
+    if parameter not in DESIGN + ("energy",) + PARAMS.names:
+        raise BranchError(key, f"{parameter!r} cannot be varied")
+    if parameter in DESIGN + ("energy",) and parameter not in spec.fixed:
+        raise BranchError(key, f"{parameter} must be fixed (at its starting value)")
+
+
+def _free(spec: FixedPointSpec) -> list[str]:
+    return [n for n in DESIGN if n not in spec.fixed]
+
+
+def _equation_count(spec: FixedPointSpec) -> int:
+    return len([n for n in APEX.names if n not in implied_periodicity(spec)]) + ("energy" in spec.fixed)
+
+
+def branch_system(spec: FixedPointSpec, parameter: str, residual_map: ReturnMap, jacobian_map: ReturnMap,
+                  second: str | None = None):
+    """The continuation system of the problem's fixed points: :class:`FixedPointSystem`
+    when the equations fix the free quantities, :class:`NearestGuessSystem` when the
+    problem leaves more free and its objective picks among them."""
+    check_branch(spec, parameter)
+    if second is not None:
+        check_branch(spec, second, "continuation.second")
+    if len(_free(spec)) == _equation_count(spec):
+        return FixedPointSystem(spec, parameter, residual_map, jacobian_map, second)
+    return NearestGuessSystem(spec, parameter, residual_map, jacobian_map, second)
 
 
 class FixedPointSystem:
@@ -69,15 +96,12 @@ class FixedPointSystem:
     """
 
     def __init__(self, spec: FixedPointSpec, parameter: str, residual_map: ReturnMap, jacobian_map: ReturnMap,
-                 second: str | None = None):
-        check_branch(spec, parameter)
+                 second: str | None = None, square: bool = True):
+        (check_branch if square else _check_parameter)(spec, parameter, "continuation.parameter")
         if second is not None:
             if second == parameter:
                 raise BranchError("continuation.second", f"the second parameter must differ from the first ({parameter})")
-            try:
-                check_branch(spec, second)
-            except BranchError as err:
-                raise BranchError("continuation.second", str(err).split(": ", 1)[1]) from None
+            (check_branch if square else _check_parameter)(spec, second, "continuation.second")
         self.spec, self.parameter = spec, parameter
         self.parameters = (parameter,) if second is None else (parameter, second)
         self.residual_map, self.jacobian_map = residual_map, jacobian_map
@@ -97,7 +121,10 @@ class FixedPointSystem:
         if name in PARAMS.names:
             value = self.start_value(name)
             return 0.1 * abs(value) if value else 0.01
-        return NOMINAL.get(name, 1.0) if name != "energy" else 0.1
+        if name == "energy":  # a percent of the energy: a robot of 1 kg or a runner of 80 kg
+            value = self.start_value(name)
+            return 0.01 * abs(value) if value else 0.1
+        return NOMINAL.get(name, 1.0)
 
     # -- unknowns -------------------------------------------------------------------------
 
@@ -294,3 +321,136 @@ class FixedPointSystem:
         _, u, params, dr_dX, _, _ = self._jacobians(v)
         stability = classify(dr_dX, params, u)
         return np.array([m.value for m in stability.multipliers]), [m.trivial for m in stability.multipliers]
+
+
+#: Step of the central differences of the constraint Jacobian that give the Lagrangian's
+#: curvature in :class:`NearestGuessSystem` (scaled unknowns).
+CURVATURE_STEP = 1e-6
+
+
+class NearestGuessSystem:
+    """The family of fixed points that the ``nearest_guess`` objective picks.
+
+    When a problem leaves more quantities free than there are fixed-point equations (a
+    sweep over (ydot, z) with the gains free, like grid_downward), the fixed points at
+    given parameters form a manifold, and the NLP picks the one nearest the guess in
+    scaled units. Those points are the solutions of the optimality conditions::
+
+        F(w, lambda) = 0,    2 (w - g) + dF/dw^T mu = 0
+
+    (w the free quantities scaled by :data:`baslip.quantities.NOMINAL`, g the guess, mu
+    the Lagrange multipliers), which this system follows: v = (w, mu, parameters). The
+    first rows and all derivatives of F are algorithmic; the Lagrangian's curvature
+    d(dF/dw^T mu)/dv is a central difference of them (it steers Newton, not the points).
+    Bounds are not part of the conditions: a point outside them is refused.
+
+    The fixed point itself, its multipliers and its verification are those of the
+    underlying :class:`FixedPointSystem`; only the unknowns differ.
+    """
+
+    def __init__(self, spec: FixedPointSpec, parameter: str, residual_map: ReturnMap, jacobian_map: ReturnMap,
+                 second: str | None = None):
+        self.fixed_points = FixedPointSystem(spec, parameter, residual_map, jacobian_map, second, square=False)
+        points = self.fixed_points
+        self.spec, self.parameter, self.parameters = spec, parameter, points.parameters
+        self.lam_scales, self.lam_scale = points.lam_scales, points.lam_scale
+        self.n_free, self.n_equations = len(points.free), len(points.rows) + points.energy_row
+        design = dict(zip(DESIGN, spec.start_design()))
+        self.target = np.array([design[n] for n in points.free]) / points.scale[: self.n_free]
+        # v holds mu / multiplier_scale, set by pack so that mu moves no faster along the
+        # family than the rest: arclength steps then advance the parameters.
+        self.multiplier_scale = 1.0
+        #: The unknowns that are Lagrange multipliers: the map does not depend on them.
+        self.auxiliary = tuple(range(self.n_free, self.n_free + self.n_equations))
+
+    def _inner(self, v: np.ndarray) -> np.ndarray:
+        """The fixed-point unknowns (w, parameters) of ``v``."""
+        return np.concatenate([v[: self.n_free], v[self.n_free + self.n_equations :]])
+
+    def _multipliers_of(self, v: np.ndarray) -> np.ndarray:
+        """The Lagrange multipliers mu at ``v``."""
+        return self.multiplier_scale * v[self.n_free : self.n_free + self.n_equations]
+
+    # -- unknowns ---------------------------------------------------------------------------
+
+    def start_value(self, name: str | None = None) -> float:
+        return self.fixed_points.start_value(name)
+
+    def pack(self, X, u, *lams: float) -> np.ndarray:
+        """Unknowns at a fixed point, with the Lagrange multipliers that fit it best; with
+        one parameter, then corrected onto the family with the parameter held."""
+        inner = self.fixed_points.pack(X, u, *lams)
+        gradient = 2 * (inner[: self.n_free] - self.target)
+        J = self.fixed_points.jacobian(inner)[:, : self.n_free]
+        mu = np.linalg.lstsq(J.T, -gradient, rcond=None)[0]
+        self.multiplier_scale = 1.0
+        v = np.concatenate([inner[: self.n_free], mu, inner[self.n_free :]])
+        # The family's directions (null space of the Jacobian, k x len(v)): mu's fastest
+        # speed per unit speed of the parameters, over all directions.
+        count = len(self.parameters)
+        null = np.linalg.svd(self.jacobian(v))[2][-count:]
+        columns = slice(self.n_free, self.n_free + self.n_equations)
+        per_parameter = np.linalg.solve(null[:, -count:], null[:, columns])  # d mu / d parameters
+        self.multiplier_scale = max(1.0, float(np.linalg.norm(per_parameter, 2)))
+        v[columns] /= self.multiplier_scale
+        if len(self.parameters) == 1:
+            from .continuation import Settings, correct
+
+            held = np.zeros(len(v))
+            held[-1] = 1.0
+            v, _ = correct(self, v, held, Settings(max_newton=20))
+        return v
+
+    def values(self, v: np.ndarray) -> dict[str, float]:
+        return self.fixed_points.values(self._inner(v))
+
+    def unpack(self, v: np.ndarray):
+        return self.fixed_points.unpack(self._inner(v))
+
+    def energy(self, X, params: Params) -> float:
+        return self.fixed_points.energy(X, params)
+
+    # -- equations --------------------------------------------------------------------------
+
+    def _stationarity(self, inner: np.ndarray, mu: np.ndarray) -> np.ndarray:
+        J = self.fixed_points.jacobian(inner)[:, : self.n_free]
+        return 2 * (inner[: self.n_free] - self.target) + J.T @ mu
+
+    def residual(self, v: np.ndarray) -> np.ndarray:
+        inner = self._inner(v)
+        F = self.fixed_points.residual(inner)
+        return np.concatenate([F, self._stationarity(inner, self._multipliers_of(v))])
+
+    def jacobian(self, v: np.ndarray) -> np.ndarray:
+        inner, mu = self._inner(v), self._multipliers_of(v)
+        J = self.fixed_points.jacobian(inner)
+        n, m = self.n_free, self.n_equations
+        curvature = np.empty((n, len(inner)))
+        for j in range(len(inner)):
+            step = np.zeros(len(inner))
+            step[j] = CURVATURE_STEP
+            ahead = self.fixed_points.jacobian(inner + step)[:, :n].T @ mu
+            behind = self.fixed_points.jacobian(inner - step)[:, :n].T @ mu
+            curvature[:, j] = (ahead - behind) / (2 * CURVATURE_STEP)
+        curvature[:, :n] += 2 * np.eye(n)
+        top = np.hstack([J[:, :n], np.zeros((m, m)), J[:, n:]])
+        bottom = np.hstack([curvature[:, :n], self.multiplier_scale * J[:, :n].T, curvature[:, n:]])
+        return np.vstack([top, bottom])
+
+    def multipliers(self, v: np.ndarray):
+        return self.fixed_points.multipliers(self._inner(v))
+
+    def map_jacobian(self, v: np.ndarray, shift: np.ndarray | None = None) -> np.ndarray:
+        return self.fixed_points.map_jacobian(self._inner(v), shift)
+
+    def verification_failure(self, v: np.ndarray, verify_map: ReturnMap) -> str | None:
+        """As :meth:`FixedPointSystem.verification_failure`, and inside the bounds."""
+        X, u, _, _ = self.unpack(v)
+        for name, value in zip(DESIGN, np.concatenate([X, u])):
+            lo, hi = self.spec.bounds_of(name)
+            if not lo <= value <= hi:
+                return f"{name} = {value:.6g} leaves its bounds [{lo:.6g}, {hi:.6g}]"
+        return self.fixed_points.verification_failure(self._inner(v), verify_map)
+
+    def grazing(self, v: np.ndarray) -> str | None:
+        return self.fixed_points.grazing(self._inner(v))

@@ -112,7 +112,8 @@ class CurveSystem:
     ``base`` gives the fixed-point equations in two parameters: ``residual(v)`` (n),
     ``jacobian(v)`` (n x (n + 2)), ``multipliers(v)`` and ``map_jacobian(v, shift)``,
     the Jacobian of the map on its dynamic coordinates at the fixed point displaced by
-    ``shift``. v = (w, l1, l2).
+    ``shift``; optionally ``auxiliary``, the indices of unknowns the map does not depend
+    on. v = (w, l1, l2).
     """
 
     def __init__(self, base, kind: str):
@@ -179,8 +180,12 @@ class CurveSystem:
 
     def jacobian(self, v: np.ndarray) -> np.ndarray:
         _, _, phi, psi = self._defining(v)
-        gradient = np.empty(len(v))
+        gradient = np.zeros(len(v))
+        # Unknowns the map does not depend on (a base's Lagrange multipliers) are skipped.
+        skipped = set(getattr(self.base, "auxiliary", ()))
         for j in range(len(v)):
+            if j in skipped:
+                continue
             step = np.zeros(len(v))
             step[j] = DIFFERENCE_STEP
             dM = (self._matrix(v + step) - self._matrix(v - step)) / (2 * DIFFERENCE_STEP)
@@ -317,18 +322,34 @@ def onto_curve(curve: CurveSystem, v: np.ndarray, settings: Settings) -> np.ndar
 
 def trace_curve(curve: CurveSystem, v: np.ndarray, settings: Settings,
                 accept: Callable[[np.ndarray], str | None] = lambda v: None,
-                progress: Callable[[int, Point], None] = lambda n, p: None) -> Branch:
+                progress: Callable[[int, Point], None] = lambda n, p: None,
+                explain: Callable[[Branch], str] = lambda b: b.stop_reason) -> Branch:
     """The curve through ``v`` (a point near it) traced both ways within the settings'
-    ranges: first towards decreasing, then increasing second parameter, joined."""
+    ranges: first towards decreasing, then increasing second parameter, joined.
+    ``accept`` may veto points (e.g. not verified); ``explain`` words each end's stop."""
     start = onto_curve(curve, v, settings)
     veto = accept(start)
     if veto:
         raise CorrectionFailed(f"the curve's first point: {veto}")
     down = np.zeros(len(v))
     down[-1] = -1.0
-    lower = continue_branch(curve, start, down, settings, accept=accept, progress=progress)
-    upper = continue_branch(curve, start, -down, settings, accept=accept, progress=progress)
-    return join(lower, upper)
+    ends = []
+    for direction in (down, -down):
+        end = continue_branch(curve, start, direction, settings, accept=accept, progress=progress)
+        end.stop_reason = explain(end)
+        ends.append(end)
+    return join(*ends)
+
+
+def stability_boundary(kind: str, A: np.ndarray) -> bool:
+    """Whether a point of a curve of ``kind`` bounds a region of stable gaits: all the
+    map's multipliers but the critical ones lie inside the unit circle."""
+    mu = np.linalg.eigvals(A)
+    if kind == "neimark_sacker":
+        others = np.delete(mu, list(critical_pair(mu)))
+    else:
+        others = np.delete(mu, int(np.argmin(np.abs(mu - (1.0 if kind == "fold" else -1.0)))))
+    return bool(np.all(np.abs(others) < 1.0))
 
 
 class SmoothMap:

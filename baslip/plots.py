@@ -150,18 +150,24 @@ def _extent(a, b):
     return (a[0] - da, a[-1] + da, b[0] - db, b[-1] + db)
 
 
-def random_figure(rows: list[dict], region_rows: list[dict], names, out_dir: Path) -> Path:
-    """The random points over the region's stable grid points."""
+def random_figure(rows: list[dict], region_rows: list[dict], names, out_dir: Path, curve_rows=None) -> Path:
+    """The random points over the region's stable grid points, and over the traced
+    stability boundary when there is one."""
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     _, _, _, stable_grid = _grid(region_rows, list(names), "spectral_radius")
     a, b, _, _ = _grid(region_rows, list(names), "spectral_radius")
     A, B = np.meshgrid(a, b)
-    ax.plot(A[stable_grid], B[stable_grid], "s", color="tab:blue", alpha=0.25, ms=12, label="stable grid point (study 2)")
+    ax.plot(A[stable_grid], B[stable_grid], "s", color="tab:blue", alpha=0.25, ms=12, label="stable grid point")
+    if curve_rows:
+        draw_curves(ax, curve_rows, names[0], names[1])
+        ax.set_xlim(a[0] - 0.05 * np.ptp(a), a[-1] + 0.05 * np.ptp(a))
+        ax.set_ylim(b[0] - 0.05 * np.ptp(b), b[-1] + 0.05 * np.ptp(b))
     stable, unstable, missing = _classes(rows)
     x, y = _column(rows, f"sweep_{names[0]}"), _column(rows, f"sweep_{names[1]}")
-    ax.plot(x[stable], y[stable], "o", color="tab:blue", ms=4, label=f"stable ({stable.sum()})")
-    ax.plot(x[unstable], y[unstable], "x", color="tab:red", ms=5, label=f"unstable ({unstable.sum()})")
-    ax.plot(x[missing], y[missing], ".", color="0.5", ms=5, label=f"not verified / failed ({missing.sum()})")
+    for mask, style, color, word in ((stable, "o", "tab:blue", "stable"), (unstable, "x", "tab:red", "unstable"),
+                                     (missing, ".", "0.5", "not verified / failed")):
+        if mask.any():  # only what is there gets a legend entry
+            ax.plot(x[mask], y[mask], style, color=color, ms=4 if style == "o" else 5, label=f"{word} ({mask.sum()})")
     ax.set_xlabel(LABELS.get(names[0], names[0]))
     ax.set_ylabel(LABELS.get(names[1], names[1]))
     ax.legend(fontsize=8)
@@ -319,6 +325,56 @@ def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path) -
     ax.legend(fontsize=8)
     _save(fig, path)
     return path
+
+
+#: Colours of the curve types, and how they are named in legends.
+CURVE_STYLES = {"fold": ("tab:red", "fold (+1)"), "period_doubling": ("tab:green", "period doubling (-1)"),
+                "neimark_sacker": ("tab:purple", "Neimark-Sacker"), "neutral_saddle": ("0.6", "neutral saddle (no bifurcation)")}
+
+
+def curve_diagram(rows: list[dict], first: str, second: str, path) -> Path:
+    """Bifurcation curves in the (first, second) plane: solid where they bound a region
+    of stable gaits, dotted where the gaits are unstable on both sides; codimension-two
+    points marked and named. ``path`` is a file name or a binary file object."""
+    from .curves import CODIM2_NAMES
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    draw_curves(ax, rows, first, second)
+    specials = [r for r in rows if r["special"]]
+    if specials:
+        ax.plot([], [], "o", color="k", mfc="none", label="codimension-two point")
+    x_mid = np.mean(ax.get_xlim())
+    for r in specials:
+        x, y = shown(first, [r[first]])[0], shown(second, [r[second]])[0]
+        ax.plot(x, y, "o", color="k", mfc="none", ms=9)
+        # Labels lean towards the middle, so that they stay inside the frame.
+        ax.annotate(CODIM2_NAMES[r["special"]], (x, y), textcoords="offset points", fontsize=8,
+                    xytext=(10 if x <= x_mid else -10, 8), ha="left" if x <= x_mid else "right")
+    ax.set_xlabel(LABELS.get(first, first))
+    ax.set_ylabel(LABELS.get(second, second))
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=8)
+    _save(fig, path)
+    return path
+
+
+def draw_curves(ax, rows: list[dict], first: str, second: str) -> None:
+    """The curves of ``rows`` (curve.csv rows) on ``ax``, with legend entries for the
+    types and styles present."""
+    present = set()
+    for number in sorted({r["curve"] for r in rows}):
+        curve = [r for r in rows if r["curve"] == number]
+        x, y = shown(first, [r[first] for r in curve]), shown(second, [r[second] for r in curve])
+        for i in range(len(curve) - 1):
+            kind = curve[i]["type"] if curve[i]["type"] == curve[i + 1]["type"] else "neutral_saddle"
+            bounding = curve[i]["stability_boundary"] and curve[i + 1]["stability_boundary"]
+            style = "-" if bounding else ":"
+            ax.plot(x[i : i + 2], y[i : i + 2], style, color=CURVE_STYLES[kind][0], lw=1.8 if bounding else 1.2)
+            present.add((kind, bounding))
+    for kind, (color, name) in CURVE_STYLES.items():
+        for bounding, words in ((True, "bounds stable gaits"), (False, "unstable both sides")):
+            if (kind, bounding) in present:
+                ax.plot([], [], "-" if bounding else ":", color=color, label=f"{name}, {words}")
 
 
 def _orbit_value(row: dict, k: int, quantity: str) -> float:

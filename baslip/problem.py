@@ -270,24 +270,25 @@ class ContinuationSpec:
     direction: int | str = 1
     plot: str = "z"
     switch: str | None = None  # "period_doubling": also trace the doubled-period branches
+    second: str | None = None  # with a second parameter, bifurcation curves are followed
+    second_lo: float = -math.inf
+    second_hi: float = math.inf
+    follow: tuple[str, ...] = ()  # curve types, each from a special point of the branch
+    starts: str = "first"  # "first": one curve per type; "all": one from each such point
 
 
 #: Branch switches a continuation can make at its special points.
 SWITCHES = ("period_doubling",)
+#: Bifurcation curves a continuation can follow in two parameters.
+FOLLOWS = ("fold", "period_doubling", "neimark_sacker")
+CONTINUATION_KEYS = ("parameter", "range", "step", "max_points", "direction", "plot", "switch",
+                     "second", "second_range", "follow", "starts")
 
 
 def _continuation(value: Any) -> ContinuationSpec:
-    raw = _mapping(value, "continuation", ("parameter", "range", "step", "max_points", "direction", "plot", "switch"))
-    parameter = raw.get("parameter")
-    if parameter not in QUANTITIES + PARAMS.names:
-        raise ProblemError("continuation.parameter", f"expected a quantity or a model parameter, got {excerpt(parameter)}")
-    bounds = raw.get("range")
-    if not isinstance(bounds, (list, tuple)) or len(bounds) != 2:
-        raise ProblemError("continuation.range", f"expected [lo, hi], got {excerpt(bounds)}")
-    where = f"continuation.range.{parameter}"
-    lo, hi = (_physical(parameter, _number(b, where), where) for b in bounds)
-    if lo >= hi:
-        raise ProblemError("continuation.range", f"expected lo < hi, got [{lo:g}, {hi:g}]")
+    raw = _mapping(value, "continuation", CONTINUATION_KEYS)
+    parameter = _continued(raw.get("parameter"), "continuation.parameter")
+    lo, hi = _continuation_range(raw.get("range"), parameter, "continuation.range")
     step = _number(raw.get("step", 0.05), "continuation.step")
     if not 0 < step <= MAX_STEP:
         raise ProblemError("continuation.step", f"expected a step in (0, {MAX_STEP:g}] (scaled units), got {step:g}")
@@ -303,7 +304,47 @@ def _continuation(value: Any) -> ContinuationSpec:
     switch = raw.get("switch")
     if switch is not None and switch not in SWITCHES:
         raise ProblemError("continuation.switch", f"expected one of {', '.join(SWITCHES)}, got {excerpt(switch)}")
-    return ContinuationSpec(parameter, lo, hi, step, max_points, direction, plot, switch)
+    curves = _curves(raw, parameter)
+    if curves and switch is not None:
+        raise ProblemError("continuation.switch", "a continuation either switches branches or follows curves, not both")
+    return ContinuationSpec(parameter, lo, hi, step, max_points, direction, plot, switch, **curves)
+
+
+def _continued(name: Any, key: str) -> str:
+    if name not in QUANTITIES + PARAMS.names:
+        raise ProblemError(key, f"expected a quantity or a model parameter, got {excerpt(name)}")
+    return name
+
+
+def _continuation_range(bounds: Any, name: str, key: str) -> tuple[float, float]:
+    if not isinstance(bounds, (list, tuple)) or len(bounds) != 2:
+        raise ProblemError(key, f"expected [lo, hi], got {excerpt(bounds)}")
+    where = f"{key}.{name}"
+    lo, hi = (_physical(name, _number(b, where), where) for b in bounds)
+    if lo >= hi:
+        raise ProblemError(key, f"expected lo < hi, got [{lo:g}, {hi:g}]")
+    return lo, hi
+
+
+def _curves(raw: dict, parameter: str) -> dict:
+    """The two-parameter keys (second, second_range, follow, starts): all or none."""
+    present = [k for k in ("second", "second_range", "follow", "starts") if k in raw]
+    if not present:
+        return {}
+    for key in ("second", "second_range", "follow"):
+        if key not in raw:
+            raise ProblemError(f"continuation.{key}", f"is needed with {', '.join(present)} (a curve in two parameters)")
+    second = _continued(raw["second"], "continuation.second")
+    if second == parameter:
+        raise ProblemError("continuation.second", f"must differ from the first parameter ({parameter})")
+    second_lo, second_hi = _continuation_range(raw["second_range"], second, "continuation.second_range")
+    follow = raw["follow"] if isinstance(raw["follow"], list) else [raw["follow"]]
+    if not follow or any(f not in FOLLOWS for f in follow) or len(set(follow)) != len(follow):
+        raise ProblemError("continuation.follow", f"expected one or more of {', '.join(FOLLOWS)}, got {excerpt(raw['follow'])}")
+    starts = raw.get("starts", "first")
+    if starts not in ("first", "all"):
+        raise ProblemError("continuation.starts", f"expected first or all, got {excerpt(starts)}")
+    return {"second": second, "second_lo": second_lo, "second_hi": second_hi, "follow": tuple(follow), "starts": starts}
 
 
 def _strides(value: Any) -> int:
@@ -440,15 +481,19 @@ def _check_continuation(problem: Problem) -> None:
     spec = problem.continuation
     if spec is None:
         return
-    if spec.parameter in PARAMS.names:
-        start = getattr(problem.params, spec.parameter)
-    elif spec.parameter in problem.fix:
-        start = problem.fix[spec.parameter]
-    else:
-        return  # not fixed: refused with its own message when the branch is checked
-    if not spec.lo <= start <= spec.hi:
-        raise ProblemError(
-            "continuation.range",
-            f"the branch starts at {spec.parameter} = {start:g} {UNITS[spec.parameter]}, "
-            f"outside [{spec.lo:g}, {spec.hi:g}]; widen the range or change the start",
-        )
+    ranges = [(spec.parameter, spec.lo, spec.hi, "continuation.range")]
+    if spec.second is not None:
+        ranges.append((spec.second, spec.second_lo, spec.second_hi, "continuation.second_range"))
+    for name, lo, hi, key in ranges:
+        if name in PARAMS.names:
+            start = getattr(problem.params, name)
+        elif name in problem.fix:
+            start = problem.fix[name]
+        else:
+            continue  # not fixed: refused with its own message when the branch is checked
+        if not lo <= start <= hi:
+            raise ProblemError(
+                key,
+                f"the branch starts at {name} = {start:g} {UNITS[name]}, "
+                f"outside [{lo:g}, {hi:g}]; widen the range or change the start",
+            )

@@ -113,6 +113,8 @@ def main(argv: list[str] | None = None) -> int:
 
         try:
             check_branch(fixed_point_spec(problem), problem.continuation.parameter)
+            if problem.continuation.second is not None:
+                check_branch(fixed_point_spec(problem), problem.continuation.second, "continuation.second")
         except BranchError as err:
             print(f"error: {args.problem}: {err}", file=sys.stderr)
             return EXIT_BAD_INPUT
@@ -195,8 +197,38 @@ def _run_continuation(problem, out_dir: Path, quiet: bool) -> int:
             print(f"  special points: {special or 'none'}")
         for f in summary["failed_switches"]:
             print(f"  could not switch at the {SPECIAL_NAMES[f['type']]} at {parameter} = {f[parameter]:.7g}: {f['reason']}")
-        print(f"  wrote {out_dir}/ (branch.csv, result.json, diagram.png), {summary['wall_time_s']:.1f} s")
+        if "curves" in summary:
+            _print_curves(summary["curves"], parameter)
+        files = "branch.csv, result.json, diagram.png" + (", curve.csv, curve.png" if "curves" in summary else "")
+        print(f"  wrote {out_dir}/ ({files}), {summary['wall_time_s']:.1f} s")
+    missing = _missing_curves(summary.get("curves"))
+    if missing:
+        print(f"error: {problem.name}: no {' or '.join(missing)} curve was traced (see result.json)", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
     return EXIT_OK
+
+
+def _print_curves(curves: dict, first: str) -> None:
+    from .curves import CODIM2_NAMES
+
+    second = curves["second"]
+    for c in curves["curves"]:
+        start = c["from"]
+        print(f"  curve {c['curve']} ({c['type'].replace('_', ' ')}) from {first} = {start[first]:.7g}: "
+              f"{c['points']} verified points, stopped: {c['stop_reason']}")
+    for f in curves["failed_curves"]:
+        print(f"  no {f['type'].replace('_', ' ')} curve from {first} = {f[first]:.7g}: {f['reason']}")
+    points = curves["codimension_two_points"]
+    found = "; ".join(f"{CODIM2_NAMES[p['type']]} at {first} = {p[first]:.7g}, {second} = {p[second]:.7g}" for p in points)
+    print(f"  codimension-two points: {found or 'none'}")
+
+
+def _missing_curves(curves: dict | None) -> list[str]:
+    """Curve types asked for that gave no curve (no such point on the branch, or failed)."""
+    if curves is None:
+        return []
+    traced = {c["type"] for c in curves["curves"]}
+    return [kind.replace("_", " ") for kind in curves["follow"] if kind not in traced]
 
 
 def _solve_and_write(problem, out_dir: Path, quiet: bool) -> int:

@@ -89,10 +89,16 @@ def test_the_branch_turns_back_at_the_fold_and_stays_verified(slip_branch, solve
         assert check.ok and np.linalg.norm(check.apex - X) / np.linalg.norm(X) <= 1e-10
 
 
-def test_a_branch_needs_as_many_free_quantities_as_equations():
+def test_a_branch_needs_as_many_free_quantities_as_equations_or_an_objective_that_picks():
     problem = load_problem("problems/downward.yaml")
-    with pytest.raises(BranchError, match="as many free quantities as equations"):
-        check_branch(fixed_point_spec(problem), "ydot")
+    spec = fixed_point_spec(problem)
+    check_branch(spec, "ydot")  # 7 free, 4 equations: the nearest-guess family
+    for objective in ("min_torque", "feasibility"):
+        with pytest.raises(BranchError, match="as many free quantities as equations"):
+            check_branch(replace(spec, objective=objective), "ydot")
+    too_few = replace(spec, fixed={**spec.fixed, "Kp": -0.75, "Kd": 1.5, "theta2_des": -0.05, "theta_td": 0.1})
+    with pytest.raises(BranchError, match="3 free"):
+        check_branch(too_few, "ydot")
     with pytest.raises(BranchError, match="must be fixed"):
         check_branch(FixedPointSpec(problem.params, fixed={}, guess={}), "z")
 

@@ -156,6 +156,10 @@ CASES += [
     ("random draws outside bounds", dump(put(put(base(RANDOM), "study.region", "good_region"), "bounds.z", [0.6, 0.7])),
      "study.region"),
 ]
+TRACED = put(base(RANDOM), "study.region", "good_region")
+for label, value in {"missing": "nowhere", "path": "../x", "number": 3, "junk": "junk_curves",
+                     "no stability boundary": "flat_curves", "a sweep, not curves": "good_region"}.items():
+    CASES.append((f"study.boundary={label}", dump(put(TRACED, "study.boundary", value)), "study.boundary"))
 BASIN = "convergence_regions"
 for label, value in {"missing": "nowhere", "junk": "junk_region", "unfinished": "unfinished_region", "number": 1}.items():
     CASES.append((f"study.source={label}", dump(put(base(BASIN), "study.source", value)), "study.source"))
@@ -227,7 +231,24 @@ for key, values in {
     for label, value in values.items():
         CASES.append((f"continuation.{key}={label}", dump(put(base(BRANCH), f"continuation.{key}", value)),
                       f"continuation.{key}"))
+CURVE = "curve_slip_band"
+for key, values in {
+    "second": {"unknown": "speed", "same as first": "theta_td", "not fixed": "z", "list": ["energy"]},
+    "second_range": {"one": [1500.0], "reversed": [2000.0, 1500.0], "text": ["low", 2000.0],
+                     "start outside": [1900.0, 2000.0], "huge": [1500.0, 1e300]},
+    "follow": {"unknown": "hopf", "empty": [], "twice": ["fold", "fold"], "number": 3},
+    "starts": {"some": "some", "number": 1},
+}.items():
+    for label, value in values.items():
+        CASES.append((f"continuation.{key}={label}", dump(put(base(CURVE), f"continuation.{key}", value)),
+                      f"continuation.{key}"))
+for missing in ("second", "second_range", "follow"):
+    data = base(CURVE)
+    del data["continuation"][missing]
+    CASES.append((f"continuation without {missing}", dump(data), f"continuation.{missing}"))
 CASES += [
+    ("continuation switches and follows", dump(put(base(CURVE), "continuation.switch", "period_doubling")),
+     "continuation.switch"),
     ("continuation not a map", dump(put(base(BRANCH), "continuation", "ydot")), "continuation"),
     ("continuation of k outside range", dump(put(put(base(BRANCH), "continuation.parameter", "k"),
                                                  "continuation.range", [2000, 3000])), "continuation.range"),
@@ -294,7 +315,20 @@ def workspace(tmp_path_factory):
     write_region(folder, "unfinished_region", complete=False)
     write_region(folder, "one_axis_region", two_axes=False)
     write_region(folder, "junk_region", junk=True)
+    write_curves(folder, "good_curves", bounding=True)
+    write_curves(folder, "flat_curves", bounding=False)
+    (folder / "junk_curves").mkdir()
+    (folder / "junk_curves" / "curve.csv").write_bytes(b"\x00\x89PNG\r\n\xff\xfe" * 10)
     return folder
+
+
+def write_curves(folder: Path, name: str, bounding: bool) -> None:
+    """A small curve result for the random study's boundary: one curve across the region."""
+    (folder / name).mkdir()
+    flag = "true" if bounding else "false"
+    lines = ["curve,type,z,ydot,stability_boundary,kappa,special"]
+    lines += [f"0,neimark_sacker,0.42,{ydot},{flag},0.5," for ydot in (0.3, 0.5, 0.7)]
+    (folder / name / "curve.csv").write_text("\n".join(lines) + "\n")
 
 
 def test_the_suite_is_large_and_its_cases_are_distinct():

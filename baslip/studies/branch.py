@@ -7,6 +7,9 @@ Writes ``branch.csv`` (one row per point: the branch it belongs to and its perio
 strides, the parameter, apex, control, energy, the four multipliers, spectral radius,
 stability and the special-point label), ``result.json`` (the branches, why each stopped,
 and the special points) and ``diagram.png``.
+
+With a ``second`` parameter it then follows bifurcation curves from the branch's special
+points (:mod:`baslip.studies.curve`) and also writes ``curve.csv`` and ``curve.png``.
 """
 
 from __future__ import annotations
@@ -45,7 +48,7 @@ class TracedBranch:
     """One traced branch: its fixed-point system, points, and where it came from."""
 
     number: int  # 0 for the branch from the problem's start, then in order of switching
-    system: object  # baslip.branches.FixedPointSystem
+    system: object  # baslip.branches.FixedPointSystem or NearestGuessSystem
     branch: Branch
     origin: dict | None = None  # the special point it was switched from
 
@@ -66,7 +69,7 @@ def _run_continuation(problem, out_dir: Path, quiet: bool) -> dict:
     from .. import plots
     from ..provenance import provenance
     from ..api import fixed_point_spec, shooting_options, solve_problem
-    from ..branches import FixedPointSystem
+    from ..branches import branch_system
     from ..fixedpoint import FixedPointSolver
 
     spec = problem.continuation
@@ -78,7 +81,7 @@ def _run_continuation(problem, out_dir: Path, quiet: bool) -> dict:
 
     def system_for(strides: int):
         fixed_point = replace(fixed_point_spec(problem), strides=strides)
-        return FixedPointSystem(fixed_point, spec.parameter, solver.residual_map, solver.jacobian_map)
+        return branch_system(fixed_point, spec.parameter, solver.residual_map, solver.jacobian_map)
 
     first = system_for(problem.strides)
     settings = Settings(
@@ -102,6 +105,16 @@ def _run_continuation(problem, out_dir: Path, quiet: bool) -> dict:
     rows = [_row(t, p, solver) for t in traced for p in t.branch.points]
     diagram = io.BytesIO()
     plots.bifurcation_diagram(rows, spec.parameter, spec.plot, diagram)
+    files = {}
+    curves = None
+    if spec.second is not None:
+        from .curve import curve_csv, follow_curves
+
+        curve_rows, curves = follow_curves(problem, traced[0], solver, quiet)
+        figure = io.BytesIO()
+        plots.curve_diagram(curve_rows, spec.parameter, spec.second, figure)
+        files = {out_dir / "curve.csv": curve_csv(curve_rows, spec.parameter, spec.second),
+                 out_dir / "curve.png": figure.getvalue()}
     summary = {
         "name": problem.name,
         "parameter": spec.parameter,
@@ -115,14 +128,16 @@ def _run_continuation(problem, out_dir: Path, quiet: bool) -> dict:
         ],
         "failed_switches": failed_switches,
         "special_points": [_special(r, spec.parameter) for r in rows if r["special"]],
+        **({"curves": curves} if curves is not None else {}),
         "wall_time_s": time.perf_counter() - start_time,
         "provenance": provenance(problem),
     }
-    # All three files or none: an error before this point leaves the old ones as they were.
+    # All files or none: an error before this point leaves the old ones as they were.
     write_files_atomically({
         out_dir / "branch.csv": _csv(rows, spec.parameter),
         out_dir / "result.json": json_text(summary),
         out_dir / "diagram.png": diagram.getvalue(),
+        **files,
     })
     return summary
 
@@ -132,22 +147,16 @@ def _trace(system, v0, direction, settings, solver, number, origin, quiet) -> Tr
 
     started, lam0 = time.perf_counter(), v0[-1]
     lo, hi = settings.lam_range
-    shown = [-math.inf]
 
-    def progress(n, point):
-        if quiet:
-            return
+    def describe(n, point):
         lam, elapsed = point.v[-1], time.perf_counter() - started
         end = hi if lam >= lam0 else lo
         rate = abs(lam - lam0) / elapsed if elapsed > 0 else 0.0
         eta = f", about {abs(end - lam) / rate:.0f} s to the end of the range" if rate > 0 and math.isfinite(end) else ""
-        text = (f"branch {number} ({system.spec.strides} stride{'s' if system.spec.strides > 1 else ''}): "
+        return (f"branch {number} ({system.spec.strides} stride{'s' if system.spec.strides > 1 else ''}): "
                 f"{n} points, {system.parameter} = {lam * system.lam_scale:.6g}{eta}")
-        if sys.stderr.isatty():
-            print(f"\r{text}   ", end="", file=sys.stderr, flush=True)
-        elif elapsed - shown[0] >= 10.0:  # a log file gets a plain line every 10 s
-            shown[0] = elapsed
-            print(text, file=sys.stderr, flush=True)
+
+    progress = progress_lines(describe, quiet)
 
     def verified(v):
         return system.verification_failure(v, solver.verify_map)
@@ -155,18 +164,36 @@ def _trace(system, v0, direction, settings, solver, number, origin, quiet) -> Tr
     if isinstance(direction, str):  # "both": down first, then up, joined at the start
         lower = continue_branch(system, v0, -1.0, settings, accept=verified, progress=progress)
         upper = continue_branch(system, v0, 1.0, settings, accept=verified, progress=progress)
-        lower.stop_reason = _named(system, lower)
-        upper.stop_reason = _named(system, upper)
+        lower.stop_reason = named_stop(system, lower)
+        upper.stop_reason = named_stop(system, upper)
         branch = join(lower, upper)
     else:
         branch = continue_branch(system, v0, direction, settings, accept=verified, progress=progress)
-        branch.stop_reason = _named(system, branch)
+        branch.stop_reason = named_stop(system, branch)
     if not quiet and sys.stderr.isatty():
         print(file=sys.stderr)
     return TracedBranch(number, system, branch, origin)
 
 
-def _named(system, branch) -> str:
+def progress_lines(describe, quiet: bool):
+    """A progress callback (n, point) that shows ``describe(n, point)``: rewritten in
+    place on a terminal, a plain line every 10 s in a log file, nothing when quiet."""
+    started, shown = time.perf_counter(), [-math.inf]
+
+    def progress(n, point):
+        if quiet:
+            return
+        elapsed = time.perf_counter() - started
+        if sys.stderr.isatty():
+            print(f"\r{describe(n, point)}   ", end="", file=sys.stderr, flush=True)
+        elif elapsed - shown[0] >= 10.0:
+            shown[0] = elapsed
+            print(describe(n, point), file=sys.stderr, flush=True)
+
+    return progress
+
+
+def named_stop(system, branch) -> str:
     """The stop reason, with the grazing it comes from named when the last point grazes."""
     if branch.stop_reason in ("end of range", "maximum number of points") or not branch.points:
         return branch.stop_reason

@@ -36,6 +36,7 @@ from .basin import BASIN_COLUMNS, basin_tasks, basin_worker, run_from, SIMULATIO
 from .runner import LANES, ResumableCsv, RunReport, run_tasks, split_lanes
 from .optimal import OPTIMAL_COLUMNS, best_rows, optimal_tasks, optimal_worker
 from .controllers import CONTROLLER_COLUMNS, CONTROLLERS, controller_tasks, controllers_worker, lqr_weights
+from .boundary import boundary_segments, read_curves
 from .schema import Adaptive, Basin, Controllers, Optimal, RandomSample, Sweep
 from .sweep import RESULT_COLUMNS, key_column, random_tasks, read_points, solve_worker, sweep_lanes
 
@@ -65,7 +66,7 @@ def check_study_inputs(problem: Problem, out_dir: Path) -> None:
     study = problem.study
     if isinstance(study, RandomSample):
         rows, names = _source_points(out_dir, study.region, "study.region")
-        for task in random_tasks(study, rows, names):
+        for task in random_tasks(study, rows, names, _boundary(out_dir, study, names)[1]):
             values = {n: task[key_column(n)] for n in names}
             try:
                 check_point(problem, values)
@@ -102,10 +103,13 @@ def _run(problem: Problem, problem_path: Path, out_dir: Path, quiet: bool, lanes
         plots.sweep_figures(read_points(out_dir / "points.csv"), names, out_dir)
     elif isinstance(study, RandomSample):
         region_rows, names = _source_points(out_dir, study.region, "study.region")
-        tasks = split_lanes(random_tasks(study, region_rows, names), lanes)
+        curve_rows, segments = _boundary(out_dir, study, names)
+        tasks = split_lanes(random_tasks(study, region_rows, names, segments), lanes)
         summary = _run_points(problem, problem_path, out_dir, tasks, list(names), quiet)
         summary["region"] = study.region
-        plots.random_figure(read_points(out_dir / "points.csv"), region_rows, names, out_dir)
+        if study.boundary is not None:
+            summary["boundary"] = study.boundary
+        plots.random_figure(read_points(out_dir / "points.csv"), region_rows, names, out_dir, curve_rows)
     elif isinstance(study, Basin):
         summary = _run_basin(problem, study, out_dir, quiet, lanes)
     elif isinstance(study, Adaptive):
@@ -187,6 +191,32 @@ def _source_points(out_dir: Path, name: str, key: str) -> tuple[list[dict], tupl
     if len(names) != 2:
         raise StudyInputError(key, f"{path} is not a sweep over two quantities")
     return rows, names
+
+
+def _boundary(out_dir: Path, study: RandomSample, names: tuple[str, str]):
+    """(curve rows, boundary segments) of the study's traced boundary, or (None, None)."""
+    if study.boundary is None:
+        return None, None
+    folder = out_dir.parent / study.boundary
+    path = folder / "curve.csv"
+    if not path.exists():
+        raise StudyInputError("study.boundary", f"{path} does not exist: run the continuation {study.boundary!r} first")
+    holder = busy(folder)
+    if holder is not None:
+        raise StudyInputError("study.boundary", f"{study.boundary!r} is still being run by {holder}; wait for it to finish")
+    try:
+        rows = read_curves(path)
+        missing = [n for n in (*names, "curve", "stability_boundary") if rows and n not in rows[0]]
+        if missing:
+            raise ValueError(f"it has no column {missing[0]}")
+    except UnicodeDecodeError:
+        raise StudyInputError("study.boundary", f"{path} is not a curve.csv written by baslip (it is not UTF-8 text)") from None
+    except (csv.Error, ValueError, TypeError) as err:
+        raise StudyInputError("study.boundary", f"{path} is not a curve.csv written by baslip ({err})") from None
+    segments = boundary_segments(rows, names)
+    if not segments:
+        raise StudyInputError("study.boundary", f"{path} holds no curve that bounds stable gaits in ({', '.join(names)})")
+    return rows, segments
 
 
 def _counts(rows: list[dict]) -> dict:

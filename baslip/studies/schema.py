@@ -5,7 +5,9 @@ Kinds:
 * ``sweep``: fixed points over a grid of one or two quantities,
   ``vary: {ydot: [start, stop, step], z: [start, stop, step]}`` (both ends included);
 * ``random``: ``count`` fixed points at random values of the two quantities of a finished
-  sweep (``region``), inside its stable region; ``seed`` makes the draw repeatable;
+  sweep (``region``), inside its stable region: the region interpolated from the grid, or,
+  with ``boundary``, inside the stability boundary traced by a finished continuation in
+  those two quantities (:mod:`baslip.studies.boundary`); ``seed`` makes the draw repeatable;
 * ``basin``: convergence regions, by simulation, of the stable fixed points of a finished
   sweep (``source``) over a ``grid`` of (ydot, z) apex states; ``stable_at`` and
   ``unstable_at`` pick the example points; ``strides`` and ``tolerance`` decide convergence;
@@ -57,6 +59,7 @@ class RandomSample:
     region: str  # name of a finished two-quantity sweep
     count: int
     seed: int = 0
+    boundary: str | None = None  # name of a finished curve run: sample inside its boundary
     kind: str = "random"
 
 
@@ -115,7 +118,7 @@ def parse_study(data, number) -> Study:
         raise StudyError("study.kind", f"expected one of {', '.join(KINDS)}, got {excerpt(kind)}")
     allowed = {
         "sweep": ("kind", "vary"),
-        "random": ("kind", "region", "count", "seed"),
+        "random": ("kind", "region", "count", "seed", "boundary"),
         "basin": ("kind", "source", "grid", "stable_at", "unstable_at", "strides", "tolerance"),
         "adaptive": ("kind", "strides", "frozen_strides", "perturbation", "criterion", "probe_strides"),
         "optimal": ("kind", "vary", "starts", "seed", "iterations"),
@@ -143,6 +146,7 @@ def parse_study(data, number) -> Study:
             region=_name(data.get("region"), "study.region"),
             count=_integer(data.get("count"), "study.count", 1, 100000),
             seed=_integer(data.get("seed", 0), "study.seed", 0, 2**31 - 1),
+            boundary=_name(data["boundary"], "study.boundary") if "boundary" in data else None,
         )
     if kind == "basin":
         grid = _axes(data.get("grid"), "study.grid", number, ("ydot", "z"))

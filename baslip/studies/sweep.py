@@ -21,6 +21,7 @@ from ..fixedpoint import FixedPointResult
 from ..model import APEX
 from ..quantities import DESIGN
 from ..returnmap import PHASES
+from .boundary import inside
 from .runner import LANES, split_lanes
 from .schema import RandomSample, Sweep
 
@@ -103,32 +104,46 @@ def interpolated_radius(a, b, radius, x: float, y: float) -> float:
     return float(np.sum(corners * weights))
 
 
-def random_tasks(study: RandomSample, region_rows: list[dict], names: tuple[str, str]) -> list[dict]:
-    """``count`` uniform draws inside the region's stable set (interpolated radius < 1),
-    ordered along the first axis. Each starts from, and is picked nearest to, the nearest
-    stable fixed point of the region: the fixed point at a given (ydot, z) is not unique,
-    and this follows the stable family that defines the region."""
+def random_tasks(study: RandomSample, region_rows: list[dict], names: tuple[str, str], segments=None) -> list[dict]:
+    """``count`` uniform draws inside the region's stable set, ordered along the first
+    axis. Inside means an interpolated radius below 1 or, given the ``segments`` of a
+    traced stability boundary, on the stable side of it as seen from the nearest stable
+    grid point (:func:`baslip.studies.boundary.inside`).
+
+    The fixed point at a given (ydot, z) is not unique. Without a boundary, each draw
+    starts from, and is picked nearest to, the nearest stable fixed point of the region,
+    to follow the stable family that defines the region. With one, each draw is solved
+    as the grid's cells are (nearest the problem's guess, warm-started along its lane),
+    which is the family the boundary was traced on."""
     a, b, radius = radius_grid(region_rows, names)
-    rng = random.Random(study.seed)
-    draws = []
-    for _ in range(1000 * study.count):
-        if len(draws) == study.count:
-            break
-        x, y = rng.uniform(a[0], a[-1]), rng.uniform(b[0], b[-1])
-        if interpolated_radius(a, b, radius, x, y) < 1.0:
-            draws.append((round(float(x), 12), round(float(y), 12)))
-    draws.sort()
     stable = [r for r in region_rows if r["status"] == "converged" and r["stable"] is True]
     spans = [np.ptp(a) or 1.0, np.ptp(b) or 1.0]
 
     def nearest(x, y):
         return min(stable, key=lambda r: ((r[names[0]] - x) / spans[0]) ** 2 + ((r[names[1]] - y) / spans[1]) ** 2)
 
+    def accepted(x, y):
+        if segments is None:
+            return interpolated_radius(a, b, radius, x, y) < 1.0
+        reference = nearest(x, y)
+        return inside((x, y), (reference[names[0]], reference[names[1]]), segments)
+
+    rng = random.Random(study.seed)
+    draws = []
+    for _ in range(1000 * study.count):
+        if len(draws) == study.count or not stable:
+            break
+        x, y = rng.uniform(a[0], a[-1]), rng.uniform(b[0], b[-1])
+        if accepted(x, y):
+            draws.append((round(float(x), 12), round(float(y), 12)))
+    draws.sort()
     tasks = []
     for x, y in draws:
-        start = nearest(x, y)
-        guess = {n: start[n] for n in DESIGN if n not in names}
-        tasks.append({key_column(names[0]): x, key_column(names[1]): y, "guess": guess})
+        task = {key_column(names[0]): x, key_column(names[1]): y}
+        if segments is None:
+            start = nearest(x, y)
+            task["guess"] = {n: start[n] for n in DESIGN if n not in names}
+        tasks.append(task)
     return tasks
 
 

@@ -1,0 +1,156 @@
+"""Follow bifurcation curves in two parameters from the special points of a branch.
+
+A ``continuation:`` with ``second``, ``second_range`` and ``follow`` first traces its
+one-parameter branch (:mod:`baslip.studies.branch`), then, for each curve type in
+``follow``, starts from the branch's special point of that type nearest the start (or
+from every one, with ``starts: all``) and traces the curve both ways within both ranges
+(:mod:`baslip.curves`). Every point is verified by the independent re-simulation, as on
+a branch.
+
+Gives the rows of ``curve.csv`` (one per point: the curve, what holds there, both
+parameters, apex, control, energy, the four multipliers, whether the point bounds a
+region of stable gaits, cos(theta) of a Neimark-Sacker pair, and the codimension-two
+label) and the summary of the curves for ``result.json``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import sys
+from dataclasses import replace
+
+import numpy as np
+
+from ..continuation import Branch, CorrectionFailed, Point, Settings
+from ..control import CONTROL
+from ..curves import CurveSystem, stability_boundary, trace_curve
+from ..model import APEX
+from .branch import TracedBranch, named_stop, progress_lines
+from .runner import format_value
+
+#: Largest step along a curve (scaled units): small enough that the drawn polyline, and
+#: the inside/outside test of :mod:`baslip.studies.boundary`, follow the curve closely.
+CURVE_MAX_STEP = 0.25
+#: A start this close (scaled units) to a curve already traced lies on it.
+SAME_CURVE = 1e-3
+
+
+def follow_curves(problem, branch: TracedBranch, solver, quiet: bool) -> tuple[list[dict], dict]:
+    """Trace the curves that ``problem.continuation`` asks for from ``branch``; return
+    the rows of curve.csv and the curves' summary."""
+    from ..api import fixed_point_spec
+    from ..branches import branch_system
+
+    spec = problem.continuation
+    base = branch_system(replace(fixed_point_spec(problem), strides=branch.strides), spec.parameter,
+                         solver.residual_map, solver.jacobian_map, second=spec.second)
+    first_scale, second_scale = base.lam_scales
+    settings = Settings(step=spec.step, max_step=CURVE_MAX_STEP, max_points=spec.max_points,
+                        lam_range=(spec.second_lo / second_scale, spec.second_hi / second_scale),
+                        other_ranges=((-2, spec.lo / first_scale, spec.hi / first_scale),))
+    second_start = base.start_value(spec.second)
+    traced: list[tuple[int, CurveSystem, Branch, dict]] = []
+    skipped, failed = [], []
+    for kind, point in _starts(branch, spec):
+        X, u, _, first_value = branch.system.unpack(point.v)
+        origin = {"type": kind, spec.parameter: first_value, spec.second: second_start}
+        v = base.pack(X, u, first_value, second_start)
+        on = _on_traced(v, kind, traced)
+        if on is not None:
+            skipped.append({**origin, "on_curve": on})
+            continue
+        curve = CurveSystem(base, kind)
+        number = len(traced)
+        progress = progress_lines(lambda n, p, k=kind, c=number: _describe(base, k, c, n, p), quiet)
+        try:
+            points = trace_curve(curve, v, settings, accept=lambda w: base.verification_failure(w, solver.verify_map),
+                                 progress=progress, explain=lambda b: named_stop(base, b))
+        except CorrectionFailed as err:
+            failed.append({**origin, "reason": str(err)})
+            continue
+        traced.append((number, curve, points, origin))
+        if not quiet and sys.stderr.isatty():
+            print(file=sys.stderr)  # end the progress line
+    rows = [_row(number, curve, point) for number, curve, points, _ in traced for point in points.points]
+    summary = {
+        "second": spec.second,
+        "second_range": [spec.second_lo, spec.second_hi],
+        "follow": list(spec.follow),
+        "curves": [{"curve": number, "type": curve.kind, "points": len(points.points), "from": origin,
+                    "stop_reason": points.stop_reason} for number, curve, points, origin in traced],
+        "skipped_starts": skipped,
+        "failed_curves": failed,
+        "codimension_two_points": [_codim2(r, spec.parameter, spec.second) for r in rows if r["special"]],
+    }
+    return rows, summary
+
+
+def _starts(branch: TracedBranch, spec) -> list[tuple[str, Point]]:
+    """(curve type, branch point) to start from: per type, the special point nearest the
+    branch's start in the first parameter, or all of them."""
+    start = branch.system.start_value()
+    starts = []
+    for kind in spec.follow:
+        found = [p for p in branch.branch.points if p.special == kind]
+        if spec.starts == "first" and found:
+            found = [min(found, key=lambda p: abs(branch.system.unpack(p.v)[3] - start))]
+        starts += [(kind, p) for p in found]
+    return starts
+
+
+def _on_traced(v: np.ndarray, kind: str, traced) -> int | None:
+    """The number of a traced curve of ``kind`` that passes through ``v``'s parameters."""
+    here = v[-2:]
+    for number, curve, points, _ in traced:
+        if curve.kind != kind:
+            continue
+        polyline = np.array([p.v[-2:] for p in points.points])
+        for a, b in zip(polyline[:-1], polyline[1:]):
+            t = np.clip(np.dot(here - a, b - a) / max(np.dot(b - a, b - a), 1e-300), 0.0, 1.0)
+            if np.linalg.norm(a + t * (b - a) - here) < SAME_CURVE:
+                return number
+    return None
+
+
+def _describe(base, kind: str, number: int, n: int, point: Point) -> str:
+    values = ", ".join(f"{name} = {value:.6g}" for name, value in base.values(point.v).items())
+    return f"curve {number} ({kind.replace('_', ' ')}): {n} points, {values}"
+
+
+def _row(number: int, curve: CurveSystem, point: Point) -> dict:
+    base = curve.base
+    X, u, params, _ = base.unpack(point.v)
+    A = base.map_jacobian(point.v)
+    row = {"curve": number, "type": curve.on_curve(point.v), **base.values(point.v),
+           **APEX.to_dict(X), **CONTROL.to_dict(u), "energy": base.energy(X, params)}
+    # The rows' own values win over the apex and control columns of the same name.
+    row.update(base.values(point.v))
+    for i, m in enumerate(point.multipliers, start=1):
+        row[f"mult{i}_re"], row[f"mult{i}_im"] = float(m.real), float(m.imag)
+    row["stability_boundary"] = stability_boundary(curve.kind, A)
+    row["kappa"] = point.tests.get("kappa", "")
+    row["special"] = point.special
+    return row
+
+
+def _codim2(row: dict, first: str, second: str) -> dict:
+    return {
+        "type": row["special"], "curve": row["curve"], "on": row["type"], first: row[first], second: row[second],
+        "apex": {n: row[n] for n in APEX.names}, "control": {n: row[n] for n in CONTROL.names},
+        "multipliers": [[row[f"mult{i}_re"], row[f"mult{i}_im"]] for i in range(1, 5)],
+    }
+
+
+def curve_csv(rows: list[dict], first: str, second: str) -> str:
+    """curve.csv: both parameters lead, under their own names."""
+    columns = ["curve", "type", first, second]
+    columns += [n for n in (*APEX.names, *CONTROL.names, "energy") if n not in (first, second)]
+    columns += [f"mult{i}_{part}" for i in range(1, 5) for part in ("re", "im")]
+    columns += ["stability_boundary", "kappa", "special"]
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, columns, lineterminator="\n", extrasaction="ignore")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: format_value(v) for k, v in row.items() if k in columns})
+    return buffer.getvalue()

@@ -1,0 +1,155 @@
+"""Specification of baslip.studies.curve and of the branch families behind it: bifurcation
+curves of the BA-SLIP in two parameters, on the shipped problems.
+
+* The SLIP band's edges, followed in (theta_td, energy), pass through the edges that the
+  one-parameter branch locates at the Seyfarth energy.
+* On a curve the critical multipliers are where the curve says: -1 on a period-doubling
+  curve, a pair on the unit circle on a Neimark-Sacker curve.
+* When a problem leaves more quantities free than there are equations, the branch follows
+  the family that the solver's nearest-guess objective picks.
+* A generalised period doubling is where the two-stride orbits born at the period doubling
+  change stability, which two independent branch runs confirm.
+* A curve type asked for but not found is a failure, not a result.
+"""
+
+import csv
+import json
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from baslip.api import fixed_point_spec
+from baslip.branches import NearestGuessSystem, branch_system
+from baslip.continuation import Settings, continue_branch
+from baslip.problem import load_problem
+from baslip.quantities import DESIGN, NOMINAL
+from baslip.solve import main
+from baslip.studies.branch import run_continuation
+
+ROOT = Path(__file__).resolve().parents[1]
+SEYFARTH_ENERGY = 1784.8  # J: 5 m/s at a 1 m apex height, m = 80 kg
+
+
+def run(tmp_path, name: str, **replacements) -> tuple[dict, list[dict], list[dict]]:
+    text = (ROOT / "problems" / f"{name}.yaml").read_text()
+    for old, new in replacements.items():
+        assert old in text, old
+        text = text.replace(old, new)
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(text)
+    out = tmp_path / name
+    summary = run_continuation(load_problem(path), out, quiet=True)
+    with open(out / "branch.csv", newline="") as handle:
+        branch = list(csv.DictReader(handle))
+    curve = []
+    if (out / "curve.csv").exists():
+        with open(out / "curve.csv", newline="") as handle:
+            curve = list(csv.DictReader(handle))
+    return summary, branch, curve
+
+
+def multipliers(row: dict) -> np.ndarray:
+    return np.array([complex(float(row[f"mult{i}_re"]), float(row[f"mult{i}_im"])) for i in range(1, 5)])
+
+
+@pytest.fixture(scope="module")
+def slip_band(tmp_path_factory):
+    """The band's two curves from the Seyfarth energy up to 1800 J."""
+    return run(tmp_path_factory.mktemp("band"), "curve_slip_band",
+               **{"second_range: [1424.8, 2224.8]": f"second_range: [{SEYFARTH_ENERGY}, 1800.0]"})
+
+
+def test_slip_band_curves_pass_through_the_one_parameter_edges(slip_band):
+    summary, _, curve = slip_band
+    edges = {p["type"]: p["theta_td"] for p in summary["special_points"]}
+    assert math.degrees(edges["period_doubling"]) == pytest.approx(21.1464, abs=1e-4)
+    assert math.degrees(edges["fold"]) == pytest.approx(23.6945, abs=1e-4)
+    for kind in ("period_doubling", "fold"):
+        rows = [r for r in curve if r["type"] == kind]
+        at_energy = [r for r in rows if abs(float(r["energy"]) - SEYFARTH_ENERGY) < 1e-9]
+        assert at_energy, kind
+        assert float(at_energy[0]["theta_td"]) == pytest.approx(edges[kind], abs=1e-6)
+    stops = [c["stop_reason"] for c in summary["curves"]["curves"]]
+    assert stops == ["lower end: end of range; upper end: end of range"] * 2
+    assert summary["curves"]["codimension_two_points"] == []
+
+
+def test_a_period_doubling_curve_keeps_a_multiplier_at_minus_one(slip_band):
+    _, _, curve = slip_band
+    rows = [r for r in curve if r["type"] == "period_doubling"]
+    assert len(rows) > 3
+    for row in rows:
+        assert np.min(np.abs(multipliers(row) + 1)) < 1e-8
+        assert row["stability_boundary"] == "true"
+
+
+def test_a_neimark_sacker_curve_keeps_a_pair_on_the_unit_circle(tmp_path):
+    summary, _, curve = run(tmp_path, "curve_downward_neimark_sacker",
+                            **{"second_range: [0.005, 1.6]": "second_range: [0.45, 0.55]"})
+    assert len(curve) > 3
+    for row in curve:
+        mu = multipliers(row)
+        pair = mu[np.abs(mu.imag) > 1e-6]
+        assert len(pair) == 2 and np.max(np.abs(np.abs(pair) - 1)) < 1e-8
+        assert float(row["kappa"]) == pytest.approx(pair[0].real, abs=1e-8)
+    # ydot is the second parameter: its range's ends are met exactly.
+    speeds = sorted(float(r["ydot"]) for r in curve)
+    assert speeds[0] == pytest.approx(0.45, abs=1e-12) and speeds[-1] == pytest.approx(0.55, abs=1e-12)
+
+
+def test_the_nearest_guess_family_is_the_solvers_choice(solver):
+    """downward.yaml fixes only z and ydot; the branch in z follows the optimality
+    conditions of the nearest-guess objective, and agrees with fresh solves."""
+    problem = load_problem(ROOT / "problems" / "downward.yaml")
+    spec = fixed_point_spec(problem)
+    system = branch_system(spec, "z", solver.residual_map, solver.jacobian_map)
+    assert isinstance(system, NearestGuessSystem)
+    start = solver.solve(spec)
+    branch = continue_branch(system, system.pack(start.X, start.u, 0.4), 1.0, Settings(step=0.1, max_points=4))
+    for point in branch.points[1:]:
+        X, u, _, z = system.unpack(point.v)
+        fresh = solver.solve(replace(spec, fixed={**spec.fixed, "z": z}))
+        assert fresh.converged
+        ours = np.concatenate([X, u]) / np.array([NOMINAL[n] for n in DESIGN])
+        theirs = np.concatenate([fresh.X, fresh.u]) / np.array([NOMINAL[n] for n in DESIGN])
+        assert np.max(np.abs(ours - theirs)) < 1e-5
+    assert branch.points[-1].v[-1] * system.lam_scale > 0.42
+
+
+def test_generalised_period_doubling_is_where_born_two_stride_orbits_change_stability(tmp_path):
+    """The curve run puts a generalised period doubling on the hanging gaits' period-doubling
+    curve at ydot = 0.533 m/s. Independently: switching onto the two-stride branch at the
+    period doubling of the z-branch, the born orbits' multiplier near +1 lies above 1 at
+    0.5 m/s and below 1 at 0.6 m/s, so the flip's cubic coefficient changes sign between."""
+    summary, _, _ = run(tmp_path, "curve_downward_neimark_sacker",
+                        **{"follow: neimark_sacker": "follow: period_doubling", "second_range: [0.005, 1.6]": "second_range: [0.45, 0.65]"})
+    points = summary["curves"]["codimension_two_points"]
+    assert [p["type"] for p in points] == ["generalised_period_doubling"]
+    assert 0.5 < points[0]["ydot"] < 0.6
+    signs = []
+    for ydot in ("0.5", "0.6"):
+        (tmp_path / ydot).mkdir()
+        _, rows, _ = run(tmp_path / ydot, "continuation_downward_height",
+                         **{"  ydot: 0.5": f"  ydot: {ydot}", "  z: 0.4": "  z: 0.465", "range: [0.3, 0.6]": "range: [0.46, 0.48]",
+                            "step: 0.05": "step: 0.002", "direction: both": "direction: 1"})
+        born = [r for r in rows if r["branch"] == "1"][1:4]
+        assert born
+        signs.append({float(np.sign(min(multipliers(r), key=lambda m: abs(m - 1)).real - 1)) for r in born})
+    assert signs == [{1.0}, {-1.0}]
+
+
+def test_a_curve_asked_for_but_not_found_is_a_failure(tmp_path, capsys):
+    text = (ROOT / "problems" / "curve_slip_band.yaml").read_text()
+    text = text.replace("follow: [period_doubling, fold]", "follow: neimark_sacker").replace(
+        'range: ["15 deg", "30 deg"]', 'range: ["20 deg", "22 deg"]')
+    path = tmp_path / "no_ns.yaml"
+    path.write_text(text)
+    code = main([str(path), "--out", str(tmp_path / "out"), "--quiet"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1
+    assert err == ["error: curve_slip_band: no neimark sacker curve was traced (see result.json)"]
+    summary = json.loads((tmp_path / "out" / "result.json").read_text())
+    assert summary["curves"]["curves"] == []
