@@ -117,8 +117,18 @@ def _grid(rows, names, quantity):
 
 
 def _sweep_map(rows, names, quantity, out_dir) -> Path:
-    a, b, values, stable = _grid(rows, names, quantity)
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    draw_map(fig, ax, rows, names, quantity)
+    ax.legend(fontsize=8, loc="upper right")
+    path = out_dir / f"{quantity}_map.png"
+    _save(fig, path)
+    return path
+
+
+def draw_map(fig, ax, rows, names, quantity) -> None:
+    """A sweep's map of ``quantity`` over its two axes on ``ax``, with a colour bar; stable
+    cells ringed, cells without a verified fixed point marked."""
+    a, b, values, stable = _grid(rows, names, quantity)
     cmap = plt.get_cmap("viridis" if quantity == "theta_h" else "coolwarm").with_extremes(bad="0.85")
     extent = _extent(shown(names[0], a), shown(names[1], b))
     if quantity == "spectral_radius":
@@ -133,15 +143,11 @@ def _sweep_map(rows, names, quantity, out_dir) -> Path:
         label = LABELS[quantity]
     fig.colorbar(image, ax=ax, label=label)
     A, B = np.meshgrid(shown(names[0], a), shown(names[1], b))
-    ax.plot(A[stable], B[stable], "o", mfc="none", mec="k", ms=7, label="stable")
+    ax.plot(A[stable], B[stable], "o", mfc="none", mec="k", ms=7, label="stable cell")
     if np.isnan(values).any():
         ax.plot(A[np.isnan(values)], B[np.isnan(values)], "s", color="0.5", ms=3, label="no verified fixed point")
     ax.set_xlabel(LABELS.get(names[0], names[0]))
     ax.set_ylabel(LABELS.get(names[1], names[1]))
-    ax.legend(fontsize=8, loc="upper right")
-    path = out_dir / f"{quantity}_map.png"
-    _save(fig, path)
-    return path
 
 
 def _extent(a, b):
@@ -153,21 +159,26 @@ def _extent(a, b):
 def random_figure(rows: list[dict], region_rows: list[dict], names, out_dir: Path, curve_rows=None) -> Path:
     """The random points over the region's stable grid points, and over the traced
     stability boundary when there is one."""
-    fig, ax = plt.subplots(figsize=(6.4, 4.8))
-    _, _, _, stable_grid = _grid(region_rows, list(names), "spectral_radius")
-    a, b, _, _ = _grid(region_rows, list(names), "spectral_radius")
-    A, B = np.meshgrid(a, b)
-    ax.plot(A[stable_grid], B[stable_grid], "s", color="tab:blue", alpha=0.25, ms=12, label="stable grid point")
-    if curve_rows:
+    fig, ax = plt.subplots(figsize=(7.2, 4.8) if curve_rows else (6.4, 4.8))
+    if curve_rows:  # the region's map of the largest |multiplier|, the boundary over it
+        draw_map(fig, ax, region_rows, list(names), "spectral_radius")
+        limits = ax.get_xlim(), ax.get_ylim()
         draw_curves(ax, curve_rows, names[0], names[1])
-        ax.set_xlim(a[0] - 0.05 * np.ptp(a), a[-1] + 0.05 * np.ptp(a))
-        ax.set_ylim(b[0] - 0.05 * np.ptp(b), b[-1] + 0.05 * np.ptp(b))
+        ax.set_xlim(*limits[0])
+        ax.set_ylim(*limits[1])
+    else:
+        a, b, _, stable_grid = _grid(region_rows, list(names), "spectral_radius")
+        A, B = np.meshgrid(a, b)
+        ax.plot(A[stable_grid], B[stable_grid], "s", color="tab:blue", alpha=0.25, ms=12, label="stable grid point")
     stable, unstable, missing = _classes(rows)
     x, y = _column(rows, f"sweep_{names[0]}"), _column(rows, f"sweep_{names[1]}")
-    for mask, style, color, word in ((stable, "o", "tab:blue", "stable"), (unstable, "x", "tab:red", "unstable"),
+    # Over a colour map the stable samples are white with a black edge, to stand out.
+    stable_color = "white" if curve_rows else "tab:blue"
+    for mask, style, color, word in ((stable, "o", stable_color, "stable sample"), (unstable, "x", "tab:red", "unstable sample"),
                                      (missing, ".", "0.5", "not verified / failed")):
         if mask.any():  # only what is there gets a legend entry
-            ax.plot(x[mask], y[mask], style, color=color, ms=4 if style == "o" else 5, label=f"{word} ({mask.sum()})")
+            ax.plot(x[mask], y[mask], style, color=color, mec="k" if style == "o" and curve_rows else color,
+                    ms=4 if style == "o" else 5, label=f"{word} ({mask.sum()})")
     ax.set_xlabel(LABELS.get(names[0], names[0]))
     ax.set_ylabel(LABELS.get(names[1], names[1]))
     ax.legend(fontsize=8)
