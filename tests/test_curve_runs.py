@@ -153,3 +153,16 @@ def test_a_curve_asked_for_but_not_found_is_a_failure(tmp_path, capsys):
     assert err == ["error: curve_slip_band: no neimark sacker curve was traced (see result.json)"]
     summary = json.loads((tmp_path / "out" / "result.json").read_text())
     assert summary["curves"]["curves"] == []
+
+
+def test_a_model_parameter_can_be_the_second_parameter(tmp_path):
+    """The period-doubling edge followed in (theta_td, k): through dr/dp by AD."""
+    summary, _, curve = run(tmp_path, "curve_slip_band", **{
+        "second: energy": "second: k", "second_range: [1424.8, 2224.8]": "second_range: [19500.0, 20500.0]",
+        "follow: [period_doubling, fold]": "follow: period_doubling"})
+    edge = [p["theta_td"] for p in summary["special_points"] if p["type"] == "period_doubling"][0]
+    at_start = [r for r in curve if abs(float(r["k"]) - 20000.0) < 1e-6]
+    assert at_start and float(at_start[0]["theta_td"]) == pytest.approx(edge, abs=1e-6)
+    stiffness = sorted(float(r["k"]) for r in curve)
+    assert stiffness[0] == pytest.approx(19500.0, abs=1e-9) and stiffness[-1] == pytest.approx(20500.0, abs=1e-9)
+    assert all(np.min(np.abs(multipliers(r) + 1)) < 1e-8 for r in curve)
