@@ -9,25 +9,14 @@
 
 import csv
 import math
-from pathlib import Path
 
 import pytest
 
-from baslip.problem import load_problem
-from baslip.studies.branch import run_continuation
-
-ROOT = Path(__file__).resolve().parents[1]
+from runs import run_problem
 
 
 def run(tmp_path, name: str, **replacements) -> tuple[dict, list[dict]]:
-    text = (ROOT / "problems" / f"{name}.yaml").read_text()
-    for old, new in replacements.items():
-        assert old in text, old
-        text = text.replace(old, new)
-    path = tmp_path / f"{name}.yaml"
-    path.write_text(text)
-    out = tmp_path / name
-    summary = run_continuation(load_problem(path), out, quiet=True)
+    summary, out = run_problem(tmp_path, name, **replacements)
     with open(out / "branch.csv", newline="") as handle:
         return summary, list(csv.DictReader(handle))
 

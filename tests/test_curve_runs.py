@@ -27,28 +27,22 @@ from baslip.continuation import Settings, continue_branch
 from baslip.problem import load_problem
 from baslip.quantities import DESIGN, NOMINAL
 from baslip.solve import main
-from baslip.studies.branch import run_continuation
+from runs import ROOT, run_problem
 
-ROOT = Path(__file__).resolve().parents[1]
 SEYFARTH_ENERGY = 1784.8  # J: 5 m/s at a 1 m apex height, m = 80 kg
 
 
 def run(tmp_path, name: str, **replacements) -> tuple[dict, list[dict], list[dict]]:
-    text = (ROOT / "problems" / f"{name}.yaml").read_text()
-    for old, new in replacements.items():
-        assert old in text, old
-        text = text.replace(old, new)
-    path = tmp_path / f"{name}.yaml"
-    path.write_text(text)
-    out = tmp_path / name
-    summary = run_continuation(load_problem(path), out, quiet=True)
-    with open(out / "branch.csv", newline="") as handle:
-        branch = list(csv.DictReader(handle))
-    curve = []
-    if (out / "curve.csv").exists():
-        with open(out / "curve.csv", newline="") as handle:
-            curve = list(csv.DictReader(handle))
-    return summary, branch, curve
+    """The summary, branch.csv rows and curve.csv rows (none if not written) of a run."""
+    summary, out = run_problem(tmp_path, name, **replacements)
+    return summary, read_csv(out / "branch.csv"), read_csv(out / "curve.csv")
+
+
+def read_csv(path: Path) -> list[dict]:
+    if not path.exists():
+        return []
+    with open(path, newline="") as handle:
+        return list(csv.DictReader(handle))
 
 
 def multipliers(row: dict) -> np.ndarray:

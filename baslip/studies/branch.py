@@ -235,23 +235,31 @@ def _row(traced: TracedBranch, point: Point, solver) -> dict:
 
 
 def _special(row: dict, parameter: str) -> dict:
-    return {
-        "type": row["special"], parameter: row[parameter], "branch": row["branch"], "strides": row["strides"],
-        "apex": {n: row[n] for n in APEX.names}, "control": {n: row[n] for n in CONTROL.names},
-        "multipliers": [[row[f"mult{i}_re"], row[f"mult{i}_im"]] for i in range(1, 5)],
-    }
+    return {"type": row["special"], parameter: row[parameter], "branch": row["branch"], "strides": row["strides"],
+            **point_record(row)}
+
+
+def point_record(row: dict) -> dict:
+    """A row's apex, control and multipliers, as result.json gives them for a point."""
+    return {"apex": {n: row[n] for n in APEX.names}, "control": {n: row[n] for n in CONTROL.names},
+            "multipliers": [[row[f"mult{i}_re"], row[f"mult{i}_im"]] for i in range(1, 5)]}
 
 
 def _csv(rows: list[dict], parameter: str) -> str:
-    # The parameter leads; if it is itself an apex or control value it is not repeated.
-    columns = ["branch", "strides", parameter]
-    columns += [n for n in (*APEX.names, *CONTROL.names, "energy") if n != parameter]
+    return points_csv(rows, ["branch", "strides", parameter], ["spectral_radius", "stable", "special"])
+
+
+def points_csv(rows: list[dict], leading: list[str], trailing: list[str]) -> str:
+    """CSV of points: the ``leading`` columns, the apex, control and energy (those not
+    already leading, so a parameter that is one of them is not repeated), the four
+    multipliers, then the ``trailing`` columns."""
+    columns = list(leading)
+    columns += [n for n in (*APEX.names, *CONTROL.names, "energy") if n not in leading]
     columns += [f"mult{i}_{part}" for i in range(1, 5) for part in ("re", "im")]
-    columns += ["spectral_radius", "stable", "special"]
+    columns += trailing
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, columns, lineterminator="\n", extrasaction="ignore")
     writer.writeheader()
     for row in rows:
         writer.writerow({k: format_value(v) for k, v in row.items() if k in columns})
     return buffer.getvalue()
-

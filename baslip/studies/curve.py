@@ -15,8 +15,6 @@ label) and the summary of the curves for ``result.json``.
 
 from __future__ import annotations
 
-import csv
-import io
 import sys
 from dataclasses import replace
 
@@ -26,8 +24,7 @@ from ..continuation import Branch, CorrectionFailed, Point, Settings
 from ..control import CONTROL
 from ..curves import CurveSystem, stability_boundary, trace_curve
 from ..model import APEX
-from .branch import TracedBranch, named_stop, progress_lines
-from .runner import format_value
+from .branch import TracedBranch, named_stop, point_record, points_csv, progress_lines
 
 #: Largest step along a curve (scaled units): small enough that the drawn polyline, and
 #: the inside/outside test of :mod:`baslip.studies.boundary`, follow the curve closely.
@@ -135,22 +132,10 @@ def _row(number: int, curve: CurveSystem, point: Point) -> dict:
 
 
 def _codim2(row: dict, first: str, second: str) -> dict:
-    return {
-        "type": row["special"], "curve": row["curve"], "on": row["type"], first: row[first], second: row[second],
-        "apex": {n: row[n] for n in APEX.names}, "control": {n: row[n] for n in CONTROL.names},
-        "multipliers": [[row[f"mult{i}_re"], row[f"mult{i}_im"]] for i in range(1, 5)],
-    }
+    return {"type": row["special"], "curve": row["curve"], "on": row["type"], first: row[first], second: row[second],
+            **point_record(row)}
 
 
 def curve_csv(rows: list[dict], first: str, second: str) -> str:
     """curve.csv: both parameters lead, under their own names."""
-    columns = ["curve", "type", first, second]
-    columns += [n for n in (*APEX.names, *CONTROL.names, "energy") if n not in (first, second)]
-    columns += [f"mult{i}_{part}" for i in range(1, 5) for part in ("re", "im")]
-    columns += ["stability_boundary", "kappa", "special"]
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, columns, lineterminator="\n", extrasaction="ignore")
-    writer.writeheader()
-    for row in rows:
-        writer.writerow({k: format_value(v) for k, v in row.items() if k in columns})
-    return buffer.getvalue()
+    return points_csv(rows, ["curve", "type", first, second], ["stability_boundary", "kappa", "special"])
