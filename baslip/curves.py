@@ -223,7 +223,7 @@ class CurveSystem:
             return self.kind
         A = self.base.map_jacobian(v)
         mu = np.linalg.eigvals(A)
-        i, j = critical_pair(mu)
+        i, _ = critical_pair(mu)
         return "neimark_sacker" if abs(mu[i].imag) > 1e-9 else "neutral_saddle"
 
 

@@ -119,10 +119,9 @@ def _row(number: int, curve: CurveSystem, point: Point) -> dict:
     base = curve.base
     X, u, params, _ = base.unpack(point.v)
     A = base.map_jacobian(point.v)
-    row = {"curve": number, "type": curve.on_curve(point.v), **base.values(point.v),
-           **APEX.to_dict(X), **CONTROL.to_dict(u), "energy": base.energy(X, params)}
-    # The rows' own values win over the apex and control columns of the same name.
-    row.update(base.values(point.v))
+    row = {"curve": number, "type": curve.on_curve(point.v), **APEX.to_dict(X), **CONTROL.to_dict(u),
+           "energy": base.energy(X, params)}
+    row.update(base.values(point.v))  # both parameters (the energy, if it is one, as continued)
     for i, m in enumerate(point.multipliers, start=1):
         row[f"mult{i}_re"], row[f"mult{i}_im"] = float(m.real), float(m.imag)
     row["stability_boundary"] = stability_boundary(curve.kind, A)
