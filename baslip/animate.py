@@ -44,12 +44,42 @@ def spring_points(hip, foot, coils: int = 6, width: float = 0.012):
 
 def animate(trajectory: Trajectory, params: Params, title: str, path: Path) -> Path:
     """Write a GIF of ``trajectory`` to ``path``."""
+    fig, animation = _animation(trajectory, params, title)
+    animation.save(path, writer=PillowWriter(fps=FPS))
+    plt.close(fig)
+    return path
+
+
+def notebook_animation(X, u, params: Params, title: str, strides: int = 2):
+    """The gait from apex ``X`` as an animation for a notebook: IPython HTML (JavaScript
+    player) if IPython is installed, else the matplotlib FuncAnimation."""
+    trajectory = stride_trajectory(ReturnMap(Tolerances(1e-10, 1e-10)), X, u, params, strides=strides)
+    fig, animation = _animation(trajectory, params, title)
+    plt.close(fig)
+    try:
+        from IPython.display import HTML
+    except ImportError:
+        return animation
+    return HTML(animation.to_jshtml())
+
+
+def _trunk_length(params: Params) -> float:
+    return 3 * params.d + 0.04
+
+
+def _animation(trajectory: Trajectory, params: Params, title: str):
+    """(figure, FuncAnimation) of ``trajectory`` in slow motion, framed so that the whole
+    runner, trunk tip included, stays inside."""
     frames = np.arange(0.0, trajectory.t[-1], 1.0 / (FPS * SLOW_MOTION))
     motion = trajectory.at(frames)
     fig, ax = plt.subplots(figsize=(5.0, 3.2), dpi=70)
-    y_lo, y_hi = motion.y.min() - 0.2, motion.y.max() + 0.2
-    ax.set_xlim(y_lo, y_hi)
-    ax.set_ylim(-0.03, max(motion.z.max(), 0.3) + 0.1)
+    # The trunk runs from the hip to trunk_length beyond it: its tip can be the highest point.
+    tip_y = motion.y + (_trunk_length(params) - params.d) * np.cos(motion.theta_h)
+    tip_z = motion.z + (_trunk_length(params) - params.d) * np.sin(motion.theta_h)
+    margin = 0.05
+    ax.set_xlim(min(motion.y.min(), tip_y.min(), motion.foot_y.min()) - margin,
+                max(motion.y.max(), tip_y.max(), motion.foot_y.max()) + margin)
+    ax.set_ylim(-0.03, max(motion.z.max(), tip_z.max(), 0.3) + margin)
     ax.set_aspect("equal")
     ax.axhline(0.0, color="k", lw=1.5)
     ax.set_xlabel("y [m]")
@@ -61,7 +91,7 @@ def animate(trajectory: Trajectory, params: Params, title: str, path: Path) -> P
     (com,) = ax.plot([], [], "o", color="k", ms=4)
     (hip,) = ax.plot([], [], "o", color="tab:orange", ms=5)
     (contact,) = ax.plot([], [], "^", color="tab:red", ms=8)
-    trunk_length = 3 * params.d + 0.04
+    trunk_length = _trunk_length(params)
 
     def draw(k):
         c = np.array([motion.y[k], motion.z[k]])
@@ -74,13 +104,11 @@ def animate(trajectory: Trajectory, params: Params, title: str, path: Path) -> P
         contact.set_data(([motion.foot_y[k]], [0.0]) if motion.stance[k] else ([], []))
         return leg, trunk, com, hip, contact
 
-    FuncAnimation(fig, draw, frames=len(frames), blit=True).save(path, writer=PillowWriter(fps=FPS))
-    plt.close(fig)
-    return path
+    return fig, FuncAnimation(fig, draw, frames=len(frames), blit=True)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m baslip.animate", description=__doc__.splitlines()[0])
+def main(argv: list[str] | None = None, prog: str = "python -m baslip.animate") -> int:
+    parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
     parser.add_argument("problems", nargs="+", type=Path, help="single fixed-point problem files")
     parser.add_argument("--out", type=Path, default=Path("results/animation"), metavar="DIR")
     args = parser.parse_args(argv)

@@ -96,6 +96,56 @@ class FixedPointResult:
     def stable(self) -> bool | None:
         return None if self.stability is None else self.stability.stable
 
+    # -- for people: text, notebooks, motion and figures ---------------------------------
+
+    def __repr__(self) -> str:
+        verdict = {True: "stable", False: "unstable", None: "stability unknown"}[self.stable]
+        radius = f", radius {self.spectral_radius:.4g}" if self.spectral_radius is not None else ""
+        eps = f", eps {self.residual:.1e}" if self.residual is not None else ""
+        return f"<FixedPointResult {self.name}: {self.status}, {verdict}{radius}{eps}>"
+
+    def _repr_html_(self) -> str:
+        from html import escape
+
+        rows = [("status", f"{self.status} ({self.message})")]
+        rows += [(n, f"{v:.6g}") for n, v in {**self.apex, **self.control}.items()]
+        rows += [("energy [J]", f"{self.energy:.6g}")]
+        if self.residual is not None:
+            rows.append(("residual eps", f"{self.residual:.2e}"))
+        if self.stability is not None:
+            rows.append(("multipliers", ", ".join(f"{m.value:.4g}" for m in self.stability.multipliers)))
+            rows.append(("spectral radius", f"{self.spectral_radius:.6g} ({'stable' if self.stable else 'unstable'})"))
+        body = "".join(f"<tr><th style='text-align:left'>{escape(k)}</th><td>{escape(v)}</td></tr>" for k, v in rows)
+        return f"<b>{escape(self.name)}</b><table>{body}</table><small>SI units, radians</small>"
+
+    def summary(self) -> str:
+        """A short human-readable account (as the command line prints it)."""
+        from .describe import summary_text
+
+        return summary_text(self)
+
+    def trajectory(self, strides: int = 1, samples: int = 100):
+        """The continuous motion of the gait (:class:`baslip.trajectory.Motion`):
+        ``samples`` per phase over ``strides`` strides, from the verified apex."""
+        from .returnmap import ReturnMap, Tolerances
+        from .trajectory import motion
+
+        return motion(ReturnMap(Tolerances(1e-10, 1e-10)), self.X, self.u, self.params, strides, samples)
+
+    def plot(self, strides: int = 2):
+        """A matplotlib Figure of the gait: CoM path, trunk angle and ground reaction force
+        over ``strides`` strides. Writes nothing."""
+        from .plots import gait_figure
+
+        return gait_figure(self.trajectory(strides), self.name)
+
+    def animate(self, strides: int = 2):
+        """The gait as an animation for a notebook (IPython HTML), or a matplotlib
+        FuncAnimation when IPython is not there."""
+        from .animate import notebook_animation
+
+        return notebook_animation(self.X, self.u, self.params, self.name, strides)
+
     def to_json_dict(self) -> dict:
         """The ``result.json`` record: exactly the documented keys, plain JSON types."""
         eigenvalues = self.eigenvalues

@@ -46,8 +46,11 @@ def shown(name: str, values):
 
 
 def _save(fig, path) -> None:
-    """Save as PNG to ``path``, a file name or a binary file object."""
+    """Save as PNG to ``path``, a file name or a binary file object, and close the
+    figure; with ``path`` None only lay it out (a figure returned to the caller)."""
     fig.tight_layout()
+    if path is None:
+        return
     fig.savefig(path, dpi=110, format="png")
     plt.close(fig)
 
@@ -296,9 +299,9 @@ def adaptive_figures(rows: list[dict], out_dir: Path) -> list[Path]:
 # --- continuation ---------------------------------------------------------------------------
 
 
-def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path) -> Path:
+def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path=None):
     """Branch diagram: stable segments solid, unstable dashed, special points labelled.
-    ``path`` is a file name or a binary file object.
+    ``path`` is a file name or a binary file object; without one the Figure is returned.
 
     Rows carry ``branch``, ``strides`` and ``orbit`` (the apexes of the orbit): an orbit
     of N strides is drawn at each of its N apexes, so a period-2 branch shows both.
@@ -307,15 +310,15 @@ def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path) -
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for number in sorted({r["branch"] for r in rows}):
         branch = [r for r in rows if r["branch"] == number]
-        color = colors[number % len(colors)]
+        color = colors[int(number) % len(colors)]
         stable = [r["stable"] for r in branch]
-        for k in range(len(branch[0]["orbit"])):
+        for k in range(len(branch[0].get("orbit", [None]))):
             x = shown(parameter, [_orbit_value(r, k, parameter) for r in branch])
             y = shown(quantity, [_orbit_value(r, k, quantity) for r in branch])
             for i in range(len(branch) - 1):
                 style = "-" if stable[i] and stable[i + 1] else "--"
                 ax.plot(x[i : i + 2], y[i : i + 2], style, color=color)
-        strides = branch[0]["strides"]
+        strides = int(branch[0]["strides"])
         for style, word, present in (("-", "stable", any(stable)), ("--", "unstable", not all(stable))):
             if present:  # only the styles drawn get a legend entry
                 ax.plot([], [], style, color=color, label=f"{strides}-stride orbits, {word}")
@@ -335,7 +338,7 @@ def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path) -
     ax.set_ylabel(LABELS.get(quantity, quantity))
     ax.legend(fontsize=8)
     _save(fig, path)
-    return path
+    return fig if path is None else path
 
 
 #: Colours of the curve types, and how they are named in legends.
@@ -343,10 +346,11 @@ CURVE_STYLES = {"fold": ("tab:red", "fold (+1)"), "period_doubling": ("tab:green
                 "neimark_sacker": ("tab:purple", "Neimark-Sacker"), "neutral_saddle": ("0.6", "neutral saddle (no bifurcation)")}
 
 
-def curve_diagram(rows: list[dict], first: str, second: str, path) -> Path:
+def curve_diagram(rows: list[dict], first: str, second: str, path=None):
     """Bifurcation curves in the (first, second) plane: solid where they bound a region
     of stable gaits, dotted where the gaits are unstable on both sides; codimension-two
-    points marked and named. ``path`` is a file name or a binary file object."""
+    points marked and named. ``path`` is a file name or a binary file object; without
+    one the Figure is returned."""
     from .curves import CODIM2_NAMES
 
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
@@ -366,7 +370,7 @@ def curve_diagram(rows: list[dict], first: str, second: str, path) -> Path:
     if ax.get_legend_handles_labels()[0]:
         ax.legend(fontsize=8)
     _save(fig, path)
-    return path
+    return fig if path is None else path
 
 
 def draw_curves(ax, rows: list[dict], first: str, second: str) -> None:
@@ -391,6 +395,8 @@ def draw_curves(ax, rows: list[dict], first: str, second: str) -> None:
 def _orbit_value(row: dict, k: int, quantity: str) -> float:
     """``quantity`` at apex k of the row's orbit (controls and model parameters are the
     same at every apex)."""
+    if "orbit" not in row:  # read back from branch.csv: the first apex only
+        return row[quantity]
     return row["orbit"][k][quantity] if quantity in row["orbit"][k] else row[quantity]
 
 
@@ -454,3 +460,33 @@ def controllers_figure(rows: list[dict], perturbation: dict, out_dir: Path) -> P
 
 
 _NOMINAL_APEX = {"z": 0.1, "theta_h": 0.1, "ydot": 0.1, "theta_h_dot": 1.0}
+
+
+# --- a gait's motion ----------------------------------------------------------------------
+
+
+def gait_figure(motion, title: str):
+    """Three panels of a gait's motion (a :class:`baslip.trajectory.Motion`): the CoM and
+    hip paths [m], the trunk angle [deg], and the ground reaction force [N], with stance
+    shaded. Returns the Figure; writes nothing."""
+    fig, (path_ax, angle_ax, force_ax) = plt.subplots(3, 1, figsize=(6.4, 7.2))
+    stance = np.isin(motion["phase"], ("compression", "decompression"))
+    t = motion["t"]
+    path_ax.plot(motion["y"], motion["z"], label="CoM")
+    path_ax.plot(motion["hip_y"], motion["hip_z"], "--", label="hip")
+    path_ax.set_xlabel("forward position y [m]")
+    path_ax.set_ylabel("height z [m]")
+    path_ax.set_aspect("equal", adjustable="datalim")
+    path_ax.legend(fontsize=8)
+    path_ax.set_title(title)
+    angle_ax.plot(t, shown("theta_h", motion["theta_h"]))
+    angle_ax.set_ylabel(LABELS["theta_h"])
+    force_ax.plot(t, motion["grf_z"], label="vertical")
+    force_ax.plot(t, motion["grf_y"], label="horizontal")
+    force_ax.set_ylabel("ground reaction force [N]")
+    force_ax.legend(fontsize=8)
+    for ax in (angle_ax, force_ax):
+        ax.set_xlabel("time t [s]")
+        ax.fill_between(t, 0, 1, where=stance, color="0.9", transform=ax.get_xaxis_transform(), label="_stance")
+    fig.tight_layout()
+    return fig

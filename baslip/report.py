@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import sys
 from pathlib import Path
 
@@ -742,11 +743,28 @@ def build_report(results: Path) -> str:
         ("Beyond the thesis: bifurcation curves in two parameters", curve_sections(ev)),
     ]
     body = "".join(f"## {title}\n\n" + "\n".join(parts) + "\n" for title, parts in sections)
-    return HEADER + body
+    return HEADER + verdict_table(body) + body
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m baslip.report", description=__doc__.splitlines()[0])
+def verdict_table(body: str) -> str:
+    """A table of every claim (a ``### `` heading with a ``**Verdict:**`` line) and its
+    verdict, linked to its section, to open the report."""
+    rows, title = [], None
+    for line in body.splitlines():
+        if line.startswith("### "):
+            title = line[4:].strip()
+        elif line.startswith("- **Verdict:** ") and title:
+            anchor = re.sub(r"[^a-z0-9 -]", "", title.lower()).replace(" ", "-")
+            shown = title.replace("|", "\\|")  # a bare | would end the table cell
+            rows.append(f"| [{shown}](#{anchor}) | {line[len('- **Verdict:** '):]} |")
+            title = None
+    if not rows:
+        return ""
+    return "## Summary: every claim and its verdict\n\n| claim | verdict |\n|---|---|\n" + "\n".join(rows) + "\n\n"
+
+
+def main(argv: list[str] | None = None, prog: str = "python -m baslip.report") -> int:
+    parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
     parser.add_argument("--results", type=Path, default=Path("results"), metavar="DIR")
     args = parser.parse_args(argv)
     text = build_report(args.results)

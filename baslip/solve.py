@@ -13,12 +13,13 @@ Exit codes:
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
-from .fixedpoint import VERIFY_EPS, FixedPointResult
+from .describe import summary_text as summary
+from .fixedpoint import VERIFY_EPS
 from .folder import FolderBusy, hold
 from .problem import ProblemError, load_problem
 
@@ -32,25 +33,38 @@ class _OneLineParser(argparse.ArgumentParser):
         self.exit(EXIT_BAD_INPUT, f"error: {message} (see --help)\n")
 
 
-def _parser() -> argparse.ArgumentParser:
+def _parser(prog: str = "python -m baslip.solve") -> argparse.ArgumentParser:
     parser = _OneLineParser(
-        prog="python -m baslip.solve",
+        prog=prog,
         description=(
             "Find a periodic running gait (a fixed point of the apex return map) of the "
             "BA-SLIP runner described by a YAML problem file, verify it by an independent "
             f"re-simulation (eps <= {VERIFY_EPS:g}) and report its stability."
         ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=(
-            "Writes DIR/result.json and DIR/multipliers.csv; a problem with a study: or "
-            "continuation: section writes its CSV files, result.json and figures instead. "
-            "Exit status: 0 verified fixed point or completed study/branch, 1 solver failure, "
-            "not verified, or a study that solved nothing or stopped short, 2 bad input or a "
-            "busy or stale output folder."
+            "A plain problem writes DIR/result.json and DIR/multipliers.csv.\n"
+            "A problem with a study: section (kind sweep, random, basin, adaptive, optimal or\n"
+            "controllers) runs it on worker processes, resumably, and writes its CSV files,\n"
+            "result.json and figures; rerunning finishes an interrupted study.\n"
+            "A problem with a continuation: section traces a branch of fixed points in one\n"
+            "parameter (branch.csv, diagram.png) and, with second/second_range/follow, the\n"
+            "bifurcation curves in two parameters (curve.csv, curve.png).\n"
+            "See the README for every key; problems/ has examples of each.\n\n"
+            "Exit status: 0 verified fixed point or completed study/branch; 1 solver failure,\n"
+            "not verified, a study that solved nothing or stopped short, or a curve not found;\n"
+            "2 bad input or a busy or stale output folder."
         ),
     )
     parser.add_argument("problem", type=Path, help="YAML problem file (see README: Problem files)")
     parser.add_argument("--out", type=Path, metavar="DIR", help="output folder (default: results/<name>/)")
-    parser.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    talk = parser.add_mutually_exclusive_group()
+    talk.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    talk.add_argument("--verbose", action="store_true",
+                      help="also print IPOPT's iterations (of a single solve, or of a branch's start)")
+    parser.add_argument("--jobs", type=_positive, metavar="N",
+                        help="worker processes for a study (default: one per core, at most one per lane; "
+                             "the answers do not depend on it)")
     parser.add_argument(
         "--fresh", action="store_true",
         help="discard what DIR holds from an earlier run instead of resuming it (a study "
@@ -59,45 +73,25 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-def summary(result: FixedPointResult) -> str:
-    """A short human-readable account of a result."""
-    a, c = result.apex, result.control
-    deg = 180 / math.pi
-    lines = [
-        f"{result.name}: {result.status} ({result.message})",
-        f"  IPOPT {result.solver.return_status} in {result.solver.iterations} iterations, "
-        f"Newton polish {result.polish_iterations} steps, {result.solver.time_s:.2f} s",
-        f"  apex     z = {a['z']:.6f} m, theta_h = {a['theta_h'] * deg:.4f} deg, "
-        f"ydot = {a['ydot']:.6f} m/s, theta_h_dot = {a['theta_h_dot']:.6f} rad/s",
-        f"  control  Kp = {c['Kp']:.6g} N m/rad, Kd = {c['Kd']:.6g} N m s/rad, "
-        f"theta2_des = {c['theta2_des'] * deg:.4f} deg, theta2_dot_des = {c['theta2_dot_des']:.6g} rad/s, "
-        f"theta_td = {c['theta_td'] * deg:.4f} deg",
-        f"  energy   {result.energy:.9g} J",
-    ]
-    if result.orbit is not None:
-        apexes = "; ".join(f"z = {X[0]:.6f} m, ydot = {X[2]:.6f} m/s" for X in result.orbit)
-        lines.append(f"  orbit    {result.strides} strides, apexes: {apexes}")
-    if result.residual is not None:
-        lines.append(f"  residual eps = {result.residual:.3e} ({result.residual_source})")
-    if result.stability is not None:
-        parts = []
-        for m in result.stability.multipliers:
-            text = f"{m.value.real:.6g}{m.value.imag:+.6g}j" if m.value.imag else f"{m.value.real:.6g}"
-            parts.append(f"{text} [{m.label}]" if m.label else text)
-        verdict = "stable" if result.stable else "unstable"
-        of_map = "" if result.strides == 1 else f" (of the {result.strides}-stride map)"
-        lines.append(f"  multipliers{of_map} {', '.join(parts)}")
-        lines.append(f"  spectral radius {result.spectral_radius:.6g} -> {verdict}")
-    return "\n".join(lines)
+def _positive(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text[:20]!r}") from None
+    if not 1 <= value <= 1024:
+        raise argparse.ArgumentTypeError(f"expected 1 to 1024, got {value}")
+    return value
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+def main(argv: list[str] | None = None, prog: str = "python -m baslip.solve") -> int:
+    args = _parser(prog).parse_args(argv)
     try:
         problem = load_problem(args.problem)
     except ProblemError as err:
         print(f"error: {args.problem}: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    if args.verbose:  # print_level is not part of the problem's hash: results stay comparable
+        problem = replace(problem, solver=replace(problem.solver, print_level=5))
     out_dir = args.out if args.out is not None else Path("results") / problem.name
     if problem.study is not None:
         from .studies.run import StudyInputError, check_study_inputs
@@ -124,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     try:
         if problem.study is not None:
-            return _run_study(problem, args.problem, out_dir, args.quiet, args.fresh)
+            return _run_study(problem, args.problem, out_dir, args.quiet, args.fresh, args.jobs)
         if problem.continuation is not None:
             return _run_continuation(problem, out_dir, args.quiet)
         return _solve_and_write(problem, out_dir, args.quiet)
@@ -150,11 +144,11 @@ def _unwritable(out_dir: Path) -> str | None:
     return None
 
 
-def _run_study(problem, problem_path: Path, out_dir: Path, quiet: bool, fresh: bool) -> int:
+def _run_study(problem, problem_path: Path, out_dir: Path, quiet: bool, fresh: bool, jobs: int | None) -> int:
     from .studies.run import StaleFolder, StudyFailed, outcome, run_study
 
     try:
-        summary = run_study(problem, problem_path, out_dir, quiet, fresh)
+        summary = run_study(problem, problem_path, out_dir, quiet, fresh, jobs)
     except StaleFolder as err:
         print(f"error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT

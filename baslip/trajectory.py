@@ -93,3 +93,155 @@ def trunk_angle_range(rmap: ReturnMap, X, u, params: Params, samples: int = 100)
     time, so its ends are exact; stance is sampled)."""
     theta_h = stride_trajectory(rmap, X, u, params, strides=1, samples=samples).theta_h
     return float(np.min(theta_h)), float(np.max(theta_h))
+
+
+# --- the continuous motion, with velocities and forces ------------------------------------
+
+#: Columns of a :class:`Motion` and their units.
+MOTION_COLUMNS = {
+    "t": "s", "stride": "", "phase": "", "y": "m", "z": "m", "ydot": "m/s", "zdot": "m/s",
+    "hip_y": "m", "hip_z": "m", "hip_ydot": "m/s", "hip_zdot": "m/s", "theta_h": "rad", "theta_h_dot": "rad/s",
+    "leg_length": "m", "leg_angle": "rad", "torque": "N m", "grf_y": "N", "grf_z": "N", "hip_power": "W",
+    "energy": "J",
+}
+PHASE_NAMES = ("descent", "compression", "decompression", "ascent")
+
+
+@dataclass(frozen=True)
+class Motion:
+    """The continuous motion of ``strides`` strides, sampled in time.
+
+    Columns (:data:`MOTION_COLUMNS`): time t [s]; the stride (0, 1, ...) and its phase
+    (descent, compression, decompression, ascent); CoM position y, z [m] and velocity
+    ydot, zdot [m/s]; hip position and velocity; trunk angle theta_h [rad] and rate; leg
+    length [m] and leg angle from the vertical [rad] (rest length and theta_td in
+    flight); hip torque [N m] on the leg (zero in flight); ground reaction force grf_y,
+    grf_z [N] (the spring's push along the leg and the torque's reaction across it, torque
+    / leg length; zero in flight); hip power
+    torque * theta2_dot [W], the rate of work of the hip motor; total mechanical energy [J].
+    Touchdown and liftoff appear twice, at the end of the flight and at the start of the
+    stance (or the other way round), so that flight and stance are each sampled from end
+    to end.
+    """
+
+    columns: dict
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.columns[name]
+
+    def __len__(self) -> int:
+        return len(self.columns["t"])
+
+    def __repr__(self) -> str:
+        strides = int(self.columns["stride"][-1]) + 1 if len(self) else 0
+        return f"Motion({strides} strides, {len(self)} samples, t = 0 to {self.columns['t'][-1]:.4g} s)"
+
+    def _repr_html_(self) -> str:
+        return f"<b>Motion</b>: {repr(self)[7:-1]}; columns {', '.join(self.columns)}"
+
+    def csv_text(self) -> str:
+        """The samples as CSV, a header of column names with units in brackets."""
+        header = ",".join(f"{n} [{u}]" if u else n for n, u in MOTION_COLUMNS.items())
+        lines = [header]
+        for k in range(len(self)):
+            lines.append(",".join(_cell(n, self.columns[n][k]) for n in MOTION_COLUMNS))
+        return "\n".join(lines) + "\n"
+
+    def to_dataframe(self):
+        """A pandas DataFrame of the columns (needs pandas)."""
+        return _pandas().DataFrame({n: self.columns[n] for n in MOTION_COLUMNS})
+
+    def work_of_torque(self) -> float:
+        """The hip motor's work [J] over the samples: the trapezoidal integral of
+        hip_power (touchdown and liftoff are sampled twice at the same time, so the jumps
+        of the power there add nothing)."""
+        t, power = self.columns["t"], self.columns["hip_power"]
+        return float(np.sum(0.5 * (power[1:] + power[:-1]) * np.diff(t)))
+
+
+def _cell(name: str, value) -> str:
+    if name == "phase":
+        return str(value)
+    if name == "stride":
+        return str(int(value))
+    return repr(float(value))
+
+
+def _pandas():
+    try:
+        import pandas
+    except ImportError:
+        raise ImportError("to_dataframe needs pandas: pip install pandas") from None
+    return pandas
+
+
+def motion(rmap: ReturnMap, X, u, params: Params, strides: int = 1, samples: int = 100) -> Motion:
+    """The motion of ``strides`` strides from apex ``X`` under control ``u``, with
+    ``samples`` samples in each phase. Raises :class:`RunnerFell` if a stride falls."""
+    model = build_model()
+    p = params.vector()
+    u = np.asarray(u, dtype=float)
+    theta_td = float(CONTROL.get(u, "theta_td"))
+    rows: list[dict] = []
+    t0, y0, X = 0.0, 0.0, np.asarray(X, dtype=float)
+    for k in range(strides):
+        stride = rmap.stride(X, u, params)
+        if not stride.ok:
+            raise RunnerFell(stride.fall)
+        d = stride.durations
+        a = APEX.unpack(X)
+        apex_state = np.array([y0, a["z"], a["theta_h"], a["ydot"], 0.0, a["theta_h_dot"]])
+        for s in np.linspace(0.0, d["descent"], samples):
+            rows.append(_flight_row(model, _ballistic(apex_state, s, params.g), t0 + s, k, "descent", theta_td, params, p))
+        xf_td = _ballistic(apex_state, d["descent"], params.g)
+        x_td = np.asarray(model.touchdown_map(xf_td, theta_td, p)).ravel()
+        foot_y = xf_td[0] - float(model.liftoff_map(x_td, p)[0])
+        t_td, stance_time = t0 + d["descent"], d["compression"] + d["decompression"]
+        states = np.column_stack([x_td, rmap.stance_samples(x_td, u, params, stance_time, 2 * samples)])
+        times = np.linspace(0.0, stance_time, 2 * samples + 1)
+        for s, x in zip(times, states.T):
+            phase = "compression" if s < d["compression"] else "decompression"
+            rows.append(_stance_row(model, x, t_td + s, k, phase, foot_y, u, params, p))
+        x_lo = states[:, -1]
+        xf_lo = np.asarray(model.liftoff_map(x_lo, p)).ravel()
+        xf_lo[0] += foot_y
+        t_lo = t_td + stance_time
+        for s in np.linspace(0.0, d["ascent"], samples):
+            rows.append(_flight_row(model, _ballistic(xf_lo, s, params.g), t_lo + s, k, "ascent", theta_td, params, p))
+        t0, y0 = t_lo + d["ascent"], _ballistic(xf_lo, d["ascent"], params.g)[0]
+        X = stride.apex
+    return Motion({n: np.array([r[n] for r in rows], dtype=object if n == "phase" else float) for n in MOTION_COLUMNS})
+
+
+def _flight_row(model, xf, t, stride, phase, theta_td, params: Params, p) -> dict:
+    y, z, th, yd, zd, thd = xf
+    return {
+        "t": t, "stride": stride, "phase": phase, "y": y, "z": z, "ydot": yd, "zdot": zd,
+        "hip_y": y - params.d * np.cos(th), "hip_z": z - params.d * np.sin(th),
+        "hip_ydot": yd + params.d * np.sin(th) * thd, "hip_zdot": zd - params.d * np.cos(th) * thd,
+        "theta_h": th, "theta_h_dot": thd, "leg_length": params.rho0, "leg_angle": theta_td,
+        "torque": 0.0, "grf_y": 0.0, "grf_z": 0.0, "hip_power": 0.0,
+        "energy": float(model.flight_energy(xf, p)),
+    }
+
+
+def _stance_row(model, x, t, stride, phase, foot_y, u, params: Params, p) -> dict:
+    from .control import hip_torque
+    from .model import STANCE
+
+    xf = np.asarray(model.liftoff_map(x, p)).ravel()
+    xf[0] += foot_y
+    row = _flight_row(model, xf, t, stride, phase, 0.0, params, p)
+    s = STANCE.unpack(x)
+    torque = float(hip_torque(x, u))
+    # The leg is massless, so the ground's force balances it: the spring's push along the
+    # leg, foot to hip, and across it the hip torque's reaction, torque / rho.
+    spring = params.k * (params.rho0 - s["rho"])
+    across = torque / s["rho"]
+    along_y, along_z = -np.sin(s["theta1"]), np.cos(s["theta1"])
+    row.update(
+        leg_length=s["rho"], leg_angle=s["theta1"], torque=torque,
+        grf_y=spring * along_y + across * along_z, grf_z=spring * along_z - across * along_y,
+        hip_power=torque * s["theta2_dot"], energy=float(model.stance_energy(x, p)),
+    )
+    return row

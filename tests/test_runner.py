@@ -5,6 +5,7 @@ file, a torn header, junk, repeated keys. What cannot be repaired is set aside, 
 lost and never an internal error. Workers never outlive the process that started them.
 """
 
+import csv
 import os
 import signal
 import subprocess
@@ -15,6 +16,7 @@ import pytest
 
 from baslip.studies.runner import ResumableCsv, StateLog
 from processes import gone
+from runs import ROOT
 
 
 def test_an_empty_file_gets_its_header_back(tmp_path):
@@ -80,7 +82,7 @@ def sleeper(lane, context, queue):
 
 if __name__ == "__main__":
     ctx = multiprocessing.get_context("spawn")
-    child = ctx.Process(target=_worker_main, args=(sleeper, [], None, None))
+    child = ctx.Process(target=_worker_main, args=(sleeper, [[]], None, None))  # one empty lane
     child.start()
     print(child.pid, flush=True)
     time.sleep(60)
@@ -101,3 +103,22 @@ def test_a_worker_dies_when_its_parent_is_killed(tmp_path):
     while not gone(child) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert gone(child)
+
+
+def test_fewer_workers_than_lanes_give_the_same_rows(tmp_path):
+    """--jobs 1 runs both lanes in one process, in turn: the rows are the same."""
+    from baslip.problem import load_problem
+    from baslip.studies.run import run_study
+
+    text = (ROOT / "problems" / "grid_downward.yaml").read_text().replace(
+        "vary: {ydot: [0.1, 1.0, 0.1], z: [0.3, 0.7, 0.05]}", "vary: {ydot: [0.3, 0.6, 0.1], z: [0.4, 0.45, 0.05]}")
+    tables = []
+    for jobs in (1, 2):
+        path = tmp_path / f"grid_{jobs}.yaml"
+        path.write_text(text)
+        out = tmp_path / f"out_{jobs}"
+        summary = run_study(load_problem(path), path, out, quiet=True, jobs=jobs)
+        assert summary["solved"] == 8
+        rows = list(csv.DictReader(open(out / "points.csv")))
+        tables.append([{k: v for k, v in r.items() if k != "time_s"} for r in rows])
+    assert tables[0] == tables[1]

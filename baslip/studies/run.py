@@ -77,7 +77,8 @@ def check_study_inputs(problem: Problem, out_dir: Path) -> None:
         _source_points(out_dir, study.source, "study.source")
 
 
-def run_study(problem: Problem, problem_path: Path, out_dir: Path, quiet: bool = False, fresh: bool = False) -> dict:
+def run_study(problem: Problem, problem_path: Path, out_dir: Path, quiet: bool = False, fresh: bool = False,
+              jobs: int | None = None) -> dict:
     """Run (or resume) the study of ``problem``; return its summary (also in result.json).
 
     ``fresh`` discards what the folder holds first; without it, results of another
@@ -87,37 +88,37 @@ def run_study(problem: Problem, problem_path: Path, out_dir: Path, quiet: bool =
     with hold(out_dir):
         record = _claim(problem, out_dir, fresh)
         start = time.perf_counter()
-        summary = _run(problem, problem_path, out_dir, quiet, record["lanes"])
+        summary = _run(problem, problem_path, out_dir, quiet, record["lanes"], jobs)
         summary = {"name": problem.name, "kind": problem.study.kind, **summary,
                    "wall_time_s": time.perf_counter() - start, "provenance": record}
         write_files_atomically({out_dir / "result.json": json_text(summary)})
     return summary
 
 
-def _run(problem: Problem, problem_path: Path, out_dir: Path, quiet: bool, lanes: int) -> dict:
+def _run(problem: Problem, problem_path: Path, out_dir: Path, quiet: bool, lanes: int, jobs: int | None) -> dict:
     study = problem.study
     if isinstance(study, Sweep):
         origin = {a.name: problem.start_value(a.name) for a in study.axes}
         names = [a.name for a in study.axes]
-        summary = _run_points(problem, problem_path, out_dir, sweep_lanes(study, origin, lanes), names, quiet)
+        summary = _run_points(problem, problem_path, out_dir, sweep_lanes(study, origin, lanes), names, quiet, jobs)
         plots.sweep_figures(read_points(out_dir / "points.csv"), names, out_dir)
     elif isinstance(study, RandomSample):
         region_rows, names = _source_points(out_dir, study.region, "study.region")
         curve_rows, segments = _boundary(out_dir, study, names)
         tasks = split_lanes(random_tasks(study, region_rows, names, segments), lanes)
-        summary = _run_points(problem, problem_path, out_dir, tasks, list(names), quiet)
+        summary = _run_points(problem, problem_path, out_dir, tasks, list(names), quiet, jobs)
         summary["region"] = study.region
         if study.boundary is not None:
             summary["boundary"] = study.boundary
         plots.random_figure(read_points(out_dir / "points.csv"), region_rows, names, out_dir, curve_rows)
     elif isinstance(study, Basin):
-        summary = _run_basin(problem, study, out_dir, quiet, lanes)
+        summary = _run_basin(problem, study, out_dir, quiet, lanes, jobs)
     elif isinstance(study, Adaptive):
         summary = _run_adaptive(problem, study, out_dir, quiet)
     elif isinstance(study, Optimal):
-        summary = _run_optimal(problem, study, problem_path, out_dir, quiet, lanes)
+        summary = _run_optimal(problem, study, problem_path, out_dir, quiet, lanes, jobs)
     elif isinstance(study, Controllers):
-        summary = _run_controllers(problem, study, out_dir, quiet, lanes)
+        summary = _run_controllers(problem, study, out_dir, quiet, lanes, jobs)
     else:  # pragma: no cover - the schema admits no other kind
         raise TypeError(study)
     return summary
@@ -230,10 +231,10 @@ def _counts(rows: list[dict]) -> dict:
     }
 
 
-def _run_points(problem, problem_path, out_dir, lanes, names, quiet) -> dict:
+def _run_points(problem, problem_path, out_dir, lanes, names, quiet, jobs=None) -> dict:
     keys = [key_column(n) for n in names]
     table = _table(out_dir / "points.csv", keys + RESULT_COLUMNS, keys, quiet)
-    report = run_tasks(lanes, solve_worker, str(problem_path), table, problem.name, quiet=quiet)
+    report = run_tasks(lanes, solve_worker, str(problem_path), table, problem.name, quiet=quiet, jobs=jobs)
     rows = read_points(out_dir / "points.csv")
     not_solved = [{**{k: r[k] for k in keys}, "status": r["status"], "reason": r["reason"]}
                   for r in rows if r["status"] != "converged"]
@@ -284,7 +285,7 @@ def _nearest(rows: list[dict], at: tuple[float, float]) -> dict | None:
     return min(rows, key=lambda r: ((r["ydot"] - at[0]) / 0.1) ** 2 + ((r["z"] - at[1]) / 0.05) ** 2)
 
 
-def _run_basin(problem: Problem, study: Basin, out_dir: Path, quiet: bool, lanes: int) -> dict:
+def _run_basin(problem: Problem, study: Basin, out_dir: Path, quiet: bool, lanes: int, jobs: int | None = None) -> dict:
     from ..returnmap import ReturnMap
 
     rows, names = _source_points(out_dir, study.source, "study.source")
@@ -297,7 +298,8 @@ def _run_basin(problem: Problem, study: Basin, out_dir: Path, quiet: bool, lanes
     table = _table(out_dir / "basin.csv", ["point", key_column("ydot"), key_column("z"), *BASIN_COLUMNS[1:]],
                    ["point", key_column("ydot"), key_column("z")], quiet)
     context = (points, problem.params, study.strides, study.tolerance)
-    report = run_tasks(split_lanes(basin_tasks(study, len(points)), lanes), basin_worker, context, table, problem.name, quiet=quiet)
+    report = run_tasks(split_lanes(basin_tasks(study, len(points)), lanes), basin_worker, context, table, problem.name,
+                       quiet=quiet, jobs=jobs)
 
     example_stable, example_unstable = _nearest(stable, study.stable_at), _nearest(unstable, study.unstable_at)
     rmap = ReturnMap(SIMULATION_TOLERANCES)
@@ -339,7 +341,8 @@ def _write_trajectories(path: Path, trajectories: dict) -> None:
     write_files_atomically({path: "\n".join(lines) + "\n"})
 
 
-def _run_optimal(problem: Problem, study: Optimal, problem_path: Path, out_dir: Path, quiet: bool, lanes: int) -> dict:
+def _run_optimal(problem: Problem, study: Optimal, problem_path: Path, out_dir: Path, quiet: bool, lanes: int,
+                 jobs: int | None = None) -> dict:
     from ..returnmap import ReturnMap, Tolerances
     from ..trajectory import stride_trajectory
 
@@ -347,7 +350,7 @@ def _run_optimal(problem: Problem, study: Optimal, problem_path: Path, out_dir: 
     keys = [key_column(n) for n in names]
     table = _table(out_dir / "points.csv", keys + OPTIMAL_COLUMNS, keys + ["start"], quiet)
     report = run_tasks(split_lanes(optimal_tasks(study), lanes), optimal_worker, str(problem_path), table,
-                       problem.name, quiet=quiet)
+                       problem.name, quiet=quiet, jobs=jobs)
     rows = read_points(out_dir / "points.csv")
     best = best_rows(rows, names)
     plots.sweep_figures(best, names, out_dir)
@@ -385,7 +388,8 @@ def _run_optimal(problem: Problem, study: Optimal, problem_path: Path, out_dir: 
     }
 
 
-def _run_controllers(problem: Problem, study: Controllers, out_dir: Path, quiet: bool, lanes: int) -> dict:
+def _run_controllers(problem: Problem, study: Controllers, out_dir: Path, quiet: bool, lanes: int,
+                     jobs: int | None = None) -> dict:
     from ..api import fixed_point_spec, shooting_options, solve_problem
     from ..feedback import CONTROL_SCALE, closed_loop_multipliers, control_rank, deadbeat_gain, lqr_gain
     from ..fixedpoint import FixedPointSolver
@@ -409,7 +413,7 @@ def _run_controllers(problem: Problem, study: Controllers, out_dir: Path, quiet:
     }
     table = _table(out_dir / "controllers.csv", CONTROLLER_COLUMNS, ["controller", "sample"], quiet)
     report = run_tasks(split_lanes(controller_tasks(study), lanes), controllers_worker, context, table,
-                       problem.name, quiet=quiet)
+                       problem.name, quiet=quiet, jobs=jobs)
     rows = read_points(out_dir / "controllers.csv")
     plots.controllers_figure(rows, dict(study.perturbation), out_dir)
     multipliers = closed_loop_multipliers(A, B, K)

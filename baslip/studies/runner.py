@@ -6,9 +6,9 @@
   last line cut short by a kill is dropped; a file that is empty, has a torn or foreign
   header or cannot be decoded is set aside with a message and started afresh; rows with a
   repeated key are dropped (the first is kept) with a message.
-* Tasks come in a fixed number of lanes (:data:`LANES`, whatever the number of cores), one
-  worker process per lane, so that each worker can warm-start a task from the one before
-  it in its lane. The state a task hands on (``row["state"]``) is saved beside the CSV
+* Tasks come in a fixed number of lanes (:data:`LANES`, whatever the number of cores);
+  each lane is run in turn by one worker process (one per lane by default, or fewer with
+  ``jobs``), so that each task is warm-started from the one before it in its lane. The state a task hands on (``row["state"]``) is saved beside the CSV
   before its row, and a resumed lane replays the saved states of its finished tasks, so
   every task starts exactly as it would have in an uninterrupted run.
 * Workers die with the process that started them, even under ``kill -9``.
@@ -203,8 +203,11 @@ def run_tasks(
     table: ResumableCsv,
     label: str,
     quiet: bool = False,
+    jobs: int | None = None,
 ) -> RunReport:
-    """Run the tasks not yet in ``table``, one worker process per lane.
+    """Run the tasks not yet in ``table``, one worker process per lane, or ``jobs``
+    processes that share the lanes (each runs its lanes in turn; the answers do not
+    depend on it). Default: one per lane, at most one per core.
 
     A lane is an ordered list of tasks that one worker takes in turn. The worker gets
     the whole lane: a task already done is marked ``done`` and carries the ``state`` it
@@ -221,7 +224,7 @@ def run_tasks(
     start = time.perf_counter()
     ran, interrupted = 0, False
     if todo:
-        ran, interrupted = _run_lanes(todo, worker, context, table, label, quiet, skipped, total, start)
+        ran, interrupted = _run_lanes(todo, worker, context, table, label, quiet, skipped, total, start, jobs)
     report = RunReport(total, skipped, ran, time.perf_counter() - start, interrupted)
     if report.complete:
         table.finish([task for lane in lanes for task in lane])
@@ -234,16 +237,25 @@ def _marked(task: dict, key, done: set, states: dict) -> dict:
     return {**task, "done": True, "state": states.get(key)}
 
 
-def _run_lanes(todo, worker, context, table, label, quiet, skipped, total, start) -> tuple[int, bool]:
+def worker_count(jobs: int | None, lanes: int) -> int:
+    """Worker processes for ``lanes`` lanes: ``jobs`` if given, else one per core; never
+    more than the lanes."""
+    wanted = jobs if jobs is not None else (os.cpu_count() or 1)
+    return max(1, min(wanted, lanes))
+
+
+def _run_lanes(todo, worker, context, table, label, quiet, skipped, total, start, jobs=None) -> tuple[int, bool]:
     ctx = multiprocessing.get_context("spawn")
     queue = ctx.Queue()
-    processes = [ctx.Process(target=_worker_main, args=(worker, lane, context, queue), daemon=True) for lane in todo]
+    count = worker_count(jobs, len(todo))
+    shares = [todo[k::count] for k in range(count)]  # lanes dealt out in turn
+    processes = [ctx.Process(target=_worker_main, args=(worker, share, context, queue), daemon=True) for share in shares]
     progress = Progress(label, total, quiet)
     for process in processes:
         process.start()
     finished, ran = 0, 0
     try:
-        while finished < len(processes):
+        while finished < len(todo):  # each lane ends with a None
             row = _next_row(queue, processes)
             if row is None:
                 finished += 1
@@ -280,11 +292,13 @@ def _next_row(queue, processes, poll: float = 1.0):
             raise WorkerDied(f"a worker process ended with exit code {dead[0].exitcode}")
 
 
-def _worker_main(worker, lane, context, queue) -> None:
-    """Entry of a worker process: die with the parent, leave Ctrl-C to the parent."""
+def _worker_main(worker, lanes, context, queue) -> None:
+    """Entry of a worker process: die with the parent, leave Ctrl-C to the parent, run
+    its lanes in turn."""
     die_with_parent()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent stops the workers itself
-    worker(lane, context, queue)
+    for lane in lanes:
+        worker(lane, context, queue)
 
 
 def die_with_parent() -> None:
@@ -312,9 +326,15 @@ def split_lanes(tasks: Sequence[dict], n: int = LANES) -> list[list[dict]]:
     return [list(tasks[i : i + size]) for i in range(0, len(tasks), size)]
 
 
+#: Characters of the progress bar on a terminal.
+BAR_WIDTH = 30
+
+
 class Progress:
-    """Progress on stderr: a line rewritten in place on a terminal, and a plain line at
-    most every few seconds otherwise (log files stay readable)."""
+    """Progress on stderr: a bar rewritten in place on a terminal, and a plain line at
+    most every ``every_s`` seconds otherwise, so that log files stay readable. (A small
+    bar of our own rather than tqdm: no dependency, and the counts include the tasks
+    done before a resume.)"""
 
     def __init__(self, label: str, total: int, quiet: bool, every_s: float = 10.0):
         self.label, self.total, self.quiet, self.every_s = label, total, quiet, every_s
@@ -327,8 +347,11 @@ class Progress:
         rate = ran / elapsed if elapsed > 0 else 0.0
         eta = (self.total - done) / rate if rate > 0 else float("inf")
         text = f"{self.label}: {done}/{self.total} done, {rate:.2f}/s, about {eta:.0f} s left"
-        if self.terminal:
-            print(f"\r{text}   ", end="", file=sys.stderr, flush=True)
+        if self.terminal:  # a bar, rewritten in place
+            filled = int(BAR_WIDTH * done / self.total) if self.total else BAR_WIDTH
+            bar = "#" * filled + "-" * (BAR_WIDTH - filled)
+            print(f"\r{self.label} [{bar}] {done}/{self.total}, {rate:.2f}/s, about {eta:.0f} s left   ",
+                  end="", file=sys.stderr, flush=True)
         elif elapsed - self._last >= self.every_s or done == self.total:
             self._last = elapsed
             print(text, file=sys.stderr, flush=True)

@@ -1,0 +1,7 @@
+"""``python -m baslip``: the ``baslip`` command."""
+
+import sys
+
+from .cli import main
+
+sys.exit(main())

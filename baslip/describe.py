@@ -1,0 +1,37 @@
+"""Human-readable accounts of results, for the command line and notebooks."""
+
+from __future__ import annotations
+
+import math
+
+
+def summary_text(result) -> str:
+    """A short human-readable account of a result."""
+    a, c = result.apex, result.control
+    deg = 180 / math.pi
+    lines = [
+        f"{result.name}: {result.status} ({result.message})",
+        f"  IPOPT {result.solver.return_status} in {result.solver.iterations} iterations, "
+        f"Newton polish {result.polish_iterations} steps, {result.solver.time_s:.2f} s",
+        f"  apex     z = {a['z']:.6f} m, theta_h = {a['theta_h'] * deg:.4f} deg, "
+        f"ydot = {a['ydot']:.6f} m/s, theta_h_dot = {a['theta_h_dot']:.6f} rad/s",
+        f"  control  Kp = {c['Kp']:.6g} N m/rad, Kd = {c['Kd']:.6g} N m s/rad, "
+        f"theta2_des = {c['theta2_des'] * deg:.4f} deg, theta2_dot_des = {c['theta2_dot_des']:.6g} rad/s, "
+        f"theta_td = {c['theta_td'] * deg:.4f} deg",
+        f"  energy   {result.energy:.9g} J",
+    ]
+    if result.orbit is not None:
+        apexes = "; ".join(f"z = {X[0]:.6f} m, ydot = {X[2]:.6f} m/s" for X in result.orbit)
+        lines.append(f"  orbit    {result.strides} strides, apexes: {apexes}")
+    if result.residual is not None:
+        lines.append(f"  residual eps = {result.residual:.3e} ({result.residual_source})")
+    if result.stability is not None:
+        parts = []
+        for m in result.stability.multipliers:
+            text = f"{m.value.real:.6g}{m.value.imag:+.6g}j" if m.value.imag else f"{m.value.real:.6g}"
+            parts.append(f"{text} [{m.label}]" if m.label else text)
+        verdict = "stable" if result.stable else "unstable"
+        of_map = "" if result.strides == 1 else f" (of the {result.strides}-stride map)"
+        lines.append(f"  multipliers{of_map} {', '.join(parts)}")
+        lines.append(f"  spectral radius {result.spectral_radius:.6g} -> {verdict}")
+    return "\n".join(lines)

@@ -1,0 +1,83 @@
+"""Specification of the ``baslip`` command (baslip.cli) and of the notebook-facing parts of
+a result."""
+
+import subprocess
+import sys
+
+import pytest
+
+from baslip import __version__, load_problem, solve_problem
+from baslip.cli import main
+from baslip.shipped import shipped_problems
+
+from runs import ROOT
+
+
+def run(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "baslip", *args], capture_output=True, text=True, cwd=cwd, timeout=600)
+
+
+def test_python_m_baslip_is_the_command_and_knows_its_version():
+    done = run("--version")
+    assert done.returncode == 0 and done.stdout.strip() == f"baslip {__version__}"
+    assert __version__ not in ("", "unknown")
+
+
+def test_help_covers_every_command_and_solve_help_covers_studies_and_continuation(capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(["--help"])
+    assert stop.value.code == 0
+    text = capsys.readouterr().out
+    for command in ("solve", "trajectory", "animate", "report", "problems"):
+        assert command in text
+    with pytest.raises(SystemExit):
+        main(["solve", "--help"])
+    text = capsys.readouterr().out
+    for word in ("study:", "continuation:", "curve", "--jobs", "--verbose", "Exit status"):
+        assert word in text
+
+
+def test_an_unknown_command_is_one_line_and_exit_2():
+    done = run("solev", "problems/downward.yaml", cwd=ROOT)
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and done.stderr.startswith("error: ") and "solev" in done.stderr
+
+
+def test_problems_are_listed_and_copied_without_overwriting(tmp_path, capsys):
+    assert main(["problems"]) == 0
+    listing = capsys.readouterr().out
+    assert all(path.stem in listing for path in shipped_problems())
+    assert len(shipped_problems()) >= 20
+    (tmp_path / "downward.yaml").write_text("# mine\n")
+    assert main(["problems", "--copy", str(tmp_path)]) == 0
+    assert (tmp_path / "downward.yaml").read_text() == "# mine\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in shipped_problems())
+
+
+def test_solve_through_the_command_with_one_job(tmp_path):
+    done = run("solve", "problems/downward.yaml", "--out", str(tmp_path / "out"), "--jobs", "1", cwd=ROOT)
+    assert done.returncode == 0, done.stderr
+    assert "converged" in done.stdout and (tmp_path / "out" / "result.json").exists()
+    bad = run("solve", "problems/downward.yaml", "--jobs", "0", cwd=ROOT)
+    assert bad.returncode == 2 and "--jobs" in bad.stderr and bad.stderr.count("\n") == 1
+
+
+def test_trajectory_writes_a_csv_and_refuses_a_study(tmp_path):
+    out = tmp_path / "motion.csv"
+    done = run("trajectory", "problems/downward.yaml", "--strides", "1", "--samples", "10", "--out", str(out), cwd=ROOT)
+    assert done.returncode == 0, done.stderr
+    lines = out.read_text().splitlines()
+    assert lines[0].startswith("t [s],stride,phase") and len(lines) == 1 + 10 + 21 + 10
+    study = run("trajectory", "problems/grid_downward.yaml", "--out", str(tmp_path / "x.csv"), cwd=ROOT)
+    assert study.returncode == 2 and "single gait" in study.stderr and not (tmp_path / "x.csv").exists()
+
+
+def test_a_result_is_short_in_text_and_a_table_in_a_notebook():
+    result = solve_problem(load_problem(ROOT / "problems" / "downward.yaml"))
+    text = repr(result)
+    assert text.startswith("<FixedPointResult downward: converged, stable") and len(text) < 120
+    html = result._repr_html_()
+    assert "<table>" in html and "spectral radius" in html and "0.899" in html
+    assert result.summary().splitlines()[0] == "downward: converged (verified fixed point)"
+    figure = result.plot()
+    assert len(figure.axes) == 3 and figure.axes[2].get_ylabel() == "ground reaction force [N]"

@@ -1,0 +1,45 @@
+"""Specification of baslip.results: runs read back from their folders, for notebooks."""
+
+import pytest
+
+from baslip import open_results
+
+from runs import ROOT
+
+RESULTS = ROOT / "results"
+
+
+def test_a_sweep_reads_back_with_a_short_repr_a_table_and_figures():
+    grid = open_results(RESULTS / "grid_downward")
+    assert grid.kind == "sweep" and "points" in grid.tables
+    assert repr(grid).startswith("<RunResults grid_downward: sweep, points 90") and len(repr(grid)) < 200
+    assert "<table>" in grid._repr_html_()
+    frame = grid.to_dataframe()
+    assert len(frame) == 90 and str(frame["stable"].dtype) == "boolean"
+    assert int(frame["stable"].sum()) == grid.summary["stable"]
+    figures = grid.plot()
+    assert len(figures) == 2 and "multiplier" in figures[0].axes[1].get_ylabel()
+
+
+def test_failed_rows_keep_a_boolean_stable_column_and_say_why():
+    scan = open_results(RESULTS / "body_angle_scan").to_dataframe()
+    assert str(scan["stable"].dtype) == "boolean"
+    failed = scan[scan["status"] != "converged"]
+    assert len(failed) > 0 and failed["stable"].isna().all() and failed["reason"].notna().all()
+
+
+def test_a_continuation_with_curves_reads_back():
+    band = open_results(RESULTS / "curve_slip_band")
+    assert band.kind == "continuation" and {"branch", "curve"} <= set(band.tables)
+    curve = band.to_dataframe("curve")
+    assert {"theta_td", "energy", "special", "stability_boundary"} <= set(curve.columns)
+    assert str(curve["stability_boundary"].dtype) == "boolean"
+    figures = band.plot()
+    assert len(figures) == 2 and figures[1].axes[0].get_ylabel() == "apex energy [J]"
+    with pytest.raises(KeyError, match="no nothing.csv"):
+        band.to_dataframe("nothing")
+
+
+def test_a_folder_without_results_is_a_clear_error(tmp_path):
+    with pytest.raises(FileNotFoundError, match="run the problem first"):
+        open_results(tmp_path)
