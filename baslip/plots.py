@@ -130,7 +130,7 @@ def _sweep_map(rows, names, quantity, out_dir) -> Path:
 
 def draw_map(fig, ax, rows, names, quantity) -> None:
     """A sweep's map of ``quantity`` over its two axes on ``ax``, with a colour bar; stable
-    cells ringed, cells without a verified fixed point marked."""
+    cells ringed, unstable ones crossed, cells without a verified fixed point marked."""
     a, b, values, stable = _grid(rows, names, quantity)
     cmap = plt.get_cmap("viridis" if quantity == "theta_h" else "coolwarm").with_extremes(bad="0.85")
     extent = _extent(shown(names[0], a), shown(names[1], b))
@@ -146,7 +146,11 @@ def draw_map(fig, ax, rows, names, quantity) -> None:
         label = LABELS[quantity]
     fig.colorbar(image, ax=ax, label=label)
     A, B = np.meshgrid(shown(names[0], a), shown(names[1], b))
-    ax.plot(A[stable], B[stable], "o", mfc="none", mec="k", ms=7, label="stable cell")
+    unstable = np.isfinite(values) & ~stable
+    if stable.any():  # only what is there gets a legend entry
+        ax.plot(A[stable], B[stable], "o", mfc="none", mec="k", ms=7, label="stable")
+    if unstable.any():
+        ax.plot(A[unstable], B[unstable], "x", color="k", ms=5, mew=0.8, label="unstable")
     if np.isnan(values).any():
         ax.plot(A[np.isnan(values)], B[np.isnan(values)], "s", color="0.5", ms=3, label="no verified fixed point")
     ax.set_xlabel(LABELS.get(names[0], names[0]))
@@ -324,16 +328,19 @@ def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path=No
                 ax.plot([], [], style, color=color, label=f"{strides}-stride orbits, {word}")
     markers = {"fold": ("s", "tab:red"), "turning_point": ("<", "tab:brown"), "period_doubling": ("D", "tab:green"),
                "neimark_sacker": ("^", "tab:purple"), "branch_point": ("o", "tab:orange")}
+    x_mid = np.mean(ax.get_xlim())
     for i, r in enumerate(r for r in rows if r["special"]):
         marker, color = markers[r["special"]]
         xv, yv = shown(parameter, [r[parameter]])[0], shown(quantity, [_orbit_value(r, 0, quantity)])[0]
         ax.plot(xv, yv, marker, color=color, ms=8)
         value = r[parameter] * DEG if parameter in ANGLES else r[parameter]
         # Labels alternate above and below, in their marker's colour and tied to it by a
-        # line, so that neighbouring points stay readable and unambiguous.
+        # line, so that neighbouring points stay readable and unambiguous; they lean
+        # towards the middle, so that they stay inside the frame.
+        right = xv <= x_mid
         ax.annotate(f"{SPECIAL_NAMES[r['special']]}\n{value:.6g}", (xv, yv), textcoords="offset points",
-                    xytext=(14, 12) if i % 2 == 0 else (14, -30), fontsize=8, color=color,
-                    arrowprops={"arrowstyle": "-", "color": color, "lw": 0.7})
+                    xytext=(14 if right else -14, 12 if i % 2 == 0 else -30), ha="left" if right else "right",
+                    fontsize=8, color=color, arrowprops={"arrowstyle": "-", "color": color, "lw": 0.7})
     ax.set_xlabel(LABELS.get(parameter, f"{parameter}"))
     ax.set_ylabel(LABELS.get(quantity, quantity))
     ax.legend(fontsize=8)

@@ -64,7 +64,10 @@ def _parser(prog: str = "python -m baslip.solve") -> argparse.ArgumentParser:
                       help="also print IPOPT's iterations (of a single solve, or of a branch's start)")
     parser.add_argument("--jobs", type=_positive, metavar="N",
                         help="worker processes for a study (default: one per core, at most one per lane; "
-                             "the answers do not depend on it)")
+                             "the answers do not depend on it); with --scheduler local, the LocalCluster's workers")
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="run a study's lanes on a Dask cluster: a scheduler address such as "
+                             "tcp://host:8786, or 'local' for a LocalCluster (needs pip install 'baslip[dask]')")
     parser.add_argument(
         "--fresh", action="store_true",
         help="discard what DIR holds from an earlier run instead of resuming it (a study "
@@ -112,13 +115,24 @@ def main(argv: list[str] | None = None, prog: str = "python -m baslip.solve") ->
         except BranchError as err:
             print(f"error: {args.problem}: {err}", file=sys.stderr)
             return EXIT_BAD_INPUT
+    if args.scheduler is not None:
+        from .studies.runner import SchedulerError, check_scheduler
+
+        if problem.study is None:
+            print(f"error: --scheduler: {args.problem} has no study to run on a cluster", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        try:
+            check_scheduler(args.scheduler)
+        except SchedulerError as err:
+            print(f"error: --scheduler: {err}", file=sys.stderr)
+            return EXIT_BAD_INPUT
     unwritable = _unwritable(out_dir)
     if unwritable:
         print(f"error: output folder {out_dir}: {unwritable}", file=sys.stderr)
         return EXIT_BAD_INPUT
     try:
         if problem.study is not None:
-            return _run_study(problem, args.problem, out_dir, args.quiet, args.fresh, args.jobs)
+            return _run_study(problem, args.problem, out_dir, args.quiet, args.fresh, args.jobs, args.scheduler)
         if problem.continuation is not None:
             return _run_continuation(problem, out_dir, args.quiet)
         return _solve_and_write(problem, out_dir, args.quiet)
@@ -144,11 +158,16 @@ def _unwritable(out_dir: Path) -> str | None:
     return None
 
 
-def _run_study(problem, problem_path: Path, out_dir: Path, quiet: bool, fresh: bool, jobs: int | None) -> int:
+def _run_study(problem, problem_path: Path, out_dir: Path, quiet: bool, fresh: bool, jobs: int | None,
+               scheduler: str | None) -> int:
     from .studies.run import StaleFolder, StudyFailed, outcome, run_study
+    from .studies.runner import SchedulerError
 
     try:
-        summary = run_study(problem, problem_path, out_dir, quiet, fresh, jobs)
+        summary = run_study(problem, problem_path, out_dir, quiet, fresh, jobs, scheduler)
+    except SchedulerError as err:
+        print(f"error: --scheduler: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     except StaleFolder as err:
         print(f"error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT

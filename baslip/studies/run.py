@@ -33,7 +33,7 @@ from ..problem import Problem, ProblemError, check_point
 from ..provenance import changed_entries, provenance
 from .. import plots
 from .basin import BASIN_COLUMNS, basin_tasks, basin_worker, run_from, SIMULATION_TOLERANCES
-from .runner import LANES, ResumableCsv, RunReport, run_tasks, split_lanes
+from .runner import LANES, ResumableCsv, RunReport, Workers, run_tasks, split_lanes
 from .optimal import OPTIMAL_COLUMNS, best_rows, optimal_tasks, optimal_worker
 from .controllers import CONTROLLER_COLUMNS, CONTROLLERS, controller_tasks, controllers_worker, lqr_weights
 from .boundary import boundary_segments, read_curves
@@ -78,7 +78,7 @@ def check_study_inputs(problem: Problem, out_dir: Path) -> None:
 
 
 def run_study(problem: Problem, problem_path: Path, out_dir: Path, quiet: bool = False, fresh: bool = False,
-              jobs: int | None = None) -> dict:
+              jobs: int | None = None, scheduler: str | None = None) -> dict:
     """Run (or resume) the study of ``problem``; return its summary (also in result.json).
 
     ``fresh`` discards what the folder holds first; without it, results of another
@@ -88,37 +88,37 @@ def run_study(problem: Problem, problem_path: Path, out_dir: Path, quiet: bool =
     with hold(out_dir):
         record = _claim(problem, out_dir, fresh)
         start = time.perf_counter()
-        summary = _run(problem, problem_path, out_dir, quiet, record["lanes"], jobs)
+        summary = _run(problem, problem_path, out_dir, quiet, record["lanes"], Workers(jobs, scheduler))
         summary = {"name": problem.name, "kind": problem.study.kind, **summary,
                    "wall_time_s": time.perf_counter() - start, "provenance": record}
         write_files_atomically({out_dir / "result.json": json_text(summary)})
     return summary
 
 
-def _run(problem: Problem, problem_path: Path, out_dir: Path, quiet: bool, lanes: int, jobs: int | None) -> dict:
+def _run(problem: Problem, problem_path: Path, out_dir: Path, quiet: bool, lanes: int, workers: Workers) -> dict:
     study = problem.study
     if isinstance(study, Sweep):
         origin = {a.name: problem.start_value(a.name) for a in study.axes}
         names = [a.name for a in study.axes]
-        summary = _run_points(problem, problem_path, out_dir, sweep_lanes(study, origin, lanes), names, quiet, jobs)
+        summary = _run_points(problem, problem_path, out_dir, sweep_lanes(study, origin, lanes), names, quiet, workers)
         plots.sweep_figures(read_points(out_dir / "points.csv"), names, out_dir)
     elif isinstance(study, RandomSample):
         region_rows, names = _source_points(out_dir, study.region, "study.region")
         curve_rows, segments = _boundary(out_dir, study, names)
         tasks = split_lanes(random_tasks(study, region_rows, names, segments), lanes)
-        summary = _run_points(problem, problem_path, out_dir, tasks, list(names), quiet, jobs)
+        summary = _run_points(problem, problem_path, out_dir, tasks, list(names), quiet, workers)
         summary["region"] = study.region
         if study.boundary is not None:
             summary["boundary"] = study.boundary
         plots.random_figure(read_points(out_dir / "points.csv"), region_rows, names, out_dir, curve_rows)
     elif isinstance(study, Basin):
-        summary = _run_basin(problem, study, out_dir, quiet, lanes, jobs)
+        summary = _run_basin(problem, study, out_dir, quiet, lanes, workers)
     elif isinstance(study, Adaptive):
         summary = _run_adaptive(problem, study, out_dir, quiet)
     elif isinstance(study, Optimal):
-        summary = _run_optimal(problem, study, problem_path, out_dir, quiet, lanes, jobs)
+        summary = _run_optimal(problem, study, problem_path, out_dir, quiet, lanes, workers)
     elif isinstance(study, Controllers):
-        summary = _run_controllers(problem, study, out_dir, quiet, lanes, jobs)
+        summary = _run_controllers(problem, study, out_dir, quiet, lanes, workers)
     else:  # pragma: no cover - the schema admits no other kind
         raise TypeError(study)
     return summary
@@ -231,10 +231,10 @@ def _counts(rows: list[dict]) -> dict:
     }
 
 
-def _run_points(problem, problem_path, out_dir, lanes, names, quiet, jobs=None) -> dict:
+def _run_points(problem, problem_path, out_dir, lanes, names, quiet, workers=Workers()) -> dict:
     keys = [key_column(n) for n in names]
     table = _table(out_dir / "points.csv", keys + RESULT_COLUMNS, keys, quiet)
-    report = run_tasks(lanes, solve_worker, str(problem_path), table, problem.name, quiet=quiet, jobs=jobs)
+    report = run_tasks(lanes, solve_worker, str(problem_path), table, problem.name, quiet=quiet, workers=workers)
     rows = read_points(out_dir / "points.csv")
     not_solved = [{**{k: r[k] for k in keys}, "status": r["status"], "reason": r["reason"]}
                   for r in rows if r["status"] != "converged"]
@@ -285,7 +285,7 @@ def _nearest(rows: list[dict], at: tuple[float, float]) -> dict | None:
     return min(rows, key=lambda r: ((r["ydot"] - at[0]) / 0.1) ** 2 + ((r["z"] - at[1]) / 0.05) ** 2)
 
 
-def _run_basin(problem: Problem, study: Basin, out_dir: Path, quiet: bool, lanes: int, jobs: int | None = None) -> dict:
+def _run_basin(problem: Problem, study: Basin, out_dir: Path, quiet: bool, lanes: int, workers: Workers = Workers()) -> dict:
     from ..returnmap import ReturnMap
 
     rows, names = _source_points(out_dir, study.source, "study.source")
@@ -299,7 +299,7 @@ def _run_basin(problem: Problem, study: Basin, out_dir: Path, quiet: bool, lanes
                    ["point", key_column("ydot"), key_column("z")], quiet)
     context = (points, problem.params, study.strides, study.tolerance)
     report = run_tasks(split_lanes(basin_tasks(study, len(points)), lanes), basin_worker, context, table, problem.name,
-                       quiet=quiet, jobs=jobs)
+                       quiet=quiet, workers=workers)
 
     example_stable, example_unstable = _nearest(stable, study.stable_at), _nearest(unstable, study.unstable_at)
     rmap = ReturnMap(SIMULATION_TOLERANCES)
@@ -342,7 +342,7 @@ def _write_trajectories(path: Path, trajectories: dict) -> None:
 
 
 def _run_optimal(problem: Problem, study: Optimal, problem_path: Path, out_dir: Path, quiet: bool, lanes: int,
-                 jobs: int | None = None) -> dict:
+                 workers: Workers = Workers()) -> dict:
     from ..returnmap import ReturnMap, Tolerances
     from ..trajectory import stride_trajectory
 
@@ -350,7 +350,7 @@ def _run_optimal(problem: Problem, study: Optimal, problem_path: Path, out_dir: 
     keys = [key_column(n) for n in names]
     table = _table(out_dir / "points.csv", keys + OPTIMAL_COLUMNS, keys + ["start"], quiet)
     report = run_tasks(split_lanes(optimal_tasks(study), lanes), optimal_worker, str(problem_path), table,
-                       problem.name, quiet=quiet, jobs=jobs)
+                       problem.name, quiet=quiet, workers=workers)
     rows = read_points(out_dir / "points.csv")
     best = best_rows(rows, names)
     plots.sweep_figures(best, names, out_dir)
@@ -389,7 +389,7 @@ def _run_optimal(problem: Problem, study: Optimal, problem_path: Path, out_dir: 
 
 
 def _run_controllers(problem: Problem, study: Controllers, out_dir: Path, quiet: bool, lanes: int,
-                     jobs: int | None = None) -> dict:
+                     workers: Workers = Workers()) -> dict:
     from ..api import fixed_point_spec, shooting_options, solve_problem
     from ..feedback import CONTROL_SCALE, closed_loop_multipliers, control_rank, deadbeat_gain, lqr_gain
     from ..fixedpoint import FixedPointSolver
@@ -413,7 +413,7 @@ def _run_controllers(problem: Problem, study: Controllers, out_dir: Path, quiet:
     }
     table = _table(out_dir / "controllers.csv", CONTROLLER_COLUMNS, ["controller", "sample"], quiet)
     report = run_tasks(split_lanes(controller_tasks(study), lanes), controllers_worker, context, table,
-                       problem.name, quiet=quiet, jobs=jobs)
+                       problem.name, quiet=quiet, workers=workers)
     rows = read_points(out_dir / "controllers.csv")
     plots.controllers_figure(rows, dict(study.perturbation), out_dir)
     multipliers = closed_loop_multipliers(A, B, K)

@@ -44,6 +44,17 @@ from ..output import write_files_atomically
 LANES = 2
 
 
+@dataclass(frozen=True)
+class Workers:
+    """Where a study's lanes run. ``jobs``: worker processes (default one per lane, at
+    most one per core; fewer run several lanes each, in turn); ``scheduler``: a Dask
+    scheduler's address, or ``local`` for a LocalCluster of ``jobs`` workers (default:
+    local processes, no Dask). The answers depend on neither."""
+
+    jobs: int | None = None
+    scheduler: str | None = None
+
+
 class ResumableCsv:
     """A CSV file of result rows, keyed by some columns, that can be appended to safely.
 
@@ -203,11 +214,10 @@ def run_tasks(
     table: ResumableCsv,
     label: str,
     quiet: bool = False,
-    jobs: int | None = None,
+    workers: "Workers" = None,
 ) -> RunReport:
-    """Run the tasks not yet in ``table``, one worker process per lane, or ``jobs``
-    processes that share the lanes (each runs its lanes in turn; the answers do not
-    depend on it). Default: one per lane, at most one per core.
+    """Run the tasks not yet in ``table`` on ``workers`` (:class:`Workers`): one worker
+    process per lane by default, at most one per core.
 
     A lane is an ordered list of tasks that one worker takes in turn. The worker gets
     the whole lane: a task already done is marked ``done`` and carries the ``state`` it
@@ -224,7 +234,12 @@ def run_tasks(
     start = time.perf_counter()
     ran, interrupted = 0, False
     if todo:
-        ran, interrupted = _run_lanes(todo, worker, context, table, label, quiet, skipped, total, start, jobs)
+        workers = workers or Workers()
+        if workers.scheduler is not None:
+            ran, interrupted = run_lanes_on_dask(todo, worker, context, table, label, quiet, skipped, total, start,
+                                                 workers.scheduler, workers.jobs)
+        else:
+            ran, interrupted = _run_lanes(todo, worker, context, table, label, quiet, skipped, total, start, workers.jobs)
     report = RunReport(total, skipped, ran, time.perf_counter() - start, interrupted)
     if report.complete:
         table.finish([task for lane in lanes for task in lane])
@@ -280,6 +295,99 @@ def _run_lanes(todo, worker, context, table, label, quiet, skipped, total, start
 
 class WorkerDied(RuntimeError):
     """A worker process ended without finishing its lane."""
+
+
+class SchedulerError(RuntimeError):
+    """Dask is not installed, or its scheduler cannot be reached."""
+
+
+#: Times Dask runs a lane again after the worker running it died.
+DASK_RETRIES = 3
+#: How long to wait for a Dask scheduler to answer.
+DASK_CONNECT_TIMEOUT = "10s"
+
+
+def check_scheduler(scheduler: str) -> None:
+    """Raise :class:`SchedulerError` unless Dask is installed and, for an address, its
+    scheduler answers: checked before a run creates anything."""
+    try:
+        from distributed import Client
+    except ImportError:
+        raise SchedulerError("--scheduler needs Dask: pip install 'baslip[dask]'") from None
+    if scheduler == "local":
+        return
+    try:
+        Client(scheduler, timeout=DASK_CONNECT_TIMEOUT).close()
+    except (OSError, TimeoutError, ValueError) as err:
+        raise SchedulerError(f"cannot reach the Dask scheduler at {scheduler}: {str(err).splitlines()[0][:120]}") from None
+
+
+def run_lanes_on_dask(todo, worker, context, table, label, quiet, skipped, total, start, scheduler: str,
+                      jobs: int | None) -> tuple[int, bool]:
+    """Run each lane as one Dask task on the scheduler at ``scheduler`` (or on a
+    LocalCluster of ``jobs`` single-threaded worker processes, for ``local``).
+
+    Lanes stay lanes: a task runs its lane in order, warm starts and replayed states
+    included, so the rows are those of a local run. Rows stream back through a Dask
+    queue and are written as they come. A lane whose worker dies is run again by Dask
+    (up to :data:`DASK_RETRIES` times); rows it repeats are dropped by their key.
+    Workers must be able to import baslip and read the problem file at the same path.
+    """
+    try:
+        from distributed import Client, LocalCluster, Queue
+    except ImportError:
+        raise SchedulerError("--scheduler needs Dask: pip install 'baslip[dask]'") from None
+    cluster = None
+    try:
+        if scheduler == "local":
+            cluster = LocalCluster(n_workers=jobs or LANES, threads_per_worker=1, processes=True,
+                                   dashboard_address=None)
+            client = Client(cluster)
+        else:
+            client = Client(scheduler, timeout=DASK_CONNECT_TIMEOUT)
+    except (OSError, TimeoutError) as err:
+        raise SchedulerError(f"cannot reach the Dask scheduler at {scheduler}: {err}") from None
+    with client:
+        queue = Queue(f"baslip-rows-{os.getpid()}-{time.time_ns()}", client=client)
+        futures = [client.submit(_lane_on_dask, worker, lane, context, queue, pure=False, retries=DASK_RETRIES)
+                   for lane in todo]
+        progress = Progress(label, total, quiet)
+        seen, finished, ran = table.done(), 0, 0
+        try:
+            while finished < len(todo):
+                try:
+                    row = queue.get(timeout=1.0)
+                except TimeoutError:
+                    failed = [f for f in futures if f.status == "error"]
+                    if failed:
+                        raise WorkerDied(f"a Dask task failed: {failed[0].exception()}") from None
+                    continue
+                if row is None:
+                    finished += 1
+                    continue
+                if table.key(row) in seen:  # a lane run again after its worker died
+                    continue
+                seen.add(table.key(row))
+                table.append(row)
+                ran += 1
+                progress.update(skipped + ran, ran, time.perf_counter() - start)
+        except KeyboardInterrupt:
+            progress.interrupted(skipped + ran)
+            return ran, True
+        except WorkerDied as err:
+            progress.interrupted(skipped + ran, str(err))
+            return ran, True
+        finally:
+            client.cancel(futures)
+            if cluster is not None:
+                cluster.close()
+    progress.close()
+    return ran, False
+
+
+def _lane_on_dask(worker, lane, context, queue) -> None:
+    """A Dask task: one lane, rows onto the Dask queue, then None."""
+    worker(lane, context, queue)
 
 
 def _next_row(queue, processes, poll: float = 1.0):

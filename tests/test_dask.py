@@ -1,0 +1,83 @@
+"""Studies on a Dask cluster (baslip.studies.runner.run_lanes_on_dask): the same rows as a
+local run, even when a worker is killed halfway and its lane is run again."""
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+distributed = pytest.importorskip("distributed")
+
+from baslip.problem import load_problem  # noqa: E402
+from baslip.studies.run import run_study  # noqa: E402
+
+from runs import ROOT  # noqa: E402
+
+GRID = "vary: {ydot: [0.3, 0.6, 0.1], z: [0.35, 0.5, 0.05]}"  # 16 points, 8 per lane
+
+
+def small_grid(tmp_path):
+    text = (ROOT / "problems" / "grid_downward.yaml").read_text().replace(
+        "vary: {ydot: [0.1, 1.0, 0.1], z: [0.3, 0.7, 0.05]}", GRID)
+    path = tmp_path / "grid.yaml"
+    path.write_text(text)
+    return path
+
+
+def rows_of(folder):
+    with open(folder / "points.csv", newline="") as handle:
+        return [{k: v for k, v in row.items() if k != "time_s"} for row in csv.DictReader(handle)]
+
+
+@pytest.fixture(scope="module")
+def local_rows(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("local")
+    path = small_grid(folder)
+    summary = run_study(load_problem(path), path, folder / "out", quiet=True)
+    assert summary["points"] == 16
+    return rows_of(folder / "out")
+
+
+def test_a_local_cluster_gives_the_rows_of_a_local_run(tmp_path, local_rows):
+    path = small_grid(tmp_path)
+    summary = run_study(load_problem(path), path, tmp_path / "out", quiet=True, jobs=2, scheduler="local")
+    assert summary["complete"] and summary["points"] == 16
+    assert rows_of(tmp_path / "out") == local_rows
+
+
+def test_a_killed_worker_has_its_lane_run_again(tmp_path, local_rows):
+    """The study runs through the command line on a cluster this test holds; once rows
+    come in, one worker busy with a lane is killed. Dask runs that lane again on a new
+    worker, the repeated rows are dropped, and the file equals the local run's."""
+    path = small_grid(tmp_path)
+    out = tmp_path / "out"
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        pids = client.run(os.getpid)
+        run = subprocess.Popen([sys.executable, "-m", "baslip.solve", str(path), "--out", str(out), "--quiet",
+                                "--scheduler", cluster.scheduler_address], stderr=subprocess.PIPE, text=True)
+        deadline, busy = time.monotonic() + 300, {}
+        while time.monotonic() < deadline and not busy and run.poll() is None:  # a row is in, a lane still runs
+            written = (out / "points.csv").read_text().count("\n") - 1 if (out / "points.csv").exists() else 0
+            busy = {w: tasks for w, tasks in client.processing().items() if tasks} if written >= 1 else {}
+            time.sleep(0.05)
+        assert busy, "no lane was running to kill"
+        os.kill(pids[next(iter(busy))], signal.SIGKILL)
+        assert run.wait(timeout=600) == 0, run.stderr.read()
+    summary = json.loads((out / "result.json").read_text())
+    assert summary["complete"] and summary["points"] == 16
+    assert rows_of(out) == local_rows
+
+
+def test_an_unreachable_scheduler_is_one_line_and_exit_2(tmp_path):
+    path = small_grid(tmp_path)
+    done = subprocess.run([sys.executable, "-m", "baslip.solve", str(path), "--out", str(tmp_path / "out"),
+                           "--scheduler", "tcp://127.0.0.1:9"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and done.stderr.startswith("error: --scheduler: cannot reach")
+    assert not (tmp_path / "out").exists()
