@@ -63,6 +63,15 @@ class Stride:
     def ok(self) -> bool:
         return self.fall is None
 
+    def __repr__(self) -> str:
+        if not self.ok:
+            return f"<Stride fell: {self.fall.value}>"
+        time = sum(self.durations.values())
+        return f"<Stride to z = {self.apex[0]:.6g} m, ydot = {self.apex[2]:.6g} m/s in {time:.4g} s>"
+
+    def _repr_html_(self) -> str:
+        return repr(self).replace("<", "&lt;").replace(">", "&gt;")
+
 
 @dataclass(frozen=True)
 class Simulation:
@@ -72,6 +81,14 @@ class Simulation:
     durations: list[dict[str, float]] = field(default_factory=list)
     fall: Fall | None = None
     fall_stride: int | None = None  # 0-based index of the stride that fell
+
+    def __repr__(self) -> str:
+        strides = len(self.apexes) - 1
+        end = f", then fell in stride {self.fall_stride}: {self.fall.value}" if self.fall is not None else ""
+        return f"<Simulation: {strides} strides{end}>"
+
+    def _repr_html_(self) -> str:
+        return repr(self).replace("<", "&lt;").replace(">", "&gt;")
 
 
 class RunnerFell(RuntimeError):

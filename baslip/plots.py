@@ -45,14 +45,37 @@ def shown(name: str, values):
     return values * DEG if name in ANGLES else values
 
 
-def _save(fig, path) -> None:
-    """Save as PNG to ``path``, a file name or a binary file object, and close the
-    figure; with ``path`` None only lay it out (a figure returned to the caller)."""
+#: Formats figures can be written in; the run's is matplotlib's ``savefig.format``
+#: (``baslip solve --format`` sets it for the run), PNG otherwise.
+FORMATS = ("png", "svg", "pdf")
+PNG_DPI = 110
+
+
+def figure_format() -> str:
+    """The format figures are written in now: matplotlib's savefig.format if it is one of
+    :data:`FORMATS`, else png."""
+    chosen = str(plt.rcParams["savefig.format"]).lower()
+    return chosen if chosen in FORMATS else "png"
+
+
+def figure_file(stem: str) -> str:
+    """A figure's file name in the current format, e.g. ``diagram.svg``."""
+    return f"{stem}.{figure_format()}"
+
+
+def _save(fig, path):
+    """Save to ``path`` (a file name, whose suffix becomes the current format, or a
+    binary file object) and close the figure; return where it went. With ``path`` None
+    only lay the figure out (it is returned to the caller)."""
     fig.tight_layout()
     if path is None:
-        return
-    fig.savefig(path, dpi=110, format="png")
+        return None
+    fmt = figure_format()
+    if isinstance(path, (str, Path)):
+        path = Path(path).with_suffix(f".{fmt}")
+    fig.savefig(path, dpi=PNG_DPI if fmt == "png" else None, format=fmt)
     plt.close(fig)
+    return path
 
 
 def _column(rows, name):
@@ -102,8 +125,7 @@ def _sweep_line(rows, name, quantity, out_dir) -> Path:
     ax.set_ylabel(LABELS[quantity])
     ax.legend(fontsize=8)
     path = out_dir / f"{quantity}.png"
-    _save(fig, path)
-    return path
+    return _save(fig, path)
 
 
 def _grid(rows, names, quantity):
@@ -124,8 +146,7 @@ def _sweep_map(rows, names, quantity, out_dir) -> Path:
     draw_map(fig, ax, rows, names, quantity)
     ax.legend(fontsize=8, loc="upper right")
     path = out_dir / f"{quantity}_map.png"
-    _save(fig, path)
-    return path
+    return _save(fig, path)
 
 
 def draw_map(fig, ax, rows, names, quantity) -> None:
@@ -190,8 +211,7 @@ def random_figure(rows: list[dict], region_rows: list[dict], names, out_dir: Pat
     ax.set_ylabel(LABELS.get(names[1], names[1]))
     ax.legend(fontsize=8)
     path = out_dir / "samples.png"
-    _save(fig, path)
-    return path
+    return _save(fig, path)
 
 
 # --- convergence regions --------------------------------------------------------------------
@@ -210,9 +230,15 @@ def basin_figures(basin_rows, stable, unstable, example_index, example_unstable,
     for name, cells, title in panels:
         fig, ax = plt.subplots(figsize=(6.4, 4.8))
         mask = np.array([[(y, z) in cells for y in ydots] for z in zs])
+        # The region is a set of grid cells: drawn as cells, edges included (a contour of
+        # the 0/1 mask would cut the corners into odd hexagons).
         ax.imshow(mask, origin="lower", aspect="auto", extent=_extent(ydots, zs), cmap="Blues", vmin=0, vmax=1.6)
         if mask.any():
-            ax.contour(ydots, zs, mask.astype(float), levels=[0.5], colors="tab:blue")
+            from matplotlib.patches import Patch
+
+            ax.add_artist(ax.legend(handles=[Patch(color=plt.get_cmap("Blues")(1 / 1.6),
+                                                   label=f"starts that converge ({int(mask.sum())} cells)")],
+                                    fontsize=8, loc="lower right"))
         xs = [r["ydot"] for r in stable]
         ax.plot(xs, [r["z"] for r in stable], "o", color="tab:blue", ms=4, label="stable fixed points")
         if name == "region.png" and example_index is not None:
@@ -224,8 +250,7 @@ def basin_figures(basin_rows, stable, unstable, example_index, example_unstable,
         ax.set_title(title, fontsize=10)
         ax.legend(fontsize=8, loc="upper right")
         path = out_dir / name
-        _save(fig, path)
-        paths.append(path)
+        paths.append(_save(fig, path))
     for case, (outcome, n, _, apexes) in trajectories.items():
         fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4))
         z, ydot = apexes[:, 0], apexes[:, 2]
@@ -235,15 +260,16 @@ def basin_figures(basin_rows, stable, unstable, example_index, example_unstable,
         left.set_ylabel(LABELS["z"])
         left.legend(fontsize=8)
         steps = np.arange(len(z))
-        right.plot(steps, ydot, "-o", ms=3, label="ydot [m/s]")
-        right.plot(steps, z, "-s", ms=3, label="z [m]")
+        # Speed and height on axes of their own: one unit per axis.
+        right.plot(steps, ydot, "-o", ms=3, color="tab:blue")
+        right.set_ylabel(LABELS["ydot"], color="tab:blue")
+        height = right.twinx()
+        height.plot(steps, z, "-s", ms=3, color="tab:orange")
+        height.set_ylabel(LABELS["z"], color="tab:orange")
         right.set_xlabel("stride n")
-        right.set_ylabel("apex value [m/s, m]")
         right.set_title(f"{case.replace('_', ' ')}: {outcome} after {n} strides", fontsize=10)
-        right.legend(fontsize=8)
         path = out_dir / f"{case}.png"
-        _save(fig, path)
-        paths.append(path)
+        paths.append(_save(fig, path))
     return paths
 
 
@@ -270,8 +296,7 @@ def adaptive_figures(rows: list[dict], out_dir: Path) -> list[Path]:
         ax.set_xlabel("stride n")
         ax.set_ylabel(LABELS[name])
         ax.ticklabel_format(useOffset=False)
-    path_states = out_dir / "adaptive_states.png"
-    _save(fig, path_states)
+    path_states = _save(fig, out_dir / "adaptive_states.png")
 
     fig, axes = plt.subplots(2, 3, figsize=(12, 6.5))
     for ax, name in zip(axes.ravel(), ("Kp", "Kd", "theta_td", "theta2_des", "theta2_dot_des", "eps")):
@@ -283,8 +308,8 @@ def adaptive_figures(rows: list[dict], out_dir: Path) -> list[Path]:
             ax.set_yscale("log")
         else:
             ax.ticklabel_format(useOffset=False)
-    path_controls = out_dir / "adaptive_controls.png"
-    _save(fig, path_controls)
+            _unless_round_off(ax, shown(name, values))
+    path_controls = _save(fig, out_dir / "adaptive_controls.png")
 
     paths = [path_states, path_controls]
     if frozen:
@@ -295,9 +320,22 @@ def adaptive_figures(rows: list[dict], out_dir: Path) -> list[Path]:
         ax.set_ylabel("|X_n - X_2048| / |X_2048|")
         ax.set_title(f"last control held fixed: {len(frozen)} strides before the fall", fontsize=10)
         path = out_dir / "frozen_control.png"
-        _save(fig, path)
-        paths.append(path)
+        paths.append(_save(fig, path))
     return paths
+
+
+def _unless_round_off(ax, values) -> None:
+    """If ``values`` change only by round-off (a control held fixed), show them as the
+    constant they are, on a readable scale, instead of magnifying the noise."""
+    finite = np.asarray(values, dtype=float)
+    finite = finite[np.isfinite(finite)]
+    if finite.size == 0:
+        return
+    middle = float(np.mean(finite))
+    if np.ptp(finite) <= 1e-9 * max(1.0, abs(middle)):
+        band = 0.05 * max(1.0, abs(middle))
+        ax.set_ylim(middle - band, middle + band)
+        ax.text(0.5, 0.9, "held constant", transform=ax.transAxes, ha="center", fontsize=8, color="0.4")
 
 
 # --- continuation ---------------------------------------------------------------------------
@@ -344,8 +382,8 @@ def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path=No
     ax.set_xlabel(LABELS.get(parameter, f"{parameter}"))
     ax.set_ylabel(LABELS.get(quantity, quantity))
     ax.legend(fontsize=8)
-    _save(fig, path)
-    return fig if path is None else path
+    saved = _save(fig, path)
+    return fig if path is None else saved
 
 
 #: Colours of the curve types, and how they are named in legends.
@@ -376,8 +414,8 @@ def curve_diagram(rows: list[dict], first: str, second: str, path=None):
     ax.set_ylabel(LABELS.get(second, second))
     if ax.get_legend_handles_labels()[0]:
         ax.legend(fontsize=8)
-    _save(fig, path)
-    return fig if path is None else path
+    saved = _save(fig, path)
+    return fig if path is None else saved
 
 
 def draw_curves(ax, rows: list[dict], first: str, second: str) -> None:
@@ -421,8 +459,7 @@ def trunk_motion_figure(motions: list[tuple[str, np.ndarray, np.ndarray]], out_d
     ax.set_ylabel(LABELS["theta_h"])
     ax.legend(fontsize=7, loc="best")
     path = out_dir / "best_gaits_trunk.png"
-    _save(fig, path)
-    return path
+    return _save(fig, path)
 
 
 # --- controllers ----------------------------------------------------------------------------
@@ -462,8 +499,7 @@ def controllers_figure(rows: list[dict], perturbation: dict, out_dir: Path) -> P
         ax.set_ylabel("change of " + LABELS[axes_names[1]])
         ax.legend(fontsize=7)
     path = out_dir / "controllers.png"
-    _save(fig, path)
-    return path
+    return _save(fig, path)
 
 
 _NOMINAL_APEX = {"z": 0.1, "theta_h": 0.1, "ydot": 0.1, "theta_h_dot": 1.0}

@@ -65,6 +65,8 @@ def _parser(prog: str = "python -m baslip.solve") -> argparse.ArgumentParser:
     parser.add_argument("--jobs", type=_positive, metavar="N",
                         help="worker processes for a study (default: one per core, at most one per lane; "
                              "the answers do not depend on it); with --scheduler local, the LocalCluster's workers")
+    parser.add_argument("--format", choices=("png", "svg", "pdf"), default="png",
+                        help="format of the figures a study or continuation writes (default png)")
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="run a study's lanes on a Dask cluster: a scheduler address such as "
                              "tcp://host:8786, or 'local' for a LocalCluster (needs pip install 'baslip[dask]')")
@@ -130,6 +132,14 @@ def main(argv: list[str] | None = None, prog: str = "python -m baslip.solve") ->
     if unwritable:
         print(f"error: output folder {out_dir}: {unwritable}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    import matplotlib
+
+    with matplotlib.rc_context({"savefig.format": args.format}):  # for this run's figures only
+        return _run(problem, args, out_dir)
+
+
+def _run(problem, args, out_dir: Path) -> int:
+    """Run the problem: a gait, a study or a continuation (inputs already checked)."""
     try:
         if problem.study is not None:
             return _run_study(problem, args.problem, out_dir, args.quiet, args.fresh, args.jobs, args.scheduler)
@@ -183,7 +193,7 @@ def _run_study(problem, problem_path: Path, out_dir: Path, quiet: bool, fresh: b
             print(f"  no fixed point at {where}: {row['status']} ({row['reason']})")
         if len(summary.get("not_solved", [])) > 10:
             print(f"  ... and {len(summary['not_solved']) - 10} more points without a fixed point (see points.csv, column reason)")
-        print(f"  wrote {out_dir}/ (result.json, CSV and PNG figures), {summary['wall_time_s']:.1f} s")
+        print(f"  wrote {out_dir}/ (result.json, CSV files and figures), {summary['wall_time_s']:.1f} s")
     if failure is not None:
         print(f"error: {problem.name}: {failure}", file=sys.stderr)
         return EXIT_NOT_CONVERGED
@@ -212,7 +222,10 @@ def _run_continuation(problem, out_dir: Path, quiet: bool) -> int:
             print(f"  could not switch at the {SPECIAL_NAMES[f['type']]} at {parameter} = {f[parameter]:.7g}: {f['reason']}")
         if "curves" in summary:
             _print_curves(summary["curves"], parameter)
-        files = "branch.csv, result.json, diagram.png" + (", curve.csv, curve.png" if "curves" in summary else "")
+        from .plots import figure_file
+
+        files = f"branch.csv, result.json, {figure_file('diagram')}"
+        files += f", curve.csv, {figure_file('curve')}" if "curves" in summary else ""
         print(f"  wrote {out_dir}/ ({files}), {summary['wall_time_s']:.1f} s")
     missing = _missing_curves(summary.get("curves"))
     if missing:

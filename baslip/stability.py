@@ -51,6 +51,13 @@ class Stability:
     spectral_radius: float
     stable: bool
 
+    def __repr__(self) -> str:
+        values = ", ".join(f"{m.value:.4g}" + (f" [{m.label}]" if m.label else "") for m in self.multipliers)
+        return f"<Stability: {'stable' if self.stable else 'unstable'}, radius {self.spectral_radius:.6g}; {values}>"
+
+    def _repr_html_(self) -> str:
+        return repr(self).replace("<", "&lt;").replace(">", "&gt;")
+
 
 def trivial_labels(params: Params, u) -> list[str]:
     """Labels of the multipliers that equal 1 by the structure of the problem.

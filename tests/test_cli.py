@@ -81,3 +81,33 @@ def test_a_result_is_short_in_text_and_a_table_in_a_notebook():
     assert result.summary().splitlines()[0] == "downward: converged (verified fixed point)"
     figure = result.plot()
     assert len(figure.axes) == 3 and figure.axes[2].get_ylabel() == "ground reaction force [N]"
+
+
+def test_figures_can_be_written_as_svg_or_pdf(tmp_path):
+    text = (ROOT / "problems" / "continuation_slip_attack.yaml").read_text().replace(
+        'range: ["20 deg", "25 deg"]', 'range: ["21 deg", "22 deg"]').replace("  switch: period_doubling\n", "")
+    path = tmp_path / "band.yaml"
+    path.write_text(text)
+    done = run("solve", str(path), "--out", str(tmp_path / "svg"), "--format", "svg", "--quiet", cwd=ROOT)
+    assert done.returncode == 0, done.stderr
+    assert "<svg" in (tmp_path / "svg" / "diagram.svg").read_text()[:1000]
+    assert not (tmp_path / "svg" / "diagram.png").exists()
+    grid = (ROOT / "problems" / "grid_downward.yaml").read_text().replace(
+        "vary: {ydot: [0.1, 1.0, 0.1], z: [0.3, 0.7, 0.05]}", "vary: {ydot: [0.4, 0.5, 0.1], z: [0.4, 0.45, 0.05]}")
+    (tmp_path / "grid.yaml").write_text(grid)
+    done = run("solve", str(tmp_path / "grid.yaml"), "--out", str(tmp_path / "pdf"), "--format", "pdf", "--quiet", cwd=ROOT)
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "pdf" / "spectral_radius_map.pdf").read_bytes()[:5] == b"%PDF-"
+    assert not list((tmp_path / "pdf").glob("*.png"))
+
+
+def test_strides_simulations_and_stability_are_short_too():
+    from baslip import ReturnMap, Tolerances
+
+    result = solve_problem(load_problem(ROOT / "problems" / "downward.yaml"))
+    rmap = ReturnMap(Tolerances(1e-10, 1e-10))
+    stride, run = rmap.stride(result.X, result.u, result.params), rmap.simulate(result.X, result.u, result.params, 3)
+    for thing, start in ((stride, "<Stride to z = 0.4 m"), (run, "<Simulation: 3 strides>"),
+                         (result.stability, "<Stability: stable, radius 0.899")):
+        assert repr(thing).startswith(start) and len(repr(thing)) < 200
+        assert "&lt;" in thing._repr_html_()

@@ -114,7 +114,7 @@ def _run_continuation(problem, out_dir: Path, quiet: bool) -> dict:
         figure = io.BytesIO()
         plots.curve_diagram(curve_rows, spec.parameter, spec.second, figure)
         files = {out_dir / "curve.csv": curve_csv(curve_rows, spec.parameter, spec.second),
-                 out_dir / "curve.png": figure.getvalue()}
+                 out_dir / plots.figure_file("curve"): figure.getvalue()}
     summary = {
         "name": problem.name,
         "parameter": spec.parameter,
@@ -136,7 +136,7 @@ def _run_continuation(problem, out_dir: Path, quiet: bool) -> dict:
     write_files_atomically({
         out_dir / "branch.csv": _csv(rows, spec.parameter),
         out_dir / "result.json": json_text(summary),
-        out_dir / "diagram.png": diagram.getvalue(),
+        out_dir / plots.figure_file("diagram"): diagram.getvalue(),
         **files,
     })
     return summary
