@@ -268,13 +268,30 @@ def _run_lanes(todo, worker, context, table, label, quiet, skipped, total, start
     progress = Progress(label, total, quiet)
     for process in processes:
         process.start()
+    try:
+        return _collect(lambda: _next_row(queue, processes), len(todo), table, progress, skipped, start)
+    finally:
+        for process in processes:
+            if process.is_alive():
+                process.terminate()
+            process.join(timeout=5)
+
+
+def _collect(next_row, lanes: int, table, progress, skipped: int, start: float, seen: set | None = None):
+    """Write rows as they come until each of ``lanes`` lanes has ended (with a None);
+    return (rows written, interrupted?). With ``seen``, rows whose key is in it (a lane
+    run again) are dropped."""
     finished, ran = 0, 0
     try:
-        while finished < len(todo):  # each lane ends with a None
-            row = _next_row(queue, processes)
+        while finished < lanes:
+            row = next_row()
             if row is None:
                 finished += 1
                 continue
+            if seen is not None:
+                if table.key(row) in seen:
+                    continue
+                seen.add(table.key(row))
             table.append(row)
             ran += 1
             progress.update(skipped + ran, ran, time.perf_counter() - start)
@@ -284,11 +301,6 @@ def _run_lanes(todo, worker, context, table, label, quiet, skipped, total, start
     except WorkerDied as err:
         progress.interrupted(skipped + ran, str(err))
         return ran, True
-    finally:
-        for process in processes:
-            if process.is_alive():
-                process.terminate()
-            process.join(timeout=5)
     progress.close()
     return ran, False
 
@@ -352,37 +364,22 @@ def run_lanes_on_dask(todo, worker, context, table, label, quiet, skipped, total
         futures = [client.submit(_lane_on_dask, worker, lane, context, queue, pure=False, retries=DASK_RETRIES)
                    for lane in todo]
         progress = Progress(label, total, quiet)
-        seen, finished, ran = table.done(), 0, 0
-        try:
-            while finished < len(todo):
+
+        def next_row():
+            while True:
                 try:
-                    row = queue.get(timeout=1.0)
+                    return queue.get(timeout=1.0)
                 except TimeoutError:
                     failed = [f for f in futures if f.status == "error"]
                     if failed:
                         raise WorkerDied(f"a Dask task failed: {failed[0].exception()}") from None
-                    continue
-                if row is None:
-                    finished += 1
-                    continue
-                if table.key(row) in seen:  # a lane run again after its worker died
-                    continue
-                seen.add(table.key(row))
-                table.append(row)
-                ran += 1
-                progress.update(skipped + ran, ran, time.perf_counter() - start)
-        except KeyboardInterrupt:
-            progress.interrupted(skipped + ran)
-            return ran, True
-        except WorkerDied as err:
-            progress.interrupted(skipped + ran, str(err))
-            return ran, True
+
+        try:
+            return _collect(next_row, len(todo), table, progress, skipped, start, seen=table.done())
         finally:
             client.cancel(futures)
             if cluster is not None:
                 cluster.close()
-    progress.close()
-    return ran, False
 
 
 def _lane_on_dask(worker, lane, context, queue) -> None:
