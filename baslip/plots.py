@@ -63,6 +63,12 @@ def figure_file(stem: str) -> str:
     return f"{stem}.{figure_format()}"
 
 
+def _in(out_dir: Path | None, name: str) -> Path | None:
+    """Where a figure goes: ``out_dir / name``, or nowhere (None) when the figure is to
+    be returned open instead of written."""
+    return None if out_dir is None else out_dir / name
+
+
 def _save(fig, path):
     """Save to ``path`` (a file name, whose suffix becomes the current format, or a
     binary file object) and close the figure; return where it went. With ``path`` None
@@ -124,7 +130,7 @@ def _sweep_line(rows, name, quantity, out_dir) -> Path:
     ax.set_xlabel(LABELS.get(name, name))
     ax.set_ylabel(LABELS[quantity])
     ax.legend(fontsize=8)
-    path = out_dir / f"{quantity}.png"
+    path = _in(out_dir, f"{quantity}.png")
     return _save(fig, path)
 
 
@@ -210,7 +216,7 @@ def random_figure(rows: list[dict], region_rows: list[dict], names, out_dir: Pat
     ax.set_xlabel(LABELS.get(names[0], names[0]))
     ax.set_ylabel(LABELS.get(names[1], names[1]))
     ax.legend(fontsize=8)
-    path = out_dir / "samples.png"
+    path = _in(out_dir, "samples.png")
     return _save(fig, path)
 
 
@@ -249,7 +255,7 @@ def basin_figures(basin_rows, stable, unstable, example_index, example_unstable,
         ax.set_ylabel(LABELS["z"])
         ax.set_title(title, fontsize=10)
         ax.legend(fontsize=8, loc="upper right")
-        path = out_dir / name
+        path = _in(out_dir, name)
         paths.append(_save(fig, path))
     for case, (outcome, n, _, apexes) in trajectories.items():
         fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4))
@@ -268,7 +274,7 @@ def basin_figures(basin_rows, stable, unstable, example_index, example_unstable,
         height.set_ylabel(LABELS["z"], color="tab:orange")
         right.set_xlabel("stride n")
         right.set_title(f"{case.replace('_', ' ')}: {outcome} after {n} strides", fontsize=10)
-        path = out_dir / f"{case}.png"
+        path = _in(out_dir, f"{case}.png")
         paths.append(_save(fig, path))
     return paths
 
@@ -296,7 +302,7 @@ def adaptive_figures(rows: list[dict], out_dir: Path) -> list[Path]:
         ax.set_xlabel("stride n")
         ax.set_ylabel(LABELS[name])
         ax.ticklabel_format(useOffset=False)
-    path_states = _save(fig, out_dir / "adaptive_states.png")
+    path_states = _save(fig, _in(out_dir, "adaptive_states.png"))
 
     fig, axes = plt.subplots(2, 3, figsize=(12, 6.5))
     for ax, name in zip(axes.ravel(), ("Kp", "Kd", "theta_td", "theta2_des", "theta2_dot_des", "eps")):
@@ -309,7 +315,7 @@ def adaptive_figures(rows: list[dict], out_dir: Path) -> list[Path]:
         else:
             ax.ticklabel_format(useOffset=False)
             _unless_round_off(ax, shown(name, values))
-    path_controls = _save(fig, out_dir / "adaptive_controls.png")
+    path_controls = _save(fig, _in(out_dir, "adaptive_controls.png"))
 
     paths = [path_states, path_controls]
     if frozen:
@@ -319,7 +325,7 @@ def adaptive_figures(rows: list[dict], out_dir: Path) -> list[Path]:
         ax.set_xlabel("stride after freezing the control")
         ax.set_ylabel("|X_n - X_2048| / |X_2048|")
         ax.set_title(f"last control held fixed: {len(frozen)} strides before the fall", fontsize=10)
-        path = out_dir / "frozen_control.png"
+        path = _in(out_dir, "frozen_control.png")
         paths.append(_save(fig, path))
     return paths
 
@@ -458,7 +464,7 @@ def trunk_motion_figure(motions: list[tuple[str, np.ndarray, np.ndarray]], out_d
     ax.set_xlabel("time from apex t [s]")
     ax.set_ylabel(LABELS["theta_h"])
     ax.legend(fontsize=7, loc="best")
-    path = out_dir / "best_gaits_trunk.png"
+    path = _in(out_dir, "best_gaits_trunk.png")
     return _save(fig, path)
 
 
@@ -498,7 +504,7 @@ def controllers_figure(rows: list[dict], perturbation: dict, out_dir: Path) -> P
         ax.set_xlabel("change of " + LABELS[axes_names[0]])
         ax.set_ylabel("change of " + LABELS[axes_names[1]])
         ax.legend(fontsize=7)
-    path = out_dir / "controllers.png"
+    path = _in(out_dir, "controllers.png")
     return _save(fig, path)
 
 

@@ -61,8 +61,29 @@ class RunResults:
         return frame
 
     def plot(self) -> list:
-        """The run's main figures as matplotlib Figures (nothing is written): a study's
-        maps over its two quantities, a branch's diagram and its curves."""
+        """The run's figures as matplotlib Figures (nothing is written): a sweep's maps
+        over its two quantities, a random sample over its region (and traced boundary),
+        an adaptive run's states and controls, a controller comparison, a branch's
+        diagram and its curves. Basin and optimal studies give none: their figures need
+        simulations that only the run does (they are in the run's folder)."""
+        from . import plots
+
+        before = set(plots.plt.get_fignums())
+        if self.kind == "random":
+            rows = self.rows("points")
+            names = tuple(c[len("sweep_"):] for c in rows[0] if c.startswith("sweep_"))
+            region = open_results(self.folder.parent / self.summary["region"]).rows("points")
+            boundary = self.summary.get("boundary")
+            curves = open_results(self.folder.parent / boundary).rows("curve") if boundary else None
+            plots.random_figure(rows, region, names, None, curves)
+        elif self.kind == "adaptive":
+            plots.adaptive_figures(self.rows("strides"), None)
+        elif self.kind == "controllers":
+            plots.controllers_figure(self.rows("controllers"), self.summary["perturbation"], None)
+        drawn = [plots.plt.figure(n) for n in sorted(set(plots.plt.get_fignums()) - before)]
+        return drawn + self._maps_and_diagrams()
+
+    def _maps_and_diagrams(self) -> list:
         from . import plots
 
         figures = []

@@ -43,3 +43,13 @@ def test_a_continuation_with_curves_reads_back():
 def test_a_folder_without_results_is_a_clear_error(tmp_path):
     with pytest.raises(FileNotFoundError, match="run the problem first"):
         open_results(tmp_path)
+
+
+@pytest.mark.parametrize("name, count", [("stable_region_traced", 1), ("adaptive_upright", 2), ("controllers_downward", 1)])
+def test_other_studies_draw_their_figures_without_writing(name, count):
+    folder = RESULTS / name
+    before = {p: p.stat().st_mtime_ns for p in folder.iterdir()}
+    figures = open_results(folder).plot()
+    assert len(figures) == count
+    assert all(any(ax.get_xlabel() or ax.get_ylabel() for ax in fig.axes) for fig in figures)
+    assert {p: p.stat().st_mtime_ns for p in folder.iterdir()} == before
