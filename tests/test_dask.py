@@ -81,3 +81,27 @@ def test_an_unreachable_scheduler_is_one_line_and_exit_2(tmp_path):
     assert done.returncode == 2
     assert done.stderr.count("\n") == 1 and done.stderr.startswith("error: --scheduler: cannot reach")
     assert not (tmp_path / "out").exists()
+
+
+def test_a_run_killed_on_a_cluster_resumes_to_the_same_rows(tmp_path, local_rows):
+    """The command is killed (SIGKILL) after some rows; run again on the same cluster, it
+    replays the saved states of its lanes and finishes with the rows of a local run."""
+    path = small_grid(tmp_path)
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "baslip.solve", str(path), "--out", str(out), "--quiet", "--scheduler"]
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        first = subprocess.Popen(command + [cluster.scheduler_address], stderr=subprocess.DEVNULL)
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and first.poll() is None:
+            if (out / "points.csv").exists() and (out / "points.csv").read_text().count("\n") - 1 >= 3:
+                break
+            time.sleep(0.02)
+        first.kill()
+        first.wait()
+        cut = (out / "points.csv").read_text().count("\n") - 1
+        assert 0 < cut < 16, "the first run was not cut halfway"
+        second = subprocess.run(command + [cluster.scheduler_address], capture_output=True, text=True, timeout=600)
+        assert second.returncode == 0, second.stderr
+    summary = json.loads((out / "result.json").read_text())
+    assert summary["complete"] and summary["done_before_this_run"] == cut
+    assert rows_of(out) == local_rows
