@@ -147,8 +147,6 @@ class CurveSystem:
     def _bordered(self, M: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
         """(g, phi, psi): the bordered solutions, phi and psi near M's right and left
         null vectors (c.phi = 1, b.psi = 1)."""
-        if self._border is None:
-            self._set_border(M, None)
         b, c = self._border
         k = len(M)
         bordered = np.zeros((k + 1, k + 1))
@@ -202,8 +200,7 @@ class CurveSystem:
         the border to this point's null vectors)."""
         A, _, phi, psi = self._defining(v)
         tests = codim2_tests(self.kind, A, phi, psi, lambda shift: self.base.map_jacobian(v, shift))
-        self._set_border(defining_matrix(self.kind, A), self._border)
-        self._cache = None
+        self._set_border(defining_matrix(self.kind, A), self._border)  # a new version: g is recomputed
         return tests
 
     def crossing_veto(self, kind: str, a: Point, b: Point) -> bool:
