@@ -318,15 +318,19 @@ def compile_kernels(
     sources: Sequence[pathlib.Path],
     *,
     enabled: bool | None = None,
+    settings: str = "",
 ) -> dict[str, Kernel]:
     """Kernels for the functions ``names`` that ``build()`` makes, compiled and cached.
 
     The cache key hashes the ``sources`` (the Python modules the functions are derived
-    from), the names, the CasADi version, the compiler and its flags, so a warm process
-    loads the library without building or generating anything. ``enabled`` and the
-    fallback behave as in :func:`compile_functions`; the fallback's kernels run in the VM.
+    from), the names, ``settings`` (anything else the functions depend on, such as
+    integrator tolerances), the CasADi version, the compiler and its flags, so a warm
+    process loads the library without building or generating anything. ``enabled`` and
+    the fallback behave as in :func:`compile_functions`; the fallback's kernels run in
+    the VM.
     """
-    return _cached(name, names, build, _read(sources), enabled, _native_kernels, _vm_kernels)
+    fingerprint = [*_read(sources), settings.encode()]
+    return _cached(name, names, build, fingerprint, enabled, _native_kernels, _vm_kernels)
 
 
 def compile_library(

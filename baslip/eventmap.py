@@ -1,8 +1,9 @@
 """The reference return-map engine: CasADi's adaptive integrators with events.
 
-* The touchdown time solves the foot-height guard with a CasADi ``rootfinder`` (Newton),
-  started from the bracketed guess of :func:`~baslip.outcome.touchdown_guess`, so its
-  derivative comes from the implicit function theorem.
+* The touchdown time solves the foot-height guard with a CasADi ``rootfinder``
+  (``fast_newton``, which can be code-generated), started from the bracketed guess of
+  :func:`~baslip.outcome.touchdown_guess`, so its derivative comes from the implicit
+  function theorem.
 * Stance is one CasADi integrator (``erk``, or ``rosenbrock`` for the independent check)
   with zero-crossing events: a phase flag in the augmented state switches from
   compression to decompression at the bottom event, and freezes the state at liftoff or
@@ -10,17 +11,25 @@
   sensitivities include those of the event times, so the Jacobians are algorithmic
   derivatives through the events.
 * The ascent to the next apex is closed form, ``t = zdot / g``.
+
+The value of a stride (integrator, events and all) is generated as C and cached on disk
+like the compiled engine (:mod:`baslip.compile`), one library per plugin and tolerance:
+the same numbers as CasADi's virtual machine, about ten times sooner. Jacobians and the
+drawing samples, needed far less often, stay in the virtual machine, built on first use.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import math
+import pathlib
 
 import casadi as ca
 import numpy as np
 
+from .compile import compile_kernels
 from .control import CONTROL, hip_torque, touchdown_angle
 from .layout import Layout
 from .model import (
@@ -118,37 +127,51 @@ class EventMap:
     verification) at any tolerance, and the fallback of the compiled engine where that
     cannot guarantee its accuracy. Inputs are numeric vectors that passed
     :func:`~baslip.outcome.precheck`; ``t_guess`` is its touchdown time guess [s].
+    ``compile`` forces the C route of the stride's value on or off; None follows the
+    environment (see :func:`baslip.compile.compile_kernels`).
     """
 
-    def __init__(self, tolerances: Tolerances, plugin: str = "erk"):
+    def __init__(self, tolerances: Tolerances, plugin: str = "erk", compile: bool | None = None):
         self.tolerances = tolerances
         self.plugin = plugin
         self._samplers: dict = {}  # functions needed only by some users, built on first use
+        # A warm cache loads the compiled stride without building any CasADi object.
+        self._value = compile_kernels(
+            f"baslip_events_{plugin}", ["stride"], lambda: [self._stride_fn], _sources(),
+            enabled=compile, settings=f"{plugin} rtol={tolerances.rtol!r} atol={tolerances.atol!r}",
+        )["stride"]
+
+    # -- construction ------------------------------------------------------------------
+
+    @functools.cached_property
+    def _stride_fn(self) -> ca.Function:
+        """(X, u, p, t_guess) -> (apex, durations, diagnostics), symbolic."""
         with _event_notice_silenced():
-            self._touchdown_time = self._build_touchdown_rootfinder()
-            self._stance = self._build_stance_integrator()
-            self._stride_fn = self._build_stride_function()
-            X, u, p, t_guess = self._stride_fn.mx_in()
-            apex_next = self._stride_fn(X, u, p, t_guess)[0]
-            # One Jacobian in (X, u) together: one sensitivity sweep instead of two.
-            self._jacobian_fn = ca.Function(
+            return self._build_stride_function()
+
+    @functools.cached_property
+    def _jacobian_fn(self) -> ca.Function:
+        """dr/d(X, u) with the stride's outputs: one sensitivity sweep instead of two."""
+        X, u, p, t_guess = self._stride_fn.mx_in()
+        outputs = self._stride_fn(X, u, p, t_guess)
+        with _event_notice_silenced():
+            return ca.Function(
                 "return_map_jacobian",
                 [X, u, p, t_guess],
-                [ca.jacobian(apex_next, ca.vertcat(X, u)), *self._stride_fn(X, u, p, t_guess)],
+                [ca.jacobian(outputs[0], ca.vertcat(X, u)), *outputs],
                 ["X", "u", "p", "t_touchdown_guess"],
                 ["dr_dXu", "apex", "durations", "diagnostics"],
             )
-
-    # -- construction ------------------------------------------------------------------
 
     def _build_touchdown_rootfinder(self) -> ca.Function:
         t = ca.SX.sym("t")
         X, u, p = APEX.sym("X"), CONTROL.sym("u"), PARAMS.sym("p")
         foot_height = touchdown_guard(ballistic_flight(apex_to_flight(X), t, p), touchdown_angle(u), p)
         residual = ca.Function("touchdown_residual", [t, ca.vertcat(X, u, p)], [foot_height])
+        # From the bracketed guess Newton converges in a few steps; a guess that does not
+        # converge leaves a foot height that the outcome reports as no touchdown.
         return ca.rootfinder(
-            "touchdown_time", "newton", residual,
-            {"abstol": 1e-15, "abstolStep": 1e-16, "max_iter": 50, "error_on_fail": False},
+            "touchdown_time", "fast_newton", residual, {"abstol": 1e-15, "abstolStep": 1e-16, "max_iter": 50},
         )
 
     def _build_stance_integrator(self, output_times=(1.0,)) -> ca.Function:
@@ -174,12 +197,12 @@ class EventMap:
         X, u, p = APEX.sym("X", ca.MX), CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
         t_guess = ca.MX.sym("t_touchdown_guess")
         theta_td = touchdown_angle(u)
-        t_descent = self._touchdown_time(t_guess, ca.vertcat(X, u, p))
+        t_descent = self._build_touchdown_rootfinder()(t_guess, ca.vertcat(X, u, p))
         at_touchdown = ballistic_flight(apex_to_flight(X), t_descent, p)
         x_td = touchdown_map(at_touchdown, theta_td, p)
         horizon = STANCE_HORIZON_HALF_PERIODS * math.pi * ca.sqrt(PARAMS.get(p, "m") / PARAMS.get(p, "k"))
         s0 = ca.vertcat(x_td, 0, 0, COMPRESSION)
-        s_end = self._stance(x0=s0, p=ca.vertcat(u, p, horizon))["xf"]
+        s_end = self._build_stance_integrator()(x0=s0, p=ca.vertcat(u, p, horizon))["xf"]
         x_lo = s_end[: STANCE.size]
         at_liftoff = liftoff_map(x_lo, p)
         apex_next = flight_to_apex(at_liftoff, p)
@@ -200,8 +223,8 @@ class EventMap:
     def stride(self, X, u, p, t_guess) -> Stride:
         """One stride: the next apex and phase durations, or the fall."""
         try:
-            outputs = self._stride_fn(X, u, p, t_guess)
-        except RuntimeError:  # CasADi reports an integrator or rootfinder failure
+            outputs = self._value(X, u, p, t_guess)
+        except RuntimeError:  # the integrator gave up (a CasADi error, or a C status)
             return Stride(None, {}, Fall.INTEGRATION_FAILED)
         return _outcome(*(np.asarray(v).ravel() for v in outputs))
 
@@ -277,3 +300,9 @@ def _event_notice_silenced():
     """
     with contextlib.redirect_stderr(io.StringIO()):
         yield
+
+
+def _sources() -> list[pathlib.Path]:
+    """The modules the event map's stride is derived from: the compiled library's key."""
+    here = pathlib.Path(__file__).parent
+    return [here / f"{module}.py" for module in ("layout", "model", "control", "outcome", "eventmap", "compile")]

@@ -46,8 +46,9 @@ class ReturnMap:
     """The apex return map of the BA-SLIP under the PD hip law, built once per tolerance.
 
     ``plugin`` is ``"compiled"`` (the default for tolerances down to 1e-12), ``"erk"`` (the
-    default below that) or ``"rosenbrock"``. ``compile`` (compiled engine only) forces the
-    C route on or off; None follows ``BASLIP_NO_COMPILE``.
+    default below that) or ``"rosenbrock"``. ``compile`` forces the C route (of the
+    compiled engine, or of an event map's strides) on or off; None follows
+    ``BASLIP_NO_COMPILE``.
 
     >>> rmap = ReturnMap()
     >>> stride = rmap.stride(X, u, Params())     # numeric, with fall detection
@@ -68,7 +69,7 @@ class ReturnMap:
             from .engine import CompiledEngine  # the compiled engine is loaded only when used
 
             self._compiled = CompiledEngine(tolerance, compile)
-        self._events = None if plugin == COMPILED else EventMap(tolerances, plugin)
+        self._events = None if plugin == COMPILED else EventMap(tolerances, plugin, compile)
         self._compile = compile
         self._batch = None  # the batched compiled engine, built on first use
         self.fallbacks = 0  # strides the compiled engine handed to the event map
@@ -77,7 +78,7 @@ class ReturnMap:
     def event_map(self) -> EventMap:
         """The adaptive event map at this map's tolerances (built on first use)."""
         if self._events is None:
-            self._events = EventMap(self.tolerances, "erk")
+            self._events = EventMap(self.tolerances, "erk", self._compile)
         return self._events
 
     @property

@@ -104,6 +104,29 @@ def test_event_location_is_independent_of_the_integrator(params, running_point):
     np.testing.assert_allclose(erk, rosenbrock, atol=1e-11)
 
 
+@pytest.mark.parametrize("plugin", ["erk", "rosenbrock"])
+def test_event_map_strides_in_c_are_those_of_the_virtual_machine(params, running_point, plugin):
+    """The event map's compiled stride gives the virtual machine's apex, durations and
+    outcome, bit for bit, for a clean stride, a fall in stance and a failed integration
+    (the C code's error status is the virtual machine's exception)."""
+    X, u = running_point
+    cases = [
+        (X, u, params),
+        ([3.0, math.pi / 2, 0.0, 0.0], [0, 0, 0, 0, 0.0], params),  # a 3 m drop: the leg collapses
+        ([0.4, math.pi / 2, 0.5, 0.0], [2, 0.1, 0, 0, 0.1], Params(I=1e-9)),  # integrator gives up
+    ]
+    compiled = ReturnMap(Tolerances(1e-12, 1e-12), plugin=plugin, compile=True)
+    virtual = ReturnMap(Tolerances(1e-12, 1e-12), plugin=plugin, compile=False)
+    outcomes = set()
+    for X_, u_, p_ in cases:
+        ours, theirs = compiled.stride(X_, u_, p_), virtual.stride(X_, u_, p_)
+        assert ours.fall is theirs.fall and ours.durations == theirs.durations
+        assert (ours.apex is None and theirs.apex is None) or np.array_equal(ours.apex, theirs.apex)
+        outcomes.add(ours.fall)
+    assert {None, Fall.LEG_COLLAPSES} <= outcomes
+    assert (Fall.INTEGRATION_FAILED in outcomes) == (plugin == "erk")  # rosenbrock copes with I = 1e-9
+
+
 @pytest.mark.parametrize(
     "X, u, fall",
     [
