@@ -1,13 +1,15 @@
 """Many strides at once through the compiled engine.
 
 The engine's functions are also compiled mapped over :data:`~baslip.stride.BATCH` strides
-per call. Here the numeric driver of :mod:`baslip.engine` is done for a whole batch with
-numpy: the touchdown bracket, the scout's event search, the step counts, and the checks
+per call. Here the numeric driver of :mod:`baslip.engine` is done for many strides at
+once: the touchdown bracket, the scout's event search, the step counts, and the checks
 of the final pass. A stride that needs the careful scalar path (a fall seen by the scout,
 a grazing liftoff, a stance longer than one scout call, an error estimate beyond the
 finest step count) is handed to :class:`~baslip.engine.CompiledEngine` as it is, so both
-paths give the same outcomes. Batches are split over threads: the compiled calls release
-Python's lock, so two threads use both cores.
+paths give the same outcomes. The strides are split into one lane per thread (the
+compiled calls release Python's lock, so two threads use both cores), and within a lane
+the final passes of all strides with one step count share full batches: a batch call
+costs its :data:`~baslip.stride.BATCH` columns however few of them are used.
 """
 
 from __future__ import annotations
@@ -51,27 +53,24 @@ class BatchEngine:
         """One stride from each row of ``X`` (n x 4) under the row of ``U`` (n x 5);
         None where the compiled engine cannot vouch for the stride (as for one stride)."""
         X, U = np.atleast_2d(np.asarray(X, float)), np.atleast_2d(np.asarray(U, float))
-        chunks = [slice(i, min(i + BATCH, len(X))) for i in range(0, len(X), BATCH)]
-        if len(self._lanes) == 1 or len(chunks) == 1:
-            parts = [_Batch(self._lanes[0], self.engine, X[c], U[c], p).run() for c in chunks]
-        else:
-            lanes = len(self._lanes)
-            work = [chunks[k::lanes] for k in range(lanes)]
+        # Whole batches per lane where possible, contiguous rows so results stay in order.
+        lanes = max(1, min(len(self._lanes), -(-len(X) // BATCH)))
+        bounds = np.linspace(0, len(X), lanes + 1).round().astype(int)
+        work = [slice(bounds[k], bounds[k + 1]) for k in range(lanes)]
 
-            def lane(k):
-                return [_Batch(self._lanes[k], self.engine, X[c], U[c], p).run() for c in work[k]]
+        def lane(k):
+            return _Batch(self._lanes[k], self.engine, X[work[k]], U[work[k]], p).run()
 
-            with ThreadPoolExecutor(lanes) as pool:
-                done = list(pool.map(lane, range(lanes)))
-            parts = [None] * len(chunks)
-            for k in range(lanes):
-                for i, result in zip(range(k, len(chunks), lanes), done[k]):
-                    parts[i] = result
-        return [stride for part in parts for stride in part]
+        if lanes == 1:
+            return lane(0)
+        with ThreadPoolExecutor(lanes) as pool:
+            done = list(pool.map(lane, range(lanes)))
+        return [stride for part in done for stride in part]
 
 
 class _Batch:
-    """One call's worth of strides (at most BATCH), with their state as arrays."""
+    """The strides of one lane, with their state as arrays; each compiled call takes
+    them :data:`~baslip.stride.BATCH` at a time."""
 
     def __init__(self, functions: StrideFunctions, engine: CompiledEngine, X, U, p):
         self.functions, self.engine = functions, engine
@@ -184,12 +183,17 @@ class _Batch:
 
 
 def _call(kernel, *columns):
-    """Call a batched kernel on the first n columns of each input (padded to BATCH by
-    repeating the last column); outputs keep only their first n strides' columns."""
-    n = np.atleast_2d(columns[0]).shape[1] if np.ndim(columns[0]) > 1 else len(columns[0])
-    padded = [_pad(np.atleast_2d(c), n) for c in columns]
-    outputs = kernel(*padded)
-    return tuple(_unpad(o, n) for o in outputs)
+    """Call a batched kernel on the n columns of each input, BATCH columns a call (the
+    last call padded by repeating the last column); the outputs of the n strides, their
+    columns side by side."""
+    columns = [np.atleast_2d(c) for c in columns]
+    n = columns[0].shape[1]
+    parts = []
+    for start in range(0, n, BATCH):
+        stop = min(start + BATCH, n)
+        outputs = kernel(*(_pad(c[:, start:stop], stop - start) for c in columns))
+        parts.append([_unpad(o, stop - start) for o in outputs])
+    return tuple(np.hstack(outs) for outs in zip(*parts))
 
 
 def _pad(block: np.ndarray, n: int) -> np.ndarray:

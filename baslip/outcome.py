@@ -134,10 +134,12 @@ def _refine_root(lo: float, hi: float, theta_h: float, w: float, clearance: floa
             hi = t
         slope = -g * t - d * w * math.cos(theta_h + w * t)
         t_new = t - height / slope if slope < 0.0 else 0.5 * (lo + hi)
+        # Converged before the bracket test: a Newton update that rounds to nothing lands
+        # on the bracket's end, which would otherwise force a needless bisection.
+        if abs(t_new - t) <= 1e-15 * t or hi - lo <= 1e-15 * hi:
+            return t_new if lo <= t_new <= hi else t
         if not lo < t_new < hi:
             t_new = 0.5 * (lo + hi)
-        if abs(t_new - t) <= 1e-15 * t or hi - lo <= 1e-15 * hi:
-            return t_new
         t = t_new
     return t
 

@@ -55,8 +55,11 @@ from .model import (
     touchdown_map,
 )
 
-#: Step counts per stance phase of the compiled final pass.
-TIERS = (16, 32, 64, 128, 256, 512, 1024)
+#: Step counts per stance phase of the compiled final pass, 1.5 apart up to 256: the
+#: error scales as N^-8, so each count is 10 to 25 times more accurate than the one
+#: before, and a stride is not pushed to twice the steps it needs (as with counts 2
+#: apart). The few stiff strides beyond 256 steps double.
+TIERS = (16, 24, 32, 48, 64, 96, 128, 192, 256, 512, 1024)
 #: Stance steps per scout call.
 SCOUT_STEPS = 24
 #: Strides per call of the batched functions.
