@@ -19,18 +19,22 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from .engine import (
+    REFINE,
+    UNSURE,
     CompiledEngine,
-    first_fall_step,
-    first_grazing_step,
-    first_rise,
+    first_rises,
+    grazing_steps,
+    hermite_roots,
+    stride_of_verdict,
     touchdown_fall,
-    hermite_root,
 )
 from .flow import DOP853
 from .model import PARAMS, STANCE
-from .outcome import Stride, precheck
+from .outcome import Stride, prechecks
 from .stride import (
     BATCH,
+    CLEARANCES,
+    DIAGNOSTICS,
     MAX_SCOUT_STEP_RATE,
     MAX_STEP_RATE,
     PREDICTION_MARGIN,
@@ -94,13 +98,10 @@ class _Batch:
 
     def _precheck(self) -> np.ndarray:
         """The closed-form falls, and the touchdown time of the rest [s] (NaN after a fall)."""
-        t_descent = np.full(self.n, np.nan)
-        for i in range(self.n):
-            fallen, t_guess = precheck(self.X[i], self.U[i], self.p)
+        falls, t_descent = prechecks(self.X, self.U, self.p)
+        for i, fallen in enumerate(falls):
             if fallen is not None:
                 self.results[i] = fallen
-            else:
-                t_descent[i] = t_guess
         return t_descent
 
     # -- stance ----------------------------------------------------------------------
@@ -126,26 +127,19 @@ class _Batch:
         """One scout call per stride: event estimates for the strides whose stance it
         covers cleanly; the others stay pending for the careful path."""
         X, U, p = self.X[live], self.U[live], self.p
-        rate = np.array([stiffness_rate(x, u, p) for x, u in zip(X, U)])
+        rate = stiffness_rate(X, U, p)
         h = np.minimum(half_period(p) / SCOUT_STEPS_PER_HALF_PERIOD, MAX_SCOUT_STEP_RATE / rate)
         theta = np.vstack([U.T, _columns(p, len(live))])
         nodes, rates, clearance, errors = _call(self.functions.batch("stance_scout"), x_td, h, theta)
         m = SCOUT_STEPS
         nodes = nodes.reshape(STANCE.size, len(live), m + 1)
         rates = rates.reshape(STANCE.size, len(live), m + 1)
-        clearance = clearance.reshape(3, len(live), m)
+        clearance = clearance.reshape(len(CLEARANCES), len(live), m)
         errors = errors.reshape(len(live), m)
-        rho0 = p[PARAMS.index("rho0")]
-        found = []
-        for k in range(len(live)):
-            events = _events_in_one_call(nodes[:, k], rates[:, k], clearance[:, k], h[k], rho0)
-            if events is not None:
-                bottom, liftoff, last = events
-                found.append((k, bottom, liftoff, float(np.sum(errors[k, :last]))))
-        if not found:
+        clean, bottom, liftoff, error = _events_in_one_call(nodes, rates, clearance, errors, h, p[PARAMS.index("rho0")])
+        if not clean.any():
             return None
-        rows, bottom, liftoff, error = (np.array(v) for v in zip(*found))
-        return live[rows], bottom, liftoff, rate[rows], h[rows], error
+        return live[clean], bottom[clean], liftoff[clean], rate[clean], h[clean], error[clean]
 
     def _final(self, live, t_descent, t_compression, t_decompression, rate, h, error) -> None:
         """Final passes grouped by step count; a stride whose error estimate is too large
@@ -169,17 +163,14 @@ class _Batch:
             active &= tier < len(TIERS)  # past the finest count: the careful path decides
 
     def _judge(self, rows, apex, durations, diagnostics) -> np.ndarray:
-        """Set the results of settled strides (the checks of :meth:`CompiledEngine.judge`,
-        column by column); True where the error estimate asks for more steps. Strides the
-        checks cannot vouch for stay pending."""
-        refine = np.zeros(len(rows), dtype=bool)
-        for k, i in enumerate(rows):
-            verdict = self.engine.judge(apex[:, k], durations[:, k], diagnostics[:, k])
-            if verdict == "refine":
-                refine[k] = True
-            elif verdict is not None:
-                self.results[i] = verdict
-        return refine
+        """Set the results of settled strides (the verdicts of :meth:`CompiledEngine.judge`,
+        for all columns at once); True where the error estimate asks for more steps.
+        Strides the checks cannot vouch for stay pending."""
+        codes = self.engine.judge_many(apex, durations, diagnostics)
+        for k in np.nonzero((codes != REFINE) & (codes != UNSURE))[0]:
+            self.results[rows[k]] = stride_of_verdict(int(codes[k]), apex[:, k], durations[:, k],
+                                                      diagnostics[DIAGNOSTICS.index("error"), k])
+        return codes == REFINE
 
 
 def _call(kernel, *columns):
@@ -211,21 +202,26 @@ def _columns(p, n: int) -> np.ndarray:
     return np.repeat(np.asarray(p, float)[:, None], n, axis=1)
 
 
-def _events_in_one_call(nodes, rates, clearance, h: float, rho0: float):
-    """(bottom, liftoff [s], steps up to liftoff) when one scout call covers the stance
-    cleanly: both events bracketed, no clearance reaching zero before the liftoff step and
-    no grazing peak of rho; else None, and the careful path takes the stride."""
-    times = h * np.arange(nodes.shape[1])
-    rhodot = STANCE.get(nodes, "rhodot")
-    j = first_rise(rhodot)
-    if j is None:
-        return None
-    bottom = hermite_root(times[j - 1 : j + 1], rhodot[j - 1 : j + 1], rates[3, j - 1 : j + 1])
-    stretch = np.where(times >= bottom, STANCE.get(nodes, "rho") - rho0, -1.0)
-    k = first_rise(stretch)
-    if k is None or first_fall_step(clearance, k - 1) is not None:
-        return None
-    graze = first_grazing_step(stretch, rhodot, h)
-    if graze is not None and graze < k - 1:
-        return None
-    return bottom, hermite_root(times[k - 1 : k + 1], stretch[k - 1 : k + 1], rhodot[k - 1 : k + 1]), k - 1
+def _events_in_one_call(nodes, rates, clearance, errors, h, rho0: float):
+    """For each stride (the middle axis of ``nodes``, ``rates``, ``clearance``; the rows
+    of ``errors`` and ``h``): whether one scout call covers its stance cleanly, with both
+    events bracketed, no clearance reaching zero before the liftoff step and no grazing
+    peak of rho; and its bottom and liftoff estimates [s] and summed error estimate up to
+    the liftoff step. The others go to the careful path. The same tests as the scalar
+    scout (:meth:`CompiledEngine._scout`), for all strides at once."""
+    n, m = errors.shape
+    rows = np.arange(n)
+    times = h[:, None] * np.arange(m + 1)[None, :]
+    rhodot, rho_rate = nodes[STANCE.index("rhodot")], rates[STANCE.index("rhodot")]
+    has_bottom, j = first_rises(rhodot)
+    bottom = hermite_roots(times[rows, j - 1], times[rows, j], rhodot[rows, j - 1], rhodot[rows, j],
+                           rho_rate[rows, j - 1], rho_rate[rows, j])
+    stretch = np.where(times >= bottom[:, None], nodes[STANCE.index("rho")] - rho0, -1.0)
+    has_liftoff, k = first_rises(stretch)
+    before_liftoff = np.arange(m)[None, :] < (k - 1)[:, None]
+    fell = ((clearance <= 0.0).any(axis=0) & before_liftoff).any(axis=1)
+    grazed = (grazing_steps(stretch, rhodot, h[:, None]) & before_liftoff).any(axis=1)
+    clean = has_bottom & has_liftoff & ~fell & ~grazed
+    liftoff = hermite_roots(times[rows, k - 1], times[rows, k], stretch[rows, k - 1], stretch[rows, k],
+                            rhodot[rows, k - 1], rhodot[rows, k])
+    return clean, bottom, liftoff, np.where(before_liftoff, errors, 0.0).sum(axis=1)

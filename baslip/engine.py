@@ -41,6 +41,10 @@ SCOUT_REFINEMENTS = 2
 #: The event must end the phase within this many grid steps of the grid's end.
 LAST_STEP_RANGE = (0.0, 2.0)
 
+_RHO, _RHODOT = STANCE.index("rho"), STANCE.index("rhodot")
+_RHO0 = PARAMS.index("rho0")
+_SCOUT_NODES = np.arange(SCOUT_STEPS + 1)
+
 
 @dataclass(frozen=True)
 class Scouted:
@@ -135,7 +139,7 @@ class CompiledEngine:
         rate = stiffness_rate(X, u, p)
         h = min(half_period(p) / SCOUT_STEPS_PER_HALF_PERIOD, MAX_SCOUT_STEP_RATE / rate)
         horizon = STANCE_HORIZON_HALF_PERIODS * half_period(p)
-        rho0 = PARAMS.get(p, "rho0")
+        rho0 = float(p[_RHO0])
         t0, bottom, error, x_td, refinements = 0.0, None, 0.0, x0, SCOUT_REFINEMENTS
         while t0 < horizon:
             nodes, rates, clearance, errors = self.functions.scout(x0, h, theta)
@@ -146,15 +150,15 @@ class CompiledEngine:
                     return None
                 refinements, h, t0, x0, bottom, error = refinements - 1, h / 4, 0.0, x_td, None, 0.0
                 continue
-            times = t0 + h * np.arange(SCOUT_STEPS + 1)
-            rhodot = STANCE.get(nodes, "rhodot")
+            times = t0 + h * _SCOUT_NODES
+            rhodot = nodes[_RHODOT]
             if bottom is None:
                 j = first_rise(rhodot)
                 if j is not None:
-                    bottom = hermite_root(times[j - 1 : j + 1], rhodot[j - 1 : j + 1], rates[3, j - 1 : j + 1])
+                    bottom = hermite_root(times[j - 1 : j + 1], rhodot[j - 1 : j + 1], rates[_RHODOT, j - 1 : j + 1])
             liftoff_step = None
             if bottom is not None:
-                stretch = np.where(times >= bottom, STANCE.get(nodes, "rho") - rho0, -1.0)
+                stretch = np.where(times >= bottom, nodes[_RHO] - rho0, -1.0)
                 liftoff_step = first_rise(stretch)
                 graze = first_grazing_step(stretch, rhodot, h)
                 if graze is not None and (liftoff_step is None or graze < liftoff_step - 1):
@@ -215,43 +219,80 @@ class CompiledEngine:
         """The stride, "refine" (error estimate too large) or None (cannot vouch for it)."""
         apex, durations = np.asarray(apex).ravel(), np.asarray(durations).ravel()
         d = DIAGNOSTICS.to_dict(diagnostics)
-        reached = dict(zip(PHASES, durations.tolist()))
-        if not _events_in_last_step(d, reached):
-            return None
-        fallen = [name for name in CLEARANCES if d[f"{name}_min"] <= 0.0]
-        if len(fallen) > 1:
-            return None  # the pass knows which clearances fell, not which fell first
-        if fallen:
-            return Stride(None, {"descent": reached["descent"]}, _CLEARANCE_FALLS[fallen[0]])
-        if d["zdot_lo"] <= 0.0:
-            return Stride(None, {k: reached[k] for k in PHASES[:3]}, Fall.LIFTOFF_DESCENDING)
-        if not np.all(np.isfinite(apex)) or not np.isfinite(d["error"]):
-            return None
-        if d["error"] > self.tolerance:
-            return "refine"
-        return Stride(apex, reached, None, error=d["error"])
+        code = next((code for holds, code in verdict_rules(d, durations, apex, self.tolerance) if holds), ACCEPTED)
+        return stride_of_verdict(int(code), apex, durations, d["error"])
+
+    def judge_many(self, apex, durations, diagnostics) -> np.ndarray:
+        """:meth:`judge`'s verdict codes of many final passes (outputs side by side, one
+        column each) at once; :func:`stride_of_verdict` turns a code into the result."""
+        d = dict(zip(DIAGNOSTICS.names, np.asarray(diagnostics)))
+        rules = verdict_rules(d, durations, apex, self.tolerance)
+        return np.select([holds for holds, _ in rules], [code for _, code in rules], ACCEPTED)
 
 
-def _events_in_last_step(d: dict, reached: dict) -> bool:
-    """Each stance event ends its phase's last step, converged, with no earlier crossing."""
+#: Verdict codes of a final pass: accepted, more steps needed, cannot vouch for it (the
+#: caller falls back), liftoff descending, and a fall of clearance i at FELL + i.
+ACCEPTED, REFINE, UNSURE, LIFTOFF_DESCENDING, FELL = 0, 1, 2, 3, 4
+_COMPRESSION, _DECOMPRESSION = PHASES.index("compression"), PHASES.index("decompression")
+
+
+def verdict_rules(d, durations, apex, tolerance: float):
+    """(condition, verdict code) pairs in the order they are tried; the first that holds
+    decides, and a pass that meets none is accepted. ``d`` maps the DIAGNOSTICS names to
+    numbers (one pass) or to rows (many passes, one per column, as are ``durations`` and
+    ``apex``): only operators that work on both are used."""
     lo, hi = LAST_STEP_RANGE
-    return (
-        lo < d["bottom_last_step"] < hi
-        and lo < d["liftoff_last_step"] < hi
-        and d["rhodot_max_compression"] < 0.0
-        and d["stretch_max_decompression"] < 0.0
-        and abs(d["bottom_update"]) <= NEWTON_CONVERGED * reached["compression"]
-        and abs(d["liftoff_update"]) <= NEWTON_CONVERGED * reached["decompression"]
+    # Each stance event ends its phase's last step, converged, with no earlier crossing.
+    events_clean = (
+        (lo < d["bottom_last_step"]) & (d["bottom_last_step"] < hi)
+        & (lo < d["liftoff_last_step"]) & (d["liftoff_last_step"] < hi)
+        & (d["rhodot_max_compression"] < 0.0) & (d["stretch_max_decompression"] < 0.0)
+        & (abs(d["bottom_update"]) <= NEWTON_CONVERGED * durations[_COMPRESSION])
+        & (abs(d["liftoff_update"]) <= NEWTON_CONVERGED * durations[_DECOMPRESSION])
     )
+    fell = [d[f"{name}_min"] <= 0.0 for name in CLEARANCES]
+    fallen = sum(1 * f for f in fell)
+    which = sum(i * f for i, f in enumerate(fell))  # the one that fell, when one did
+    finite = np.isfinite(apex).all(axis=0) & np.isfinite(d["error"])
+    return (
+        (~np.asarray(events_clean), UNSURE),
+        (fallen > 1, UNSURE),  # the pass knows which clearances fell, not which fell first
+        (fallen == 1, FELL + which),
+        (d["zdot_lo"] <= 0.0, LIFTOFF_DESCENDING),
+        (~finite, UNSURE),
+        (d["error"] > tolerance, REFINE),
+    )
+
+
+def stride_of_verdict(code: int, apex, durations, error: float) -> Stride | str | None:
+    """The result a verdict code stands for: the stride, "refine" or None."""
+    reached = dict(zip(PHASES, np.asarray(durations, dtype=float).tolist()))
+    if code == ACCEPTED:
+        return Stride(np.array(apex, dtype=float), reached, None, error=float(error))
+    if code == REFINE:
+        return "refine"
+    if code == LIFTOFF_DESCENDING:
+        return Stride(None, {k: reached[k] for k in PHASES[:3]}, Fall.LIFTOFF_DESCENDING)
+    if code >= FELL:
+        return Stride(None, {"descent": reached["descent"]}, _CLEARANCE_FALLS[CLEARANCES[code - FELL]])
+    return None
 
 
 def first_grazing_step(stretch: np.ndarray, rhodot: np.ndarray, h: float) -> int | None:
     """The first step where rho peaks (rhodot falls through 0) with both nodes below rho0
     but within the rise that the step's speed allows: rho may touch rho0 in between."""
-    peak = (rhodot[:-1] > 0.0) & (rhodot[1:] <= 0.0) & (stretch[:-1] < 0.0) & (stretch[1:] < 0.0)
-    reach = np.maximum(stretch[:-1] + 0.5 * h * rhodot[:-1], stretch[1:] - 0.5 * h * rhodot[1:])
-    steps = np.nonzero(peak & (reach > 0.0))[0]
+    steps = np.nonzero(grazing_steps(stretch, rhodot, h))[0]
     return int(steps[0]) if len(steps) else None
+
+
+def grazing_steps(stretch: np.ndarray, rhodot: np.ndarray, h) -> np.ndarray:
+    """Which steps (between nodes along the last axis) may hide a grazing liftoff: rho
+    peaks with both nodes below rho0, within the rise the step's speed allows."""
+    before, after = stretch[..., :-1], stretch[..., 1:]
+    rate_before, rate_after = rhodot[..., :-1], rhodot[..., 1:]
+    peak = (rate_before > 0.0) & (rate_after <= 0.0) & (before < 0.0) & (after < 0.0)
+    reach = np.maximum(before + 0.5 * h * rate_before, after - 0.5 * h * rate_after)
+    return peak & (reach > 0.0)
 
 
 def touchdown_fall(x_touchdown, com_height: float, t_descent: float) -> Stride | None:
@@ -271,11 +312,43 @@ def first_rise(values: np.ndarray) -> int | None:
     return int(rises[0]) + 1 if len(rises) else None
 
 
+def first_rises(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`first_rise` of each row: (whether it has one, its index; 1 where none)."""
+    rises = (values[:, 1:] >= 0.0) & (values[:, :-1] < 0.0)
+    return rises.any(axis=1), np.argmax(rises, axis=1) + 1
+
+
 def first_fall_step(clearance: np.ndarray, last_step: int | None) -> int | None:
     """The earliest step (up to the liftoff step) in which a clearance reaches zero."""
     steps = clearance.shape[1] if last_step is None else last_step
     hit = np.nonzero(np.any(clearance[:, :steps] <= 0.0, axis=0))[0]
     return int(hit[0]) if len(hit) else None
+
+
+def hermite_roots(t0, t1, g0, g1, dg0, dg1) -> np.ndarray:
+    """:func:`hermite_root` of many brackets at once (arrays of equal length), with the
+    same arithmetic step by step, so each root is the scalar one to the bit."""
+    t0, span = np.asarray(t0, dtype=float), np.asarray(t1, dtype=float) - t0
+    g0, g1 = np.asarray(g0, dtype=float), np.asarray(g1, dtype=float)
+    m0, m1 = dg0 * span, dg1 * span
+    with np.errstate(divide="ignore", invalid="ignore"):  # rows without a bracket are never read
+        s = g0 / (g0 - g1)
+        active = np.ones(s.shape, dtype=bool)
+        for _ in range(HERMITE_NEWTON):
+            s2, s3 = s * s, s * s * s
+            value = (2 * s3 - 3 * s2 + 1) * g0 + (s3 - 2 * s2 + s) * m0 + (3 * s2 - 2 * s3) * g1 + (s3 - s2) * m1
+            rate = 6 * (s2 - s) * (g0 - g1) + (3 * s2 - 4 * s + 1) * m0 + (3 * s2 - 2 * s) * m1
+            active &= ~(rate <= 0.0)
+            step = value / rate
+            s = np.where(active, np.minimum(np.maximum(s - step, 0.0), 1.0), s)
+            active &= ~(np.abs(step) < 1e-14)
+            if not active.any():
+                break
+    return t0 + span * s
+
+
+#: Newton iterations on the cubic Hermite interpolant of an event guard.
+HERMITE_NEWTON = 8
 
 
 def hermite_root(t, g, dg) -> float:
@@ -284,7 +357,7 @@ def hermite_root(t, g, dg) -> float:
     g0, g1 = float(g[0]), float(g[1])
     m0, m1 = float(dg[0]) * span, float(dg[1]) * span
     s = g0 / (g0 - g1)  # the secant's root, then Newton on the cubic, kept in [0, 1]
-    for _ in range(8):
+    for _ in range(HERMITE_NEWTON):
         s2, s3 = s * s, s * s * s
         value = (2 * s3 - 3 * s2 + 1) * g0 + (s3 - 2 * s2 + s) * m0 + (3 * s2 - 2 * s3) * g1 + (s3 - s2) * m1
         rate = 6 * (s2 - s) * (g0 - g1) + (3 * s2 - 4 * s + 1) * m0 + (3 * s2 - 2 * s) * m1

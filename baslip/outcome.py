@@ -14,10 +14,11 @@ from enum import Enum
 import numpy as np
 
 from .control import CONTROL
-from .model import PARAMS, descent_foot_height
+from .model import APEX, PARAMS, descent_foot_height
 
 _RHO0, _D, _G = PARAMS.index("rho0"), PARAMS.index("d"), PARAMS.index("g")
 _THETA_TD = CONTROL.index("theta_td")
+_Z, _THETA_H, _SPIN = APEX.index("z"), APEX.index("theta_h"), APEX.index("theta_h_dot")
 
 PHASES = ("descent", "compression", "decompression", "ascent")
 
@@ -104,22 +105,54 @@ def touchdown_guess(X, u, p) -> float | None:
 
     Returns None when the foot cannot reach the ground. The foot height is
     h(t) = c - g t^2/2 - d sin(theta_h + w t) with c = z - rho0 cos(theta_td), so
-    h < 0 for all t > sqrt(2 (c + d) / g): the first root lies in that bracket. The
-    rootfinder then converges on it from this guess.
+    h < 0 for all t > sqrt(2 (c + d) / g): the first root lies in that bracket. It is
+    found on a grid of :data:`TOUCHDOWN_GRID` points over the bracket, then refined to
+    round-off; the rootfinders of the engines converge on it from this guess.
+    :func:`touchdown_guesses` gives the same numbers for many apexes at once.
     """
-    z, theta_h, spin = float(X[0]), float(X[1]), float(X[3])
+    z, theta_h, spin = float(X[_Z]), float(X[_THETA_H]), float(X[_SPIN])
     rho0, d, g = float(p[_RHO0]), float(p[_D]), float(p[_G])
     theta_td = float(u[_THETA_TD])
     if not abs(theta_td) < math.pi / 2:
         return None
     clearance = z - rho0 * math.cos(theta_td)
-    t_max = math.sqrt(2.0 * max(clearance + d, 0.0) / g) + 1e-9
-    grid = np.linspace(0.0, t_max, 257)
+    grid = _descent_bound(clearance, d, g) * _GRID_FRACTIONS
     below = np.nonzero(descent_foot_height(grid[1:], z, theta_h, spin, theta_td, d, rho0, g) <= 0.0)[0]
     if len(below) == 0:
         return None
-    lo, hi = grid[below[0]], grid[below[0] + 1]
-    return _refine_root(lo, hi, theta_h, spin, clearance, d, g)
+    return _refine_root(grid[below[0]], grid[below[0] + 1], theta_h, spin, clearance, d, g)
+
+
+#: Points of the grid that brackets the first touchdown root.
+TOUCHDOWN_GRID = 257
+_GRID_FRACTIONS = np.linspace(0.0, 1.0, TOUCHDOWN_GRID)
+
+
+def touchdown_guesses(X: np.ndarray, U: np.ndarray, p) -> np.ndarray:
+    """:func:`touchdown_guess` from each apex (rows of X, n x 4) under the rows of U
+    (n x 5), the grid search done for all rows at once; NaN where the foot cannot reach
+    the ground."""
+    X, U, p = np.asarray(X, dtype=float), np.asarray(U, dtype=float), np.asarray(p, dtype=float)
+    z, theta_h, spin = X[:, _Z], X[:, _THETA_H], X[:, _SPIN]
+    rho0, d, g = float(p[_RHO0]), float(p[_D]), float(p[_G])
+    theta_td = U[:, _THETA_TD]
+    guesses = np.full(len(X), np.nan)
+    reaches = np.abs(theta_td) < math.pi / 2
+    clearance = z - rho0 * np.cos(theta_td)
+    grid = _descent_bound(clearance, d, g)[:, None] * _GRID_FRACTIONS[None, :]
+    height = descent_foot_height(grid[:, 1:], z[:, None], theta_h[:, None], spin[:, None], theta_td[:, None], d, rho0, g)
+    below = height <= 0.0
+    found = reaches & below.any(axis=1)
+    first = np.argmax(below, axis=1)
+    for i in np.nonzero(found)[0]:
+        lo, hi = grid[i, first[i]], grid[i, first[i] + 1]
+        guesses[i] = _refine_root(lo, hi, float(theta_h[i]), float(spin[i]), float(clearance[i]), d, g)
+    return guesses
+
+
+def _descent_bound(clearance, d: float, g: float):
+    """Time after apex [s] past which the foot is surely below ground (numbers or arrays)."""
+    return np.sqrt(2.0 * np.maximum(clearance + d, 0.0) / g) + 1e-9
 
 
 def _refine_root(lo: float, hi: float, theta_h: float, w: float, clearance: float, d: float, g: float) -> float:
@@ -145,16 +178,42 @@ def _refine_root(lo: float, hi: float, theta_h: float, w: float, clearance: floa
 
 
 def precheck(X, u, p) -> tuple[Stride | None, float | None]:
-    """Checks before any integration: a fall found already, or the touchdown time guess [s]."""
+    """Checks before any integration: a fall found already, or the touchdown time guess [s].
+    :func:`prechecks` does the same for many apexes at once."""
     if not (np.all(np.isfinite(X)) and np.all(np.isfinite(u)) and np.all(np.isfinite(p))):
         return Stride(None, {}, Fall.NOT_FINITE), None
-    foot_height = float(X[0]) - float(p[_D]) * math.sin(float(X[1])) - float(p[_RHO0]) * math.cos(float(u[_THETA_TD]))
-    if foot_height < 0.0:
+    if _foot_height_at_apex(X[_Z], X[_THETA_H], u[_THETA_TD], p) < 0.0:
         return Stride(None, {}, Fall.FOOT_BELOW_GROUND), None
     t_guess = touchdown_guess(X, u, p)
     if t_guess is None:
         return Stride(None, {}, Fall.NO_TOUCHDOWN), None
     return None, t_guess
+
+
+def _foot_height_at_apex(z, theta_h, theta_td, p):
+    """Foot height [m] at the apex, with the leg at its touchdown angle (numbers or arrays)."""
+    return z - p[_D] * np.sin(theta_h) - p[_RHO0] * np.cos(theta_td)
+
+
+def prechecks(X: np.ndarray, U: np.ndarray, p) -> tuple[list[Stride | None], np.ndarray]:
+    """:func:`precheck` of each row of X (n x 4) under the rows of U (n x 5): the falls
+    found before any integration (None for the rest) and the touchdown time guesses [s]
+    (NaN after a fall)."""
+    X, U, p = np.asarray(X, dtype=float), np.asarray(U, dtype=float), np.asarray(p, dtype=float)
+    falls: list[Stride | None] = [None] * len(X)
+    finite = np.isfinite(X).all(axis=1) & np.isfinite(U).all(axis=1) & bool(np.isfinite(p).all())
+    if not finite.all():  # keep non-finite rows out of the trigonometry (no warnings)
+        X, U = np.where(finite[:, None], X, 0.0), np.where(finite[:, None], U, 0.0)
+    above = finite & (_foot_height_at_apex(X[:, _Z], X[:, _THETA_H], U[:, _THETA_TD], p) >= 0.0)
+    guesses = np.full(len(X), np.nan)
+    guesses[above] = touchdown_guesses(X[above], U[above], p)
+    for i in np.nonzero(~finite)[0]:
+        falls[i] = Stride(None, {}, Fall.NOT_FINITE)
+    for i in np.nonzero(finite & ~above)[0]:
+        falls[i] = Stride(None, {}, Fall.FOOT_BELOW_GROUND)
+    for i in np.nonzero(above & np.isnan(guesses))[0]:
+        falls[i] = Stride(None, {}, Fall.NO_TOUCHDOWN)
+    return falls, guesses
 
 
 def vec(v) -> np.ndarray:

@@ -27,10 +27,12 @@ All inputs and outputs are SI units and radians.
 
 from __future__ import annotations
 
+import functools
 import math
 import pathlib
 
 import casadi as ca
+import numpy as np
 
 from . import flow
 from .compile import Kernel, compile_kernels
@@ -130,32 +132,40 @@ def stance_guards() -> tuple[ca.Function, ca.Function]:
     )
 
 
-def stiffness_rate(X, u, p) -> float:
-    """The fastest rate of the stance dynamics [1/s], for the step size.
+def stiffness_rate(X, u, p):
+    """The fastest rate of the stance dynamics [1/s], for the step size: a number for one
+    apex ``X`` and control ``u``, an array for rows of many.
 
     The larger of the spring's sqrt(k/m), the hip damping Kd/(I + m d^2), the hip
     stiffness sqrt(|Kp|/(I + m d^2)), the trunk spin |theta_h_dot| and the leg's sweep
     rate |ydot|/rho0 (``I + m d^2`` is the trunk's inertia about the hip).
     """
-    m, inertia, k, rho0, d = (float(p[PARAMS.index(n)]) for n in ("m", "I", "k", "rho0", "d"))
+    m, inertia, k, rho0, d = (float(p[i]) for i in _RATE_PARAMS)
     inertia_hip = inertia + m * d**2
-    return max(
+    X, u = np.asarray(X, dtype=float).T, np.asarray(u, dtype=float).T  # entries first
+    rates = (
         math.sqrt(k / m),
-        abs(float(u[_KD])) / inertia_hip,
-        math.sqrt(abs(float(u[_KP])) / inertia_hip),
-        abs(float(X[_SPIN])),
-        abs(float(X[_YDOT])) / rho0,
+        abs(u[_KD]) / inertia_hip,
+        (abs(u[_KP]) / inertia_hip) ** 0.5,
+        abs(X[_SPIN]),
+        abs(X[_YDOT]) / rho0,
     )
+    if X.ndim == 1:
+        return float(max(rates))
+    return functools.reduce(np.maximum, rates)
 
 
 _KP, _KD = CONTROL.index("Kp"), CONTROL.index("Kd")
+_RATE_PARAMS = tuple(PARAMS.index(n) for n in ("m", "I", "k", "rho0", "d"))
 _SPIN, _YDOT = APEX.index("theta_h_dot"), APEX.index("ydot")
 
 
 def half_period(p) -> float:
     """The spring's half-period pi sqrt(m/k) [s]."""
-    pr = PARAMS.unpack(p)
-    return math.pi * math.sqrt(pr["m"] / pr["k"])
+    return math.pi * math.sqrt(float(p[_M]) / float(p[_K]))
+
+
+_M, _K = PARAMS.index("m"), PARAMS.index("k")
 
 
 class StanceFlow:

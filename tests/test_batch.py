@@ -6,7 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from baslip import Params, ReturnMap, Tolerances
+from baslip import Fall, Params, ReturnMap, Tolerances
+from baslip.outcome import precheck, prechecks
 
 PARAMS = Params()
 GAIT_X = np.array([0.4, -1.5657, 0.5, 0.164274])
@@ -59,3 +60,27 @@ def test_batch_in_the_virtual_machine_matches_the_compiled_batch(rmap):
         assert ours.fall == theirs.fall
         if ours.ok:
             assert np.array_equal(ours.apex, theirs.apex)
+
+
+def test_batched_prechecks_are_the_single_prechecks():
+    """The closed-form checks for many apexes at once give each apex's own fall, and the
+    same touchdown guess to the bit, over a box with non-finite entries, feet below
+    ground and legs that cannot reach it."""
+    rng = np.random.default_rng(1)
+    n = 2000
+    X = np.column_stack([rng.uniform(0.0, 1.5, n), rng.uniform(-4, 4, n), rng.uniform(-3, 3, n),
+                         rng.uniform(-20, 20, n)])
+    U = np.column_stack([rng.uniform(-20, 20, n), rng.uniform(0, 5, n), rng.uniform(-3, 3, n),
+                         rng.uniform(-5, 5, n), rng.uniform(-2, 2, n)])
+    X[::97, 0], U[::89, 3] = np.nan, np.inf
+    falls, guesses = prechecks(X, U, PARAMS.vector())
+    seen = set()
+    for x, u, fall, guess in zip(X, U, falls, guesses):
+        single, single_guess = precheck(x, u, PARAMS.vector())
+        assert (fall is None) == (single is None)
+        if single is None:
+            assert guess == single_guess
+        else:
+            assert fall.fall is single.fall and np.isnan(guess)
+        seen.add(None if single is None else single.fall)
+    assert seen == {None, Fall.NOT_FINITE, Fall.FOOT_BELOW_GROUND, Fall.NO_TOUCHDOWN}
