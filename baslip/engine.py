@@ -40,6 +40,8 @@ NEWTON_CONVERGED = 1e-13
 SCOUT_REFINEMENTS = 2
 #: The event must end the phase within this many grid steps of the grid's end.
 LAST_STEP_RANGE = (0.0, 2.0)
+#: Newton iterations on the cubic Hermite interpolant of an event guard.
+HERMITE_NEWTON = 8
 
 _RHO, _RHODOT = STANCE.index("rho"), STANCE.index("rhodot")
 _RHO0 = PARAMS.index("rho0")
@@ -346,9 +348,6 @@ def hermite_roots(t0, t1, g0, g1, dg0, dg1) -> np.ndarray:
                 break
     return t0 + span * s
 
-
-#: Newton iterations on the cubic Hermite interpolant of an event guard.
-HERMITE_NEWTON = 8
 
 
 def hermite_root(t, g, dg) -> float:
