@@ -151,8 +151,7 @@ def _sweep_map(rows, names, quantity, out_dir) -> Path:
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     draw_map(fig, ax, rows, names, quantity)
     ax.legend(fontsize=8, loc="upper right")
-    path = out_dir / f"{quantity}_map.png"
-    return _save(fig, path)
+    return _save(fig, _in(out_dir, f"{quantity}_map.png"))
 
 
 def draw_map(fig, ax, rows, names, quantity) -> None:
@@ -223,9 +222,13 @@ def random_figure(rows: list[dict], region_rows: list[dict], names, out_dir: Pat
 # --- convergence regions --------------------------------------------------------------------
 
 
-def basin_figures(basin_rows, stable, unstable, example_index, example_unstable, trajectories, study, out_dir) -> list[Path]:
+def basin_figures(basin_rows, stable, unstable, example_index, example_unstable, trajectories, grid, out_dir) -> list[Path]:
+    """The convergence region of one stable point and the union of all, over the grid of
+    starting states ``grid`` = (ydot values [m/s], z values [m]); and each example run
+    (``trajectories``: case -> (outcome, strides, _, apexes)) in the (ydot, z) plane and
+    stride by stride."""
     paths = []
-    ydots, zs = np.array(study.grid[0].values), np.array(study.grid[1].values)
+    ydots, zs = np.array(grid[0], dtype=float), np.array(grid[1], dtype=float)
     converged_by_point: dict[int, set] = {}
     for r in basin_rows:
         if r["outcome"] == "converged":

@@ -61,14 +61,28 @@ class RunResults:
         return frame
 
     def plot(self) -> list:
-        """The run's figures as matplotlib Figures (nothing is written): a sweep's maps
-        over its two quantities, a random sample over its region (and traced boundary),
-        an adaptive run's states and controls, a controller comparison, a branch's
-        diagram and its curves. Basin and optimal studies give none: their figures need
-        simulations that only the run does (they are in the run's folder)."""
+        """The run's figures as matplotlib Figures (nothing is written): a sweep's lines
+        (one quantity) or maps (two), a random sample over its region (and traced boundary),
+        convergence regions and their example runs, the most stable gaits per cell and
+        their trunk motion (one stride of each simulated again), an adaptive run's states
+        and controls, a controller comparison, a branch's diagram and its curves."""
         from . import plots
 
         before = set(plots.plt.get_fignums())
+        if self.kind == "sweep":
+            rows = self.rows("points")
+            plots.sweep_figures(rows, self._swept(rows), None)
+        elif self.kind == "basin":
+            plots.basin_figures(*self._basin_inputs(), None)
+        elif self.kind == "optimal":
+            from .model import Params
+            from .studies.optimal import best_gait_motions, best_rows
+
+            names = self._swept(self.rows("points"))
+            best = best_rows(self.rows("points"), names)
+            plots.sweep_figures(best, names, None)
+            params = Params(**self.summary["provenance"]["problem"]["params"])
+            plots.trunk_motion_figure(best_gait_motions(best, names, params), None)
         if self.kind == "random":
             rows = self.rows("points")
             names = tuple(c[len("sweep_"):] for c in rows[0] if c.startswith("sweep_"))
@@ -81,9 +95,9 @@ class RunResults:
         elif self.kind == "controllers":
             plots.controllers_figure(self.rows("controllers"), self.summary["perturbation"], None)
         drawn = [plots.plt.figure(n) for n in sorted(set(plots.plt.get_fignums()) - before)]
-        return drawn + self._maps_and_diagrams()
+        return drawn + self._diagrams()
 
-    def _maps_and_diagrams(self) -> list:
+    def _diagrams(self) -> list:
         from . import plots
 
         figures = []
@@ -94,17 +108,41 @@ class RunResults:
             if "curve" in self.tables:
                 second = self.summary["curves"]["second"]
                 figures.append(plots.curve_diagram(self.rows("curve"), parameter, second))
-        elif "points" in self.tables:
-            rows = self.rows("points")
-            names = [c[len("sweep_"):] for c in (rows[0] if rows else {}) if c.startswith("sweep_")]
-            if len(names) == 2 and self.kind == "sweep":
-                for quantity in ("spectral_radius", "theta_h"):
-                    fig, ax = plots.plt.subplots(figsize=(6.4, 4.8))
-                    plots.draw_map(fig, ax, rows, names, quantity)
-                    ax.legend(fontsize=8, loc="upper right")
-                    fig.tight_layout()
-                    figures.append(fig)
         return figures
+
+    @staticmethod
+    def _swept(rows: list[dict]) -> list[str]:
+        """The quantities a table's rows were swept over (its ``sweep_`` columns)."""
+        return [c[len("sweep_"):] for c in (rows[0] if rows else {}) if c.startswith("sweep_")]
+
+    def _basin_inputs(self) -> tuple:
+        """The arguments of :func:`baslip.plots.basin_figures` (without the folder), read
+        back from the basin study's files and its source sweep's points."""
+        import numpy as np
+
+        from .model import APEX
+
+        basin_rows = self.rows("basin")
+        source = open_results(self.folder.parent / self.summary["source"]).rows("points")
+        converged = [r for r in source if r["status"] == "converged"]
+        stable = [r for r in converged if r["stable"] is True]
+        unstable = [r for r in converged if r["stable"] is False]
+
+        def at(rows: list[dict], point: dict | None) -> dict | None:
+            if point is None:
+                return None
+            return next((r for r in rows if abs(r["ydot"] - point["ydot"]) <= 1e-12 and abs(r["z"] - point["z"]) <= 1e-12), None)
+
+        example = at(stable, self.summary.get("example_stable_point"))
+        runs = self.rows("trajectories") if "trajectories" in self.tables else []
+        trajectories = {
+            case: (info["outcome"], info["strides"], None,
+                   np.array([[r[n] for n in APEX.names] for r in runs if r["case"] == case]))
+            for case, info in self.summary.get("trajectories", {}).items()
+        }
+        grid = (sorted({r["sweep_ydot"] for r in basin_rows}), sorted({r["sweep_z"] for r in basin_rows}))
+        return (basin_rows, stable, unstable, None if example is None else stable.index(example),
+                at(unstable, self.summary.get("example_unstable_point")), trajectories, grid)
 
     def _default_table(self) -> str:
         wanted = DEFAULT_TABLE.get(self.kind, "points")

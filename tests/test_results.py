@@ -9,6 +9,14 @@ from runs import ROOT
 RESULTS = ROOT / "results"
 
 
+@pytest.fixture(autouse=True)
+def close_figures():
+    yield
+    import matplotlib.pyplot as plt
+
+    plt.close("all")
+
+
 def test_a_sweep_reads_back_with_a_short_repr_a_table_and_figures():
     grid = open_results(RESULTS / "grid_downward")
     assert grid.kind == "sweep" and "points" in grid.tables
@@ -18,7 +26,7 @@ def test_a_sweep_reads_back_with_a_short_repr_a_table_and_figures():
     assert len(frame) == 90 and str(frame["stable"].dtype) == "boolean"
     assert int(frame["stable"].sum()) == grid.summary["stable"]
     figures = grid.plot()
-    assert len(figures) == 2 and "multiplier" in figures[0].axes[1].get_ylabel()
+    assert len(figures) == 2 and "multiplier" in figures[1].axes[1].get_ylabel()
 
 
 def test_failed_rows_keep_a_boolean_stable_column_and_say_why():
@@ -45,7 +53,8 @@ def test_a_folder_without_results_is_a_clear_error(tmp_path):
         open_results(tmp_path)
 
 
-@pytest.mark.parametrize("name, count", [("stable_region_traced", 1), ("adaptive_upright", 2), ("controllers_downward", 1)])
+@pytest.mark.parametrize("name, count", [("stable_region_traced", 1), ("adaptive_upright", 2), ("controllers_downward", 1),
+                                         ("convergence_regions", 4), ("optimal_downward", 3), ("speed_sweep", 4)])
 def test_other_studies_draw_their_figures_without_writing(name, count):
     folder = RESULTS / name
     before = {p: p.stat().st_mtime_ns for p in folder.iterdir()}
@@ -53,3 +62,21 @@ def test_other_studies_draw_their_figures_without_writing(name, count):
     assert len(figures) == count
     assert all(any(ax.get_xlabel() or ax.get_ylabel() for ax in fig.axes) for fig in figures)
     assert {p: p.stat().st_mtime_ns for p in folder.iterdir()} == before
+
+
+def test_convergence_regions_redrawn_from_files_hold_the_counted_cells():
+    """The regions read back are those the run counted: one stable point's and the union."""
+    basin = open_results(RESULTS / "convergence_regions")
+    region, union = basin.plot()[:2]
+    labels = [text.get_text() for fig in (region, union) for legend in fig.axes[0].artists + [fig.axes[0].get_legend()]
+              for text in legend.get_texts() if "cells" in text.get_text()]
+    assert labels == [f"starts that converge ({basin.summary['example_region_states']} cells)",
+                      f"starts that converge ({basin.summary['union_region_states']} cells)"]
+
+
+def test_optimal_gaits_redrawn_show_the_least_radius_per_cell():
+    optimal = open_results(RESULTS / "optimal_downward")
+    frame = optimal.to_dataframe()
+    least = frame[frame["status"] == "converged"]["spectral_radius"].min()
+    trunk = optimal.plot()[2]
+    assert f"radius {least:.3g}" in trunk.axes[0].get_legend().get_texts()[1].get_text()

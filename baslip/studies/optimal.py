@@ -93,6 +93,24 @@ def optimal_worker(chunk: list[dict], problem_path: str, queue) -> None:
         queue.put(None)
 
 
+def best_gait_motions(best: list[dict], names: list[str], params, count: int = 6) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """(label, t [s], theta_h [rad]) over one stride of the ``count`` most stable of the
+    ``best`` rows, simulated at rtol = atol = 1e-12: the trunk motion figure's lines."""
+    from ..control import CONTROL
+    from ..model import APEX
+    from ..returnmap import ReturnMap, Tolerances
+    from ..trajectory import stride_trajectory
+
+    rmap = ReturnMap(Tolerances(1e-12, 1e-12))
+    motions = []
+    for row in sorted(best, key=lambda r: r["spectral_radius"])[:count]:
+        X, u = np.array([row[n] for n in APEX.names]), np.array([row[n] for n in CONTROL.names])
+        motion = stride_trajectory(rmap, X, u, params, strides=1, samples=100)
+        where = ", ".join(f"{n} = {row[key_column(n)]:g}" for n in names)
+        motions.append((f"{where}: radius {row['spectral_radius']:.3g}", motion.t, motion.theta_h))
+    return motions
+
+
 def best_rows(rows: list[dict], names: list[str], where=lambda row: True) -> list[dict]:
     """Per grid point, the verified row of least spectral radius among those ``where``
     accepts (grid points with none are left out)."""

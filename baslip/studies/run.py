@@ -34,7 +34,7 @@ from ..provenance import changed_entries, provenance
 from .. import plots
 from .basin import BASIN_COLUMNS, basin_tasks, basin_worker, run_from, SIMULATION_TOLERANCES
 from .runner import LANES, ResumableCsv, RunReport, Workers, run_tasks, split_lanes
-from .optimal import OPTIMAL_COLUMNS, best_rows, optimal_tasks, optimal_worker
+from .optimal import OPTIMAL_COLUMNS, best_gait_motions, best_rows, optimal_tasks, optimal_worker
 from .controllers import CONTROLLER_COLUMNS, CONTROLLERS, controller_tasks, controllers_worker, lqr_weights
 from .boundary import boundary_segments, read_curves
 from .schema import Adaptive, Basin, Controllers, Optimal, RandomSample, Sweep
@@ -316,7 +316,8 @@ def _run_basin(problem: Problem, study: Basin, out_dir: Path, quiet: bool, lanes
 
     basin_rows = read_points(out_dir / "basin.csv")
     example_index = stable.index(example_stable) if example_stable is not None else None
-    plots.basin_figures(basin_rows, stable, unstable, example_index, example_unstable, trajectories, study, out_dir)
+    grid = (study.grid[0].values, study.grid[1].values)
+    plots.basin_figures(basin_rows, stable, unstable, example_index, example_unstable, trajectories, grid, out_dir)
     grid_size = len(study.grid[0].values) * len(study.grid[1].values)
     union = {(r[key_column("ydot")], r[key_column("z")]) for r in basin_rows if r["outcome"] == "converged"}
     example_cells = sum(1 for r in basin_rows if r["outcome"] == "converged" and r["point"] == example_index)
@@ -343,9 +344,6 @@ def _write_trajectories(path: Path, trajectories: dict) -> None:
 
 def _run_optimal(problem: Problem, study: Optimal, problem_path: Path, out_dir: Path, quiet: bool, lanes: int,
                  workers: Workers = Workers()) -> dict:
-    from ..returnmap import ReturnMap, Tolerances
-    from ..trajectory import stride_trajectory
-
     names = [a.name for a in study.axes]
     keys = [key_column(n) for n in names]
     table = _table(out_dir / "points.csv", keys + OPTIMAL_COLUMNS, keys + ["start"], quiet)
@@ -354,14 +352,7 @@ def _run_optimal(problem: Problem, study: Optimal, problem_path: Path, out_dir: 
     rows = read_points(out_dir / "points.csv")
     best = best_rows(rows, names)
     plots.sweep_figures(best, names, out_dir)
-    rmap = ReturnMap(Tolerances(1e-12, 1e-12))
-    motions = []
-    for row in sorted(best, key=lambda r: r["spectral_radius"])[:6]:
-        X, u = _point(row)
-        motion = stride_trajectory(rmap, X, u, problem.params, strides=1, samples=100)
-        where = ", ".join(f"{n} = {row[key_column(n)]:g}" for n in names)
-        motions.append((f"{where}: radius {row['spectral_radius']:.3g}", motion.t, motion.theta_h))
-    plots.trunk_motion_figure(motions, out_dir)
+    plots.trunk_motion_figure(best_gait_motions(best, names, problem.params), out_dir)
 
     def least(where) -> dict | None:
         candidates = best_rows(rows, names, where)
