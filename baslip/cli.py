@@ -1,6 +1,6 @@
 """The ``baslip`` command (also ``python -m baslip``).
 
-    baslip solve PROBLEM.yaml [--out DIR] [--jobs N] [--quiet | --verbose] [--fresh]
+    baslip solve PROBLEM.yaml [--out DIR] [--jobs N] [--lanes N] [--quiet | --verbose] [--fresh]
     baslip trajectory PROBLEM.yaml [--strides N] [--samples N] [--out FILE.csv]
     baslip animate PROBLEM.yaml ... [--out DIR]
     baslip report [--results DIR]

@@ -65,6 +65,11 @@ def _parser(prog: str = "python -m baslip.solve") -> argparse.ArgumentParser:
     parser.add_argument("--jobs", type=_positive, metavar="N",
                         help="worker processes for a study (default: one per core, at most one per lane; "
                              "the answers do not depend on it); with --scheduler local, the LocalCluster's workers")
+    parser.add_argument("--lanes", type=_positive, metavar="N",
+                        help="split a new study into N lanes of warm-started tasks (default 2), so that up to N "
+                             "workers run at once; recorded in result.json and kept when the run resumes. "
+                             "The answers depend on N (not on --jobs): each lane warm-starts from its own "
+                             "previous point. One-quantity sweeps always walk two lanes from their start")
     parser.add_argument("--format", choices=("png", "svg", "pdf"), default="png",
                         help="format of the figures a study or continuation writes (default png)")
     parser.add_argument("--scheduler", metavar="ADDRESS",
@@ -142,7 +147,8 @@ def _run(problem, args, out_dir: Path) -> int:
     """Run the problem: a gait, a study or a continuation (inputs already checked)."""
     try:
         if problem.study is not None:
-            return _run_study(problem, args.problem, out_dir, args.quiet, args.fresh, args.jobs, args.scheduler)
+            return _run_study(problem, args.problem, out_dir, args.quiet, args.fresh, args.jobs, args.scheduler,
+                              args.lanes)
         if problem.continuation is not None:
             return _run_continuation(problem, out_dir, args.quiet)
         return _solve_and_write(problem, out_dir, args.quiet)
@@ -169,12 +175,12 @@ def _unwritable(out_dir: Path) -> str | None:
 
 
 def _run_study(problem, problem_path: Path, out_dir: Path, quiet: bool, fresh: bool, jobs: int | None,
-               scheduler: str | None) -> int:
+               scheduler: str | None, lanes: int | None = None) -> int:
     from .studies.run import StaleFolder, StudyFailed, outcome, run_study
     from .studies.runner import SchedulerError
 
     try:
-        summary = run_study(problem, problem_path, out_dir, quiet, fresh, jobs, scheduler)
+        summary = run_study(problem, problem_path, out_dir, quiet, fresh, jobs, scheduler, lanes)
     except SchedulerError as err:
         print(f"error: --scheduler: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT

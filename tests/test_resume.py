@@ -160,6 +160,24 @@ def test_a_changed_problem_is_refused_unless_fresh(grid, tmp_path, capsys):
     assert record["done_before_this_run"] == 0 and record["points"] == POINTS
 
 
+def test_more_lanes_are_recorded_answers_follow_lanes_not_workers(grid, tmp_path, capsys):
+    """Three lanes: the same rows with one worker or three, and the count kept on resume;
+    asking a resumed run for another count is refused, one line, exit 2."""
+    problem, _ = grid
+    one, three = tmp_path / "one", tmp_path / "three"
+    assert main([str(problem), "--out", str(one), "--quiet", "--lanes", "3", "--jobs", "1"]) == 0
+    run = start(problem, three, "--lanes", "3", "--jobs", "3")
+    assert run.wait() == 0, run.stderr.read()
+    assert table_without_timing(one) == table_without_timing(three)
+    assert json.loads((three / "result.json").read_text())["provenance"]["lanes"] == 3
+    assert main([str(problem), "--out", str(three), "--quiet"]) == 0  # resumes in its 3 lanes
+    assert json.loads((three / "result.json").read_text())["provenance"]["lanes"] == 3
+    capsys.readouterr()
+    assert main([str(problem), "--out", str(three), "--lanes", "2"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "3 lanes, not 2" in err and "--fresh" in err
+
+
 def test_results_without_provenance_are_not_resumed(grid, tmp_path, capsys):
     problem, reference = grid
     out = tmp_path / "legacy"

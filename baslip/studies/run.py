@@ -78,15 +78,17 @@ def check_study_inputs(problem: Problem, out_dir: Path) -> None:
 
 
 def run_study(problem: Problem, problem_path: Path, out_dir: Path, quiet: bool = False, fresh: bool = False,
-              jobs: int | None = None, scheduler: str | None = None) -> dict:
+              jobs: int | None = None, scheduler: str | None = None, lanes: int | None = None) -> dict:
     """Run (or resume) the study of ``problem``; return its summary (also in result.json).
 
     ``fresh`` discards what the folder holds first; without it, results of another
-    problem there raise :class:`StaleFolder`. Raises :class:`baslip.folder.FolderBusy`
-    if another process is writing into ``out_dir``.
+    problem there raise :class:`StaleFolder`. ``lanes`` splits a new run's tasks into
+    that many warm-started lanes (default :data:`~baslip.studies.runner.LANES`); a resumed
+    run keeps its recorded count, and asking for another raises :class:`StaleFolder`.
+    Raises :class:`baslip.folder.FolderBusy` if another process is writing into ``out_dir``.
     """
     with hold(out_dir):
-        record = _claim(problem, out_dir, fresh)
+        record = _claim(problem, out_dir, fresh, lanes)
         start = time.perf_counter()
         summary = _run(problem, problem_path, out_dir, quiet, record["lanes"], Workers(jobs, scheduler))
         summary = {"name": problem.name, "kind": problem.study.kind, **summary,
@@ -124,10 +126,11 @@ def _run(problem: Problem, problem_path: Path, out_dir: Path, quiet: bool, lanes
     return summary
 
 
-def _claim(problem: Problem, out_dir: Path, fresh: bool) -> dict:
-    """Check that ``out_dir`` holds nothing but earlier results of this same problem (or
-    clear it if ``fresh``); record this run's provenance in result.json; return it."""
-    record = {**provenance(problem), "lanes": LANES}
+def _claim(problem: Problem, out_dir: Path, fresh: bool, lanes: int | None = None) -> dict:
+    """Check that ``out_dir`` holds nothing but earlier results of this same problem, run
+    in the same number of lanes (or clear it if ``fresh``); record this run's provenance
+    in result.json; return it."""
+    record = {**provenance(problem), "lanes": lanes or LANES}
     data = [out_dir / name for name in DATA_FILES if (out_dir / name).exists()]
     old = _recorded_provenance(out_dir)
     if fresh:
@@ -143,6 +146,9 @@ def _claim(problem: Problem, out_dir: Path, fresh: bool) -> dict:
             changed = [n for n in changed_entries(old.get("problem", {}), record["problem"]) if n not in ignored]
             raise StaleFolder(f"{out_dir} holds results of a different problem (changed: {', '.join(changed[:4]) or 'unknown'}); "
                               "rerun with --fresh to discard them, or choose another --out")
+        if lanes is not None and lanes != old.get("lanes", LANES):
+            raise StaleFolder(f"{out_dir} holds a run in {old.get('lanes', LANES)} lanes, not {lanes}; rerun with "
+                              "--fresh to start again in the new count, or leave out --lanes to resume")
         record["lanes"] = old.get("lanes", LANES)
         if old.get("versions") != record["versions"] or old.get("code") != record["code"]:
             record["earlier_runs"] = [{"versions": old.get("versions"), "code": old.get("code")}, *old.get("earlier_runs", [])]

@@ -6,9 +6,10 @@
   last line cut short by a kill is dropped; a file that is empty, has a torn or foreign
   header or cannot be decoded is set aside with a message and started afresh; rows with a
   repeated key are dropped (the first is kept) with a message.
-* Tasks come in a fixed number of lanes (:data:`LANES`, whatever the number of cores);
-  each lane is run in turn by one worker process (one per lane by default, or fewer with
-  ``jobs``), so that each task is warm-started from the one before it in its lane. The state a task hands on (``row["state"]``) is saved beside the CSV
+* Tasks come in a fixed number of lanes (:data:`LANES` unless a run asks for more,
+  whatever the number of cores, and recorded with the results); each lane is run in turn
+  by one worker process (one per lane, at most one per core, or fewer with ``jobs``), so
+  that each task is warm-started from the one before it in its lane. The state a task hands on (``row["state"]``) is saved beside the CSV
   before its row, and a resumed lane replays the saved states of its finished tasks, so
   every task starts exactly as it would have in an uninterrupted run.
 * Workers die with the process that started them, even under ``kill -9``.
@@ -352,7 +353,7 @@ def run_lanes_on_dask(todo, worker, context, table, label, quiet, skipped, total
     cluster = None
     try:
         if scheduler == "local":
-            cluster = LocalCluster(n_workers=jobs or LANES, threads_per_worker=1, processes=True,
+            cluster = LocalCluster(n_workers=jobs or worker_count(None, len(todo)), threads_per_worker=1, processes=True,
                                    dashboard_address=None)
             client = Client(cluster)
         else:
