@@ -36,8 +36,11 @@ pytestmark = pytest.mark.skipif(not os.path.isdir("/proc"), reason="needs /proc 
 
 
 def start(problem: Path, out: Path, *extra) -> subprocess.Popen:
+    # Ctrl-C reaches the run as it would from a terminal, even when these tests run as a
+    # background job, which starts with SIGINT ignored (and Python then keeps it ignored).
     return subprocess.Popen([sys.executable, "-m", "baslip.solve", str(problem), "--out", str(out), "--quiet", *extra],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
 def rows_written(out: Path) -> int:
