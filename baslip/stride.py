@@ -157,15 +157,13 @@ def stiffness_rate(X, u, p):
 
 _KP, _KD = CONTROL.index("Kp"), CONTROL.index("Kd")
 _RATE_PARAMS = tuple(PARAMS.index(n) for n in ("m", "I", "k", "rho0", "d"))
+_M, _K = PARAMS.index("m"), PARAMS.index("k")
 _SPIN, _YDOT = APEX.index("theta_h_dot"), APEX.index("ydot")
 
 
 def half_period(p) -> float:
     """The spring's half-period pi sqrt(m/k) [s]."""
     return math.pi * math.sqrt(float(p[_M]) / float(p[_K]))
-
-
-_M, _K = PARAMS.index("m"), PARAMS.index("k")
 
 
 class StanceFlow:

@@ -42,13 +42,9 @@ def stride_trajectory(rmap: ReturnMap, X, u, params: Params, strides: int = 2, s
     theta_td = float(CONTROL.get(np.asarray(u), "theta_td"))
     parts, t0, y0, X = [], 0.0, 0.0, np.asarray(X, dtype=float)
     for _ in range(strides):
-        stride = rmap.stride(X, u, params)
-        if not stride.ok:
-            raise RunnerFell(stride.fall)
+        stride, flight = _stride_from(rmap, X, u, params, 0.0)
         d = stride.durations
         # Descent, from the apex.
-        a = APEX.unpack(X)
-        flight = np.array([0.0, a["z"], a["theta_h"], a["ydot"], 0.0, a["theta_h_dot"]])
         ts = np.linspace(0.0, d["descent"], samples)
         parts.append(_flight_samples(model, flight, ts, t0, y0, theta_td, params))
         # Stance, foot fixed where it touched down.
@@ -71,6 +67,17 @@ def stride_trajectory(rmap: ReturnMap, X, u, params: Params, strides: int = 2, s
         X = stride.apex
     columns = [np.concatenate([part[i] for part in parts]) for i in range(7)]
     return Trajectory(*columns)
+
+
+def _stride_from(rmap: ReturnMap, X, u, params: Params, y: float):
+    """One stride from apex ``X``, and the flight state (y, z, theta_h, ydot, zdot,
+    theta_h_dot) at that apex with the CoM at horizontal position ``y`` [m]; raises
+    :class:`RunnerFell` if the stride falls."""
+    stride = rmap.stride(X, u, params)
+    if not stride.ok:
+        raise RunnerFell(stride.fall)
+    a = APEX.unpack(X)
+    return stride, np.array([y, a["z"], a["theta_h"], a["ydot"], 0.0, a["theta_h_dot"]])
 
 
 def _ballistic(xf, t, g):
@@ -185,12 +192,8 @@ def motion(rmap: ReturnMap, X, u, params: Params, strides: int = 1, samples: int
     rows: list[dict] = []
     t0, y0, X = 0.0, 0.0, np.asarray(X, dtype=float)
     for k in range(strides):
-        stride = rmap.stride(X, u, params)
-        if not stride.ok:
-            raise RunnerFell(stride.fall)
+        stride, apex_state = _stride_from(rmap, X, u, params, y0)
         d = stride.durations
-        a = APEX.unpack(X)
-        apex_state = np.array([y0, a["z"], a["theta_h"], a["ydot"], 0.0, a["theta_h_dot"]])
         for s in np.linspace(0.0, d["descent"], samples):
             rows.append(_flight_row(model, _ballistic(apex_state, s, params.g), t0 + s, k, "descent", theta_td, params, p))
         xf_td = _ballistic(apex_state, d["descent"], params.g)
