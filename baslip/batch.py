@@ -19,27 +19,28 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from .engine import (
+    ACCEPTED,
     REFINE,
     UNSURE,
+    MAX_SCOUT_STEP_RATE,
+    SCOUT_STEPS_PER_HALF_PERIOD,
     CompiledEngine,
     first_rises,
+    first_tiers_many,
     grazing_steps,
     hermite_roots,
+    next_tier,
+    richardson_error,
     stride_of_verdict,
     touchdown_fall,
 )
-from .flow import DOP853
-from .model import PARAMS, STANCE
-from .outcome import Stride, prechecks
+from .model import APEX, PARAMS, STANCE
+from .outcome import PHASES, Stride, prechecks
 from .stride import (
     BATCH,
     CLEARANCES,
     DIAGNOSTICS,
-    MAX_SCOUT_STEP_RATE,
-    MAX_STEP_RATE,
-    PREDICTION_MARGIN,
     SCOUT_STEPS,
-    SCOUT_STEPS_PER_HALF_PERIOD,
     TIERS,
     StrideFunctions,
     half_period,
@@ -142,35 +143,49 @@ class _Batch:
         return live[clean], bottom[clean], liftoff[clean], rate[clean], h[clean], error[clean]
 
     def _final(self, live, t_descent, t_compression, t_decompression, rate, h, error) -> None:
-        """Final passes grouped by step count; a stride whose error estimate is too large
-        moves to the next count."""
+        """Final passes in rounds, each grouped by step count, with the decisions of
+        :meth:`CompiledEngine._final`: a pass is accepted by its own error estimate or by
+        the Richardson estimate against a pass at a lower count; a stride without one runs
+        the pass at the count below in the next round, and one that is still not accepted
+        moves on to :func:`next_tier`."""
+        tolerance, size = self.engine.tolerance, len(live)
         longest = np.maximum(t_compression, t_decompression)
-        tiers = np.array(TIERS, dtype=float)
-        stable = longest[:, None] * rate[:, None] / tiers[None, :] <= MAX_STEP_RATE
-        predicted = error[:, None] * (longest[:, None] / tiers[None, :] / h[:, None]) ** DOP853.order
-        good = stable & (PREDICTION_MARGIN * predicted <= self.engine.tolerance)
-        tier = np.where(good.any(axis=1), np.argmax(good, axis=1), np.where(stable.any(axis=1), len(TIERS) - 1, -1))
+        lowest, tier = first_tiers_many(longest, rate, error, h, tolerance)
         guesses = np.vstack([t_descent, t_compression, t_decompression])
-        active = tier >= 0  # no stable step count: the careful path decides
+        results = np.full((APEX.size + len(PHASES), size), np.nan)  # each stride's latest pass
+        diagnostics = np.full((DIAGNOSTICS.size, size), np.nan)
+        coarse, coarse_steps = np.full_like(results, np.nan), np.zeros(size)
+        waits = np.zeros(size, dtype=bool)  # its latest pass waits for the pass at the count below
+        active = tier < len(TIERS)  # no stable step count: the careful path decides
         while active.any():
-            for t in np.unique(tier[active]):
-                rows = np.nonzero(active & (tier == t))[0]
-                outputs = _call(self.functions.batch(f"stride_{TIERS[t]}"), self.X[live[rows]].T,
-                                self.U[live[rows]].T, _columns(self.p, len(rows)), guesses[:, rows])
-                refine = self._judge(live[rows], *outputs)
-                tier[rows[refine]] += 1
-                active[rows[~refine]] = False
+            needed = np.where(waits, tier - 1, tier)
+            for t in np.unique(needed[active]):
+                rows = np.nonzero(active & (needed == t))[0]
+                apex, durations, diagnosed = _call(self.functions.batch(f"stride_{TIERS[t]}"), self.X[live[rows]].T,
+                                                   self.U[live[rows]].T, _columns(self.p, len(rows)), guesses[:, rows])
+                stacked, partner = np.vstack([apex, durations]), waits[rows]
+                results[:, rows[~partner]], diagnostics[:, rows[~partner]] = stacked[:, ~partner], diagnosed[:, ~partner]
+                coarse[:, rows[partner]], coarse_steps[rows[partner]] = stacked[:, partner], TIERS[t]
+            rows = np.nonzero(active)[0]
+            codes = self.engine.judge_many(results[: APEX.size, rows], results[APEX.size :, rows], diagnostics[:, rows])
+            steps = np.asarray(TIERS)[tier[rows]]
+            richardson = np.full(len(rows), np.inf)  # inf: no lower pass yet
+            compared = coarse_steps[rows] > 0
+            richardson[compared] = richardson_error(results[:, rows[compared]], coarse[:, rows[compared]],
+                                                    coarse_steps[rows[compared]], steps[compared])
+            by_richardson = (codes == REFINE) & (richardson <= tolerance)
+            codes = np.where(by_richardson, ACCEPTED, codes)
+            error = np.where(by_richardson, richardson, diagnostics[DIAGNOSTICS.index("error"), rows])
+            for k in np.nonzero((codes != REFINE) & (codes != UNSURE))[0]:
+                self.results[live[rows[k]]] = stride_of_verdict(
+                    int(codes[k]), results[: APEX.size, rows[k]], results[APEX.size :, rows[k]], error[k])
+            active[rows[codes != REFINE]] = False
+            refine = codes == REFINE
+            waits[rows] = refine & ~compared & (tier[rows] > lowest[rows])
+            moves = refine & ~waits[rows]
+            coarse[:, rows[moves]], coarse_steps[rows[moves]] = results[:, rows[moves]], steps[moves]
+            tier[rows[moves]] = [next_tier(i, e, tolerance) for i, e in zip(tier[rows[moves]], richardson[moves])]
             active &= tier < len(TIERS)  # past the finest count: the careful path decides
-
-    def _judge(self, rows, apex, durations, diagnostics) -> np.ndarray:
-        """Set the results of settled strides (the verdicts of :meth:`CompiledEngine.judge`,
-        for all columns at once); True where the error estimate asks for more steps.
-        Strides the checks cannot vouch for stay pending."""
-        codes = self.engine.judge_many(apex, durations, diagnostics)
-        for k in np.nonzero((codes != REFINE) & (codes != UNSURE))[0]:
-            self.results[rows[k]] = stride_of_verdict(int(codes[k]), apex[:, k], durations[:, k],
-                                                      diagnostics[DIAGNOSTICS.index("error"), k])
-        return codes == REFINE
 
 
 def _call(kernel, *columns):

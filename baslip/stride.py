@@ -16,11 +16,13 @@ How a stride is computed:
    scout's estimate, then a last step whose size solves the guard by Newton. Derivatives
    of this function are algorithmic derivatives of the discrete flow, through the event
    times by the implicit-function theorem.
-4. **Checks.** ``N`` is the least tier with ``h * lambda <= 1/2``, where ``lambda`` is the
-   fastest rate of the stance dynamics (spring, hip damping and stiffness, spin). The
-   summed DOP853 error estimate must be below :data:`ERROR_TARGET`; otherwise the next
-   tier is tried, and past the last one the stride reports that it cannot guarantee its
-   accuracy (the caller falls back to the adaptive event map).
+4. **Checks** (the driver, :mod:`baslip.engine`). A pass is accepted when its own summed
+   DOP853 error estimate, or the Richardson estimate from a pass at a lower ``N``, is
+   within the tolerance; otherwise a larger ``N`` is tried, and past the last one the
+   stride reports that it cannot guarantee its accuracy (the caller falls back to the
+   adaptive event map). Only counts with ``h * lambda`` small enough are tried, where
+   ``lambda`` is the fastest rate of the stance dynamics (spring, hip damping and
+   stiffness, spin).
 
 All inputs and outputs are SI units and radians.
 """
@@ -66,19 +68,6 @@ TIERS = (16, 24, 32, 48, 64, 96, 128, 192, 256, 512, 1024)
 SCOUT_STEPS = 24
 #: Strides per call of the batched functions.
 BATCH = 32
-#: Largest h * lambda of a final-pass step (DOP853 is stable to about 5): the error
-#: estimate, not this rate, decides the accuracy.
-MAX_STEP_RATE = 1.0
-#: Scout steps per spring half-period pi sqrt(m/k), at most, and the scout's largest
-#: h * lambda: the scout only brackets the events, so it needs stability, not accuracy.
-SCOUT_STEPS_PER_HALF_PERIOD = 12
-MAX_SCOUT_STEP_RATE = 2.0
-#: Accepted summed error estimate of a stride (relative to max(1, |x|)).
-ERROR_TARGET = 1e-12
-#: Factor on the error predicted from the scout (its estimate scaled by h^8) when picking
-#: the first step count: measured over the design box, the final pass's own estimate
-#: exceeds the prediction by a median of 2-3 and a 90th percentile of 6-22.
-PREDICTION_MARGIN = 10.0
 #: Newton iterations of each stance event step, and of the touchdown time.
 EVENT_NEWTON = 3
 TOUCHDOWN_NEWTON = 2
