@@ -222,7 +222,7 @@ def _events_in_one_call(nodes, rates, clearance, errors, h, rho0: float):
     of ``errors`` and ``h``): whether one scout call covers its stance cleanly, with both
     events bracketed, no clearance reaching zero before the liftoff step and no grazing
     peak of rho; and its bottom and liftoff estimates [s] and summed error estimate up to
-    the liftoff step. The others go to the careful path. The same tests as the scalar
+    and with the liftoff step. The others go to the careful path. The same tests as the scalar
     scout (:meth:`CompiledEngine._scout`), for all strides at once."""
     n, m = errors.shape
     rows = np.arange(n)
@@ -233,10 +233,12 @@ def _events_in_one_call(nodes, rates, clearance, errors, h, rho0: float):
                            rho_rate[rows, j - 1], rho_rate[rows, j])
     stretch = np.where(times >= bottom[:, None], nodes[STANCE.index("rho")] - rho0, -1.0)
     has_liftoff, k = first_rises(stretch)
-    before_liftoff = np.arange(m)[None, :] < (k - 1)[:, None]
+    before_liftoff = np.arange(m)[None, :] < (k - 1)[:, None]  # steps before the one that brackets it
     fell = ((clearance <= 0.0).any(axis=0) & before_liftoff).any(axis=1)
     grazed = (grazing_steps(stretch, rhodot, h[:, None]) & before_liftoff).any(axis=1)
-    clean = has_bottom & has_liftoff & ~fell & ~grazed
+    # As the scalar scout, which starts again with finer steps after any non-finite node.
+    finite = np.isfinite(nodes).all(axis=(0, 2)) & np.isfinite(rates).all(axis=(0, 2))
+    clean = finite & has_bottom & has_liftoff & ~fell & ~grazed
     liftoff = hermite_roots(times[rows, k - 1], times[rows, k], stretch[rows, k - 1], stretch[rows, k],
                             rhodot[rows, k - 1], rhodot[rows, k])
-    return clean, bottom, liftoff, np.where(before_liftoff, errors, 0.0).sum(axis=1)
+    return clean, bottom, liftoff, np.cumsum(errors, axis=1)[rows, k - 1]
