@@ -2,11 +2,12 @@
 
 The engine's functions are also compiled mapped over :data:`~baslip.stride.BATCH` strides
 per call. Here the numeric driver of :mod:`baslip.engine` is done for many strides at
-once: the touchdown bracket, the scout's event search, the step counts, and the checks
-of the final pass. A stride that needs the careful scalar path (a fall seen by the scout,
-a grazing liftoff, a stance longer than one scout call, an error estimate beyond the
-finest step count) is handed to :class:`~baslip.engine.CompiledEngine` as it is, so both
-paths give the same outcomes. The strides are split into one lane per thread (the
+once: the touchdown bracket, the compiled planning (touchdown state, one scout call and
+its event search), the step counts, and the checks of the final pass. A stride that
+needs the careful scalar path (a fall seen by the scout, a grazing liftoff, a stance
+longer than one scout call, an error estimate beyond the finest step count) is handed
+to :class:`~baslip.engine.CompiledEngine` as it is, so both paths give the same
+outcomes. The strides are split into one lane per thread (the
 compiled calls release Python's lock, so two threads use both cores), and within a lane
 the final passes of all strides with one step count share full batches: a batch call
 costs its :data:`~baslip.stride.BATCH` columns however few of them are used.
@@ -22,28 +23,21 @@ from .engine import (
     ACCEPTED,
     REFINE,
     UNSURE,
-    MAX_SCOUT_STEP_RATE,
-    SCOUT_STEPS_PER_HALF_PERIOD,
     CompiledEngine,
-    first_rises,
     first_tiers_many,
-    grazing_steps,
-    hermite_roots,
     next_tier,
     richardson_error,
+    scout_step,
     stride_of_verdict,
     touchdown_fall,
 )
-from .model import APEX, PARAMS, STANCE
+from .model import APEX
 from .outcome import PHASES, Stride, prechecks
 from .stride import (
     BATCH,
-    CLEARANCES,
     DIAGNOSTICS,
-    SCOUT_STEPS,
     TIERS,
     StrideFunctions,
-    half_period,
     stiffness_rate,
 )
 
@@ -108,39 +102,23 @@ class _Batch:
     # -- stance ----------------------------------------------------------------------
 
     def _stance(self, live: np.ndarray, t_descent: np.ndarray) -> None:
+        """The planning of :meth:`CompiledEngine._plan` for all strides at once: touchdown
+        state and one scout call each in one batched call; the falls at touchdown are set,
+        the strides that one scout call covers cleanly go on to their final passes, and the
+        rest stay pending for the careful path."""
         X, U, p = self.X[live], self.U[live], self.p
-        x_td, com_height, _ = _call(self.functions.batch("touchdown_state"), X.T, U.T, _columns(p, len(live)), t_descent[live])
+        rate = stiffness_rate(X, U, p)
+        h = scout_step(p, rate)
+        x_td, com_height, clean, bottom, liftoff, error = _call(
+            self.functions.batch("stance_plan"), X.T, U.T, _columns(p, len(live)), t_descent[live], h)
         for k, i in enumerate(live):
             fall = touchdown_fall(x_td[:, k], float(com_height[0, k]), t_descent[i])
             if fall is not None:
                 self.results[i] = fall
-        keep = np.array([isinstance(self.results[i], str) for i in live])
-        live, x_td = live[keep], x_td[:, keep]
-        if not live.size:
-            return
-        scouted = self._scout(live, x_td)
-        if scouted is None:
-            return
-        live, bottom, liftoff, rate, h, error = scouted
-        self._final(live, t_descent[live], bottom, liftoff - bottom, rate, h, error)
-
-    def _scout(self, live, x_td):
-        """One scout call per stride: event estimates for the strides whose stance it
-        covers cleanly; the others stay pending for the careful path."""
-        X, U, p = self.X[live], self.U[live], self.p
-        rate = stiffness_rate(X, U, p)
-        h = np.minimum(half_period(p) / SCOUT_STEPS_PER_HALF_PERIOD, MAX_SCOUT_STEP_RATE / rate)
-        theta = np.vstack([U.T, _columns(p, len(live))])
-        nodes, rates, clearance, errors = _call(self.functions.batch("stance_scout"), x_td, h, theta)
-        m = SCOUT_STEPS
-        nodes = nodes.reshape(STANCE.size, len(live), m + 1)
-        rates = rates.reshape(STANCE.size, len(live), m + 1)
-        clearance = clearance.reshape(len(CLEARANCES), len(live), m)
-        errors = errors.reshape(len(live), m)
-        clean, bottom, liftoff, error = _events_in_one_call(nodes, rates, clearance, errors, h, p[PARAMS.index("rho0")])
-        if not clean.any():
-            return None
-        return live[clean], bottom[clean], liftoff[clean], rate[clean], h[clean], error[clean]
+        go = np.array([isinstance(self.results[i], str) for i in live]) & (clean[0] == 1.0)
+        if go.any():
+            self._final(live[go], t_descent[live[go]], bottom[0, go], liftoff[0, go] - bottom[0, go], rate[go], h[go],
+                        error[0, go])
 
     def _final(self, live, t_descent, t_compression, t_decompression, rate, h, error) -> None:
         """Final passes in rounds, each grouped by step count, with the decisions of
@@ -215,30 +193,3 @@ def _unpad(out: np.ndarray, n: int) -> np.ndarray:
 
 def _columns(p, n: int) -> np.ndarray:
     return np.repeat(np.asarray(p, float)[:, None], n, axis=1)
-
-
-def _events_in_one_call(nodes, rates, clearance, errors, h, rho0: float):
-    """For each stride (the middle axis of ``nodes``, ``rates``, ``clearance``; the rows
-    of ``errors`` and ``h``): whether one scout call covers its stance cleanly, with both
-    events bracketed, no clearance reaching zero before the liftoff step and no grazing
-    peak of rho; and its bottom and liftoff estimates [s] and summed error estimate up to
-    and with the liftoff step. The others go to the careful path. The same tests as the scalar
-    scout (:meth:`CompiledEngine._scout`), for all strides at once."""
-    n, m = errors.shape
-    rows = np.arange(n)
-    times = h[:, None] * np.arange(m + 1)[None, :]
-    rhodot, rho_rate = nodes[STANCE.index("rhodot")], rates[STANCE.index("rhodot")]
-    has_bottom, j = first_rises(rhodot)
-    bottom = hermite_roots(times[rows, j - 1], times[rows, j], rhodot[rows, j - 1], rhodot[rows, j],
-                           rho_rate[rows, j - 1], rho_rate[rows, j])
-    stretch = np.where(times >= bottom[:, None], nodes[STANCE.index("rho")] - rho0, -1.0)
-    has_liftoff, k = first_rises(stretch)
-    before_liftoff = np.arange(m)[None, :] < (k - 1)[:, None]  # steps before the one that brackets it
-    fell = ((clearance <= 0.0).any(axis=0) & before_liftoff).any(axis=1)
-    grazed = (grazing_steps(stretch, rhodot, h[:, None]) & before_liftoff).any(axis=1)
-    # As the scalar scout, which starts again with finer steps after any non-finite node.
-    finite = np.isfinite(nodes).all(axis=(0, 2)) & np.isfinite(rates).all(axis=(0, 2))
-    clean = finite & has_bottom & has_liftoff & ~fell & ~grazed
-    liftoff = hermite_roots(times[rows, k - 1], times[rows, k], stretch[rows, k - 1], stretch[rows, k],
-                            rhodot[rows, k - 1], rhodot[rows, k])
-    return clean, bottom, liftoff, np.cumsum(errors, axis=1)[rows, k - 1]

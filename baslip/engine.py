@@ -27,6 +27,7 @@ from .flow import DOP853
 from .stride import (
     CLEARANCES,
     DIAGNOSTICS,
+    HERMITE_NEWTON,
     SCOUT_STEPS,
     TIERS,
     StrideFunctions,
@@ -46,8 +47,6 @@ NEWTON_CONVERGED = 1e-13
 SCOUT_REFINEMENTS = 2
 #: The event must end the phase within this many grid steps of the grid's end.
 LAST_STEP_RANGE = (0.0, 2.0)
-#: Newton iterations on the cubic Hermite interpolant of an event guard.
-HERMITE_NEWTON = 8
 #: Scout steps per spring half-period pi sqrt(m/k), at most, and the scout's largest
 #: h * lambda: the scout only brackets the events, so it needs stability, not accuracy.
 SCOUT_STEPS_PER_HALF_PERIOD = 12
@@ -160,13 +159,21 @@ class CompiledEngine:
 
     def _plan(self, X, u, p, t_guess):
         """Touchdown checks and the scout: a fall, None, or the indices in TIERS of the least
-        stable and the first step count, and the final pass's guesses."""
-        x_td, com_height, _ = (np.asarray(v).ravel() for v in self.functions.touchdown_state(X, u, p, t_guess))
-        fall = touchdown_fall(x_td, float(com_height[0]), t_guess)
+        stable and the first step count, and the final pass's guesses. One compiled call
+        covers a stance that one scout call brackets cleanly; the others take
+        :meth:`_scout`."""
+        rate = stiffness_rate(X, u, p)
+        h = scout_step(p, rate)
+        x_td, com_height, clean, bottom, liftoff, error = self.functions.plan(X, u, p, t_guess, h)
+        x_td = x_td.ravel()
+        fall = touchdown_fall(x_td, float(com_height[0, 0]), t_guess)
         if fall is not None:
             return fall
         descent = {"descent": float(t_guess)}
-        scouted = self._scout(x_td, np.concatenate([u, p]), X, u, p)
+        if clean[0, 0]:
+            scouted = Scouted(float(bottom[0, 0]), float(liftoff[0, 0]), rate, h, float(error[0, 0]))
+        else:
+            scouted = self._scout(x_td, np.concatenate([u, p]), rate, h, p)
         if not isinstance(scouted, Scouted):
             return scouted if scouted is None else Stride(None, descent, scouted)
         compression, decompression = scouted.bottom, scouted.liftoff - scouted.bottom
@@ -176,10 +183,10 @@ class CompiledEngine:
             return None
         return lowest, start, np.array([t_guess, compression, decompression])
 
-    def _scout(self, x0, theta, X, u, p) -> Scouted | Fall | None:
-        """Step stance in chunks until liftoff: the event estimates, a fall, or None."""
-        rate = stiffness_rate(X, u, p)
-        h = min(half_period(p) / SCOUT_STEPS_PER_HALF_PERIOD, MAX_SCOUT_STEP_RATE / rate)
+    def _scout(self, x0, theta, rate: float, h: float, p) -> Scouted | Fall | None:
+        """Step stance from touchdown state ``x0`` in chunks of steps ``h`` [s] until liftoff:
+        the event estimates, a fall, or None. The careful path of the planning: as often
+        as needed, finer steps after a blow-up, grazing peaks and falls resolved."""
         horizon = STANCE_HORIZON_HALF_PERIODS * half_period(p)
         rho0 = float(p[_RHO0])
         t0, bottom, error, x_td, refinements = 0.0, None, 0.0, x0, SCOUT_REFINEMENTS
@@ -321,6 +328,13 @@ def stride_of_verdict(code: int, apex, durations, error: float) -> Stride | str 
     return None
 
 
+def scout_step(p, rate):
+    """The scout's step [s] for the stiffness rate ``rate`` [1/s] (a number or an array):
+    at most 1/:data:`SCOUT_STEPS_PER_HALF_PERIOD` of the spring's half-period, and
+    h * rate at most :data:`MAX_SCOUT_STEP_RATE`."""
+    return np.minimum(half_period(p) / SCOUT_STEPS_PER_HALF_PERIOD, MAX_SCOUT_STEP_RATE / rate)
+
+
 def first_tiers(longest: float, rate: float, error: float, step: float, tolerance: float) -> tuple[int, int]:
     """Where the final passes of a stride start, as indices in :data:`TIERS`: (the least
     step count with h * lambda <= MAX_STEP_RATE, the first count to try); len(TIERS) for
@@ -336,9 +350,11 @@ def first_tiers(longest: float, rate: float, error: float, step: float, toleranc
     stable = [i for i, n in enumerate(TIERS) if longest * rate / n <= MAX_STEP_RATE]
     if not stable:
         return len(TIERS), len(TIERS)
-    predicted = {i: error * (longest / TIERS[i] / step) ** DOP853.order for i in stable}
-    pair = next((i for i in stable[1:] if PREDICTION_MARGIN * predicted[i] <= tolerance), stable[-1])
-    alone = next((i for i in stable if OWN_ESTIMATE_MARGIN * predicted[i] <= tolerance), stable[-1])
+    def predicted(i: int) -> float:
+        return error * (longest / TIERS[i] / step) ** DOP853.order
+
+    pair = next((i for i in stable[1:] if PREDICTION_MARGIN * predicted(i) <= tolerance), stable[-1])
+    alone = next((i for i in stable if OWN_ESTIMATE_MARGIN * predicted(i) <= tolerance), stable[-1])
     return stable[0], alone if TIERS[alone] < TIERS[pair - 1] + TIERS[pair] else pair
 
 
@@ -418,12 +434,6 @@ def first_rise(values: np.ndarray) -> int | None:
     return int(rises[0]) + 1 if len(rises) else None
 
 
-def first_rises(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`first_rise` of each row: (whether it has one, its index; 1 where none)."""
-    rises = (values[:, 1:] >= 0.0) & (values[:, :-1] < 0.0)
-    return rises.any(axis=1), np.argmax(rises, axis=1) + 1
-
-
 def first_fall_step(clearance: np.ndarray, last_step: int | None) -> int | None:
     """The earliest step (up to the liftoff step) in which a clearance reaches zero."""
     steps = clearance.shape[1] if last_step is None else last_step
@@ -431,31 +441,10 @@ def first_fall_step(clearance: np.ndarray, last_step: int | None) -> int | None:
     return int(hit[0]) if len(hit) else None
 
 
-def hermite_roots(t0, t1, g0, g1, dg0, dg1) -> np.ndarray:
-    """:func:`hermite_root` of many brackets at once (arrays of equal length), with the
-    same arithmetic step by step, so each root is the scalar one to the bit."""
-    t0, span = np.asarray(t0, dtype=float), np.asarray(t1, dtype=float) - t0
-    g0, g1 = np.asarray(g0, dtype=float), np.asarray(g1, dtype=float)
-    m0, m1 = dg0 * span, dg1 * span
-    with np.errstate(divide="ignore", invalid="ignore"):  # rows without a bracket are never read
-        s = g0 / (g0 - g1)
-        active = np.ones(s.shape, dtype=bool)
-        for _ in range(HERMITE_NEWTON):
-            s2, s3 = s * s, s * s * s
-            value = (2 * s3 - 3 * s2 + 1) * g0 + (s3 - 2 * s2 + s) * m0 + (3 * s2 - 2 * s3) * g1 + (s3 - s2) * m1
-            rate = 6 * (s2 - s) * (g0 - g1) + (3 * s2 - 4 * s + 1) * m0 + (3 * s2 - 2 * s) * m1
-            active &= ~(rate <= 0.0)
-            step = value / rate
-            s = np.where(active, np.minimum(np.maximum(s - step, 0.0), 1.0), s)
-            active &= ~(np.abs(step) < 1e-14)
-            if not active.any():
-                break
-    return t0 + span * s
-
-
-
 def hermite_root(t, g, dg) -> float:
-    """The root in [t0, t1] of the cubic Hermite interpolant of g (g0 < 0 <= g1)."""
+    """The root in [t0, t1] of the cubic Hermite interpolant of g (g0 < 0 <= g1), in plain
+    floats for the careful path: the arithmetic of :func:`baslip.stride.hermite_root`,
+    which the compiled planning builds in its graph, step by step (tested to the bit)."""
     t0, span = float(t[0]), float(t[1] - t[0])
     g0, g1 = float(g[0]), float(g[1])
     m0, m1 = float(dg[0]) * span, float(dg[1]) * span

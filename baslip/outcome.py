@@ -180,7 +180,7 @@ def _refine_root(lo: float, hi: float, theta_h: float, w: float, clearance: floa
 def precheck(X, u, p) -> tuple[Stride | None, float | None]:
     """Checks before any integration: a fall found already, or the touchdown time guess [s].
     :func:`prechecks` does the same for many apexes at once."""
-    if not (np.all(np.isfinite(X)) and np.all(np.isfinite(u)) and np.all(np.isfinite(p))):
+    if not (np.isfinite(X).all() and np.isfinite(u).all() and np.isfinite(p).all()):
         return Stride(None, {}, Fall.NOT_FINITE), None
     if _foot_height_at_apex(X[_Z], X[_THETA_H], u[_THETA_TD], p) < 0.0:
         return Stride(None, {}, Fall.FOOT_BELOW_GROUND), None

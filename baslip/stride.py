@@ -10,7 +10,9 @@ How a stride is computed:
    nodes bracket the bottom (``rhodot`` rising through 0) and the liftoff
    (``rho - rho0`` rising through 0), and cubic Hermite interpolation estimates both
    times. Ground contact of the CoM or hip and a collapsing leg are seen at every stage
-   point of every step, so a crossing between nodes is not missed.
+   point of every step, so a crossing between nodes is not missed. Where one call covers
+   the stance cleanly, this search is compiled too (:func:`scout_events`, in
+   ``stance_plan`` with the touchdown state); the driver's careful path handles the rest.
 3. **Final pass**, a fixed-structure function per step count ``N`` (:data:`TIERS`):
    compression and decompression each take ``N - 1`` equal steps of a grid set by the
    scout's estimate, then a last step whose size solves the guard by Newton. Derivatives
@@ -71,6 +73,8 @@ BATCH = 32
 #: Newton iterations of each stance event step, and of the touchdown time.
 EVENT_NEWTON = 3
 TOUCHDOWN_NEWTON = 2
+#: Newton iterations on the cubic Hermite interpolant of an event guard between two nodes.
+HERMITE_NEWTON = 8
 
 #: Parameters of the stance flow: the control, then the model parameters.
 THETA = Layout(CONTROL.names + PARAMS.names)
@@ -190,6 +194,7 @@ class StrideFunctions:
         self.functions = compile_kernels("baslip_stride", _names(), self._all, sources(), enabled=compile)
         self.touchdown_state = self.functions["touchdown_state"]
         self.scout = self.functions["stance_scout"]
+        self.plan = self.functions["stance_plan"]
 
     def final(self, n: int) -> Kernel:
         """(X, u, p, guesses) -> (apex, durations, diagnostics) with ``n`` steps a phase."""
@@ -210,6 +215,19 @@ class StrideFunctions:
         return ca.Function("stance_scout", [x0, h, theta], [nodes, rates, clearances, errors],
                            ["x0", "h", "theta"], ["nodes", "rates", "clearance_min", "error"])
 
+    def _plan(self, scout: ca.Function) -> ca.Function:
+        """(X, u, p, t_descent, h) -> the stance state at touchdown, the CoM height there [m],
+        and the events of one scout call from there with step ``h`` [s] (see
+        :func:`scout_events`): the common case of a stride's planning in one call."""
+        X, u, p = APEX.sym("X", ca.MX), CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
+        t_descent, h = ca.MX.sym("t_descent"), ca.MX.sym("h")
+        x_td, com_height, _ = touchdown_state()(X, u, p, t_descent)
+        nodes, rates, clearance, errors = scout(x_td, h, ca.vertcat(u, p))
+        events = scout_events()(nodes, rates, clearance, errors, h, PARAMS.get(p, "rho0"))
+        return ca.Function("stance_plan", [X, u, p, t_descent, h], [x_td, com_height, *events],
+                           ["X", "u", "p", "t_descent", "h"],
+                           ["x_touchdown", "com_height", "clean", "bottom", "liftoff", "error"])
+
     def _jacobian(self, final: ca.Function) -> ca.Function:
         """The final pass's Jacobian of the apex in (X, u, p), with its ordinary outputs."""
         X, u, p, guesses = final.mx_in()
@@ -224,7 +242,8 @@ class StrideFunctions:
         """Every Function of the engine, compiled together so that the step and its
         derivatives are generated once for all tiers."""
         finals = [_final_pass(self.flow, n) for n in TIERS]
-        singles = [touchdown_state(), self._scout(), *finals]
+        scout = self._scout()
+        singles = [touchdown_state(), scout, self._plan(scout), *finals]
         batches = [f.map(f"batch_{f.name()}", "serial", BATCH, [], [], {}) for f in singles]
         return [*singles, *(self._jacobian(f) for f in finals), *batches]
 
@@ -330,9 +349,91 @@ def touchdown_state() -> ca.Function:
     )
 
 
+def hermite_root(t0, t1, g0, g1, dg0, dg1):
+    """The root in [t0, t1] of the cubic Hermite interpolant of g (g0 < 0 <= g1) with rates
+    dg: the secant's root, then Newton on the cubic, kept in [0, 1], stopped when its rate
+    is not positive or its step below 1e-14. On SX this is built in the graph; the scalar
+    driver (:func:`baslip.engine.hermite_root`) does the same arithmetic in the same order."""
+    span = t1 - t0
+    m0, m1 = dg0 * span, dg1 * span
+    s = g0 / (g0 - g1)
+    active = ca.SX(1)
+    for _ in range(HERMITE_NEWTON):
+        s2, s3 = s * s, s * s * s
+        value = (2 * s3 - 3 * s2 + 1) * g0 + (s3 - 2 * s2 + s) * m0 + (3 * s2 - 2 * s3) * g1 + (s3 - s2) * m1
+        rate = 6 * (s2 - s) * (g0 - g1) + (3 * s2 - 4 * s + 1) * m0 + (3 * s2 - 2 * s) * m1
+        active = ca.logic_and(active, ca.logic_not(rate <= 0))
+        step = value / rate
+        s = ca.if_else(active, ca.fmin(ca.fmax(s - step, 0), 1), s)
+        active = ca.logic_and(active, ca.logic_not(ca.fabs(step) < 1e-14))
+    return t0 + span * s
+
+
+def _first_rise(values: list) -> tuple[ca.SX, ca.SX]:
+    """(whether some j >= 1 has values[j] >= 0 after values[j - 1] < 0, the first such j;
+    1 where none)."""
+    found, first = ca.SX(0), ca.SX(1)
+    for j in range(len(values) - 1, 0, -1):
+        rise = ca.logic_and(values[j] >= 0, values[j - 1] < 0)
+        found, first = ca.logic_or(found, rise), ca.if_else(rise, j, first)
+    return found, first
+
+
+def _at(values: list, index: ca.SX) -> ca.SX:
+    """values[index] for an integer-valued SX index, by selection (no arithmetic)."""
+    picked = values[0]
+    for j in range(1, len(values)):
+        picked = ca.if_else(index == j, values[j], picked)
+    return picked
+
+
+def scout_events() -> ca.Function:
+    """(nodes, rates, clearance_min, step_errors, h, rho0) of one scout call from touchdown ->
+    (clean, bottom [s], liftoff [s], summed error estimate up to and with the liftoff step).
+
+    The event search of the scalar scout (:meth:`baslip.engine.CompiledEngine._scout`) for
+    a stance that one call covers: ``clean`` (1 or 0) where every node is finite, the
+    bottom (rhodot rising through 0) and then the liftoff (rho rising through rho0) are
+    bracketed by nodes, and before the liftoff's step no clearance reaches zero and rho
+    does not peak just below rho0 (a possible grazing liftoff). The others take the
+    scalar scout's careful path."""
+    m = SCOUT_STEPS
+    nodes, rates = ca.SX.sym("nodes", STANCE.size, m + 1), ca.SX.sym("rates", STANCE.size, m + 1)
+    clearance, errors = ca.SX.sym("clearance_min", len(CLEARANCES), m), ca.SX.sym("step_errors", 1, m)
+    h, rho0 = ca.SX.sym("h"), ca.SX.sym("rho0")
+    times = [h * k for k in range(m + 1)]
+    rhodot = [STANCE.get(nodes[:, k], "rhodot") for k in range(m + 1)]
+    rho_rate = [STANCE.get(rates[:, k], "rhodot") for k in range(m + 1)]
+    has_bottom, j = _first_rise(rhodot)
+    bottom = hermite_root(_at(times, j - 1), _at(times, j), _at(rhodot, j - 1), _at(rhodot, j),
+                          _at(rho_rate, j - 1), _at(rho_rate, j))
+    stretch = [ca.if_else(times[k] >= bottom, STANCE.get(nodes[:, k], "rho") - rho0, -1.0) for k in range(m + 1)]
+    has_liftoff, k = _first_rise(stretch)
+    liftoff = hermite_root(_at(times, k - 1), _at(times, k), _at(stretch, k - 1), _at(stretch, k),
+                           _at(rhodot, k - 1), _at(rhodot, k))
+    blocked = ca.SX(0)  # a clearance at zero or a grazing peak of rho in a step before liftoff's
+    for i in range(m):
+        peak = ca.logic_and(ca.logic_and(rhodot[i] > 0, rhodot[i + 1] <= 0), ca.logic_and(stretch[i] < 0, stretch[i + 1] < 0))
+        reach = ca.fmax(stretch[i] + 0.5 * h * rhodot[i], stretch[i + 1] - 0.5 * h * rhodot[i + 1])
+        fell = ca.logic_or(ca.logic_or(clearance[0, i] <= 0, clearance[1, i] <= 0), clearance[2, i] <= 0)
+        hit = ca.logic_or(fell, ca.logic_and(peak, reach > 0))
+        blocked = ca.logic_or(blocked, ca.logic_and(i < k - 1, hit))
+    finite = ca.SX(1)
+    for value in ca.vertsplit(ca.vec(ca.vertcat(nodes, rates))):
+        finite = ca.logic_and(finite, ca.fabs(value) < ca.inf)
+    summed = [errors[0]]
+    for i in range(1, m):
+        summed.append(summed[-1] + errors[i])  # in order, as numpy's cumsum
+    clean = ca.logic_and(ca.logic_and(finite, ca.logic_and(has_bottom, has_liftoff)), ca.logic_not(blocked))
+    return ca.Function(
+        "scout_events", [nodes, rates, clearance, errors, h, rho0], [clean, bottom, liftoff, _at(summed, k - 1)],
+        ["nodes", "rates", "clearance_min", "step_errors", "h", "rho0"], ["clean", "bottom", "liftoff", "error"],
+    )
+
+
 def _names() -> list[str]:
     """Names of the engine's functions, in the order :meth:`StrideFunctions._all` builds them."""
-    singles = ["touchdown_state", "stance_scout", *(f"stride_{n}" for n in TIERS)]
+    singles = ["touchdown_state", "stance_scout", "stance_plan", *(f"stride_{n}" for n in TIERS)]
     return [*singles, *(f"stride_jacobian_{n}" for n in TIERS), *(f"batch_{name}" for name in singles)]
 
 

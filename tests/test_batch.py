@@ -7,11 +7,7 @@ import numpy as np
 import pytest
 
 from baslip import Fall, Params, ReturnMap, Tolerances
-from baslip.batch import _events_in_one_call
-from baslip.engine import MAX_SCOUT_STEP_RATE, SCOUT_STEPS_PER_HALF_PERIOD
-from baslip.model import PARAMS as PARAM_LAYOUT
 from baslip.outcome import precheck, prechecks
-from baslip.stride import half_period, stiffness_rate
 
 PARAMS = Params()
 GAIT_X = np.array([0.4, -1.5657, 0.5, 0.164274])
@@ -88,27 +84,3 @@ def test_batched_prechecks_are_the_single_prechecks():
             assert fall.fall is single.fall and np.isnan(guess)
         seen.add(None if single is None else single.fall)
     assert seen == {None, Fall.NOT_FINITE, Fall.FOOT_BELOW_GROUND, Fall.NO_TOUCHDOWN}
-
-
-def test_one_scout_call_for_many_strides_gives_each_single_scout(rmap):
-    """Where the batch path's event search calls one scout call clean, the single stride's
-    scout gives the same bottom, liftoff and error estimate (which picks the step count)
-    to the bit: both paths plan the same final passes."""
-    engine, p = rmap.compiled_engine, PARAMS.vector()
-    X, U = mixed_starts(300, seed=7)
-    clean_seen = 0
-    for x, u in zip(X, U):
-        fallen, t_descent = precheck(x, u, p)
-        if fallen is not None:
-            continue
-        x_td = engine.functions.touchdown_state(x, u, p, t_descent)[0].ravel()
-        theta = np.concatenate([u, p])
-        h = np.array([min(half_period(p) / SCOUT_STEPS_PER_HALF_PERIOD, MAX_SCOUT_STEP_RATE / stiffness_rate(x, u, p))])
-        nodes, rates, clearance, errors = engine.functions.scout(x_td, h[0], theta)
-        clean, bottom, liftoff, error = _events_in_one_call(nodes[:, None, :], rates[:, None, :], clearance[:, None, :],
-                                                            errors, h, p[PARAM_LAYOUT.index("rho0")])
-        if clean[0]:
-            single = engine._scout(x_td, theta, x, u, p)
-            assert (single.bottom, single.liftoff, single.error) == (bottom[0], liftoff[0], error[0])
-            clean_seen += 1
-    assert clean_seen >= 100

@@ -9,18 +9,19 @@ import numpy as np
 import pytest
 
 from baslip import Fall, Params, ReturnMap, Tolerances
+import casadi as ca
+
 from baslip.engine import (
     RICHARDSON_SAFETY,
-    first_rise,
-    first_rises,
     first_tiers,
     first_tiers_many,
     hermite_root,
-    hermite_roots,
     richardson_error,
+    scout_step,
 )
 from baslip.outcome import precheck
-from baslip.stride import TIERS
+from baslip.stride import TIERS, stiffness_rate
+from baslip.stride import hermite_root as hermite_root_in_graph
 
 PARAMS = Params()
 
@@ -44,6 +45,10 @@ def design_box(rng, n: int, Kd_high: float = 30.0):
         u = np.array([rng.uniform(-20, 20), rng.uniform(0, Kd_high), rng.uniform(-math.pi, math.pi),
                       rng.uniform(-5, 5), rng.uniform(-0.6, 0.6)])
         yield X, u
+
+
+GAIT_X = np.array([0.4, -1.5657, 0.5, 0.164274])  # near the shipped downward gait
+GAIT_U = np.array([-0.751879, 1.50002, -0.05246, 1.42038, 0.11471])
 
 
 def relative_gap(a, b) -> float:
@@ -190,23 +195,45 @@ def test_jacobians_match_the_reference_and_differences(compiled, reference, runn
         assert np.max(np.abs(central - ours[0][:, i])) <= 1e-6
 
 
-def test_many_event_estimates_at_once_are_the_single_ones():
-    """The batch path's vectorised Hermite root and rise search give the scalar results to
-    the bit, so a stride's final pass does not depend on the path that planned it."""
+def test_hermite_root_in_the_graph_is_the_scalar_one():
+    """The compiled planning's Hermite root (built in the graph) and the careful path's
+    (plain floats) do the same arithmetic: the same root to the bit, over 500 brackets."""
     rng = np.random.default_rng(5)
     n = 500
     t0 = rng.uniform(0, 0.2, n)
     t1 = t0 + rng.uniform(1e-4, 0.02, n)
     g0, g1 = -rng.uniform(1e-9, 1, n), rng.uniform(0, 1, n)
     dg0, dg1 = rng.normal(scale=50, size=n), rng.normal(scale=50, size=n)
-    roots = hermite_roots(t0, t1, g0, g1, dg0, dg1)
+    args = [ca.SX.sym(name) for name in ("t0", "t1", "g0", "g1", "dg0", "dg1")]
+    root = ca.Function("root", args, [hermite_root_in_graph(*args)]).map(n)
+    roots = np.asarray(root(t0, t1, g0, g1, dg0, dg1)).ravel()
     for i in range(n):
         assert roots[i] == hermite_root([t0[i], t1[i]], [g0[i], g1[i]], [dg0[i], dg1[i]])
-    values = rng.normal(size=(200, 25))
-    values[::7] = np.abs(values[::7])  # rows without a rise
-    has, index = first_rises(values)
-    for row, found, j in zip(values, has, index):
-        assert (first_rise(row) == j) if found else first_rise(row) is None
+
+
+@pytest.mark.parametrize("in_c", [True, False])
+def test_compiled_planning_gives_the_careful_scout_events(in_c):
+    """Where the compiled planning calls one scout call clean, the careful path's scout
+    gives the same bottom, liftoff and error estimate (which picks the step count) to the
+    bit, in C and in CasADi's virtual machine: a stride's final passes do not depend on
+    the path that planned them."""
+    engine, p = ReturnMap(Tolerances(1e-12, 1e-12), compile=in_c).compiled_engine, PARAMS.vector()
+    rng = np.random.default_rng(7)
+    near = [(GAIT_X + rng.normal(scale=[0.01, 0.05, 0.05, 0.2]), GAIT_U) for _ in range(60)]
+    clean_seen = 0
+    for X, u in near + list(design_box(rng, 120)):
+        X, u = np.asarray(X, dtype=float), np.asarray(u, dtype=float)
+        fallen, t_descent = precheck(X, u, p)
+        if fallen is not None:
+            continue
+        rate = stiffness_rate(X, u, p)
+        h = scout_step(p, rate)
+        x_td, _, clean, bottom, liftoff, error = engine.functions.plan(X, u, p, t_descent, h)
+        if clean[0, 0]:
+            careful = engine._scout(x_td.ravel(), np.concatenate([u, p]), rate, h, p)
+            assert (careful.bottom, careful.liftoff, careful.error) == (bottom[0, 0], liftoff[0, 0], error[0, 0])
+            clean_seen += 1
+    assert clean_seen >= 60
 
 
 @pytest.mark.parametrize("tolerance", [1e-10, 1e-12])
