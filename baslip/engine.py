@@ -225,7 +225,7 @@ class CompiledEngine:
             if liftoff_step is not None:
                 k = liftoff_step
                 liftoff = hermite_root(times[k - 1 : k + 1], stretch[k - 1 : k + 1], rhodot[k - 1 : k + 1])
-                # Summed in order, as the batch path sums (np.sum pairs terms differently).
+                # Summed in order, as the compiled planning sums (np.sum pairs terms otherwise).
                 return Scouted(bottom, liftoff, rate, h, error + float(np.cumsum(errors[0])[k - 1]))
             error += float(np.sum(errors))
             x0, t0 = nodes[:, -1], times[-1]
