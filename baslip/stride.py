@@ -183,8 +183,10 @@ class StanceFlow:
 
 
 class StrideFunctions:
-    """The Functions of the compiled stride, built and compiled once: the touchdown state,
-    the stance scout and, per tier, the final pass and its Jacobian in (X, u, p).
+    """The Functions of the compiled stride, built and compiled once: the planning call
+    (touchdown state, one scout call and its events), the stance scout alone (for the
+    careful path) and, per tier, the final pass and its Jacobian in (X, u, p); the
+    planning and the final passes also mapped over :data:`BATCH` strides.
 
     ``compile``: True or False forces the C route on or off; None follows the
     environment (see :func:`baslip.compile.compile_functions`)."""
@@ -192,7 +194,6 @@ class StrideFunctions:
     def __init__(self, compile: bool | None = None):
         self.flow = StanceFlow()
         self.functions = compile_kernels("baslip_stride", _names(), self._all, sources(), enabled=compile)
-        self.touchdown_state = self.functions["touchdown_state"]
         self.scout = self.functions["stance_scout"]
         self.plan = self.functions["stance_plan"]
 
@@ -243,9 +244,9 @@ class StrideFunctions:
         derivatives are generated once for all tiers."""
         finals = [_final_pass(self.flow, n) for n in TIERS]
         scout = self._scout()
-        singles = [touchdown_state(), scout, self._plan(scout), *finals]
-        batches = [f.map(f"batch_{f.name()}", "serial", BATCH, [], [], {}) for f in singles]
-        return [*singles, *(self._jacobian(f) for f in finals), *batches]
+        batched = [self._plan(scout), *finals]  # the batch path plans and runs final passes
+        batches = [f.map(f"batch_{f.name()}", "serial", BATCH, [], [], {}) for f in batched]
+        return [scout, *batched, *(self._jacobian(f) for f in finals), *batches]
 
     def batch(self, name: str) -> Kernel:
         """The function ``name`` mapped over :data:`BATCH` columns (one stride each)."""
@@ -433,8 +434,8 @@ def scout_events() -> ca.Function:
 
 def _names() -> list[str]:
     """Names of the engine's functions, in the order :meth:`StrideFunctions._all` builds them."""
-    singles = ["touchdown_state", "stance_scout", "stance_plan", *(f"stride_{n}" for n in TIERS)]
-    return [*singles, *(f"stride_jacobian_{n}" for n in TIERS), *(f"batch_{name}" for name in singles)]
+    batched = ["stance_plan", *(f"stride_{n}" for n in TIERS)]
+    return ["stance_scout", *batched, *(f"stride_jacobian_{n}" for n in TIERS), *(f"batch_{name}" for name in batched)]
 
 
 def sources() -> list[pathlib.Path]:
