@@ -1,29 +1,88 @@
 """baslip: periodic running gaits of the Body-Attached SLIP and their stability.
 
-Entry points: :func:`load_problem` and :func:`solve_problem` (or the command line
-``baslip solve PROBLEM.yaml``, also ``python -m baslip.solve PROBLEM.yaml``),
+Entry points: :func:`run` for whatever a problem holds (a gait, a study, a branch or a
+curve), :func:`load_problem` and :func:`solve_problem` for one gait (or the command
+line ``baslip solve PROBLEM.yaml``, also ``python -m baslip.solve PROBLEM.yaml``),
 :class:`ReturnMap` for the apex return map and multi-stride simulation, and
 :class:`Params` / :class:`Control` for the numbers.
+
+The names are imported on first use, so that ``baslip --help`` and a worker's start
+do not load CasADi when they do not need it.
 """
 
-from importlib import metadata as _metadata
+from __future__ import annotations
 
-try:
-    __version__ = _metadata.version("baslip")
-except _metadata.PackageNotFoundError:  # run from a source tree that is not installed
-    __version__ = "unknown"
+import importlib
+from typing import TYPE_CHECKING, Any
 
-from .api import solve_problem
-from .control import CONTROL, Control
-from .fixedpoint import FixedPointResult, FixedPointSolver
-from .model import APEX, Params, build_model
-from .problem import Problem, ProblemError, load_problem, parse_problem
-from .results import RunResults, open_results
-from .returnmap import Fall, ReturnMap, Simulation, Stride, Tolerances
-from .shipped import problems_dir
+from baslip.version import __version__
+
+#: Each public name and the module that defines it.
+_HOMES = {
+    "APEX": "baslip.model.dynamics", "Params": "baslip.model.dynamics", "build_model": "baslip.model.dynamics",
+    "CONTROL": "baslip.model.hiplaw", "Control": "baslip.model.hiplaw",
+    "Problem": "baslip.problem.reader", "load_problem": "baslip.problem.reader",
+    "parse_problem": "baslip.problem.reader", "problems_dir": "baslip.problem.shipped",
+    "ProblemError": "baslip.errors", "InputError": "baslip.errors", "RunError": "baslip.errors",
+    "Status": "baslip.status",
+    "Fall": "baslip.engine.returnmap", "ReturnMap": "baslip.engine.returnmap", "Simulation": "baslip.engine.returnmap",
+    "Stride": "baslip.engine.returnmap", "Tolerances": "baslip.engine.returnmap",
+    "FixedPointResult": "baslip.gait.fixedpoint", "FixedPointSolver": "baslip.gait.fixedpoint",
+    "solve_problem": "baslip.gait.from_problem",
+    "RunResults": "baslip.results", "open_results": "baslip.results",
+    "run": "baslip.api",
+}
 
 __all__ = [
-    "APEX", "CONTROL", "Control", "Fall", "FixedPointResult", "FixedPointSolver", "Params",
-    "Problem", "ProblemError", "ReturnMap", "RunResults", "Simulation", "Stride", "Tolerances", "build_model",
-    "load_problem", "open_results", "parse_problem", "problems_dir", "solve_problem", "__version__",
+    "APEX",
+    "CONTROL",
+    "Control",
+    "Fall",
+    "FixedPointResult",
+    "FixedPointSolver",
+    "InputError",
+    "Params",
+    "Problem",
+    "ProblemError",
+    "ReturnMap",
+    "RunError",
+    "RunResults",
+    "Simulation",
+    "Status",
+    "Stride",
+    "Tolerances",
+    "build_model",
+    "load_problem",
+    "open_results",
+    "parse_problem",
+    "problems_dir",
+    "run",
+    "solve_problem",
+    "__version__",
 ]
+
+if TYPE_CHECKING:  # the same names, for type checkers and editors
+    from baslip.api import run
+    from baslip.engine.returnmap import Fall, ReturnMap, Simulation, Stride, Tolerances
+    from baslip.errors import InputError, ProblemError, RunError
+    from baslip.gait.fixedpoint import FixedPointResult, FixedPointSolver
+    from baslip.gait.from_problem import solve_problem
+    from baslip.model.dynamics import APEX, Params, build_model
+    from baslip.model.hiplaw import CONTROL, Control
+    from baslip.problem.reader import Problem, load_problem, parse_problem
+    from baslip.problem.shipped import problems_dir
+    from baslip.results import RunResults, open_results
+    from baslip.status import Status
+
+
+def __getattr__(name: str) -> Any:
+    home = _HOMES.get(name)
+    if home is None:
+        raise AttributeError(f"module 'baslip' has no attribute {name!r}")
+    value = getattr(importlib.import_module(home), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return __all__

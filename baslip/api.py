@@ -1,40 +1,173 @@
-"""The Python entry point: load a problem, solve it, get a verified result back.
+"""The Python verbs: run whatever a problem holds, and get a result object back.
 
->>> from baslip import load_problem, solve_problem
->>> result = solve_problem(load_problem("problems/downward.yaml"))
->>> result.status, result.residual, result.spectral_radius
+>>> import baslip
+>>> gait = baslip.run("problems/downward.yaml")             # a verified gait
+>>> grid = baslip.run("problems/grid_downward.yaml", out="runs/grid")   # a study, written
+>>> grid.to_dataframe(), grid.plot(), grid.summary()
+
+The command line (``baslip solve``) is a thin layer over :func:`run`: the same checks,
+the same files, the same exit status for the same outcome.
 """
 
 from __future__ import annotations
 
-from .fixedpoint import FixedPointResult, FixedPointSolver
-from .problem import Problem
-from .shooting import FixedPointSpec, ShootingOptions
+import contextlib
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+from baslip.errors import InputError
+from baslip.gait.fixedpoint import FixedPointResult
+from baslip.problem.reader import Problem, load_problem
+from baslip.results import RunResults, open_results, read_into_memory
 
 
-def shooting_options(problem: Problem) -> ShootingOptions:
-    """The NLP settings a problem asks for."""
-    s = problem.solver
-    return ShootingOptions(
-        nodes=s.nodes,
-        substeps=s.substeps,
-        ipopt={"max_iter": s.max_iter, "tol": s.tol, "acceptable_tol": max(s.tol, 1e-8), "print_level": s.print_level},
-    )
+class OutputUnwritable(InputError):
+    """The output folder cannot be created or written to."""
 
 
-def fixed_point_spec(problem: Problem) -> FixedPointSpec:
-    """What the NLP solves for a problem."""
-    return FixedPointSpec(
-        params=problem.params,
-        fixed=dict(problem.fix),
-        guess=problem.full_guess(),
-        bounds=dict(problem.bounds),
-        objective=problem.objective,
-        strides=problem.strides,
-    )
+class NothingToSchedule(InputError):
+    """A scheduler was asked for, but the problem holds no study to spread over it."""
 
 
-def solve_problem(problem: Problem, solver: FixedPointSolver | None = None) -> FixedPointResult:
-    """Solve and verify ``problem``; pass a built ``solver`` to reuse it across problems."""
-    solver = solver or FixedPointSolver(shooting_options(problem))
-    return solver.solve(fixed_point_spec(problem), name=problem.name)
+def run(problem: Problem | str | Path, out: str | Path | None = None, *, jobs: int | None = None,
+        lanes: int | None = None, scheduler: str | None = None, fresh: bool = False, progress: bool = True,
+        sources: str | Path | None = None) -> FixedPointResult | RunResults:
+    """Run what ``problem`` holds: its gait, its study (of any kind), or its continuation.
+
+    Parameters
+    ----------
+    problem : Problem, str or Path
+        A problem, or the path of a problem file.
+    out : str or Path, optional
+        The folder to write the run's files into: exactly those ``baslip solve --out``
+        writes, resuming what is there. Without it nothing is written and nothing is
+        resumed.
+    jobs : int, optional
+        Worker processes for a study (default one per core); answers do not depend on it.
+    lanes : int, optional
+        A new study's warm-started lanes (default 2); recorded, and the answers follow it.
+    scheduler : str, optional
+        A Dask scheduler's address, or ``"local"``, to run a study's lanes on.
+    fresh : bool
+        Discard what ``out`` holds first.
+    progress : bool
+        Show progress on stderr.
+    sources : str or Path, optional
+        The folder holding the runs a study reads (a basin study's source sweep, a random
+        sample's region or boundary); by default the folder that holds ``out``, else
+        ``results``.
+
+    Returns
+    -------
+    FixedPointResult or RunResults
+        The verified gait (or why there is none) for a gait problem; the study's or the
+        continuation's results otherwise, with ``summary()``, ``to_dataframe()``,
+        ``plot()`` and a short ``repr``.
+
+    Raises
+    ------
+    InputError
+        Bad input, checked before anything is solved or written: the problem, an option,
+        a run it reads, or an output folder that is busy or holds another problem's run.
+    RunError
+        A run that could not start, e.g. a study or branch whose start did not converge.
+    """
+    if not isinstance(problem, Problem):
+        problem = load_problem(Path(problem))
+    folder = None if out is None else Path(out)
+    where = Path(sources) if sources is not None else (folder.parent if folder is not None else Path("results"))
+    check_run(problem, folder, where, scheduler)
+    with _place(folder, problem.name) as target:
+        result = _run_into(problem, target, where, jobs=jobs, lanes=lanes, scheduler=scheduler, fresh=fresh,
+                           quiet=not progress)
+        if isinstance(result, FixedPointResult) or folder is not None:
+            return result
+        return read_into_memory(target, where)
+
+
+def check_run(problem: Problem, out: Path | None, sources: Path, scheduler: str | None = None) -> None:
+    """Every check of a run that needs more than its problem file: the runs a study reads,
+    the branch a continuation follows, the scheduler, and the output folder.
+
+    Raises
+    ------
+    InputError
+        The first check that fails, naming its key or option.
+    """
+    from baslip.analysis.gaitsystem import check_branch
+    from baslip.gait.from_problem import fixed_point_spec
+    from baslip.studies.registry import check_study_inputs
+    from baslip.studies.runner import check_scheduler
+
+    if problem.study is not None:
+        check_study_inputs(problem, sources)
+    if problem.continuation is not None:
+        spec = fixed_point_spec(problem)
+        check_branch(spec, problem.continuation.parameter)
+        if problem.continuation.second is not None:
+            check_branch(spec, problem.continuation.second, "continuation.second")
+    if scheduler is not None:
+        if problem.study is None:
+            raise NothingToSchedule("--scheduler", f"{problem.name} has no study to run on a cluster")
+        check_scheduler(scheduler)
+    if out is not None:
+        _check_writable(out)
+
+
+def _check_writable(folder: Path) -> None:
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as err:
+        raise OutputUnwritable("", f"output folder {folder}: {err.strerror or err}") from None
+
+
+@contextlib.contextmanager
+def _place(folder: Path | None, name: str) -> Iterator[Path]:
+    """``folder``, or a temporary folder removed afterwards when there is none."""
+    if folder is not None:
+        yield folder
+        return
+    with tempfile.TemporaryDirectory(prefix="baslip-run-") as scratch:
+        yield Path(scratch) / name
+
+
+def _run_into(problem: Problem, out: Path, sources: Path, *, jobs, lanes, scheduler, fresh: bool,
+              quiet: bool) -> FixedPointResult | RunResults:
+    from baslip.studies.branch import run_continuation
+    from baslip.studies.registry import run_study
+
+    if problem.study is not None:
+        run_study(problem, out, quiet, fresh, jobs, scheduler, lanes, sources=sources)
+        return open_results(out)
+    if problem.continuation is not None:
+        run_continuation(problem, out, quiet)
+        return open_results(out)
+    return solve_and_write(problem, out, quiet)
+
+
+def solve_and_write(problem: Problem, out: Path, quiet: bool = True) -> FixedPointResult:
+    """Solve the gait of ``problem`` and write ``result.json`` and ``multipliers.csv`` to
+    ``out``, replacing an earlier result only once the new files are complete."""
+    import sys
+
+    from baslip.files.atomic import write_result
+    from baslip.files.lock import hold
+    from baslip.files.provenance import provenance
+    from baslip.gait.from_problem import solve_problem, solver_for
+
+    with hold(out):
+        if not quiet:
+            s = problem.solver
+            orbit = "" if problem.strides == 1 else f", {problem.strides}-stride orbits"
+            print(f"{problem.name}: loading the compiled model and NLP ({s.nodes} nodes x {s.substeps} RK4 steps "
+                  f"per stance phase{orbit}; the first run on a machine compiles them)...", file=sys.stderr)
+        solver = solver_for(problem)
+        solver.nlp_for(problem.strides)
+        if not quiet:
+            print(f"{problem.name}: solving ({problem.objective}) and verifying...", file=sys.stderr)
+        result = solve_problem(problem, solver)
+        write_result(result, out, provenance(problem))
+    return result

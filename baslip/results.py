@@ -8,10 +8,15 @@ them (``plot``).
 
 from __future__ import annotations
 
+import io
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass
 from html import escape
 from pathlib import Path
+from typing import IO
+
+from baslip.status import Status
 
 #: The table ``to_dataframe()`` gives by default, by kind of run.
 DEFAULT_TABLE = {"continuation": "branch", "gait": "multipliers"}
@@ -19,29 +24,55 @@ DEFAULT_TABLE = {"continuation": "branch", "gait": "multipliers"}
 
 @dataclass(frozen=True)
 class RunResults:
-    """The files of one run: its ``summary`` (result.json) and its CSV ``tables`` by
-    name (``points``, ``branch``, ``curve``, ...)."""
+    """One run's results: its ``record`` (result.json) and its CSV ``tables`` by name
+    (``points``, ``branch``, ``curve``, ...).
 
-    folder: Path
-    summary: dict
+    Read from a folder (``folder``), or held in memory (``texts``: table name -> CSV
+    text) for a run that wrote nothing. ``sources`` is the folder that holds the runs this
+    one read (a basin study's source sweep, a random sample's region and boundary).
+    """
+
+    folder: Path | None
+    record: dict
     tables: tuple[str, ...]
+    texts: Mapping[str, str] | None = None
+    sources: Path | None = None
 
     @property
     def kind(self) -> str:
         """``gait``, ``continuation``, or the study's kind (``sweep``, ``random``, ...)."""
-        if "kind" in self.summary:
-            return self.summary["kind"]
-        return "continuation" if "branches" in self.summary else "gait"
+        if "kind" in self.record:
+            return self.record["kind"]
+        return "continuation" if "branches" in self.record else "gait"
 
     @property
     def name(self) -> str:
-        return self.summary.get("name", self.folder.name)
+        return self.record.get("name", self.folder.name if self.folder else "")
+
+    def summary(self) -> str:
+        """A short account of the run, as the command line prints it."""
+        return run_summary_text(self.record)
 
     def rows(self, table: str | None = None) -> list[dict]:
         """The rows of a table, numbers as floats and flags as bools."""
-        from .studies.sweep import read_points
+        from baslip.studies.sweep import points_from
 
-        return read_points(self.folder / f"{table or self._default_table()}.csv")
+        with self._open(table or self._default_table()) as handle:
+            return points_from(handle)
+
+    def _open(self, table: str) -> IO[str]:
+        if self.texts is not None:
+            if table not in self.texts:
+                raise KeyError(f"{self.name} has no table {table!r}; it has {', '.join(self.tables) or 'none'}")
+            return io.StringIO(self.texts[table])
+        assert self.folder is not None
+        return open(self.folder / f"{table}.csv", encoding="utf-8", newline="")
+
+    def _source(self, name: str) -> RunResults:
+        """A run this one read, from the ``sources`` folder."""
+        if self.sources is None:
+            raise FileNotFoundError(f"{self.name} does not know where its source run {name!r} is")
+        return open_results(self.sources / name)
 
     def to_dataframe(self, table: str | None = None):
         """A table as a pandas DataFrame (needs pandas): by default ``points`` for a study,
@@ -52,8 +83,9 @@ class RunResults:
             raise ImportError("to_dataframe needs pandas: pip install pandas") from None
         name = table or self._default_table()
         if name not in self.tables:
-            raise KeyError(f"{self.folder} has no {name}.csv; it has {', '.join(self.tables) or 'no tables'}")
-        frame = pandas.read_csv(self.folder / f"{name}.csv")
+            raise KeyError(f"{self.folder or self.name} has no {name}.csv; it has {', '.join(self.tables) or 'no tables'}")
+        with self._open(name) as handle:
+            frame = pandas.read_csv(handle)
         for column in frame.columns:  # true/false with gaps (failed rows) as a nullable bool
             values = set(frame[column].dropna().astype(str).str.lower())
             if values and values <= {"true", "false"}:
@@ -66,7 +98,7 @@ class RunResults:
         convergence regions and their example runs, the most stable gaits per cell and
         their trunk motion (one stride of each simulated again), an adaptive run's states
         and controls, a controller comparison, a branch's diagram and its curves."""
-        from . import plots
+        from baslip.viz import figures as plots
 
         before = set(plots.plt.get_fignums())
         if self.kind == "sweep":
@@ -75,38 +107,38 @@ class RunResults:
         elif self.kind == "basin":
             plots.basin_figures(*self._basin_inputs(), None)
         elif self.kind == "optimal":
-            from .model import Params
-            from .studies.optimal import best_gait_motions, best_rows
+            from baslip.model.dynamics import Params
+            from baslip.studies.optimal import best_gait_motions, best_rows
 
             names = self._swept(self.rows("points"))
             best = best_rows(self.rows("points"), names)
             plots.sweep_figures(best, names, None)
-            params = Params(**self.summary["provenance"]["problem"]["params"])
+            params = Params(**self.record["provenance"]["problem"]["params"])
             plots.trunk_motion_figure(best_gait_motions(best, names, params), None)
         if self.kind == "random":
             rows = self.rows("points")
             names = tuple(c[len("sweep_"):] for c in rows[0] if c.startswith("sweep_"))
-            region = open_results(self.folder.parent / self.summary["region"]).rows("points")
-            boundary = self.summary.get("boundary")
-            curves = open_results(self.folder.parent / boundary).rows("curve") if boundary else None
+            region = self._source(self.record["region"]).rows("points")
+            boundary = self.record.get("boundary")
+            curves = self._source(boundary).rows("curve") if boundary else None
             plots.random_figure(rows, region, names, None, curves)
         elif self.kind == "adaptive":
             plots.adaptive_figures(self.rows("strides"), None)
         elif self.kind == "controllers":
-            plots.controllers_figure(self.rows("controllers"), self.summary["perturbation"], None)
+            plots.controllers_figure(self.rows("controllers"), self.record["perturbation"], None)
         drawn = [plots.plt.figure(n) for n in sorted(set(plots.plt.get_fignums()) - before)]
         return drawn + self._diagrams()
 
     def _diagrams(self) -> list:
-        from . import plots
+        from baslip.viz import figures as plots
 
         figures = []
         if self.kind == "continuation":
-            parameter = self.summary["parameter"]
-            quantity = self.summary.get("provenance", {}).get("problem", {}).get("continuation", {}).get("plot", "z")
+            parameter = self.record["parameter"]
+            quantity = self.record.get("provenance", {}).get("problem", {}).get("continuation", {}).get("plot", "z")
             figures.append(plots.bifurcation_diagram(self.rows("branch"), parameter, quantity))
             if "curve" in self.tables:
-                second = self.summary["curves"]["second"]
+                second = self.record["curves"]["second"]
                 figures.append(plots.curve_diagram(self.rows("curve"), parameter, second))
         return figures
 
@@ -116,15 +148,15 @@ class RunResults:
         return [c[len("sweep_"):] for c in (rows[0] if rows else {}) if c.startswith("sweep_")]
 
     def _basin_inputs(self) -> tuple:
-        """The arguments of :func:`baslip.plots.basin_figures` (without the folder), read
+        """The arguments of :func:`baslip.viz.figures.basin_figures` (without the folder), read
         back from the basin study's files and its source sweep's points."""
         import numpy as np
 
-        from .model import APEX
+        from baslip.model.dynamics import APEX
 
         basin_rows = self.rows("basin")
-        source = open_results(self.folder.parent / self.summary["source"]).rows("points")
-        converged = [r for r in source if r["status"] == "converged"]
+        source = self._source(self.record["source"]).rows("points")
+        converged = [r for r in source if r["status"] == Status.CONVERGED]
         stable = [r for r in converged if r["stable"] is True]
         unstable = [r for r in converged if r["stable"] is False]
 
@@ -133,16 +165,16 @@ class RunResults:
                 return None
             return next((r for r in rows if abs(r["ydot"] - point["ydot"]) <= 1e-12 and abs(r["z"] - point["z"]) <= 1e-12), None)
 
-        example = at(stable, self.summary.get("example_stable_point"))
+        example = at(stable, self.record.get("example_stable_point"))
         runs = self.rows("trajectories") if "trajectories" in self.tables else []
         trajectories = {
             case: (info["outcome"], info["strides"], None,
                    np.array([[r[n] for n in APEX.names] for r in runs if r["case"] == case]))
-            for case, info in self.summary.get("trajectories", {}).items()
+            for case, info in self.record.get("trajectories", {}).items()
         }
         grid = (sorted({r["sweep_ydot"] for r in basin_rows}), sorted({r["sweep_z"] for r in basin_rows}))
         return (basin_rows, stable, unstable, None if example is None else stable.index(example),
-                at(unstable, self.summary.get("example_unstable_point")), trajectories, grid)
+                at(unstable, self.record.get("example_unstable_point")), trajectories, grid)
 
     def _default_table(self) -> str:
         wanted = DEFAULT_TABLE.get(self.kind, "points")
@@ -151,17 +183,18 @@ class RunResults:
     def __repr__(self) -> str:
         facts = [self.kind]
         for key in ("points", "solved", "stable", "status", "spectral_radius"):
-            if isinstance(self.summary.get(key), (int, float, str)) and not isinstance(self.summary.get(key), bool):
-                facts.append(f"{key} {self.summary[key]}")
-        if "curves" in self.summary:
-            facts.append(f"{len(self.summary['curves']['curves'])} curves")
+            if isinstance(self.record.get(key), (int, float, str)) and not isinstance(self.record.get(key), bool):
+                facts.append(f"{key} {self.record[key]}")
+        if "curves" in self.record:
+            facts.append(f"{len(self.record['curves']['curves'])} curves")
         return f"<RunResults {self.name}: {', '.join(facts)}; tables: {', '.join(self.tables) or 'none'}>"
 
     def _repr_html_(self) -> str:
-        scalars = {k: v for k, v in self.summary.items() if isinstance(v, (int, float, str, bool)) and k != "name"}
+        scalars = {k: v for k, v in self.record.items() if isinstance(v, (int, float, str, bool)) and k != "name"}
         body = "".join(f"<tr><th style='text-align:left'>{escape(str(k))}</th><td>{escape(str(v))}</td></tr>"
                        for k, v in scalars.items())
-        return (f"<b>{escape(self.name)}</b> ({escape(self.kind)}, {escape(str(self.folder))})<table>{body}</table>"
+        where = f", {escape(str(self.folder))}" if self.folder else ""
+        return (f"<b>{escape(self.name)}</b> ({escape(self.kind)}{where})<table>{body}</table>"
                 f"<small>tables: {escape(', '.join(self.tables) or 'none')}</small>")
 
 
@@ -173,4 +206,55 @@ def open_results(folder: str | Path) -> RunResults:
     if not path.exists():
         raise FileNotFoundError(f"{path} does not exist: run the problem first")
     tables = tuple(sorted(p.stem for p in folder.glob("*.csv")))
-    return RunResults(folder, json.loads(path.read_text()), tables)
+    return RunResults(folder, json.loads(path.read_text()), tables, sources=folder.parent)
+
+
+def read_into_memory(folder: Path, sources: Path | None) -> RunResults:
+    """The results in ``folder`` held in memory, so that the folder can be removed."""
+    on_disk = open_results(folder)
+    texts = {name: (folder / f"{name}.csv").read_text(encoding="utf-8") for name in on_disk.tables}
+    return RunResults(None, on_disk.record, on_disk.tables, texts, sources)
+
+
+def run_summary_text(record: dict) -> str:
+    """A study's or a continuation's result record, told in a few lines."""
+    name = record.get("name", "")
+    if "kind" in record:
+        counts = ", ".join(f"{k} {v}" for k, v in record.items() if isinstance(v, int) and not isinstance(v, bool))
+        lines = [f"{name}: {record['kind']} study {'complete' if record.get('complete', True) else 'incomplete'}: {counts}"]
+        for row in record.get("not_solved", [])[:10]:
+            where = ", ".join(f"{k[len('sweep_'):]} = {v:g}" for k, v in row.items() if k.startswith("sweep_"))
+            lines.append(f"  no fixed point at {where}: {row['status']} ({row['reason']})")
+        if len(record.get("not_solved", [])) > 10:
+            lines.append(f"  ... and {len(record['not_solved']) - 10} more points without a fixed point "
+                         "(see points.csv, column reason)")
+        return "\n".join(lines)
+    return "\n".join(_continuation_lines(record))
+
+
+def _continuation_lines(record: dict) -> list[str]:
+    from baslip.viz.labels import CODIM2_NAMES, SPECIAL_NAMES
+
+    name, parameter, lines = record.get("name", ""), record["parameter"], []
+    for b in record["branches"]:
+        special = ", ".join(f"{p['type']} at {parameter} = {p[parameter]:.7g}"
+                            for p in record["special_points"] if p["branch"] == b["branch"])
+        origin = f", switched at the {SPECIAL_NAMES[b['switched_from']['type']]}" if b["switched_from"] else ""
+        lines.append(f"{name}: branch {b['branch']} ({b['strides']}-stride orbits{origin}): "
+                     f"{b['points']} verified points, stopped: {b['stop_reason']}")
+        lines.append(f"  special points: {special or 'none'}")
+    for f in record["failed_switches"]:
+        lines.append(f"  could not switch at the {SPECIAL_NAMES[f['type']]} at {parameter} = {f[parameter]:.7g}: "
+                     f"{f['reason']}")
+    curves = record.get("curves")
+    if curves is not None:
+        second = curves["second"]
+        for c in curves["curves"]:
+            lines.append(f"  curve {c['curve']} ({c['type'].replace('_', ' ')}) from {parameter} = "
+                         f"{c['from'][parameter]:.7g}: {c['points']} verified points, stopped: {c['stop_reason']}")
+        for f in curves["failed_curves"]:
+            lines.append(f"  no {f['type'].replace('_', ' ')} curve from {parameter} = {f[parameter]:.7g}: {f['reason']}")
+        found = "; ".join(f"{CODIM2_NAMES[p['type']]} at {parameter} = {p[parameter]:.7g}, {second} = {p[second]:.7g}"
+                          for p in curves["codimension_two_points"])
+        lines.append(f"  codimension-two points: {found or 'none'}")
+    return lines

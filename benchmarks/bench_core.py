@@ -24,9 +24,9 @@ import casadi as ca
 import numpy as np
 
 from baslip import FixedPointSolver, Params, ReturnMap, Tolerances, load_problem
-from baslip.api import fixed_point_spec, shooting_options
-from baslip.control import CONTROL, hip_torque
-from baslip.model import PARAMS, STANCE, build_model, liftoff_guard, stance_dynamics
+from baslip.gait.from_problem import fixed_point_spec, shooting_options
+from baslip.model.dynamics import PARAMS, STANCE, build_model, liftoff_guard, stance_dynamics
+from baslip.model.hiplaw import CONTROL, hip_torque
 
 X_RUN = np.array([0.4, -math.pi / 2 + 0.02, 0.5, 0.1])
 U_RUN = np.array([0.1, 0.01, 0.2, 0.0, 0.15])

@@ -23,7 +23,7 @@ import time
 import numpy as np
 
 from baslip import FixedPointSolver, Params, ReturnMap, Tolerances, load_problem
-from baslip.api import fixed_point_spec
+from baslip.gait.from_problem import fixed_point_spec
 
 X_RUN = np.array([0.4, -math.pi / 2 + 0.02, 0.5, 0.1])
 U_RUN = np.array([0.1, 0.01, 0.2, 0.0, 0.15])

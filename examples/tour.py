@@ -17,7 +17,7 @@ import numpy as np
 
 import baslip
 from baslip import ReturnMap, Tolerances, load_problem, open_results, solve_problem
-from baslip.solve import main as solve_command
+from baslip.cli.solve import main as solve_command
 
 
 def main() -> None:

@@ -6,7 +6,6 @@ import pytest
 from baslip import FixedPointSolver, Params, ReturnMap, Tolerances
 
 
-
 @pytest.fixture(scope="session")
 def params():
     return Params()

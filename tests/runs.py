@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from baslip.problem import load_problem
+from baslip.problem.reader import load_problem
 from baslip.studies.branch import run_continuation
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -1,4 +1,4 @@
-"""Specification of baslip.batch and ReturnMap.strides / simulate_many: many strides at
+"""Specification of baslip.engine.batch and ReturnMap.strides / simulate_many: many strides at
 once, in threads, with the outcomes of one stride at a time."""
 
 import math
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from baslip import Fall, Params, ReturnMap, Tolerances
-from baslip.outcome import precheck, prechecks
+from baslip.engine.outcome import precheck, prechecks
 
 PARAMS = Params()
 GAIT_X = np.array([0.4, -1.5657, 0.5, 0.164274])

@@ -3,8 +3,8 @@ stability boundary."""
 
 import numpy as np
 
+from baslip.problem.study import RandomSample
 from baslip.studies.boundary import boundary_segments, crossings, inside
-from baslip.studies.schema import RandomSample
 from baslip.studies.sweep import random_tasks
 
 

@@ -11,7 +11,6 @@ import csv
 import math
 
 import pytest
-
 from runs import run_problem
 
 

@@ -1,4 +1,4 @@
-"""Specification of baslip.branches with baslip.continuation on the BA-SLIP itself.
+"""Specification of baslip.analysis.gaitsystem with baslip.analysis.continuation on the BA-SLIP itself.
 
 The SLIP limit (d = 0, no torque) at the energy of Seyfarth, Geyer & Herr (2003),
 J. Exp. Biol. 206:2547 (see test_slip_limit.py), continued in the touchdown angle: the
@@ -12,15 +12,14 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
-from baslip.api import fixed_point_spec
-from baslip.branches import BranchError, FixedPointSystem, check_branch
-from baslip.continuation import Settings, continue_branch, switch_branch
-from baslip.fixedpoint import minimal_period
-from baslip.problem import load_problem
-from baslip.shooting import FixedPointSpec
-
 from test_slip_limit import slip_apex_map, slip_fixed_point  # an independent SLIP (tests/ is on sys.path)
+
+from baslip.analysis.continuation import Settings, continue_branch, switch_branch
+from baslip.analysis.gaitsystem import BranchError, FixedPointSystem, check_branch
+from baslip.gait.fixedpoint import minimal_period
+from baslip.gait.from_problem import fixed_point_spec
+from baslip.gait.shooting import FixedPointSpec
+from baslip.problem.reader import load_problem
 
 
 @pytest.fixture(scope="module")

@@ -1,16 +1,15 @@
-"""Specification of the ``baslip`` command (baslip.cli) and of the notebook-facing parts of
+"""Specification of the ``baslip`` command (baslip.cli.main) and of the notebook-facing parts of
 a result."""
 
 import subprocess
 import sys
 
 import pytest
+from runs import ROOT
 
 from baslip import __version__, load_problem, solve_problem
-from baslip.cli import main
-from baslip.shipped import shipped_problems
-
-from runs import ROOT
+from baslip.cli.main import main
+from baslip.problem.shipped import shipped_problems
 
 
 def run(*args, cwd=None):

@@ -15,7 +15,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from baslip.compile import cache_dir, compile_functions
+from baslip.engine.codegen import cache_dir, compile_functions
 
 pytestmark = pytest.mark.skipif(shutil.which("gcc") is None, reason="needs gcc")
 
@@ -207,7 +207,7 @@ def test_two_processes_starting_at_once_compile_once(cache, tmp_path, monkeypatc
         import sys
         sys.path.insert(0, {os.path.dirname(__file__)!r})
         from test_compile import make_functions
-        from baslip.compile import compile_functions
+        from baslip.engine.codegen import compile_functions
         compiled = compile_functions("test_lib", make_functions())
         assert all(g.is_a("External") for g in compiled.values()), compiled
         print("ok")
@@ -238,7 +238,7 @@ def kernel_functions():
 
 
 def test_native_kernels_give_the_virtual_machine_numbers(cache):
-    from baslip.compile import compile_kernels
+    from baslip.engine.codegen import compile_kernels
 
     functions = kernel_functions()
     sources = [pathlib.Path(__file__)]
@@ -255,7 +255,7 @@ def test_native_kernels_give_the_virtual_machine_numbers(cache):
 
 
 def test_kernels_load_from_the_cache_without_building(cache):
-    from baslip.compile import compile_kernels
+    from baslip.engine.codegen import compile_kernels
 
     functions = kernel_functions()
     names, sources = [f.name() for f in functions], [pathlib.Path(__file__)]

@@ -20,14 +20,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from baslip.api import fixed_point_spec
-from baslip.branches import NearestGuessSystem, branch_system
-from baslip.continuation import Settings, continue_branch
-from baslip.problem import load_problem
-from baslip.quantities import DESIGN, NOMINAL
-from baslip.solve import main
 from runs import ROOT, run_problem
+
+from baslip.analysis.continuation import Settings, continue_branch
+from baslip.analysis.gaitsystem import NearestGuessSystem, branch_system
+from baslip.cli.solve import main
+from baslip.gait.from_problem import fixed_point_spec
+from baslip.model.quantities import DESIGN, NOMINAL
+from baslip.problem.reader import load_problem
 
 SEYFARTH_ENERGY = 1784.8  # J: 5 m/s at a 1 m apex height, m = 80 kg
 

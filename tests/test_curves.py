@@ -1,4 +1,4 @@
-"""Specification of baslip.curves: bifurcation curves in two parameters and the
+"""Specification of baslip.analysis.bifurcation: bifurcation curves in two parameters and the
 codimension-two points on them, checked on maps whose answers are known in closed form."""
 
 import math
@@ -7,8 +7,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from baslip.continuation import Settings
-from baslip.curves import CurveSystem, SmoothMap, bialternate, trace_curve
+from baslip.analysis.bifurcation import CurveSystem, SmoothMap, bialternate, trace_curve
+from baslip.analysis.continuation import Settings
 
 
 def smooth(size, expression):

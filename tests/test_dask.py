@@ -13,10 +13,10 @@ import pytest
 
 distributed = pytest.importorskip("distributed")
 
-from baslip.problem import load_problem  # noqa: E402
-from baslip.studies.run import run_study  # noqa: E402
-
 from runs import ROOT  # noqa: E402
+
+from baslip.problem.reader import load_problem  # noqa: E402
+from baslip.studies.registry import run_study  # noqa: E402
 
 GRID = "vary: {ydot: [0.3, 0.6, 0.1], z: [0.35, 0.5, 0.05]}"  # 16 points, 8 per lane
 
@@ -38,14 +38,14 @@ def rows_of(folder):
 def local_rows(tmp_path_factory):
     folder = tmp_path_factory.mktemp("local")
     path = small_grid(folder)
-    summary = run_study(load_problem(path), path, folder / "out", quiet=True)
+    summary = run_study(load_problem(path), folder / "out", quiet=True)
     assert summary["points"] == 16
     return rows_of(folder / "out")
 
 
 def test_a_local_cluster_gives_the_rows_of_a_local_run(tmp_path, local_rows):
     path = small_grid(tmp_path)
-    summary = run_study(load_problem(path), path, tmp_path / "out", quiet=True, jobs=2, scheduler="local")
+    summary = run_study(load_problem(path), tmp_path / "out", quiet=True, jobs=2, scheduler="local")
     assert summary["complete"] and summary["points"] == 16
     assert rows_of(tmp_path / "out") == local_rows
 

@@ -1,17 +1,16 @@
-"""Specification of the compiled stride engine (baslip.stride, baslip.engine) behind
+"""Specification of the compiled stride engine (baslip.engine.kernels, baslip.engine.driver) behind
 ``ReturnMap()``: as accurate as a tight adaptive reference over the design box, the same
 falls, the same numbers in C and in CasADi's virtual machine, exact Jacobians.
 """
 
 import math
 
+import casadi as ca
 import numpy as np
 import pytest
 
 from baslip import Fall, Params, ReturnMap, Tolerances
-import casadi as ca
-
-from baslip.engine import (
+from baslip.engine.driver import (
     RICHARDSON_SAFETY,
     first_tiers,
     first_tiers_many,
@@ -19,9 +18,9 @@ from baslip.engine import (
     richardson_error,
     scout_step,
 )
-from baslip.outcome import precheck
-from baslip.stride import TIERS, stiffness_rate
-from baslip.stride import hermite_root as hermite_root_in_graph
+from baslip.engine.kernels import TIERS, stiffness_rate
+from baslip.engine.kernels import hermite_root as hermite_root_in_graph
+from baslip.engine.outcome import precheck
 
 PARAMS = Params()
 

@@ -1,4 +1,4 @@
-"""Specification of baslip.feedback: stride-to-stride controllers.
+"""Specification of baslip.analysis.feedback: stride-to-stride controllers.
 
 * Deadbeat feedback puts every closed-loop multiplier at 0 where dr/du has rank 4.
 * The closed-loop multipliers of u = u* + K (X - X*) are the eigenvalues of A + B K, and
@@ -16,11 +16,17 @@ import numpy as np
 import pytest
 
 from baslip import Params
-from baslip.feedback import (
-    CONTROL_SCALE, LinearFeedback, ResolvedControl, closed_loop_multipliers, control_rank, deadbeat_gain,
-    lqr_gain, run_closed_loop,
+from baslip.analysis.feedback import (
+    CONTROL_SCALE,
+    LinearFeedback,
+    ResolvedControl,
+    closed_loop_multipliers,
+    control_rank,
+    deadbeat_gain,
+    lqr_gain,
+    run_closed_loop,
 )
-from baslip.polish import eps
+from baslip.gait.polish import eps
 
 ROOT = Path(__file__).resolve().parents[1]
 Q = np.diag(1 / np.array([0.01, 0.1, 0.1, 1.0]) ** 2)
@@ -104,7 +110,7 @@ def test_the_per_stride_re_solve_keeps_a_perturbed_upright_runner_hopping(tight_
     reports what it leaves (about 1e-4 here)."""
     X, u = gait("upward")
     X0 = X + offset
-    from baslip.feedback import ConstantControl
+    from baslip.analysis.feedback import ConstantControl
 
     assert run_closed_loop(tight_map, Params(), ConstantControl(u), X0, X, 40).outcome == "fell"
     controller = ResolvedControl(tight_map, Params(), X, u, criterion, fixed=(3,))

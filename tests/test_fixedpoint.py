@@ -1,4 +1,4 @@
-"""Specification of baslip.fixedpoint (with baslip.shooting): verified fixed points.
+"""Specification of baslip.gait.fixedpoint (with baslip.gait.shooting): verified fixed points.
 
 Every converged result must survive an independent re-simulation at rtol = atol = 1e-12
 with eps (thesis eq. 4.1) <= 1e-10; anything else is reported as not verified or failed.
@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from baslip import Params, ReturnMap, Tolerances
-from baslip.api import fixed_point_spec
-from baslip.fixedpoint import ACCEPTED_IPOPT
-from baslip.problem import load_problem
-from baslip.shooting import FixedPointSpec
+from baslip.gait.fixedpoint import ACCEPTED_IPOPT
+from baslip.gait.from_problem import fixed_point_spec
+from baslip.gait.shooting import FixedPointSpec
+from baslip.problem.reader import load_problem
 
 DOWNWARD_GUESS = {
     "theta_h": -math.pi / 2, "theta_h_dot": 0.0, "Kp": 2.0, "Kd": 0.5,

@@ -1,4 +1,4 @@
-"""Specification of baslip.flow: fixed-step DOP853 steps, chains and Newton-located events.
+"""Specification of baslip.engine.dop853: fixed-step DOP853 steps, chains and Newton-located events.
 
 Checked on the harmonic oscillator x'' = -w^2 x, whose flow and event times are known in
 closed form.
@@ -10,7 +10,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from baslip import flow
+from baslip.engine import dop853 as flow
 
 OMEGA = 2.0
 

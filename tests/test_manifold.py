@@ -1,4 +1,4 @@
-"""Specification of baslip.manifold: the local dimension of the fixed-point manifold."""
+"""Specification of baslip.analysis.manifold: the local dimension of the fixed-point manifold."""
 
 import json
 from pathlib import Path
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from baslip import Params, ReturnMap, Tolerances
-from baslip.manifold import RANK_TOLERANCE, manifold_dimension
+from baslip.analysis.manifold import RANK_TOLERANCE, manifold_dimension
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -69,7 +69,7 @@ def test_set_points_act_only_through_c(tight_map):
 def test_dr_dc_is_the_same_through_either_set_point(tight_map):
     """dr/dtheta2_des = Kp dr/dc and dr/dtheta2_dot_des = Kd dr/dc: dr/dc from either agrees
     to round-off, so the motion depends on the set points only through c."""
-    from baslip.manifold import controllability, independent_control_jacobian
+    from baslip.analysis.manifold import controllability, independent_control_jacobian
 
     record = json.loads((ROOT / "results" / "downward" / "result.json").read_text())
     X = np.array(list(record["apex"].values()))

@@ -1,4 +1,4 @@
-"""Specification of baslip.model: the Lagrangian-derived stance equations and the maps.
+"""Specification of baslip.model.dynamics: the Lagrangian-derived stance equations and the maps.
 
 The stance equations are derived by CasADi from L = T - V; here they are checked against
 the thesis's printed forms (eq. 3.27 for M, eq. 3.28 for f with "rhodot_1" read as
@@ -8,7 +8,7 @@ rhodot * theta1_dot) and against the invariants of the maps.
 import numpy as np
 import pytest
 
-from baslip.model import Params, build_model, stance_equations
+from baslip.model.dynamics import Params, build_model, stance_equations
 
 MODEL = build_model()
 RNG = np.random.default_rng(7)

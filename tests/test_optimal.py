@@ -1,4 +1,4 @@
-"""Specification of baslip.optimal: the search for the most stable gait on the manifold.
+"""Specification of baslip.analysis.descent: the search for the most stable gait on the manifold.
 
 * The surrogate's gradient in dr/dX is exact (against finite differences of the
   eigenvalues), and bounds the spectral radius within 9 %.
@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 from baslip import Params
-from baslip.api import fixed_point_spec, shooting_options
-from baslip.optimal import SURROGATE_POWER, StabilityDescent, optimise_from, random_start, surrogate
-from baslip.polish import eps
-from baslip.problem import load_problem
+from baslip.analysis.descent import SURROGATE_POWER, StabilityDescent, optimise_from, random_start, surrogate
+from baslip.gait.from_problem import fixed_point_spec, shooting_options
+from baslip.gait.polish import eps
+from baslip.problem.reader import load_problem
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -59,7 +59,7 @@ def test_trivial_multipliers_are_left_out():
 
 @pytest.fixture(scope="module")
 def downward():
-    from baslip.fixedpoint import FixedPointSolver
+    from baslip.gait.fixedpoint import FixedPointSolver
 
     problem = load_problem(ROOT / "problems" / "downward.yaml")
     solver = FixedPointSolver(shooting_options(problem))

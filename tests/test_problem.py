@@ -1,4 +1,4 @@
-"""Specification of baslip.problem: YAML problem files and their validation.
+"""Specification of baslip.problem.reader: YAML problem files and their validation.
 
 Every bad input raises ProblemError naming the offending key; the CLI turns it into one
 line on stderr and exit code 2 (see test_solve.py).
@@ -8,8 +8,8 @@ import math
 
 import pytest
 
-from baslip.problem import ProblemError, load_problem, parse_problem
-from baslip.quantities import DEFAULT_GUESS
+from baslip.model.quantities import DEFAULT_GUESS
+from baslip.problem.reader import ProblemError, load_problem, parse_problem
 
 VALID = {
     "name": "ok",

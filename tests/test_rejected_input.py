@@ -17,9 +17,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from baslip.problem import load_problem
-from baslip.provenance import problem_hash
-from baslip.solve import main
+from baslip.cli.solve import main
+from baslip.files.provenance import problem_hash
+from baslip.problem.reader import load_problem
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Longest error line accepted.

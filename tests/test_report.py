@@ -1,10 +1,11 @@
-"""Specification of baslip.report: the claims it writes count what the committed results
+"""Specification of baslip.report.page: the claims it writes count what the committed results
 hold, and say what a count does and does not show."""
 
 import re
 from pathlib import Path
 
-from baslip.report import Evidence, converged, scan_claims
+from baslip.report.evidence import Evidence, converged
+from baslip.report.thesis import scan_claims
 
 RESULTS = Path(__file__).resolve().parents[1] / "results"
 

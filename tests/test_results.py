@@ -1,10 +1,9 @@
 """Specification of baslip.results: runs read back from their folders, for notebooks."""
 
 import pytest
+from runs import ROOT
 
 from baslip import open_results
-
-from runs import ROOT
 
 RESULTS = ROOT / "results"
 

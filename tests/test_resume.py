@@ -20,10 +20,10 @@ import time
 from pathlib import Path
 
 import pytest
-
-from baslip.folder import LOCK_NAME
-from baslip.solve import main
 from processes import descendants, gone
+
+from baslip.cli.solve import main
+from baslip.files.lock import LOCK_NAME
 
 ROOT = Path(__file__).resolve().parents[1]
 # 10 x 3 = 30 fixed points of the hanging-trunk grid: a couple of seconds on two cores.

@@ -1,4 +1,4 @@
-"""Specification of baslip.returnmap: the event-located apex return map r(X, u).
+"""Specification of baslip.engine.returnmap: the event-located apex return map r(X, u).
 
 Checked against closed forms (vertical hopping), invariants (energy without torque,
 mirror symmetry), finite differences of the tight map, and the named ways to fall.
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from baslip import Fall, Params, ReturnMap, Tolerances
-from baslip.returnmap import RunnerFell
-from baslip.model import build_model
+from baslip.engine.returnmap import RunnerFell
+from baslip.model.dynamics import build_model
 
 MODEL = build_model()
 

@@ -13,10 +13,10 @@ import sys
 import time
 
 import pytest
-
-from baslip.studies.runner import ResumableCsv, StateLog
 from processes import gone
 from runs import ROOT
+
+from baslip.studies.runner import ResumableCsv, StateLog
 
 
 def test_an_empty_file_gets_its_header_back(tmp_path):
@@ -107,8 +107,8 @@ def test_a_worker_dies_when_its_parent_is_killed(tmp_path):
 
 def test_fewer_workers_than_lanes_give_the_same_rows(tmp_path):
     """--jobs 1 runs both lanes in one process, in turn: the rows are the same."""
-    from baslip.problem import load_problem
-    from baslip.studies.run import run_study
+    from baslip.problem.reader import load_problem
+    from baslip.studies.registry import run_study
 
     text = (ROOT / "problems" / "grid_downward.yaml").read_text().replace(
         "vary: {ydot: [0.1, 1.0, 0.1], z: [0.3, 0.7, 0.05]}", "vary: {ydot: [0.3, 0.6, 0.1], z: [0.4, 0.45, 0.05]}")
@@ -117,7 +117,7 @@ def test_fewer_workers_than_lanes_give_the_same_rows(tmp_path):
         path = tmp_path / f"grid_{jobs}.yaml"
         path.write_text(text)
         out = tmp_path / f"out_{jobs}"
-        summary = run_study(load_problem(path), path, out, quiet=True, jobs=jobs)
+        summary = run_study(load_problem(path), out, quiet=True, jobs=jobs)
         assert summary["solved"] == 8
         rows = list(csv.DictReader(open(out / "points.csv")))
         tables.append([{k: v for k, v in r.items() if k != "time_s"} for r in rows])

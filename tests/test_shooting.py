@@ -1,4 +1,4 @@
-"""Specification of baslip.shooting: the multiple-shooting NLP whose functions are
+"""Specification of baslip.gait.shooting: the multiple-shooting NLP whose functions are
 compiled to C. Their derivatives are those of the functions themselves (checked against
 central differences), and its solution is a fixed point of the exact map to the
 accuracy of its RK4 intervals."""
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from baslip import load_problem
-from baslip.api import fixed_point_spec
-from baslip.quantities import OBJECTIVES
-from baslip.shooting import ShootingNLP, ShootingOptions
+from baslip.gait.from_problem import fixed_point_spec
+from baslip.gait.shooting import ShootingNLP, ShootingOptions
+from baslip.model.quantities import OBJECTIVES
 
 
 @pytest.fixture(scope="module")

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from baslip import Params
-from baslip.shooting import FixedPointSpec
+from baslip.gait.shooting import FixedPointSpec
 
 M, K, L0, G = 80.0, 20000.0, 1.0, 9.81
 ENERGY = 0.5 * M * 5.0**2 + M * G * 1.0  # vx = 5 m/s at y = 1 m

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from baslip.solve import main
+from baslip.cli.solve import main
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULT_KEYS = [

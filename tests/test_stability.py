@@ -1,10 +1,10 @@
-"""Specification of baslip.stability: multipliers, trivial ones labelled and set aside."""
+"""Specification of baslip.gait.stability: multipliers, trivial ones labelled and set aside."""
 
 import numpy as np
 import pytest
 
 from baslip import Params
-from baslip.stability import classify, trivial_labels
+from baslip.gait.stability import classify, trivial_labels
 
 NO_TORQUE = [0.0, 0.0, 0.3, 0.0, 0.1]
 PD = [2.0, 0.5, 0.3, 0.0, 0.1]

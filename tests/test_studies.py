@@ -11,10 +11,10 @@ from pathlib import Path
 
 import pytest
 
-from baslip.problem import ProblemError, load_problem, parse_problem
-from baslip.studies.run import run_study
+from baslip.problem.reader import ProblemError, load_problem, parse_problem
+from baslip.problem.study import Sweep
+from baslip.studies.registry import run_study
 from baslip.studies.runner import ResumableCsv
-from baslip.studies.schema import Sweep
 from baslip.studies.sweep import RESULT_COLUMNS, interpolated_radius, radius_grid, sweep_tasks
 
 GRID = """\
@@ -80,7 +80,7 @@ def tiny_grid(tmp_path_factory):
     problem_path = folder / "tiny_grid.yaml"
     problem_path.write_text(GRID)
     out = folder / "results" / "tiny_grid"
-    summary = run_study(load_problem(problem_path), problem_path, out, quiet=True)
+    summary = run_study(load_problem(problem_path), out, quiet=True)
     return problem_path, out, summary
 
 
@@ -106,7 +106,7 @@ def test_small_grid_end_to_end(tiny_grid):
 
 def test_rerunning_a_finished_study_solves_nothing(tiny_grid):
     problem_path, out, _ = tiny_grid
-    again = run_study(load_problem(problem_path), problem_path, out, quiet=True)
+    again = run_study(load_problem(problem_path), out, quiet=True)
     assert again["done_in_this_run"] == 0 and again["done_before_this_run"] == 4
     assert len((out / "points.csv").read_text().splitlines()) == 5
 
@@ -116,7 +116,7 @@ def test_an_interrupted_study_resumes_where_it_stopped(tiny_grid):
     lines = (out / "points.csv").read_text().splitlines(keepends=True)
     # As if killed while writing the third row: two rows kept, the third cut short.
     (out / "points.csv").write_text("".join(lines[:3]) + lines[3][:20])
-    resumed = run_study(load_problem(problem_path), problem_path, out, quiet=True)
+    resumed = run_study(load_problem(problem_path), out, quiet=True)
     assert resumed["done_before_this_run"] == 2 and resumed["done_in_this_run"] == 2
     keys = [tuple(line.split(",")[:2]) for line in (out / "points.csv").read_text().splitlines()[1:]]
     assert len(keys) == len(set(keys)) == 4
@@ -125,7 +125,7 @@ def test_an_interrupted_study_resumes_where_it_stopped(tiny_grid):
 def test_a_random_study_needs_its_region(tmp_path):
     problem_path = tmp_path / "r.yaml"
     problem_path.write_text("name: r\nstudy: {kind: random, region: nowhere, count: 3}\n")
-    from baslip.solve import main
+    from baslip.cli.solve import main
 
     assert main([str(problem_path), "--out", str(tmp_path / "results" / "r")]) == 2
     assert not (tmp_path / "results").exists()  # nothing written
@@ -149,7 +149,7 @@ def test_basin_study_on_a_finished_grid(tiny_grid):
         " strides: 3, tolerance: 1.0e-3}\n"
     )
     basin_out = out.parent / "tiny_basin"
-    summary = run_study(load_problem(basin_path), basin_path, basin_out, quiet=True)
+    summary = run_study(load_problem(basin_path), basin_out, quiet=True)
     stable = sum(1 for r in csv.DictReader(open(out / "points.csv")) if r["stable"] == "true")
     assert summary["stable_points"] == stable and summary["simulations"] == 4 * stable
     with open(basin_out / "basin.csv") as handle:
@@ -175,7 +175,7 @@ def test_adaptive_study_resolves_the_control_each_stride(tmp_path, criterion):
     the apex back towards the gait, and the frozen control falls."""
     problem_path = adaptive_problem(tmp_path, 3, 200, criterion)
     out = tmp_path / "results" / "adaptive_upright"
-    summary = run_study(load_problem(problem_path), problem_path, out, quiet=True)
+    summary = run_study(load_problem(problem_path), out, quiet=True)
     assert summary["adaptive_strides"] == 3 and 0 < summary["max_eps"] < 1e-2
     assert summary["eps_to_gait"]["first"] > 5e-3  # it starts off the gait
     if criterion == "tracking":
@@ -188,7 +188,7 @@ def test_adaptive_study_resolves_the_control_each_stride(tmp_path, criterion):
     with open(out / "strides.csv") as handle:
         phases = [r["phase"] for r in csv.DictReader(handle)]
     assert phases[:3] == ["adaptive"] * 3 and phases[-1] == "fall"
-    again = run_study(load_problem(problem_path), problem_path, out, quiet=True)
+    again = run_study(load_problem(problem_path), out, quiet=True)
     assert again["adaptive_strides"] == 3 and len(open(out / "strides.csv").read().splitlines()) == len(phases) + 1
 
 
@@ -197,11 +197,11 @@ def test_a_resumed_adaptive_run_continues_from_the_apex_after_its_last_row(tmp_p
     fourth apex (not the third again) and matches an uninterrupted run row for row."""
     problem_path = adaptive_problem(tmp_path, 6, 50)
     whole, cut = tmp_path / "whole", tmp_path / "cut"
-    run_study(load_problem(problem_path), problem_path, whole, quiet=True)
-    run_study(load_problem(problem_path), problem_path, cut, quiet=True)
+    run_study(load_problem(problem_path), whole, quiet=True)
+    run_study(load_problem(problem_path), cut, quiet=True)
     lines = (cut / "strides.csv").read_text().splitlines(keepends=True)
     (cut / "strides.csv").write_text("".join(lines[:4]))  # header and three adaptive rows
-    run_study(load_problem(problem_path), problem_path, cut, quiet=True)
+    run_study(load_problem(problem_path), cut, quiet=True)
 
     def rows(folder):
         with open(folder / "strides.csv", newline="") as handle:
@@ -231,7 +231,7 @@ def test_an_optimal_study_descends_from_every_start(tmp_path, monkeypatch):
     problem_path = tmp_path / "optimal.yaml"
     problem_path.write_text(text)
     out = tmp_path / "results" / "optimal"
-    summary = run_study(load_problem(problem_path), problem_path, out, quiet=True)
+    summary = run_study(load_problem(problem_path), out, quiet=True)
     assert summary["complete"] and summary["points"] == 3
     with open(out / "points.csv") as handle:
         rows = list(csv.DictReader(handle))
@@ -258,7 +258,7 @@ def test_a_controllers_study_compares_three_controllers_on_the_same_starts(tmp_p
     problem_path = tmp_path / "controllers.yaml"
     problem_path.write_text(text)
     out = tmp_path / "results" / "controllers"
-    summary = run_study(load_problem(problem_path), problem_path, out, quiet=True)
+    summary = run_study(load_problem(problem_path), out, quiet=True)
     assert summary["complete"] and summary["feedback"]["kind"] == "deadbeat"
     assert summary["feedback"]["closed_loop_radius"] < 1e-6
     with open(out / "controllers.csv") as handle:

@@ -1,13 +1,12 @@
-"""Specification of baslip.trajectory's continuous motion: what it holds and the physics
+"""Specification of baslip.engine.trajectory's continuous motion: what it holds and the physics
 it must obey."""
 
 import numpy as np
 import pytest
+from runs import ROOT
 
 from baslip import ReturnMap, Tolerances, load_problem, solve_problem
-from baslip.trajectory import MOTION_COLUMNS, motion
-
-from runs import ROOT
+from baslip.engine.trajectory import MOTION_COLUMNS, motion
 
 
 @pytest.fixture(scope="module")

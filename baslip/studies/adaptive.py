@@ -1,7 +1,7 @@
 """Time-varying control (thesis sec. 4.7, figs. 4.20-4.22), from a perturbed apex.
 
 The run starts at the problem's fixed point X* moved by ``perturbation``. At every apex
-X_n the control u_n is re-solved (:class:`baslip.feedback.ResolvedControl`), by the
+X_n the control u_n is re-solved (:class:`baslip.analysis.feedback.ResolvedControl`), by the
 thesis's criterion (the next apex as near as possible to X_n: the "control parameters that
 best fit to the current state" of sec. 4.7.1) or by tracking (as near as possible to X*).
 Each is a least-squares problem: the eps it leaves is recorded, not treated as a failure.
@@ -24,11 +24,11 @@ import time
 
 import numpy as np
 
-from ..control import CONTROL
-from ..feedback import ResolvedControl
-from ..model import APEX
-from ..polish import eps
-from .runner import ResumableCsv
+from baslip.analysis.feedback import ResolvedControl
+from baslip.gait.polish import eps
+from baslip.model.dynamics import APEX
+from baslip.model.hiplaw import CONTROL
+from baslip.studies.runner import ResumableCsv
 
 STRIDE_COLUMNS = ["phase", "n", *APEX.names, *CONTROL.names, "eps", "eps_to_gait", "solve_time_s", "note"]
 #: Bisection steps on the perturbation factor, and the largest factor tried.

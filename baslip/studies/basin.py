@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model import APEX, Params
-from ..returnmap import ReturnMap, Tolerances
-from .schema import Basin
-from .sweep import key_column
+from baslip.engine.returnmap import ReturnMap, Tolerances
+from baslip.model.dynamics import APEX, Params
+from baslip.problem.study import Basin
+from baslip.studies.sweep import key_column
 
 #: Simulation accuracy: convergence is judged at 1e-4, far above the map's error.
 SIMULATION_TOLERANCES = Tolerances(1e-8, 1e-8)

@@ -14,23 +14,24 @@ points (:mod:`baslip.studies.curve`) and also writes ``curve.csv`` and ``curve.p
 
 from __future__ import annotations
 
-import csv
 import io
 import math
 import sys
 import time
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from ..continuation import Branch, CorrectionFailed, Point, Settings, continue_branch, join, switch_branch
-from ..control import CONTROL
-from ..folder import hold
-from ..model import APEX
-from ..output import json_text, write_files_atomically
-from ..stability import STABILITY_MARGIN
-from .runner import format_value
+from baslip.analysis.continuation import CorrectionFailed, Point, Settings, continue_branch, join, switch_branch
+from baslip.errors import RunError
+from baslip.files.atomic import json_text, write_files_atomically
+from baslip.files.lock import hold
+from baslip.gait.stability import STABILITY_MARGIN
+from baslip.model.dynamics import APEX
+from baslip.model.hiplaw import CONTROL
+from baslip.studies.curve import curve_csv, follow_curves
+from baslip.studies.traced import TracedBranch, named_stop, point_record, points_csv, progress_lines
 
 #: First step onto a switched branch, as a fraction of the continuation step: small, so
 #: that the new branch starts close to the bifurcation it comes from.
@@ -39,43 +40,28 @@ SWITCH_FRACTION = 0.1
 SWITCH_ATTEMPTS = 4
 
 
-class BranchStartFailed(RuntimeError):
+class BranchStartFailed(RunError):
     """The starting fixed point did not converge."""
-
-
-@dataclass(frozen=True)
-class TracedBranch:
-    """One traced branch: its fixed-point system, points, and where it came from."""
-
-    number: int  # 0 for the branch from the problem's start, then in order of switching
-    system: object  # baslip.branches.FixedPointSystem or NearestGuessSystem
-    branch: Branch
-    origin: dict | None = None  # the special point it was switched from
-
-    @property
-    def strides(self) -> int:
-        return self.system.spec.strides
 
 
 def run_continuation(problem, out_dir: Path, quiet: bool = False) -> dict:
     """Trace the problem's branches, write branch.csv, result.json and diagram.png to
     ``out_dir`` together, and return the summary that result.json holds. Raises
-    :class:`baslip.folder.FolderBusy` if another process is writing into ``out_dir``."""
+    :class:`baslip.files.lock.FolderBusy` if another process is writing into ``out_dir``."""
     with hold(out_dir):
         return _run_continuation(problem, out_dir, quiet)
 
 
 def _run_continuation(problem, out_dir: Path, quiet: bool) -> dict:
-    from .. import plots
-    from ..provenance import provenance
-    from ..api import fixed_point_spec, shooting_options, solve_problem
-    from ..branches import branch_system
-    from ..fixedpoint import FixedPointSolver
+    from baslip.analysis.gaitsystem import branch_system
+    from baslip.files.provenance import provenance
+    from baslip.gait.from_problem import fixed_point_spec, solve_start, solver_for
+    from baslip.viz import figures as plots
 
     spec = problem.continuation
     start_time = time.perf_counter()
-    solver = FixedPointSolver(shooting_options(problem))
-    start = solve_problem(problem, solver)
+    solver = solver_for(problem)
+    start = solve_start(problem, solver)
     if not start.converged:
         raise BranchStartFailed(f"the starting fixed point did not converge: {start.status} ({start.message})")
 
@@ -108,7 +94,6 @@ def _run_continuation(problem, out_dir: Path, quiet: bool) -> dict:
     files = {}
     curves = None
     if spec.second is not None:
-        from .curve import curve_csv, follow_curves
 
         curve_rows, curves = follow_curves(problem, traced[0], solver, quiet)
         figure = io.BytesIO()
@@ -175,32 +160,6 @@ def _trace(system, v0, direction, settings, solver, number, origin, quiet) -> Tr
     return TracedBranch(number, system, branch, origin)
 
 
-def progress_lines(describe, quiet: bool):
-    """A progress callback (n, point) that shows ``describe(n, point)``: rewritten in
-    place on a terminal, a plain line every 10 s in a log file, nothing when quiet."""
-    started, shown = time.perf_counter(), [-math.inf]
-
-    def progress(n, point):
-        if quiet:
-            return
-        elapsed = time.perf_counter() - started
-        if sys.stderr.isatty():
-            print(f"\r{describe(n, point)}   ", end="", file=sys.stderr, flush=True)
-        elif elapsed - shown[0] >= 10.0:
-            shown[0] = elapsed
-            print(describe(n, point), file=sys.stderr, flush=True)
-
-    return progress
-
-
-def named_stop(system, branch) -> str:
-    """The stop reason, with the grazing it comes from named when the last point grazes."""
-    if branch.stop_reason in ("end of range", "maximum number of points") or not branch.points:
-        return branch.stop_reason
-    grazing = system.grazing(branch.points[-1].v)
-    return f"{grazing}; then {branch.stop_reason}" if grazing else branch.stop_reason
-
-
 def _switch(system, point: Point, settings: Settings, solver) -> tuple[np.ndarray, np.ndarray]:
     """First verified point of the branch through ``point`` of ``system``, trying smaller
     amplitudes if the first attempts fail."""
@@ -239,27 +198,7 @@ def _special(row: dict, parameter: str) -> dict:
             **point_record(row)}
 
 
-def point_record(row: dict) -> dict:
-    """A row's apex, control and multipliers, as result.json gives them for a point."""
-    return {"apex": {n: row[n] for n in APEX.names}, "control": {n: row[n] for n in CONTROL.names},
-            "multipliers": [[row[f"mult{i}_re"], row[f"mult{i}_im"]] for i in range(1, 5)]}
-
-
 def _csv(rows: list[dict], parameter: str) -> str:
     return points_csv(rows, ["branch", "strides", parameter], ["spectral_radius", "stable", "special"])
 
 
-def points_csv(rows: list[dict], leading: list[str], trailing: list[str]) -> str:
-    """CSV of points: the ``leading`` columns, the apex, control and energy (those not
-    already leading, so a parameter that is one of them is not repeated), the four
-    multipliers, then the ``trailing`` columns."""
-    columns = list(leading)
-    columns += [n for n in (*APEX.names, *CONTROL.names, "energy") if n not in leading]
-    columns += [f"mult{i}_{part}" for i in range(1, 5) for part in ("re", "im")]
-    columns += trailing
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, columns, lineterminator="\n", extrasaction="ignore")
-    writer.writeheader()
-    for row in rows:
-        writer.writerow({k: format_value(v) for k, v in row.items() if k in columns})
-    return buffer.getvalue()

@@ -2,7 +2,7 @@
 
 The gait is the problem's fixed point. Apex states are drawn uniformly from the box
 X* +- ``perturbation`` (four dimensions, seeded); from each, every controller runs for at
-most ``strides`` strides (:func:`baslip.feedback.run_closed_loop`):
+most ``strides`` strides (:func:`baslip.analysis.feedback.run_closed_loop`):
 
 * ``constant``: the constant PD hip law, u = u*;
 * ``feedback``: u = u* + K (X - X*), K deadbeat where dr/du has rank 4, else discrete LQR
@@ -20,9 +20,9 @@ import time
 
 import numpy as np
 
-from ..model import APEX
-from ..quantities import NOMINAL
-from .schema import Controllers
+from baslip.model.dynamics import APEX
+from baslip.model.quantities import NOMINAL
+from baslip.problem.study import Controllers
 
 CONTROLLERS = ("constant", "feedback", "resolve")
 CONTROLLER_COLUMNS = [
@@ -50,7 +50,7 @@ def lqr_weights(study: Controllers) -> np.ndarray:
 
 
 def make_controller(name: str, context: dict, rmap):
-    from ..feedback import ConstantControl, LinearFeedback, ResolvedControl
+    from baslip.analysis.feedback import ConstantControl, LinearFeedback, ResolvedControl
 
     X, u = context["X"], context["u"]
     if name == "constant":
@@ -63,9 +63,9 @@ def make_controller(name: str, context: dict, rmap):
 
 def controllers_worker(chunk: list[dict], context: dict, queue) -> None:
     """Worker process: run each task's controller from its perturbed apex."""
-    from ..feedback import run_closed_loop
-    from ..polish import eps
-    from ..returnmap import ReturnMap, Tolerances
+    from baslip.analysis.feedback import run_closed_loop
+    from baslip.engine.returnmap import ReturnMap, Tolerances
+    from baslip.gait.polish import eps
 
     try:
         rmap = ReturnMap(Tolerances(1e-12, 1e-12))

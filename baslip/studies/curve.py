@@ -4,7 +4,7 @@ A ``continuation:`` with ``second``, ``second_range`` and ``follow`` first trace
 one-parameter branch (:mod:`baslip.studies.branch`), then, for each curve type in
 ``follow``, starts from the branch's special point of that type nearest the start (or
 from every one, with ``starts: all``) and traces the curve both ways within both ranges
-(:mod:`baslip.curves`). Every point is verified by the independent re-simulation, as on
+(:mod:`baslip.analysis.bifurcation`). Every point is verified by the independent re-simulation, as on
 a branch.
 
 Gives the rows of ``curve.csv`` (one per point: the curve, what holds there, both
@@ -20,11 +20,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..continuation import Branch, CorrectionFailed, Point, Settings
-from ..control import CONTROL
-from ..curves import CurveSystem, stability_boundary, trace_curve
-from ..model import APEX
-from .branch import TracedBranch, named_stop, point_record, points_csv, progress_lines
+from baslip.analysis.bifurcation import CurveSystem, stability_boundary, trace_curve
+from baslip.analysis.continuation import Branch, CorrectionFailed, Point, Settings
+from baslip.model.dynamics import APEX
+from baslip.model.hiplaw import CONTROL
+from baslip.studies.traced import TracedBranch, named_stop, point_record, points_csv, progress_lines
 
 #: Largest step along a curve (scaled units): small enough that the drawn polyline, and
 #: the inside/outside test of :mod:`baslip.studies.boundary`, follow the curve closely.
@@ -36,8 +36,8 @@ SAME_CURVE = 1e-3
 def follow_curves(problem, branch: TracedBranch, solver, quiet: bool) -> tuple[list[dict], dict]:
     """Trace the curves that ``problem.continuation`` asks for from ``branch``; return
     the rows of curve.csv and the curves' summary."""
-    from ..api import fixed_point_spec
-    from ..branches import branch_system
+    from baslip.analysis.gaitsystem import branch_system
+    from baslip.gait.from_problem import fixed_point_spec
 
     spec = problem.continuation
     base = branch_system(replace(fixed_point_spec(problem), strides=branch.strides), spec.parameter,

@@ -4,7 +4,7 @@ Each task is one start at one grid point: gains drawn over their whole bounds (s
 the study's seed, the grid point and the start number, so a task draws the same gains in
 any lane and on any resume), the fixed point solved with them held, the
 descent to the least spectral radius nearby, and the independent verification of where it
-ended (:mod:`baslip.optimal`). Each row also gives the trunk's angle range over the stride,
+ended (:mod:`baslip.analysis.descent`). Each row also gives the trunk's angle range over the stride,
 and whether the gait is upright at the apex (|theta_h - 90 deg| <= 30 deg) and upright
 throughout (within 45 deg of vertical at every sampled instant of the stride).
 """
@@ -17,8 +17,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from .schema import Optimal
-from .sweep import RESULT_COLUMNS, key_column, result_row, sweep_tasks
+from baslip.problem.reader import Problem
+from baslip.problem.study import Optimal
+from baslip.status import Status
+from baslip.studies.sweep import RESULT_COLUMNS, key_column, result_row, sweep_tasks
 
 #: Upright at the apex: |theta_h - 90 deg| within this; upright throughout: the trunk
 #: within UPRIGHT_THROUGHOUT of vertical at every instant of the stride [rad].
@@ -44,7 +46,7 @@ def task_rng(study: Optimal, task: dict) -> np.random.Generator:
 
 def optimal_row(task: dict, gait, rmap, params) -> dict:
     """The CSV row of one start (see :data:`OPTIMAL_COLUMNS`)."""
-    from ..trajectory import trunk_angle_range
+    from baslip.engine.trajectory import trunk_angle_range
 
     final = gait.end if gait.end is not None else gait.start
     row = {**result_row(task, final), "start": task["start"]}
@@ -66,17 +68,14 @@ def optimal_row(task: dict, gait, rmap, params) -> dict:
     return row
 
 
-def optimal_worker(chunk: list[dict], problem_path: str, queue) -> None:
+def optimal_worker(chunk: list[dict], problem: Problem, queue) -> None:
     """Worker process: for each task not yet done, draw its start, solve, descend,
     verify, and put its row on the queue."""
-    from ..api import fixed_point_spec, shooting_options
-    from ..fixedpoint import FixedPointSolver
-    from ..optimal import StabilityDescent, optimise_from, random_start
-    from ..problem import load_problem
+    from baslip.analysis.descent import StabilityDescent, optimise_from, random_start
+    from baslip.gait.from_problem import fixed_point_spec, solver_for
 
     try:
-        problem = load_problem(problem_path)
-        solver = FixedPointSolver(shooting_options(problem))
+        solver = solver_for(problem)
         descent = StabilityDescent(solver.residual_map, max_iterations=problem.study.iterations)
         base = fixed_point_spec(problem)
         for task in chunk:
@@ -96,10 +95,10 @@ def optimal_worker(chunk: list[dict], problem_path: str, queue) -> None:
 def best_gait_motions(best: list[dict], names: list[str], params, count: int = 6) -> list[tuple[str, np.ndarray, np.ndarray]]:
     """(label, t [s], theta_h [rad]) over one stride of the ``count`` most stable of the
     ``best`` rows, simulated at rtol = atol = 1e-12: the trunk motion figure's lines."""
-    from ..control import CONTROL
-    from ..model import APEX
-    from ..returnmap import ReturnMap, Tolerances
-    from ..trajectory import stride_trajectory
+    from baslip.engine.returnmap import ReturnMap, Tolerances
+    from baslip.engine.trajectory import stride_trajectory
+    from baslip.model.dynamics import APEX
+    from baslip.model.hiplaw import CONTROL
 
     rmap = ReturnMap(Tolerances(1e-12, 1e-12))
     motions = []
@@ -117,7 +116,7 @@ def best_rows(rows: list[dict], names: list[str], where=lambda row: True) -> lis
     keys = [key_column(n) for n in names]
     best: dict[tuple, dict] = {}
     for row in rows:
-        if row["status"] != "converged" or not isinstance(row["spectral_radius"], float) or not where(row):
+        if row["status"] != Status.CONVERGED or not isinstance(row["spectral_radius"], float) or not where(row):
             continue
         cell = tuple(row[k] for k in keys)
         if cell not in best or row["spectral_radius"] < best[cell]["spectral_radius"]:

@@ -31,14 +31,15 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from queue import Empty
-from typing import Callable, Sequence
 
 import numpy as np
 
-from ..output import write_files_atomically
+from baslip.errors import InputError, RunError
+from baslip.files.atomic import write_files_atomically
 
 #: Lanes a study's tasks are cut into. Fixed, so that the warm starts (and so the answers)
 #: do not depend on the machine; it is recorded with the study.
@@ -210,12 +211,12 @@ class RunReport:
 
 def run_tasks(
     lanes: Sequence[Sequence[dict]],
-    worker: Callable[[list[dict], object, "multiprocessing.Queue"], None],
+    worker: Callable[[list[dict], object, multiprocessing.Queue], None],
     context: object,
     table: ResumableCsv,
     label: str,
     quiet: bool = False,
-    workers: "Workers" = None,
+    workers: Workers = None,
 ) -> RunReport:
     """Run the tasks not yet in ``table`` on ``workers`` (:class:`Workers`): one worker
     process per lane by default, at most one per core.
@@ -306,11 +307,11 @@ def _collect(next_row, lanes: int, table, progress, skipped: int, start: float, 
     return ran, False
 
 
-class WorkerDied(RuntimeError):
+class WorkerDied(RunError):
     """A worker process ended without finishing its lane."""
 
 
-class SchedulerError(RuntimeError):
+class SchedulerError(InputError):
     """Dask is not installed, or its scheduler cannot be reached."""
 
 
@@ -326,13 +327,13 @@ def check_scheduler(scheduler: str) -> None:
     try:
         from distributed import Client
     except ImportError:
-        raise SchedulerError("--scheduler needs Dask: pip install 'baslip[dask]'") from None
+        raise SchedulerError("", "--scheduler needs Dask: pip install 'baslip[dask]'") from None
     if scheduler == "local":
         return
     try:
         Client(scheduler, timeout=DASK_CONNECT_TIMEOUT).close()
     except (OSError, TimeoutError, ValueError) as err:
-        raise SchedulerError(f"cannot reach the Dask scheduler at {scheduler}: {str(err).splitlines()[0][:120]}") from None
+        raise SchedulerError("", f"cannot reach the Dask scheduler at {scheduler}: {str(err).splitlines()[0][:120]}") from None
 
 
 def run_lanes_on_dask(todo, worker, context, table, label, quiet, skipped, total, start, scheduler: str,
@@ -349,7 +350,7 @@ def run_lanes_on_dask(todo, worker, context, table, label, quiet, skipped, total
     try:
         from distributed import Client, LocalCluster, Queue
     except ImportError:
-        raise SchedulerError("--scheduler needs Dask: pip install 'baslip[dask]'") from None
+        raise SchedulerError("", "--scheduler needs Dask: pip install 'baslip[dask]'") from None
     cluster = None
     try:
         if scheduler == "local":
@@ -359,7 +360,7 @@ def run_lanes_on_dask(todo, worker, context, table, label, quiet, skipped, total
         else:
             client = Client(scheduler, timeout=DASK_CONNECT_TIMEOUT)
     except (OSError, TimeoutError) as err:
-        raise SchedulerError(f"cannot reach the Dask scheduler at {scheduler}: {err}") from None
+        raise SchedulerError("", f"cannot reach the Dask scheduler at {scheduler}: {err}") from None
     with client:
         queue = Queue(f"baslip-rows-{os.getpid()}-{time.time_ns()}", client=client)
         futures = [client.submit(_lane_on_dask, worker, lane, context, queue, pure=False, retries=DASK_RETRIES)

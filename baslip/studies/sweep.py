@@ -13,17 +13,20 @@ import math
 import random
 from dataclasses import replace
 from pathlib import Path
+from typing import IO
 
 import numpy as np
 
-from ..control import CONTROL
-from ..fixedpoint import FixedPointResult
-from ..model import APEX
-from ..quantities import DESIGN
-from ..returnmap import PHASES
-from .boundary import inside
-from .runner import LANES, split_lanes
-from .schema import RandomSample, Sweep
+from baslip.engine.returnmap import PHASES
+from baslip.gait.fixedpoint import FixedPointResult
+from baslip.model.dynamics import APEX
+from baslip.model.hiplaw import CONTROL
+from baslip.model.quantities import DESIGN
+from baslip.problem.reader import Problem
+from baslip.problem.study import RandomSample, Sweep
+from baslip.status import Status
+from baslip.studies.boundary import inside
+from baslip.studies.runner import LANES, split_lanes
 
 RESULT_COLUMNS = [
     *APEX.names, *CONTROL.names, *PHASES,
@@ -68,7 +71,12 @@ def sweep_tasks(study: Sweep) -> list[dict]:
 def read_points(path: Path) -> list[dict]:
     """Rows of a points.csv as dicts of floats (status and empty cells kept as strings)."""
     with open(path, encoding="utf-8", newline="") as handle:
-        return [{k: _number_or_text(v) for k, v in row.items()} for row in csv.DictReader(handle)]
+        return points_from(handle)
+
+
+def points_from(handle: IO[str]) -> list[dict]:
+    """Rows of CSV text as dicts of floats (status and empty cells kept as strings)."""
+    return [{k: _number_or_text(v) for k, v in row.items()} for row in csv.DictReader(handle)]
 
 
 def _number_or_text(text: str):
@@ -87,7 +95,7 @@ def radius_grid(rows: list[dict], names: tuple[str, str]):
     b_values = sorted({r[b_name] for r in rows})
     radius = np.full((len(a_values), len(b_values)), np.nan)
     for r in rows:
-        if r["status"] == "converged" and isinstance(r["spectral_radius"], float):
+        if r["status"] == Status.CONVERGED and isinstance(r["spectral_radius"], float):
             radius[a_values.index(r[a_name]), b_values.index(r[b_name])] = r["spectral_radius"]
     return np.array(a_values), np.array(b_values), radius
 
@@ -116,7 +124,7 @@ def random_tasks(study: RandomSample, region_rows: list[dict], names: tuple[str,
     as the grid's cells are (nearest the problem's guess, warm-started along its lane),
     which is the family the boundary was traced on."""
     a, b, radius = radius_grid(region_rows, names)
-    stable = [r for r in region_rows if r["status"] == "converged" and r["stable"] is True]
+    stable = [r for r in region_rows if r["status"] == Status.CONVERGED and r["stable"] is True]
     spans = [np.ptp(a) or 1.0, np.ptp(b) or 1.0]
 
     def nearest(x, y):
@@ -165,16 +173,13 @@ def result_row(task: dict, result: FixedPointResult) -> dict:
     return row
 
 
-def solve_worker(chunk: list[dict], problem_path: str, queue) -> None:
+def solve_worker(chunk: list[dict], problem: Problem, queue) -> None:
     """Worker process: build the solver once, solve each task not yet done, put its row
     (with the IPOPT point it hands on to the next task as ``state``) on the queue."""
-    from ..api import fixed_point_spec, shooting_options
-    from ..fixedpoint import FixedPointSolver
-    from ..problem import load_problem
+    from baslip.gait.from_problem import fixed_point_spec, solver_for
 
     try:
-        problem = load_problem(problem_path)
-        solver = FixedPointSolver(shooting_options(problem))
+        solver = solver_for(problem)
         base = fixed_point_spec(problem)
         warm = None
         for task in chunk:

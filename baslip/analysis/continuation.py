@@ -1,0 +1,336 @@
+"""Pseudo-arclength continuation of fixed points, with detection of special points.
+
+The engine is generic: a :class:`System` gives n equations F(v) = 0 in n + 1 scaled
+unknowns v = (w, lambda), their Jacobian, and the return-map multipliers at a point. From
+a solution, each step predicts along the unit tangent t (the null vector of dF/dv,
+oriented like the previous one) and corrects with Newton on [F(v); t.(v - v_pred)] = 0.
+Steps grow after easy corrections and halve after failed ones, so the branch passes
+through folds, where lambda turns back.
+
+Special points, found by sign changes of test functions between consecutive points, and
+then located by regula falsi (Illinois) on the arclength until lambda is known to 1e-7:
+
+* ``fold``: the lambda component of the tangent changes sign *and* a multiplier crosses +1
+  (the product of (mu - 1) over the non-trivial real multipliers changes sign): a
+  saddle-node of the map. Without that evidence the point is a ``turning_point``: the
+  path turns back in lambda, which happens when lambda is an apex coordinate (the branch
+  folds over in that coordinate) without any multiplier at +1;
+* ``period_doubling``: det(I + dr/dX) (a multiplier crosses -1);
+* ``neimark_sacker``: the product of (|mu|^2 - 1) over the complex pairs;
+* ``branch_point``: det of the bordered Jacobian [dF/dv; t].
+
+Multipliers that are 1 by structure (energy, free spin) are never tested for crossing 1
+(folds come from the tangent, not from det(dr/dX - I)), so they raise no false alarms.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Protocol
+
+import numpy as np
+
+from baslip.errors import RunError
+
+SPECIAL_TYPES = ("fold", "period_doubling", "neimark_sacker", "branch_point")
+LOCATE_TOLERANCE = 1e-7  # on lambda (scaled units)
+LOCATE_MAX_NEWTON = 60
+
+
+class CorrectionFailed(RunError):
+    """Newton did not converge (or the runner fell) at a trial point."""
+
+
+class System(Protocol):
+    def residual(self, v: np.ndarray) -> np.ndarray: ...
+    def jacobian(self, v: np.ndarray) -> np.ndarray: ...  # n x (n + 1)
+    def multipliers(self, v: np.ndarray) -> tuple[np.ndarray, list[bool]]: ...  # values, trivial?
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Step control (scaled arclength) and limits of a continuation run."""
+
+    step: float = 0.05
+    min_step: float = 1e-6
+    max_step: float = 0.5
+    max_points: int = 200
+    lam_range: tuple[float, float] = (-math.inf, math.inf)  # scaled lambda (the last unknown)
+    #: Further ranges, (index of the unknown, lo, hi) in scaled units: a curve in two
+    #: parameters keeps both inside their ranges.
+    other_ranges: tuple[tuple[int, float, float], ...] = ()
+    tolerance: float = 1e-10  # on |F|
+    max_newton: int = 8
+
+
+@dataclass
+class Point:
+    """An accepted point of the branch (scaled v), its tangent and test functions."""
+
+    v: np.ndarray
+    tangent: np.ndarray
+    multipliers: np.ndarray
+    trivial: list[bool]
+    tests: dict[str, float]
+    special: str = ""
+
+
+@dataclass
+class Branch:
+    points: list[Point] = field(default_factory=list)
+    stop_reason: str = ""
+
+    @property
+    def special(self) -> list[Point]:
+        return [p for p in self.points if p.special]
+
+
+def tangent_of(jac: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
+    """Unit null vector of the n x (n + 1) Jacobian, oriented along ``previous``."""
+    _, _, vt = np.linalg.svd(jac)
+    t = vt[-1]
+    if previous is not None and np.dot(t, previous) < 0:
+        t = -t
+    return t / np.linalg.norm(t)
+
+
+def test_functions(jac: np.ndarray, tangent: np.ndarray, multipliers: np.ndarray, trivial: list[bool]) -> dict[str, float]:
+    nontrivial = np.array([m for m, t in zip(multipliers, trivial) if not t])
+    complex_pairs = [m for m in nontrivial if m.imag > 1e-9]
+    real = [m.real for m in nontrivial if abs(m.imag) <= 1e-9]
+    return {
+        "fold": float(tangent[-1]),
+        "multiplier_one": float(np.prod([m - 1.0 for m in real])) if real else math.nan,
+        "period_doubling": float(np.real(np.prod(1.0 + multipliers))),
+        "neimark_sacker": float(np.prod([abs(m) ** 2 - 1.0 for m in complex_pairs])) if complex_pairs else math.nan,
+        "branch_point": float(np.linalg.det(np.vstack([jac, tangent]))),
+        "complex_pairs": float(len(complex_pairs)),
+    }
+
+
+def correct(system: System, v_pred: np.ndarray, tangent: np.ndarray, settings: Settings) -> tuple[np.ndarray, int]:
+    """Newton on the bordered system from ``v_pred``; returns the point and iterations."""
+    v = v_pred.copy()
+    for iteration in range(1, settings.max_newton + 1):
+        f = system.residual(v)
+        g = np.concatenate([f, [np.dot(tangent, v - v_pred)]])
+        jac = np.vstack([system.jacobian(v), tangent])
+        try:
+            dv = np.linalg.solve(jac, -g)
+        except np.linalg.LinAlgError:
+            raise CorrectionFailed("singular Newton matrix") from None
+        v = v + dv
+        if np.linalg.norm(dv) < 1e-10 and np.linalg.norm(system.residual(v)) <= settings.tolerance:
+            return v, iteration
+    if np.linalg.norm(system.residual(v)) <= settings.tolerance:
+        return v, settings.max_newton
+    raise CorrectionFailed("Newton did not converge")
+
+
+def make_point(system: System, v: np.ndarray, previous_tangent: np.ndarray | None) -> Point:
+    """The point at the solution ``v``, with its tangent and test functions (the
+    system's own, if it defines ``test_functions``, else those of a branch)."""
+    jac = system.jacobian(v)
+    t = tangent_of(jac, previous_tangent)
+    multipliers, trivial = system.multipliers(v)
+    tests = getattr(system, "test_functions", None)
+    values = tests(v, jac, t) if tests else test_functions(jac, t, multipliers, trivial)
+    return Point(v, t, multipliers, trivial, values)
+
+
+def special_types(system: System) -> tuple[str, ...]:
+    """The special points ``system`` is searched for."""
+    return getattr(system, "special_types", SPECIAL_TYPES)
+
+
+def _ranges(settings: Settings) -> list[tuple[int, float, float]]:
+    return [(-1, *settings.lam_range), *settings.other_ranges]
+
+
+def _outside(v: np.ndarray, settings: Settings) -> tuple[int, float] | None:
+    """The first range ``v`` leaves, as (index, the bound it passes), or None."""
+    for index, lo, hi in _ranges(settings):
+        if not lo <= v[index] <= hi:
+            return index, (hi if v[index] > hi else lo)
+    return None
+
+
+def _inside(v: np.ndarray, settings: Settings) -> bool:
+    return _outside(v, settings) is None
+
+
+def continue_branch(
+    system: System,
+    v0: np.ndarray,
+    direction: float | np.ndarray,
+    settings: Settings,
+    accept: Callable[[np.ndarray], str | None] = lambda v: None,
+    progress: Callable[[int, Point], None] = lambda n, p: None,
+) -> Branch:
+    """Trace the branch from the solution ``v0`` towards increasing (direction > 0) or
+    decreasing lambda, or, if ``direction`` is a vector, along the tangent that points
+    with it. ``accept(v)`` may veto a point with a reason (e.g. not verified)."""
+    if np.isscalar(direction):
+        direction = np.concatenate([np.zeros(len(v0) - 1), [direction]])
+    # The test functions depend on the tangent's sign, so it is oriented before they are
+    # evaluated (a flip afterwards would fake a branch point at the first step).
+    first = make_point(system, v0, np.asarray(direction, dtype=float))
+    branch = Branch([first])
+    h = settings.step
+    while True:
+        if len(branch.points) >= settings.max_points:
+            branch.stop_reason = "maximum number of points"
+            return branch
+        here = branch.points[-1]
+        try:
+            v, iterations = correct(system, here.v + h * here.tangent, here.tangent, settings)
+            point = make_point(system, v, here.tangent)
+        except CorrectionFailed as err:
+            if h / 2 < settings.min_step:
+                branch.stop_reason = f"step too small ({err})"
+                return branch
+            h /= 2
+            continue
+        veto = accept(point.v)
+        if veto:
+            if h / 2 < settings.min_step:
+                branch.stop_reason = veto
+                return branch
+            h /= 2
+            continue
+        outside = _outside(point.v, settings)
+        if outside:  # end exactly on the range's end, never beyond it
+            point = _on_bound(system, here, point, *outside, settings, accept)
+        for kind in _crossings(system, here, point) if point is not None else ():
+            located = locate(system, here, point, kind, settings)
+            if _inside(located.v, settings):
+                branch.points.append(located)
+        if point is not None:
+            branch.points.append(point)
+            progress(len(branch.points), point)
+        if outside:
+            branch.stop_reason = "end of range"
+            return branch
+        h = min(h * 1.5, settings.max_step) if iterations <= 3 else max(h * 0.7, settings.min_step)
+
+
+def _on_bound(system: System, here: Point, beyond: Point, index: int, bound: float, settings: Settings,
+              accept) -> Point | None:
+    """The branch's point with unknown ``index`` at ``bound``, between ``here`` and
+    ``beyond`` (Newton with that unknown held, from the chord), if it converges, is
+    accepted and lies inside the other ranges."""
+    fraction = (bound - here.v[index]) / (beyond.v[index] - here.v[index])
+    start = here.v + fraction * (beyond.v - here.v)
+    start[index] = bound
+    held = np.zeros(len(start))
+    held[index] = 1.0
+    try:
+        v, _ = correct(system, start, held, settings)
+    except CorrectionFailed:
+        return None
+    v[index] = bound  # exactly: Newton holds it to round-off
+    if accept(v) or not _inside(v, settings):
+        return None
+    return make_point(system, v, here.tangent)
+
+
+def join(lower: Branch, upper: Branch) -> Branch:
+    """One branch from two traced from the same start in opposite directions: ``lower``'s
+    points reversed, then ``upper``'s (the start once)."""
+    points = list(reversed(lower.points)) + upper.points[1:]
+    return Branch(points, f"lower end: {lower.stop_reason}; upper end: {upper.stop_reason}")
+
+
+def switch_direction(system: System, point: Point) -> np.ndarray:
+    """Unit direction of the branch that crosses ``point``'s branch at ``point``, a branch
+    point of ``system``.
+
+    There dF/dv has a two-dimensional null space, spanned by the known branch's tangent
+    and the new branch's; the new direction is the null vector orthogonal to the known
+    tangent. (At a period doubling of r, the branch of orbits of twice the period crosses
+    the old branch this way in the equations of r^2.)
+    """
+    null = np.linalg.svd(system.jacobian(point.v))[2][-2:]
+    along_known = null @ point.tangent
+    direction = null.T @ np.array([-along_known[1], along_known[0]])
+    return direction / np.linalg.norm(direction)
+
+
+def switch_branch(system: System, point: Point, amplitude: float, settings: Settings) -> tuple[np.ndarray, np.ndarray]:
+    """First solution on the branch that crosses at ``point``, ``amplitude`` (scaled
+    arclength) along :func:`switch_direction`; returns it and that direction."""
+    direction = switch_direction(system, point)
+    v, _ = correct(system, point.v + amplitude * direction, direction, settings)
+    return v, direction
+
+
+def _crossings(system: System, a: Point, b: Point) -> list[str]:
+    kinds = []
+    for kind in special_types(system):
+        x, y = a.tests[kind], b.tests[kind]
+        if kind == "neimark_sacker" and a.tests["complex_pairs"] != b.tests["complex_pairs"]:
+            continue  # a pair turned real: not a crossing of the unit circle
+        veto = getattr(system, "crossing_veto", None)
+        if veto and veto(kind, a, b):
+            continue
+        if math.isfinite(x) and math.isfinite(y) and x * y < 0:
+            kinds.append(kind)
+    return kinds
+
+
+def locate(system: System, a: Point, b: Point, kind: str, settings: Settings) -> Point:
+    """The point between a and b where test function ``kind`` vanishes.
+
+    Regula falsi (Illinois) on s, the arclength from a along its tangent: each trial is
+    the branch's point on the hyperplane orthogonal to that tangent at s. Newton starts
+    from the nearest point found so far, extrapolated along its own tangent onto the
+    hyperplane. Near a branch point another branch crosses close by, and a start far away
+    (such as a's tangent line) can converge onto it.
+    """
+    span = float(np.dot(b.v - a.v, a.tangent))
+    s_lo, s_hi, f_lo, f_hi = 0.0, span, a.tests[kind], b.tests[kind]
+    # At a branch point the corrector's Jacobian is singular, so Newton converges only
+    # linearly close to it: allow it the iterations that takes.
+    settings = replace(settings, max_newton=max(settings.max_newton, LOCATE_MAX_NEWTON))
+    known = [(0.0, a), (span, b)]
+    # The parameters are the last unknowns: one on a branch, two on a curve.
+    params = slice(-getattr(system, "parameter_count", 1), None)
+    best, lam_lo, lam_hi, last_moved = b, a.v[params], b.v[params], ""
+    for _ in range(60):
+        s = s_lo - f_lo * (s_hi - s_lo) / (f_hi - f_lo)
+        if not min(s_lo, s_hi) < s < max(s_lo, s_hi):
+            s = 0.5 * (s_lo + s_hi)
+        s_near, near = min(known, key=lambda k: abs(k[0] - s))
+        start = near.v + (s - s_near) / np.dot(near.tangent, a.tangent) * near.tangent
+        try:
+            v, _ = correct(system, start, a.tangent, settings)
+        except CorrectionFailed:
+            break
+        best = make_point(system, v, a.tangent)
+        known.append((s, best))
+        value = best.tests[kind]
+        # Illinois rule: when the same end moves twice running, halve the other end's
+        # value, so that the bracket shrinks from both sides.
+        if value * f_lo < 0:
+            s_hi, f_hi, lam_hi = s, value, best.v[params]
+            f_lo = f_lo / 2 if last_moved == "hi" else f_lo
+            last_moved = "hi"
+        else:
+            s_lo, f_lo, lam_lo = s, value, best.v[params]
+            f_hi = f_hi / 2 if last_moved == "lo" else f_hi
+            last_moved = "lo"
+        # At a fold lambda is extremal, so it settles long before s does: both must.
+        if (np.max(np.abs(lam_hi - lam_lo)) < LOCATE_TOLERANCE and abs(s_hi - s_lo) < 1e-5) or value == 0.0:
+            break
+    best.special = kind
+    if kind == "fold" and "multiplier_one" in a.tests and not _multiplier_crosses_one(a, b):
+        best.special = "turning_point"
+    return best
+
+
+def _multiplier_crosses_one(a: Point, b: Point) -> bool:
+    """Whether a non-trivial real multiplier crosses +1 between ``a`` and ``b``."""
+    x, y = a.tests["multiplier_one"], b.tests["multiplier_one"]
+    return math.isfinite(x) and math.isfinite(y) and x * y < 0

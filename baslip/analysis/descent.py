@@ -1,0 +1,403 @@
+"""Stability-optimal gaits: the least spectral radius on the fixed-point manifold.
+
+The fixed points of a problem (its fixed quantities held) form a manifold; which point a
+solve returns depends on the objective and the guess. Here we descend on the manifold to
+the gait whose multipliers are smallest.
+
+**Objective.** The spectral radius rho = max |mu_i| is not differentiable where the
+largest multiplier changes or a pair coalesces. We minimise the smooth surrogate
+
+    phi = log( sum_i |mu_i|^(2q) ) / (2q),   q = :data:`SURROGATE_POWER`,
+
+the log of the 2q-norm of the non-trivial multipliers: log rho <= phi <= log rho +
+log(4) / (2q), i.e. exp(phi) is within 9 % of rho for q = 8, and phi is smooth wherever
+the multipliers are simple. (A log-sum-exp of |mu|^2 behaves the same; the norm form keeps
+the bound independent of the size of rho, which spans 0.1 to 1e3 here.)
+
+**Gradient.** An eigenvalue's derivative is dmu_i = u_i dA v_i, with v_i the right
+eigenvector and u_i the matching row of V^-1 (the left eigenvector with u_i v_i = 1). So
+dphi = <G, dA> for a real 4 x 4 seed G (:func:`surrogate`), and the gradient of phi in
+(X, u) is the gradient of <G, dr/dX (X, u)>: one reverse sweep through the AD Jacobian of
+the compiled stride, i.e. exact second derivatives of the map
+(:meth:`baslip.engine.kernels.StrideFunctions.multiplier_gradient`).
+
+**Descent.** The manifold is charted by some of its free quantities, chosen so that the
+equations can be solved well for the others (greedy column pivoting of their Jacobian).
+On the chart, phi is an ordinary function: a point is the fixed point with the chart
+quantities held (the Newton polish solves for the rest), and its gradient follows by the
+implicit-function theorem. BFGS with a backtracking (Armijo) line search minimises it;
+a degenerate chart is replaced. Where phi stops falling (a kink of rho, where two
+multipliers of equal modulus meet), a compass search on rho itself goes on. Every
+accepted point is a fixed point of the compiled map to eps <= 1e-12; the caller verifies
+the end point independently.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from baslip.engine.codegen import compile_kernels
+from baslip.engine.kernels import multiplier_gradient_function
+from baslip.engine.kernels import sources as stride_sources
+from baslip.engine.outcome import precheck
+from baslip.engine.returnmap import ReturnMap, RunnerFell, param_vector
+from baslip.errors import RunError
+from baslip.gait.fixedpoint import FixedPointResult, FixedPointSolver
+from baslip.gait.polish import Polish, eps, movable_quantities
+from baslip.gait.shooting import FixedPointSpec
+from baslip.gait.stability import classify
+from baslip.model.quantities import DESIGN, NOMINAL
+
+#: q of the surrogate (see the module docstring).
+SURROGATE_POWER = 8
+#: Armijo constant, largest step (scaled units), halvings per iteration, and the
+#: reduced-gradient norm and step length at which the descent stops.
+ARMIJO = 1e-4
+MAX_STEP = 2.0
+HALVINGS = 10
+#: Largest condition number of the equations' Jacobian in the quantities that follow the
+#: chart, before another chart is chosen.
+MAX_CHART_CONDITION = 1e8
+GRADIENT_TOLERANCE = 1e-7
+STEP_TOLERANCE = 1e-9
+#: Pattern search: first and last step (scaled units) and the most trial points.
+PATTERN_FIRST_STEP = 0.05
+PATTERN_LAST_STEP = 1e-6
+PATTERN_EVALUATIONS = 300
+
+
+class NoSecondDerivatives(RunError):
+    """The compiled engine cannot vouch for this stride, so it has no second derivatives."""
+
+
+def surrogate(dr_dX: np.ndarray, trivial: np.ndarray | None = None, q: int = SURROGATE_POWER) -> tuple[float, np.ndarray]:
+    """(phi, G): the surrogate of the multipliers of ``dr_dX`` and its gradient with
+    respect to the entries of dr/dX (so dphi = sum(G * dA)). ``trivial`` marks
+    multipliers to leave out (structural ones)."""
+    mu, V = np.linalg.eig(np.asarray(dr_dX, dtype=float))
+    U = np.linalg.inv(V)  # row i: left eigenvector with U[i] @ V[:, i] = 1
+    keep = np.ones(len(mu), dtype=bool) if trivial is None else ~np.asarray(trivial)
+    modulus = np.abs(mu)
+    scale = modulus[keep].max()  # work with mu / scale: no overflow for large q
+    terms = np.where(keep, (modulus / scale) ** (2 * q), 0.0)
+    total = terms.sum()
+    phi = float(np.log(scale) + np.log(total) / (2 * q))
+    # d phi = sum_i |mu_i|^(2q-2) Re(conj(mu_i) dmu_i) / S, with dmu_i = U[i] dA V[:, i].
+    weight = np.where(keep, (modulus / scale) ** (2 * q - 2) / scale**2, 0.0) / total
+    coefficient = weight * np.conj(mu)
+    G = np.real(U.T @ np.diag(coefficient) @ V.T)
+    return phi, G
+
+
+@dataclass(frozen=True)
+class DescentStep:
+    """One accepted point of a descent."""
+
+    X: np.ndarray
+    u: np.ndarray
+    spectral_radius: float
+    surrogate: float
+
+
+@dataclass(frozen=True)
+class Descent:
+    """Where a descent went: its accepted points (the first is the start) and why it ended."""
+
+    steps: tuple[DescentStep, ...]
+    stop_reason: str
+    gradient_norm: float = float("nan")
+    evaluations: int = 0
+
+    @property
+    def best(self) -> DescentStep:
+        """The accepted point of least spectral radius (BFGS lowers the surrogate, which
+        may let rho itself rise slightly on a step)."""
+        return min(self.steps, key=lambda step: step.spectral_radius)
+
+
+class StabilityDescent:
+    """Quasi-Newton descent of the multipliers' surrogate on the fixed-point manifold."""
+
+    def __init__(self, rmap: ReturnMap, max_iterations: int = 60, compile: bool | None = None):
+        """``compile``: compile the second-derivative kernels (one library per step count,
+        about a minute each the first time on a machine, then cached); False keeps them
+        in CasADi's virtual machine (about 0.13 s a call instead of 9 ms)."""
+        self.rmap, self.max_iterations, self.compile = rmap, max_iterations, compile
+        self.polish = Polish(rmap, rmap)
+        self.scale = np.array([NOMINAL[n] for n in DESIGN])
+        self._kernels: dict[int, object] = {}
+
+    # -- the objective ---------------------------------------------------------------------
+
+    def evaluate(self, spec: FixedPointSpec, X, u) -> tuple[float, float, np.ndarray]:
+        """(spectral radius, phi, gradient of phi in (X, u)) at a fixed point."""
+        dr_dX, _ = self.rmap.jacobians(X, u, spec.params)
+        stability = classify(dr_dX, spec.params, u)
+        trivial = np.array([m.trivial for m in stability.multipliers])
+        phi, G = surrogate(dr_dX, trivial)
+        return stability.spectral_radius, phi, self.gradient(X, u, spec, G)
+
+    def gradient(self, X, u, spec: FixedPointSpec, G: np.ndarray) -> np.ndarray:
+        """The gradient of <G, dr/dX> in (X, u), by AD second derivatives of the stride."""
+        X, u, p = np.asarray(X, float), np.asarray(u, float), param_vector(spec.params)
+        fallen, t_guess = precheck(X, u, p)
+        engine = self.rmap.compiled_engine
+        settled = None if fallen is not None or engine is None else engine.settled_pass(X, u, p, t_guess)
+        if settled is None:
+            raise NoSecondDerivatives("the compiled engine cannot vouch for this stride")
+        n, guesses = settled
+        return np.asarray(self._kernel(engine, n)(X, u, p, guesses, G)[0], dtype=float).ravel()
+
+    def _kernel(self, engine, n: int):
+        if n not in self._kernels:
+            name = f"multiplier_gradient_{n}"
+            kernels = compile_kernels(f"baslip_curvature_{n}", [name],
+                                      lambda: [multiplier_gradient_function(engine.functions.flow, n)],
+                                      stride_sources(), enabled=self.compile)
+            self._kernels[n] = kernels[name]
+        return self._kernels[n]
+
+    # -- the descent -----------------------------------------------------------------------
+
+    def run(self, spec: FixedPointSpec, X, u) -> Descent:
+        """Descend from the fixed point (X, u) of ``spec`` (one-stride gaits).
+
+        The manifold is charted by some of its free quantities (:meth:`_chart`); the rest
+        follow from the fixed-point equations (the polish with the chart held). On the
+        chart, phi is an ordinary function whose gradient comes by the implicit-function
+        theorem, and BFGS with a backtracking (Armijo) line search minimises it. When no
+        step lowers phi, a compass search on the spectral radius itself goes on.
+        """
+        if spec.strides != 1:
+            raise ValueError("the stability descent handles one-stride gaits")
+        design = np.concatenate([X, u]).astype(float)
+        radius, phi, grad = self.evaluate(spec, design[:4], design[4:])
+        steps = [DescentStep(design[:4].copy(), design[4:].copy(), radius, phi)]
+        evaluations, chart, norm = 1, None, float("nan")
+        for _ in range(self.max_iterations):
+            if chart is None:
+                chart, fresh_chart = self._chart(spec, design), True
+                if not chart.size:
+                    return Descent(tuple(steps), "the manifold has no free direction here", 0.0, evaluations)
+                inverse_hessian = np.eye(chart.size)
+            reduced = self._reduced_gradient(spec, design, grad, chart)
+            if reduced is None:  # the chart degenerated here: choose another, once
+                if fresh_chart:
+                    break
+                chart = None
+                continue
+            fresh_chart = False
+            norm = float(np.linalg.norm(reduced))
+            if norm < GRADIENT_TOLERANCE:
+                return Descent(tuple(steps), "stationary: reduced gradient below tolerance", norm, evaluations)
+            direction = -inverse_hessian @ reduced
+            if direction @ reduced >= 0:
+                inverse_hessian, direction = np.eye(chart.size), -reduced
+            found = self._line_search(spec, design, chart, direction, reduced, phi)
+            evaluations += found[-1]
+            if found[0] is None:
+                if not np.allclose(inverse_hessian, np.eye(chart.size)):
+                    inverse_hessian = np.eye(chart.size)  # retry along the gradient
+                    continue
+                break
+            trial, t_radius, t_phi, t_grad, _ = found
+            s = (trial[chart] - design[chart]) / self.scale[chart]
+            t_reduced = self._reduced_gradient(spec, trial, t_grad, chart)
+            design, radius, phi, grad = trial, t_radius, t_phi, t_grad
+            steps.append(DescentStep(design[:4].copy(), design[4:].copy(), radius, phi))
+            if t_reduced is None:
+                chart = None
+                continue
+            y = t_reduced - reduced
+            if s @ y > 1e-12 * np.linalg.norm(s) * np.linalg.norm(y):
+                inverse_hessian = _bfgs(inverse_hessian, s, y)
+            if np.max(np.abs(s)) < STEP_TOLERANCE:
+                break
+        else:
+            return Descent(tuple(steps), f"reached {self.max_iterations} iterations", norm, evaluations)
+        # The surrogate stopped falling: typically where two multipliers of nearly equal
+        # modulus coalesce, a kink of rho that a gradient cannot cross. A compass search on
+        # rho itself goes on from there.
+        found, searched = self._pattern_search(spec, design, radius)
+        steps += found
+        return Descent(tuple(steps), "compass search on the spectral radius converged", norm, evaluations + searched)
+
+    def _line_search(self, spec, design, chart, direction, reduced, phi):
+        """(point, radius, phi, gradient, evaluations) of the first step along ``direction``
+        (chart coordinates, scaled) with enough decrease, halving from the full step
+        (capped at MAX_STEP); (None, ..., evaluations) if there is none."""
+        length, evaluations = min(1.0, MAX_STEP / max(np.max(np.abs(direction)), 1e-300)), 0
+        slope = float(direction @ reduced)
+        for _ in range(HALVINGS):
+            if length * np.max(np.abs(direction)) < STEP_TOLERANCE:
+                break
+            values = design[chart] + length * direction * self.scale[chart]
+            trial = self._retract(spec, design, chart, values)
+            if trial is not None:
+                evaluations += 1
+                try:
+                    t_radius, t_phi, t_grad = self.evaluate(spec, trial[:4], trial[4:])
+                except (RunnerFell, NoSecondDerivatives):
+                    t_phi = np.inf
+                if t_phi <= phi + ARMIJO * length * slope:
+                    return trial, t_radius, t_phi, t_grad, evaluations
+            length /= 2
+        return None, None, None, None, evaluations
+
+    def _free(self, spec: FixedPointSpec, design) -> np.ndarray:
+        """Indices of the free quantities not held on a bound."""
+        return np.nonzero(movable_quantities(spec, design))[0]
+
+    def _constraints(self, spec: FixedPointSpec, design) -> np.ndarray:
+        """The fixed-point equations' Jacobian in all nine scaled design quantities."""
+        energy_target = self.polish.energy_target(spec, design[:4])
+        return self.polish.equations_jacobian(spec, design[:4], design[4:], energy_target) * self.scale
+
+    def _chart(self, spec: FixedPointSpec, design) -> np.ndarray:
+        """Chart quantities: the free ones left after picking, column by column (greedy
+        pivoting), the best-conditioned set of free quantities to solve the equations for."""
+        free = self._free(spec, design)
+        C = self._constraints(spec, design)[:, free]
+        dependent, residual = [], C.copy()
+        for _ in range(min(C.shape)):
+            norms = np.linalg.norm(residual, axis=0)
+            norms[dependent] = -1
+            pick = int(np.argmax(norms))
+            if norms[pick] <= 1e-9 * np.linalg.norm(C, 2):
+                break
+            dependent.append(pick)
+            column = residual[:, pick] / norms[pick]
+            residual = residual - np.outer(column, column @ residual)
+        return np.array([free[i] for i in range(len(free)) if i not in dependent], dtype=int)
+
+    def _reduced_gradient(self, spec, design, grad, chart) -> np.ndarray | None:
+        """d phi / d (chart quantities, scaled), the others following the equations; None
+        if they cannot (the chart is singular here)."""
+        free = self._free(spec, design)
+        rest = np.array([i for i in free if i not in chart], dtype=int)
+        C = self._constraints(spec, design)
+        g = grad * self.scale
+        if not rest.size:
+            return g[chart]
+        C_rest = C[:, rest]
+        if np.linalg.cond(C_rest) > MAX_CHART_CONDITION:
+            return None
+        follow = -np.linalg.lstsq(C_rest, C[:, chart], rcond=None)[0]  # d rest / d chart
+        return g[chart] + follow.T @ g[rest]
+
+    def _pattern_search(self, spec: FixedPointSpec, design, radius) -> tuple[list[DescentStep], int]:
+        """Compass search on the spectral radius along each chart quantity, each trial
+        pulled back onto the manifold; the step halves when no move improves."""
+        found, evaluations, step = [], 0, PATTERN_FIRST_STEP
+        chart = self._chart(spec, design)
+        while step >= PATTERN_LAST_STEP and evaluations < PATTERN_EVALUATIONS:
+            improved = False
+            for i in chart:
+                for sign in (1.0, -1.0):
+                    values = design[chart].copy()
+                    values[list(chart).index(i)] += sign * step * self.scale[i]
+                    trial = self._retract(spec, design, chart, values)
+                    if trial is None:
+                        continue
+                    evaluations += 1
+                    try:
+                        dr_dX, _ = self.rmap.jacobians(trial[:4], trial[4:], spec.params)
+                    except RunnerFell:
+                        continue
+                    stability = classify(dr_dX, spec.params, trial[4:])
+                    if stability.spectral_radius < radius:
+                        design, radius, improved = trial, stability.spectral_radius, True
+                        trivial = np.array([m.trivial for m in stability.multipliers])
+                        found.append(DescentStep(trial[:4].copy(), trial[4:].copy(), radius, surrogate(dr_dX, trivial)[0]))
+                        break
+                if improved:
+                    break
+            if not improved:
+                step /= 2
+        return found, evaluations
+
+    def _retract(self, spec: FixedPointSpec, design, chart, values) -> np.ndarray | None:
+        """The fixed point with the chart quantities at ``values`` (clipped into their
+        bounds), the others solved from the equations by the polish; None if that fails
+        or leaves a bound."""
+        held = dict(spec.fixed)
+        for i, value in zip(chart, values):
+            lo, hi = spec.bounds_of(DESIGN[i])
+            held[DESIGN[i]] = float(min(max(value, lo), hi))
+        start = design.copy()
+        for i in chart:
+            start[i] = held[DESIGN[i]]
+        X, u, _, note = self.polish.run(replace(spec, fixed=held), start[:4], start[4:])
+        if note:
+            return None
+        point = np.concatenate([X, u])
+        for i, name in enumerate(DESIGN):
+            lo, hi = spec.bounds_of(name)
+            if not lo <= point[i] <= hi:
+                return None
+        stride = self.rmap.stride(X, u, spec.params)
+        if not stride.ok or eps(stride.apex, X) > 1e-12:
+            return None
+        return point
+
+
+def _bfgs(H: np.ndarray, s: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The BFGS update of an inverse Hessian approximation."""
+    rho = 1.0 / float(s @ y)
+    V = np.eye(len(s)) - rho * np.outer(s, y)
+    return V @ H @ V.T + rho * np.outer(s, s)
+
+
+#: Quantities drawn at random for a start (held while the starting gait is solved).
+DRAWN = ("Kp", "Kd")
+
+
+def random_start(spec: FixedPointSpec, rng: np.random.Generator) -> dict[str, float]:
+    """Gains to hold while solving a starting gait, drawn over their whole range (the
+    problem's bounds inside the physical ones): uniform in asinh(value / nominal), so that
+    gains of 0.01 and of 100 are both drawn, not only the large ones.
+
+    Only the gains are drawn: the rest of the start comes from the problem's guess. With
+    everything drawn, 1 start in 16 gave a fixed point at the upright (0.5 m/s, 0.4 m)
+    cell; with the gains held, 8 in 16 did, with radii from 3.6 to 1500.
+    """
+    held = {}
+    for name in DRAWN:
+        if name in spec.fixed:
+            continue
+        lo, hi = spec.bounds_of(name)
+        sigma = NOMINAL[name]
+        s = rng.uniform(np.arcsinh(lo / sigma), np.arcsinh(hi / sigma))
+        held[name] = float(np.clip(sigma * np.sinh(s), lo, hi))
+    return held
+
+
+@dataclass(frozen=True)
+class OptimalGait:
+    """One start of the search: the drawn gains, the fixed point solved with them held,
+    the descent from there (gains free) and the independently verified end point (None
+    where a stage did not happen)."""
+
+    held: dict
+    start: FixedPointResult
+    descent: Descent | None = None
+    end: FixedPointResult | None = None
+    note: str = ""
+
+
+def optimise_from(solver: FixedPointSolver, descent: StabilityDescent, spec: FixedPointSpec, held: dict,
+                  name: str = "problem") -> OptimalGait:
+    """Solve ``spec`` with the quantities ``held`` fixed, descend from that gait (with them
+    free again) to the least spectral radius nearby, and verify where the descent ended
+    with the solver's own checks."""
+    start = solver.solve(replace(spec, fixed={**spec.fixed, **held}), name=name)
+    if not start.converged:
+        return OptimalGait(held, start, note=f"no starting fixed point: {start.message}")
+    try:
+        found = descent.run(spec, start.X, start.u)
+    except (RunnerFell, NoSecondDerivatives) as err:
+        return OptimalGait(held, start, end=start, note=f"no descent: {err}")
+    end = solver.verify_point(spec, found.best.X, found.best.u, name)
+    return OptimalGait(held, start, found, end, found.stop_reason)

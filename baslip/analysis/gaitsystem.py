@@ -1,0 +1,452 @@
+"""Branches of BA-SLIP fixed points: the fixed-point equations as a continuation system.
+
+A fixed point here is one of the N-stride map r^N when the problem asks for orbits of
+N strides (``FixedPointSpec.strides``); its multipliers are those of r^N.
+
+The unknowns are the free design quantities and the continuation parameter lambda, which
+is a fixed quantity of the problem (a state, a control, the apex energy) or a model
+parameter (m, I, k, rho0, d, g). The equations are the periodicity rows r(X, u) - X that
+structure does not already imply (see :func:`baslip.gait.shooting.implied_periodicity`), plus
+the apex energy when it is fixed. A branch is a curve only if there are as many free
+quantities as equations; otherwise the problem must fix more (or fewer) of them.
+
+Unknowns are scaled by :data:`baslip.model.quantities.NOMINAL` (model parameters by a tenth of
+their value), so that arclength steps are balanced.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import casadi as ca
+import numpy as np
+
+from baslip.analysis.continuation import CorrectionFailed
+from baslip.engine.returnmap import ReturnMap, RunnerFell
+from baslip.errors import InputError
+from baslip.gait.fixedpoint import VERIFY_EPS, minimal_period
+from baslip.gait.shooting import FixedPointSpec, implied_periodicity
+from baslip.gait.stability import classify
+from baslip.model.dynamics import APEX, PARAMS, Params, apex_energy
+from baslip.model.hiplaw import CONTROL
+from baslip.model.quantities import DESIGN, NOMINAL
+
+#: A phase lasting less than this fraction of its flight (descent) or stance (compression,
+#: decompression) counts as grazing: the branch is about to lose or gain an event.
+GRAZING_FRACTION = 0.02
+
+
+class BranchError(InputError):
+    """The problem does not define a one-dimensional branch; ``key`` names the entry."""
+
+
+def check_branch(spec: FixedPointSpec, parameter: str, key: str = "continuation.parameter") -> None:
+    """Raise :class:`BranchError` unless the problem defines a one-dimensional branch in
+    ``parameter`` (named by ``key`` in the problem file): as many free quantities as
+    equations, or more with the ``nearest_guess`` objective, which then picks the family
+    (:class:`NearestGuessSystem`)."""
+    _check_parameter(spec, parameter, key)
+    free, equations = _free(spec), _equation_count(spec)
+    if len(free) < equations or (len(free) > equations and spec.objective != "nearest_guess"):
+        raise BranchError(
+            "fix",
+            f"a branch needs as many free quantities as equations (or more, with objective nearest_guess): "
+            f"{len(free)} free ({', '.join(free)}) but {equations} equations; fix or free quantities to match",
+        )
+
+
+def _check_parameter(spec: FixedPointSpec, parameter: str, key: str) -> None:
+    if parameter not in DESIGN + ("energy",) + PARAMS.names:
+        raise BranchError(key, f"{parameter!r} cannot be varied")
+    if parameter in DESIGN + ("energy",) and parameter not in spec.fixed:
+        raise BranchError(key, f"{parameter} must be fixed (at its starting value)")
+
+
+def _free(spec: FixedPointSpec) -> list[str]:
+    return [n for n in DESIGN if n not in spec.fixed]
+
+
+def _equation_count(spec: FixedPointSpec) -> int:
+    return len([n for n in APEX.names if n not in implied_periodicity(spec)]) + ("energy" in spec.fixed)
+
+
+def branch_system(spec: FixedPointSpec, parameter: str, residual_map: ReturnMap, jacobian_map: ReturnMap,
+                  second: str | None = None):
+    """The continuation system of the problem's fixed points: :class:`FixedPointSystem`
+    when the equations fix the free quantities, :class:`NearestGuessSystem` when the
+    problem leaves more free and its objective picks among them."""
+    check_branch(spec, parameter)
+    if second is not None:
+        check_branch(spec, second, "continuation.second")
+    if len(_free(spec)) == _equation_count(spec):
+        return FixedPointSystem(spec, parameter, residual_map, jacobian_map, second)
+    return NearestGuessSystem(spec, parameter, residual_map, jacobian_map, second)
+
+
+class FixedPointSystem:
+    """F(v) = 0 for v = (free design quantities, lambda), all scaled.
+
+    With a ``second`` parameter, v = (free design quantities, lambda_1, lambda_2): the
+    fixed points then form a surface, on which a bifurcation curve is one more equation
+    (:mod:`baslip.analysis.bifurcation`). The Jacobian has one column per parameter.
+    """
+
+    def __init__(self, spec: FixedPointSpec, parameter: str, residual_map: ReturnMap, jacobian_map: ReturnMap,
+                 second: str | None = None, square: bool = True):
+        (check_branch if square else _check_parameter)(spec, parameter, "continuation.parameter")
+        if second is not None:
+            if second == parameter:
+                raise BranchError("continuation.second", f"the second parameter must differ from the first ({parameter})")
+            (check_branch if square else _check_parameter)(spec, second, "continuation.second")
+        self.spec, self.parameter = spec, parameter
+        self.parameters = (parameter,) if second is None else (parameter, second)
+        self.residual_map, self.jacobian_map = residual_map, jacobian_map
+        self.free = [n for n in DESIGN if n not in spec.fixed and n not in self.parameters]
+        self.rows = [n for n in APEX.names if n not in implied_periodicity(spec)]
+        self.energy_row = "energy" in spec.fixed
+        self.lam_scales = [self._scale_of(name) for name in self.parameters]
+        self.lam_scale = self.lam_scales[0]
+        self.scale = np.array([NOMINAL[n] for n in self.free] + self.lam_scales)
+        X, p = APEX.sym("X"), PARAMS.sym("p")
+        energy = apex_energy(X, p)
+        self._energy = ca.Function("E", [X, p], [energy])
+        self._energy_gradient = ca.Function("dE", [X, p], [ca.gradient(energy, X), ca.gradient(energy, p)])
+        self._cache: tuple[bytes, tuple] | None = None
+
+    def _scale_of(self, name: str) -> float:
+        if name in PARAMS.names:
+            value = self.start_value(name)
+            return 0.1 * abs(value) if value else 0.01
+        if name == "energy":  # a percent of the energy: a robot of 1 kg or a runner of 80 kg
+            value = self.start_value(name)
+            return 0.01 * abs(value) if value else 0.1
+        return NOMINAL.get(name, 1.0)
+
+    # -- unknowns -------------------------------------------------------------------------
+
+    def start_value(self, name: str | None = None) -> float:
+        """The problem's own value of parameter ``name`` (the first one by default)."""
+        name = name or self.parameter
+        if name in PARAMS.names:
+            return float(getattr(self.spec.params, name))
+        return float(self.spec.fixed[name])
+
+    def pack(self, X, u, *lams: float) -> np.ndarray:
+        """Scaled unknowns from an apex, a control and the parameters' values."""
+        design = dict(zip(DESIGN, np.concatenate([X, u])))
+        return np.array([design[n] for n in self.free] + list(lams)) / self.scale
+
+    def values(self, v: np.ndarray) -> dict[str, float]:
+        """The parameters' values at ``v``, by name."""
+        count = len(self.parameters)
+        return dict(zip(self.parameters, (float(x) for x in (v * self.scale)[-count:])))
+
+    def unpack(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, Params, float]:
+        """(apex, control, model parameters, value of the first parameter) at ``v``."""
+        physical = v * self.scale
+        values = dict(self.spec.fixed)
+        values.update(zip(self.free, physical[: len(self.free)]))
+        params = self.spec.params
+        for name, value in self.values(v).items():
+            if name in PARAMS.names:
+                params = replace(params, **{name: value})
+            elif name != "energy":
+                values[name] = value
+        design = np.array([values[n] for n in DESIGN])
+        return design[: APEX.size], design[APEX.size :], params, self.values(v)[self.parameter]
+
+    # -- equations ------------------------------------------------------------------------
+
+    def energy(self, X, params: Params) -> float:
+        """Apex energy [J]."""
+        return float(self._energy(X, params.vector()))
+
+    def _energy_target(self, v: np.ndarray) -> float:
+        return self.values(v).get("energy", self.spec.fixed.get("energy", 0.0))
+
+    def residual(self, v: np.ndarray) -> np.ndarray:
+        X, u, params, _ = self.unpack(v)
+        orbit = self.residual_map.simulate(X, u, params, self.spec.strides)
+        if orbit.fall is not None:
+            raise CorrectionFailed(f"the runner falls ({orbit.fall.value})")
+        periodic = orbit.apexes[-1] - X
+        rows = [periodic[APEX.index(n)] for n in self.rows]
+        if self.energy_row:
+            rows.append(self.energy(X, params) - self._energy_target(v))
+        return np.array(rows)
+
+    def _jacobians(self, v: np.ndarray):
+        key = v.tobytes()
+        if self._cache is None or self._cache[0] != key:
+            X, u, params, _ = self.unpack(v)
+            self._cache = (key, (X, u, params, *self._map_jacobians(X, u, params)))
+        return self._cache[1]
+
+    def _map_jacobians(self, X, u, params):
+        """(dr^N/dX, dr^N/du, dr^N/dp or None) at (X, u, params)."""
+        try:
+            strides = self.spec.strides
+            if any(name in PARAMS.names for name in self.parameters):  # one pass gives all three
+                return self.jacobian_map.all_jacobians(X, u, params, strides)
+            return (*self.jacobian_map.jacobians(X, u, params, strides), None)
+        except RunnerFell as err:
+            raise CorrectionFailed(f"the runner falls ({err.fall.value})") from None
+
+    def jacobian(self, v: np.ndarray) -> np.ndarray:
+        """dF/dv, scaled: one column per free quantity, then one per parameter."""
+        X, u, params, dr_dX, dr_du, dr_dp = self._jacobians(v)
+        full = np.hstack([dr_dX - np.eye(APEX.size), dr_du])  # d(r - X)/d(X, u)
+        rows = [APEX.index(n) for n in self.rows]
+        columns = [DESIGN.index(n) for n in self.free]
+        jac = full[np.ix_(rows, columns)]
+        for name in self.parameters:
+            if name in PARAMS.names:
+                lam_column = dr_dp[rows, PARAMS.index(name)]
+            elif name == "energy":
+                lam_column = np.zeros(len(rows))
+            else:
+                lam_column = full[rows, DESIGN.index(name)]
+            jac = np.column_stack([jac, lam_column])
+        if self.energy_row:
+            by_X, by_p = (np.asarray(g).ravel() for g in self._energy_gradient(X, params.vector()))
+            energy = np.concatenate([by_X, np.zeros(CONTROL.size)])
+            lam_energy = []
+            for name in self.parameters:
+                if name == "energy":
+                    lam_energy.append(-1.0)
+                elif name in PARAMS.names:
+                    lam_energy.append(by_p[PARAMS.index(name)])
+                else:
+                    lam_energy.append(energy[DESIGN.index(name)])
+            jac = np.vstack([jac, np.concatenate([energy[columns], lam_energy])])
+        return jac * self.scale
+
+    # -- the map itself, for bifurcation curves -------------------------------------------
+
+    def dynamic_coordinates(self, u, params: Params) -> tuple[str, ...]:
+        """Apex coordinates in which the map has no multiplier that is 1 by structure.
+
+        With a hip torque, all four. Without one, energy is conserved: z follows from the
+        energy and the others, so it is left out; with d = 0 as well, the trunk spins
+        freely and only ydot is left. On these coordinates (at the orbit's energy) a
+        multiplier at +1, -1 or on the unit circle is a bifurcation of the map, never
+        structure (see :mod:`baslip.gait.stability`).
+        """
+        control = CONTROL.unpack(np.asarray(u, dtype=float))
+        if not (control["Kp"] == 0.0 and control["Kd"] == 0.0):
+            return APEX.names
+        return ("ydot", "theta_h", "theta_h_dot") if params.d != 0.0 else ("ydot",)
+
+    def map_jacobian(self, v: np.ndarray, shift: np.ndarray | None = None) -> np.ndarray:
+        """Jacobian of the N-stride map on :meth:`dynamic_coordinates`, at the orbit's
+        start displaced by ``shift`` (in those coordinates, physical units) at the same
+        energy and control: the matrix whose multipliers decide the curves, and (through
+        ``shift``) the map's higher derivatives for the normal-form coefficients."""
+        X, u, params, _ = self.unpack(v)
+        names = self.dynamic_coordinates(u, params)
+        index = [APEX.index(n) for n in names]
+        lifted = self._lift(X, index, shift, params, len(names) < APEX.size)
+        if shift is None and v.tobytes() == (self._cache[0] if self._cache else None):
+            dr_dX = self._cache[1][3]
+        else:
+            dr_dX = self._map_jacobians(lifted, u, params)[0]
+        return dr_dX[index, :] @ self._lift_jacobian(lifted, index, params, len(names) < APEX.size)
+
+    def _lift(self, X, index, shift, params, conserved: bool) -> np.ndarray:
+        """The apex at dynamic coordinates X[index] + shift: z moves to keep the energy
+        (exactly, as the apex energy is affine in z) when energy is conserved."""
+        if shift is None:
+            return np.asarray(X, dtype=float)
+        lifted = np.array(X, dtype=float)
+        lifted[index] += shift
+        if conserved:
+            z = APEX.index("z")
+            slope = float(self._energy_gradient(lifted, params.vector())[0][z])
+            lifted[z] += (self.energy(X, params) - self.energy(lifted, params)) / slope
+        return lifted
+
+    def _lift_jacobian(self, X, index, params, conserved: bool) -> np.ndarray:
+        """d(apex)/d(dynamic coordinates) at ``X``: 4 x k."""
+        lift = np.eye(APEX.size)[:, index]
+        if conserved:
+            gradient = np.asarray(self._energy_gradient(X, params.vector())[0]).ravel()
+            z = APEX.index("z")
+            lift[z, :] -= gradient[index] / gradient[z]
+        return lift
+
+    def verification_failure(self, v: np.ndarray, verify_map: ReturnMap) -> str | None:
+        """Why ``v`` is not a verified orbit of its period, or None if it is.
+
+        ``verify_map`` re-simulates the orbit independently and must give eps <= 1e-10, as
+        for any reported fixed point; an orbit of N > 1 strides must not repeat sooner (it
+        would belong to a branch of shorter orbits).
+        """
+        X, u, params, _ = self.unpack(v)
+        strides = self.spec.strides
+        check = verify_map.simulate(X, u, params, strides)
+        if check.fall is not None:
+            return f"the runner falls ({check.fall.value})"
+        eps = float(np.linalg.norm(check.apexes[-1] - X) / np.linalg.norm(X))
+        if eps > VERIFY_EPS:
+            return f"not verified (eps = {eps:.1e})"
+        period = minimal_period(check.apexes)
+        if period < strides:
+            return f"the orbit repeats after {period} of its {strides} strides"
+        return None
+
+    def grazing(self, v: np.ndarray) -> str | None:
+        """If the orbit at ``v`` is close to grazing, where: an apex at the touchdown
+        height (its descent lasting under :data:`GRAZING_FRACTION` of its flight) or a
+        stance phase shrinking to nothing. None otherwise (or if the orbit falls)."""
+        X, u, params, _ = self.unpack(v)
+        orbit = self.residual_map.simulate(X, u, params, self.spec.strides)
+        if orbit.fall is not None:
+            return None
+        for k, d in enumerate(orbit.durations):
+            flight = d["descent"] + d["ascent"]
+            if d["descent"] < GRAZING_FRACTION * flight:
+                return (f"grazing: the apex of stride {k + 1} (z = {orbit.apexes[k][0]:.6g} m) is at the touchdown "
+                        f"height (descent {1e3 * d['descent']:.3g} ms of a {1e3 * flight:.3g} ms flight)")
+            stance = d["compression"] + d["decompression"]
+            for phase in ("compression", "decompression"):
+                if d[phase] < GRAZING_FRACTION * stance:
+                    return f"grazing: the {phase} of stride {k + 1} lasts {1e3 * d[phase]:.3g} ms of a {1e3 * stance:.3g} ms stance"
+        return None
+
+    def multipliers(self, v: np.ndarray) -> tuple[np.ndarray, list[bool]]:
+        _, u, params, dr_dX, _, _ = self._jacobians(v)
+        stability = classify(dr_dX, params, u)
+        return np.array([m.value for m in stability.multipliers]), [m.trivial for m in stability.multipliers]
+
+
+#: Step of the central differences of the constraint Jacobian that give the Lagrangian's
+#: curvature in :class:`NearestGuessSystem` (scaled unknowns).
+CURVATURE_STEP = 1e-6
+
+
+class NearestGuessSystem:
+    """The family of fixed points that the ``nearest_guess`` objective picks.
+
+    When a problem leaves more quantities free than there are fixed-point equations (a
+    sweep over (ydot, z) with the gains free, like grid_downward), the fixed points at
+    given parameters form a manifold, and the NLP picks the one nearest the guess in
+    scaled units. Those points are the solutions of the optimality conditions::
+
+        F(w, lambda) = 0,    2 (w - g) + dF/dw^T mu = 0
+
+    (w the free quantities scaled by :data:`baslip.model.quantities.NOMINAL`, g the guess, mu
+    the Lagrange multipliers), which this system follows: v = (w, mu, parameters). The
+    first rows and all derivatives of F are algorithmic; the Lagrangian's curvature
+    d(dF/dw^T mu)/dv is a central difference of them (it steers Newton, not the points).
+    Bounds are not part of the conditions: a point outside them is refused.
+
+    The fixed point itself, its multipliers and its verification are those of the
+    underlying :class:`FixedPointSystem`; only the unknowns differ.
+    """
+
+    def __init__(self, spec: FixedPointSpec, parameter: str, residual_map: ReturnMap, jacobian_map: ReturnMap,
+                 second: str | None = None):
+        self.fixed_points = FixedPointSystem(spec, parameter, residual_map, jacobian_map, second, square=False)
+        points = self.fixed_points
+        self.spec, self.parameter, self.parameters = spec, parameter, points.parameters
+        self.lam_scales, self.lam_scale = points.lam_scales, points.lam_scale
+        self.n_free, self.n_equations = len(points.free), len(points.rows) + points.energy_row
+        design = dict(zip(DESIGN, spec.start_design()))
+        self.target = np.array([design[n] for n in points.free]) / points.scale[: self.n_free]
+        # v holds mu / multiplier_scale, set by pack so that mu moves no faster along the
+        # family than the rest: arclength steps then advance the parameters.
+        self.multiplier_scale = 1.0
+        #: The unknowns that are Lagrange multipliers: the map does not depend on them.
+        self.auxiliary = tuple(range(self.n_free, self.n_free + self.n_equations))
+
+    def _inner(self, v: np.ndarray) -> np.ndarray:
+        """The fixed-point unknowns (w, parameters) of ``v``."""
+        return np.concatenate([v[: self.n_free], v[self.n_free + self.n_equations :]])
+
+    def _multipliers_of(self, v: np.ndarray) -> np.ndarray:
+        """The Lagrange multipliers mu at ``v``."""
+        return self.multiplier_scale * v[self.n_free : self.n_free + self.n_equations]
+
+    # -- unknowns ---------------------------------------------------------------------------
+
+    def start_value(self, name: str | None = None) -> float:
+        return self.fixed_points.start_value(name)
+
+    def pack(self, X, u, *lams: float) -> np.ndarray:
+        """Unknowns at a fixed point, with the Lagrange multipliers that fit it best; with
+        one parameter, then corrected onto the family with the parameter held."""
+        inner = self.fixed_points.pack(X, u, *lams)
+        gradient = 2 * (inner[: self.n_free] - self.target)
+        J = self.fixed_points.jacobian(inner)[:, : self.n_free]
+        mu = np.linalg.lstsq(J.T, -gradient, rcond=None)[0]
+        self.multiplier_scale = 1.0
+        v = np.concatenate([inner[: self.n_free], mu, inner[self.n_free :]])
+        # The family's directions (null space of the Jacobian, k x len(v)): mu's fastest
+        # speed per unit speed of the parameters, over all directions.
+        count = len(self.parameters)
+        null = np.linalg.svd(self.jacobian(v))[2][-count:]
+        columns = slice(self.n_free, self.n_free + self.n_equations)
+        per_parameter = np.linalg.solve(null[:, -count:], null[:, columns])  # d mu / d parameters
+        self.multiplier_scale = max(1.0, float(np.linalg.norm(per_parameter, 2)))
+        v[columns] /= self.multiplier_scale
+        if len(self.parameters) == 1:
+            from baslip.analysis.continuation import Settings, correct
+
+            held = np.zeros(len(v))
+            held[-1] = 1.0
+            v, _ = correct(self, v, held, Settings(max_newton=20))
+        return v
+
+    def values(self, v: np.ndarray) -> dict[str, float]:
+        return self.fixed_points.values(self._inner(v))
+
+    def unpack(self, v: np.ndarray):
+        return self.fixed_points.unpack(self._inner(v))
+
+    def energy(self, X, params: Params) -> float:
+        return self.fixed_points.energy(X, params)
+
+    # -- equations --------------------------------------------------------------------------
+
+    def _stationarity(self, inner: np.ndarray, mu: np.ndarray) -> np.ndarray:
+        J = self.fixed_points.jacobian(inner)[:, : self.n_free]
+        return 2 * (inner[: self.n_free] - self.target) + J.T @ mu
+
+    def residual(self, v: np.ndarray) -> np.ndarray:
+        inner = self._inner(v)
+        F = self.fixed_points.residual(inner)
+        return np.concatenate([F, self._stationarity(inner, self._multipliers_of(v))])
+
+    def jacobian(self, v: np.ndarray) -> np.ndarray:
+        inner, mu = self._inner(v), self._multipliers_of(v)
+        J = self.fixed_points.jacobian(inner)
+        n, m = self.n_free, self.n_equations
+        curvature = np.empty((n, len(inner)))
+        for j in range(len(inner)):
+            step = np.zeros(len(inner))
+            step[j] = CURVATURE_STEP
+            ahead = self.fixed_points.jacobian(inner + step)[:, :n].T @ mu
+            behind = self.fixed_points.jacobian(inner - step)[:, :n].T @ mu
+            curvature[:, j] = (ahead - behind) / (2 * CURVATURE_STEP)
+        curvature[:, :n] += 2 * np.eye(n)
+        top = np.hstack([J[:, :n], np.zeros((m, m)), J[:, n:]])
+        bottom = np.hstack([curvature[:, :n], self.multiplier_scale * J[:, :n].T, curvature[:, n:]])
+        return np.vstack([top, bottom])
+
+    def multipliers(self, v: np.ndarray):
+        return self.fixed_points.multipliers(self._inner(v))
+
+    def map_jacobian(self, v: np.ndarray, shift: np.ndarray | None = None) -> np.ndarray:
+        return self.fixed_points.map_jacobian(self._inner(v), shift)
+
+    def verification_failure(self, v: np.ndarray, verify_map: ReturnMap) -> str | None:
+        """As :meth:`FixedPointSystem.verification_failure`, and inside the bounds."""
+        X, u, _, _ = self.unpack(v)
+        for name, value in zip(DESIGN, np.concatenate([X, u])):
+            lo, hi = self.spec.bounds_of(name)
+            if not lo <= value <= hi:
+                return f"{name} = {value:.6g} leaves its bounds [{lo:.6g}, {hi:.6g}]"
+        return self.fixed_points.verification_failure(self._inner(v), verify_map)
+
+    def grazing(self, v: np.ndarray) -> str | None:
+        return self.fixed_points.grazing(self._inner(v))

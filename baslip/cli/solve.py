@@ -1,0 +1,208 @@
+"""Command line: ``python -m baslip.solve PROBLEM.yaml [--out DIR] [--fresh]``.
+
+Exit codes:
+
+* 0: a verified fixed point; or a study or continuation that ran to the end (a point with
+  no fixed point is data, listed with its reason);
+* 1: the solver failed or the answer did not verify; a study that solved nothing or
+  stopped short (Ctrl-C, a killed worker); a branch whose start did not converge;
+* 2: bad input, a busy output folder, or a folder holding results of another problem
+  (one line on stderr naming the key or folder; nothing is written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+from baslip.cli.common import EXIT_BAD_INPUT, EXIT_NOT_CONVERGED, EXIT_OK, OneLineParser
+from baslip.errors import InputError
+from baslip.files.lock import FolderBusy
+from baslip.gait.describe import summary_text as summary
+from baslip.problem.reader import ProblemError, load_problem
+from baslip.results import run_summary_text
+from baslip.status import VERIFY_EPS
+
+
+def _parser(prog: str = "python -m baslip.solve") -> argparse.ArgumentParser:
+    parser = OneLineParser(
+        prog=prog,
+        description=(
+            "Find a periodic running gait (a fixed point of the apex return map) of the "
+            "BA-SLIP runner described by a YAML problem file, verify it by an independent "
+            f"re-simulation (eps <= {VERIFY_EPS:g}) and report its stability."
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=(
+            "A plain problem writes DIR/result.json and DIR/multipliers.csv.\n"
+            "A problem with a study: section (kind sweep, random, basin, adaptive, optimal or\n"
+            "controllers) runs it on worker processes, resumably, and writes its CSV files,\n"
+            "result.json and figures; rerunning finishes an interrupted study.\n"
+            "A problem with a continuation: section traces a branch of fixed points in one\n"
+            "parameter (branch.csv, diagram.png) and, with second/second_range/follow, the\n"
+            "bifurcation curves in two parameters (curve.csv, curve.png).\n"
+            "See the README for every key; problems/ has examples of each.\n\n"
+            "Exit status: 0 verified fixed point or completed study/branch; 1 solver failure,\n"
+            "not verified, a study that solved nothing or stopped short, or a curve not found;\n"
+            "2 bad input or a busy or stale output folder."
+        ),
+    )
+    parser.add_argument("problem", type=Path, help="YAML problem file (see README: Problem files)")
+    parser.add_argument("--out", type=Path, metavar="DIR", help="output folder (default: results/<name>/)")
+    talk = parser.add_mutually_exclusive_group()
+    talk.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    talk.add_argument("--verbose", action="store_true",
+                      help="also print IPOPT's iterations (of a single solve, or of a branch's start)")
+    parser.add_argument("--jobs", type=_positive, metavar="N",
+                        help="worker processes for a study (default: one per core, at most one per lane; "
+                             "the answers do not depend on it); with --scheduler local, the LocalCluster's workers")
+    parser.add_argument("--lanes", type=_positive, metavar="N",
+                        help="split a new study into N lanes of warm-started tasks (default 2), so that up to N "
+                             "workers run at once; recorded in result.json and kept when the run resumes. "
+                             "The answers depend on N (not on --jobs): each lane warm-starts from its own "
+                             "previous point. One-quantity sweeps always walk two lanes from their start")
+    parser.add_argument("--format", choices=("png", "svg", "pdf"), default="png",
+                        help="format of the figures a study or continuation writes (default png)")
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="run a study's lanes on a Dask cluster: a scheduler address such as "
+                             "tcp://host:8786, or 'local' for a LocalCluster (needs pip install 'baslip[dask]')")
+    parser.add_argument(
+        "--fresh", action="store_true",
+        help="discard what DIR holds from an earlier run instead of resuming it (a study "
+             "refuses to resume results of a changed problem without this)",
+    )
+    return parser
+
+
+def _positive(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text[:20]!r}") from None
+    if not 1 <= value <= 1024:
+        raise argparse.ArgumentTypeError(f"expected 1 to 1024, got {value}")
+    return value
+
+
+def main(argv: list[str] | None = None, prog: str = "python -m baslip.solve") -> int:
+    args = _parser(prog).parse_args(argv)
+    try:
+        problem = load_problem(args.problem)
+    except ProblemError as err:
+        print(f"error: {args.problem}: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if args.verbose:  # print_level is not part of the problem's hash: results stay comparable
+        problem = replace(problem, solver=replace(problem.solver, print_level=5))
+    out_dir = args.out if args.out is not None else Path("results") / problem.name
+    # The run's modules load CasADi; `baslip --help` and bad input do not need them.
+    from baslip.api import NothingToSchedule, OutputUnwritable, check_run
+    from baslip.studies.runner import SchedulerError
+
+    try:
+        check_run(problem, out_dir, out_dir.parent, args.scheduler)
+    except (NothingToSchedule, OutputUnwritable) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except SchedulerError as err:
+        print(f"error: --scheduler: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except InputError as err:
+        print(f"error: {args.problem}: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    import matplotlib
+
+    with matplotlib.rc_context({"savefig.format": args.format}):  # for this run's figures only
+        return _run(problem, args, out_dir)
+
+
+def _run(problem, args, out_dir: Path) -> int:
+    """Run the problem: a gait, a study or a continuation (inputs already checked)."""
+    try:
+        if problem.study is not None:
+            return _run_study(problem, out_dir, args.quiet, args.fresh, args.jobs, args.scheduler,
+                              args.lanes)
+        if problem.continuation is not None:
+            return _run_continuation(problem, out_dir, args.quiet)
+        return _solve_and_write(problem, out_dir, args.quiet)
+    except FolderBusy as err:
+        print(f"error: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"{problem.name}: interrupted", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
+    except Exception as err:  # a bug, not a result: say so in one line, write nothing
+        print(f"error: {problem.name}: internal error: {type(err).__name__}: {err}".splitlines()[0], file=sys.stderr)
+        return EXIT_NOT_CONVERGED
+
+
+def _run_study(problem, out_dir: Path, quiet: bool, fresh: bool, jobs: int | None,
+               scheduler: str | None, lanes: int | None = None) -> int:
+    from baslip.studies.registry import StaleFolder, StudyFailed, outcome, run_study
+    from baslip.studies.runner import SchedulerError
+
+    try:
+        summary = run_study(problem, out_dir, quiet, fresh, jobs, scheduler, lanes)
+    except SchedulerError as err:
+        print(f"error: --scheduler: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except StaleFolder as err:
+        print(f"error: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except StudyFailed as err:
+        print(f"error: {problem.name}: {err}", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
+    failure = outcome(summary)
+    if not quiet:
+        print(run_summary_text(summary))
+        print(f"  wrote {out_dir}/ (result.json, CSV files and figures), {summary['wall_time_s']:.1f} s")
+    if failure is not None:
+        print(f"error: {problem.name}: {failure}", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
+    return EXIT_OK
+
+
+def _run_continuation(problem, out_dir: Path, quiet: bool) -> int:
+    from baslip.studies.branch import BranchStartFailed, run_continuation
+
+    try:
+        summary = run_continuation(problem, out_dir, quiet)
+    except BranchStartFailed as err:
+        print(f"error: {problem.name}: {err}", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
+    if not quiet:
+        print(run_summary_text(summary))
+        from baslip.viz.figures import figure_file
+
+        files = f"branch.csv, result.json, {figure_file('diagram')}"
+        files += f", curve.csv, {figure_file('curve')}" if "curves" in summary else ""
+        print(f"  wrote {out_dir}/ ({files}), {summary['wall_time_s']:.1f} s")
+    missing = _missing_curves(summary.get("curves"))
+    if missing:
+        print(f"error: {problem.name}: no {' or '.join(missing)} curve was traced (see result.json)", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
+    return EXIT_OK
+
+
+def _missing_curves(curves: dict | None) -> list[str]:
+    """Curve types asked for that gave no curve (no such point on the branch, or failed)."""
+    if curves is None:
+        return []
+    traced = {c["type"] for c in curves["curves"]}
+    return [kind.replace("_", " ") for kind in curves["follow"] if kind not in traced]
+
+
+def _solve_and_write(problem, out_dir: Path, quiet: bool) -> int:
+    from baslip.api import solve_and_write
+    from baslip.files.atomic import RESULT_FILES
+
+    result = solve_and_write(problem, out_dir, quiet)
+    if not quiet:
+        print(summary(result))
+        print(f"  wrote {', '.join(str(out_dir / name) for name in RESULT_FILES)}")
+    return EXIT_OK if result.converged else EXIT_NOT_CONVERGED
+
+
+if __name__ == "__main__":
+    sys.exit(main())

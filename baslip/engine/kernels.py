@@ -1,0 +1,449 @@
+"""The compiled stride engine: one apex-to-apex stride of the BA-SLIP as fixed-step
+order-8 flows, generated as C and cached on disk.
+
+How a stride is computed:
+
+1. **Descent** is closed form; the touchdown time comes from the bracketed first root of
+   the foot height (:func:`touchdown_guess`), refined by Newton inside the graph.
+2. **Scout.** Stance is stepped with DOP853 at a step size set by the stiffness, in chunks
+   of :data:`SCOUT_STEPS` steps, until ``rho`` passes ``rho0`` after the bottom. The
+   nodes bracket the bottom (``rhodot`` rising through 0) and the liftoff
+   (``rho - rho0`` rising through 0), and cubic Hermite interpolation estimates both
+   times. Ground contact of the CoM or hip and a collapsing leg are seen at every stage
+   point of every step, so a crossing between nodes is not missed. Where one call covers
+   the stance cleanly, this search is compiled too (:func:`scout_events`, in
+   ``stance_plan`` with the touchdown state); the driver's careful path handles the rest.
+3. **Final pass**, a fixed-structure function per step count ``N`` (:data:`TIERS`):
+   compression and decompression each take ``N - 1`` equal steps of a grid set by the
+   scout's estimate, then a last step whose size solves the guard by Newton. Derivatives
+   of this function are algorithmic derivatives of the discrete flow, through the event
+   times by the implicit-function theorem.
+4. **Checks** (the driver, :mod:`baslip.engine.driver`). A pass is accepted when its own summed
+   DOP853 error estimate, or the Richardson estimate from a pass at a lower ``N``, is
+   within the tolerance; otherwise a larger ``N`` is tried, and past the last one the
+   stride reports that it cannot guarantee its accuracy (the caller falls back to the
+   adaptive event map). Only counts with ``h * lambda`` small enough are tried, where
+   ``lambda`` is the fastest rate of the stance dynamics (spring, hip damping and
+   stiffness, spin).
+
+All inputs and outputs are SI units and radians.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import pathlib
+import sys
+
+import casadi as ca
+import numpy as np
+
+from baslip.engine import codegen as _codegen
+from baslip.engine import dop853 as flow
+from baslip.engine import outcome as _outcome_module
+from baslip.engine.codegen import Kernel, compile_kernels, module_files
+from baslip.engine.outcome import COLLAPSE_FRACTION
+from baslip.model import dynamics as _dynamics
+from baslip.model import hiplaw as _hiplaw
+from baslip.model import layout as _layout
+from baslip.model.dynamics import (
+    APEX,
+    FLIGHT,
+    PARAMS,
+    STANCE,
+    apex_to_flight,
+    ballistic_flight,
+    bottom_guard,
+    flight_to_apex,
+    liftoff_guard,
+    liftoff_map,
+    stance_com_position,
+    stance_dynamics,
+    stance_hip_position,
+    touchdown_guard,
+    touchdown_map,
+)
+from baslip.model.hiplaw import CONTROL, hip_torque, touchdown_angle
+from baslip.model.layout import Layout
+
+#: Step counts per stance phase of the compiled final pass, 1.5 apart up to 256: the
+#: error scales as N^-8, so each count is 10 to 25 times more accurate than the one
+#: before, and a stride is not pushed to twice the steps it needs (as with counts 2
+#: apart). The few stiff strides beyond 256 steps double.
+TIERS = (16, 24, 32, 48, 64, 96, 128, 192, 256, 512, 1024)
+#: Stance steps per scout call.
+SCOUT_STEPS = 24
+#: Strides per call of the batched functions.
+BATCH = 32
+#: Newton iterations of each stance event step, and of the touchdown time.
+EVENT_NEWTON = 3
+TOUCHDOWN_NEWTON = 2
+#: Newton iterations on the cubic Hermite interpolant of an event guard between two nodes.
+HERMITE_NEWTON = 8
+
+#: Parameters of the stance flow: the control, then the model parameters.
+THETA = Layout(CONTROL.names + PARAMS.names)
+#: Watched quantities in stance, a fall when one reaches zero: CoM height, hip height and
+#: the leg's length above the collapse floor [m].
+CLEARANCES = ("com", "hip", "leg")
+#: Guess inputs of the final pass [s]: descent, and the grid durations of the two phases.
+GUESSES = Layout(("descent", "compression", "decompression"))
+#: Scalar outputs of the final pass that decide whether and how it fell and whether it is
+#: accurate; see :func:`_final_pass`.
+DIAGNOSTICS = Layout((
+    "rhodot_td", "zdot_lo", "foot_height_td", "com_height_td",
+    "bottom_residual", "liftoff_residual", "bottom_update", "liftoff_update",
+    "bottom_last_step", "liftoff_last_step",
+    "rhodot_max_compression", "stretch_max_decompression",
+    "com_min", "hip_min", "leg_min", "error",
+))
+
+
+def _split_theta(theta):
+    return theta[: CONTROL.size], theta[CONTROL.size :]
+
+
+def stance_rhs() -> ca.Function:
+    """xdot = f(x, theta) of stance under the PD hip law, theta = (u, p)."""
+    x, theta = STANCE.sym("x"), THETA.sym("theta")
+    u, p = _split_theta(theta)
+    xdot = stance_dynamics(x, hip_torque(x, u), p)
+    return ca.Function("stance_rhs", [x, theta], [ca.cse(xdot)], ["x", "theta"], ["xdot"])
+
+
+def stance_clearances(x, theta):
+    """(CoM height, hip height, rho - collapse floor) [m]; the runner falls at zero."""
+    _, p = _split_theta(theta)
+    q = x[:3]
+    floor = COLLAPSE_FRACTION * PARAMS.get(p, "rho0")
+    return ca.vertcat(stance_com_position(q, p)[1], stance_hip_position(q)[1], STANCE.get(x, "rho") - floor)
+
+
+def stance_guards() -> tuple[ca.Function, ca.Function]:
+    """The bottom guard rhodot [m/s] and the liftoff guard rho - rho0 [m] as Functions of
+    (x, theta); each rises through zero at its event."""
+    x, theta = STANCE.sym("x"), THETA.sym("theta")
+    _, p = _split_theta(theta)
+    return (
+        ca.Function("bottom", [x, theta], [bottom_guard(x)]),
+        ca.Function("liftoff", [x, theta], [liftoff_guard(x, p)]),
+    )
+
+
+def stiffness_rate(X, u, p):
+    """The fastest rate of the stance dynamics [1/s], for the step size: a number for one
+    apex ``X`` and control ``u``, an array for rows of many.
+
+    The larger of the spring's sqrt(k/m), the hip damping Kd/(I + m d^2), the hip
+    stiffness sqrt(|Kp|/(I + m d^2)), the trunk spin |theta_h_dot| and the leg's sweep
+    rate |ydot|/rho0 (``I + m d^2`` is the trunk's inertia about the hip).
+    """
+    m, inertia, k, rho0, d = (float(p[i]) for i in _RATE_PARAMS)
+    inertia_hip = inertia + m * d**2
+    X, u = np.asarray(X, dtype=float).T, np.asarray(u, dtype=float).T  # entries first
+    rates = (
+        math.sqrt(k / m),
+        abs(u[_KD]) / inertia_hip,
+        (abs(u[_KP]) / inertia_hip) ** 0.5,
+        abs(X[_SPIN]),
+        abs(X[_YDOT]) / rho0,
+    )
+    if X.ndim == 1:
+        return float(max(rates))
+    return functools.reduce(np.maximum, rates)
+
+
+_KP, _KD = CONTROL.index("Kp"), CONTROL.index("Kd")
+_RATE_PARAMS = tuple(PARAMS.index(n) for n in ("m", "I", "k", "rho0", "d"))
+_M, _K = PARAMS.index("m"), PARAMS.index("k")
+_SPIN, _YDOT = APEX.index("theta_h_dot"), APEX.index("ydot")
+
+
+def half_period(p) -> float:
+    """The spring's half-period pi sqrt(m/k) [s]."""
+    return math.pi * math.sqrt(float(p[_M]) / float(p[_K]))
+
+
+class StanceFlow:
+    """The symbolic stance flow of the PD-controlled runner, built once: the right-hand
+    side, one DOP853 step, loops of steps, and the steps that end on the bottom and
+    liftoff guards. The compiled stride and the shooting NLP are both built from it."""
+
+    def __init__(self):
+        self.rhs = stance_rhs()
+        x, theta = STANCE.sym("x"), THETA.sym("theta")
+        watch = ca.Function("stance_clearances", [x, theta], [stance_clearances(x, theta)])
+        self.step = flow.step_function(self.rhs, watch)
+        bottom, liftoff = stance_guards()
+        self.bottom_step = flow.event_step(self.step, self.rhs, bottom, EVENT_NEWTON)
+        self.liftoff_step = flow.event_step(self.step, self.rhs, liftoff, EVENT_NEWTON)
+        self._chains: dict[int, ca.Function] = {}
+
+    def chain(self, n: int) -> ca.Function:
+        """``n`` stance steps (x0, h, theta) -> (nodes, errors, clearance minima), one
+        Function per ``n`` so generated code holds it once."""
+        if n not in self._chains:
+            self._chains[n] = flow.chain(self.step, n)
+        return self._chains[n]
+
+
+class StrideFunctions:
+    """The Functions of the compiled stride, built and compiled once: the planning call
+    (touchdown state, one scout call and its events), the stance scout alone (for the
+    careful path) and, per tier, the final pass and its Jacobian in (X, u, p); the
+    planning and the final passes also mapped over :data:`BATCH` strides.
+
+    ``compile``: True or False forces the C route on or off; None follows the
+    environment (see :func:`baslip.engine.codegen.compile_functions`)."""
+
+    def __init__(self, compile: bool | None = None):
+        self.flow = StanceFlow()
+        self.functions = compile_kernels("baslip_stride", _names(), self._all, sources(), enabled=compile)
+        self.scout = self.functions["stance_scout"]
+        self.plan = self.functions["stance_plan"]
+
+    def final(self, n: int) -> Kernel:
+        """(X, u, p, guesses) -> (apex, durations, diagnostics) with ``n`` steps a phase."""
+        return self.functions[f"stride_{n}"]
+
+    def jacobian(self, n: int) -> Kernel:
+        """(X, u, p, guesses) -> (dr/d(X, u, p) 4 x 15, apex, durations, diagnostics)."""
+        return self.functions[f"stride_jacobian_{n}"]
+
+    def _scout(self) -> ca.Function:
+        """(x0, h, theta) -> the M + 1 nodes from x0 (columns), their rates xdot, and each
+        step's least clearances and error estimate (M columns); M = :data:`SCOUT_STEPS`."""
+        chained = self.flow.chain(SCOUT_STEPS)
+        x0, h, theta = ca.MX.sym("x0", STANCE.size), ca.MX.sym("h"), THETA.sym("theta", ca.MX)
+        steps, errors, clearances = chained(x0, h, theta)
+        nodes = ca.horzcat(x0, steps)
+        rates = self.flow.rhs.map(SCOUT_STEPS + 1)(nodes, ca.repmat(theta, 1, SCOUT_STEPS + 1))
+        return ca.Function("stance_scout", [x0, h, theta], [nodes, rates, clearances, errors],
+                           ["x0", "h", "theta"], ["nodes", "rates", "clearance_min", "error"])
+
+    def _plan(self, scout: ca.Function) -> ca.Function:
+        """(X, u, p, t_descent, h) -> the stance state at touchdown, the CoM height there [m],
+        and the events of one scout call from there with step ``h`` [s] (see
+        :func:`scout_events`): the common case of a stride's planning in one call."""
+        X, u, p = APEX.sym("X", ca.MX), CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
+        t_descent, h = ca.MX.sym("t_descent"), ca.MX.sym("h")
+        x_td, com_height, _ = touchdown_state()(X, u, p, t_descent)
+        nodes, rates, clearance, errors = scout(x_td, h, ca.vertcat(u, p))
+        events = scout_events()(nodes, rates, clearance, errors, h, PARAMS.get(p, "rho0"))
+        return ca.Function("stance_plan", [X, u, p, t_descent, h], [x_td, com_height, *events],
+                           ["X", "u", "p", "t_descent", "h"],
+                           ["x_touchdown", "com_height", "clean", "bottom", "liftoff", "error"])
+
+    def _jacobian(self, final: ca.Function) -> ca.Function:
+        """The final pass's Jacobian of the apex in (X, u, p), with its ordinary outputs."""
+        X, u, p, guesses = final.mx_in()
+        apex, durations, diagnostics = final(X, u, p, guesses)
+        return ca.Function(
+            final.name().replace("stride", "stride_jacobian"), [X, u, p, guesses],
+            [ca.jacobian(apex, ca.vertcat(X, u, p)), apex, durations, diagnostics],
+            ["X", "u", "p", "guesses"], ["dr_dXup", "apex", "durations", "diagnostics"],
+        )
+
+    def _all(self) -> list[ca.Function]:
+        """Every Function of the engine, compiled together so that the step and its
+        derivatives are generated once for all tiers."""
+        finals = [_final_pass(self.flow, n) for n in TIERS]
+        scout = self._scout()
+        batched = [self._plan(scout), *finals]  # the batch path plans and runs final passes
+        batches = [f.map(f"batch_{f.name()}", "serial", BATCH, [], [], {}) for f in batched]
+        return [scout, *batched, *(self._jacobian(f) for f in finals), *batches]
+
+    def batch(self, name: str) -> Kernel:
+        """The function ``name`` mapped over :data:`BATCH` columns (one stride each)."""
+        return self.functions[f"batch_{name}"]
+
+
+def _phase(stance: StanceFlow, event: ca.Function, x0, grid_duration, theta, n: int):
+    """A stance phase of ``n`` steps: ``n - 1`` on the grid ``grid_duration / n``, then the
+    step that ends on the event. Returns (duration, end state, event outputs, node values)."""
+    h = grid_duration / n
+    nodes, errors, clearances = stance.chain(n - 1)(x0, h, theta)
+    x_last = nodes[:, -1]
+    s, x_end, residual, update, error, clearance_end = event(x_last, h, theta)
+    duration = (n - 1) * h + s
+    return dict(
+        duration=duration, x_end=x_end, residual=residual, update=update, last_step=s / h,
+        nodes=nodes, error=ca.sum2(errors) + error,
+        clearance=ca.vertcat(*[ca.mmin(ca.horzcat(clearances[i, :], clearance_end[i])) for i in range(len(CLEARANCES))]),
+    )
+
+
+def _final_pass(stance: StanceFlow, n: int) -> ca.Function:
+    """(X, u, p, guesses) -> (next apex, durations, diagnostics) with ``n`` steps a phase."""
+    X, u, p = APEX.sym("X", ca.MX), CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
+    guesses = GUESSES.sym("guesses", ca.MX)
+    theta = ca.vertcat(u, p)
+    theta_td = touchdown_angle(u)
+
+    t_descent = _touchdown_time(X, u, p, GUESSES.get(guesses, "descent"))
+    at_touchdown = ballistic_flight(apex_to_flight(X), t_descent, p)
+    x_td = touchdown_map(at_touchdown, theta_td, p)
+
+    comp = _phase(stance, stance.bottom_step, x_td, GUESSES.get(guesses, "compression"), theta, n)
+    decomp = _phase(stance, stance.liftoff_step, comp["x_end"], GUESSES.get(guesses, "decompression"), theta, n)
+
+    at_liftoff = liftoff_map(decomp["x_end"], p)
+    zdot_lo = FLIGHT.get(at_liftoff, "zdot")
+    apex_next = flight_to_apex(at_liftoff, p)
+    durations = ca.vertcat(t_descent, comp["duration"], decomp["duration"], zdot_lo / PARAMS.get(p, "g"))
+    clearance = ca.fmin(comp["clearance"], decomp["clearance"])
+    diagnostics = DIAGNOSTICS.pack({
+        "rhodot_td": bottom_guard(x_td),
+        "zdot_lo": zdot_lo,
+        "foot_height_td": touchdown_guard(at_touchdown, theta_td, p),
+        "com_height_td": FLIGHT.get(at_touchdown, "z"),
+        "bottom_residual": comp["residual"],
+        "liftoff_residual": decomp["residual"],
+        "bottom_update": comp["update"],
+        "liftoff_update": decomp["update"],
+        "bottom_last_step": comp["last_step"],
+        "liftoff_last_step": decomp["last_step"],
+        "rhodot_max_compression": ca.mmax(STANCE.get(comp["nodes"], "rhodot")),
+        "stretch_max_decompression": ca.mmax(STANCE.get(decomp["nodes"], "rho")) - PARAMS.get(p, "rho0"),
+        "com_min": clearance[0],
+        "hip_min": clearance[1],
+        "leg_min": clearance[2],
+        "error": comp["error"] + decomp["error"],
+    })
+    return ca.Function(
+        f"stride_{n}", [X, u, p, guesses], [apex_next, durations, diagnostics],
+        ["X", "u", "p", "guesses"], ["apex", "durations", "diagnostics"],
+    )
+
+
+def multiplier_gradient_function(stance: StanceFlow, n: int) -> ca.Function:
+    """(X, u, p, guesses, G) -> the gradient in (X, u) of sum(G * dr/dX), with ``n`` steps a
+    phase: second derivatives of the final pass (reverse over forward mode), for the
+    sensitivities of the multipliers. G is a 4 x 4 seed."""
+    final = _final_pass(stance, n)
+    X, u, p, guesses = final.mx_in()
+    seed = ca.MX.sym("G", APEX.size, APEX.size)
+    dr_dX = ca.jacobian(final(X, u, p, guesses)[0], X)
+    gradient = ca.gradient(ca.dot(seed, dr_dX), ca.vertcat(X, u))
+    return ca.Function(f"multiplier_gradient_{n}", [X, u, p, guesses, seed], [gradient],
+                       ["X", "u", "p", "guesses", "G"], ["gradient"])
+
+
+def _touchdown_time(X, u, p, t_guess):
+    """The touchdown time [s]: Newton on the closed-form foot height from a converged guess,
+    so that its derivative is the implicit-function-theorem one."""
+    t = ca.SX.sym("t")
+    Xs, us, ps = APEX.sym("X"), CONTROL.sym("u"), PARAMS.sym("p")
+    height = touchdown_guard(ballistic_flight(apex_to_flight(Xs), t, ps), touchdown_angle(us), ps)
+    newton = ca.Function("touchdown_newton", [Xs, us, ps, t], [t - height / ca.jacobian(height, t)])
+    for _ in range(TOUCHDOWN_NEWTON):
+        t_guess = newton(X, u, p, t_guess)
+    return t_guess
+
+
+def touchdown_state() -> ca.Function:
+    """(X, u, p, t_descent) -> stance state at touchdown, CoM height there [m], foot height
+    there [m] (zero at a located touchdown)."""
+    X, u, p, t = APEX.sym("X"), CONTROL.sym("u"), PARAMS.sym("p"), ca.SX.sym("t_descent")
+    at_touchdown = ballistic_flight(apex_to_flight(X), t, p)
+    theta_td = touchdown_angle(u)
+    return ca.Function(
+        "touchdown_state", [X, u, p, t],
+        [touchdown_map(at_touchdown, theta_td, p), FLIGHT.get(at_touchdown, "z"),
+         touchdown_guard(at_touchdown, theta_td, p)],
+        ["X", "u", "p", "t_descent"], ["x_touchdown", "com_height", "foot_height"],
+    )
+
+
+def hermite_root(t0, t1, g0, g1, dg0, dg1):
+    """The root in [t0, t1] of the cubic Hermite interpolant of g (g0 < 0 <= g1) with rates
+    dg: the secant's root, then Newton on the cubic, kept in [0, 1], stopped when its rate
+    is not positive or its step below 1e-14. On SX this is built in the graph; the scalar
+    driver (:func:`baslip.engine.driver.hermite_root`) does the same arithmetic in the same order."""
+    span = t1 - t0
+    m0, m1 = dg0 * span, dg1 * span
+    s = g0 / (g0 - g1)
+    active = ca.SX(1)
+    for _ in range(HERMITE_NEWTON):
+        s2, s3 = s * s, s * s * s
+        value = (2 * s3 - 3 * s2 + 1) * g0 + (s3 - 2 * s2 + s) * m0 + (3 * s2 - 2 * s3) * g1 + (s3 - s2) * m1
+        rate = 6 * (s2 - s) * (g0 - g1) + (3 * s2 - 4 * s + 1) * m0 + (3 * s2 - 2 * s) * m1
+        active = ca.logic_and(active, ca.logic_not(rate <= 0))
+        step = value / rate
+        s = ca.if_else(active, ca.fmin(ca.fmax(s - step, 0), 1), s)
+        active = ca.logic_and(active, ca.logic_not(ca.fabs(step) < 1e-14))
+    return t0 + span * s
+
+
+def _first_rise(values: list) -> tuple[ca.SX, ca.SX]:
+    """(whether some j >= 1 has values[j] >= 0 after values[j - 1] < 0, the first such j;
+    1 where none)."""
+    found, first = ca.SX(0), ca.SX(1)
+    for j in range(len(values) - 1, 0, -1):
+        rise = ca.logic_and(values[j] >= 0, values[j - 1] < 0)
+        found, first = ca.logic_or(found, rise), ca.if_else(rise, j, first)
+    return found, first
+
+
+def _at(values: list, index: ca.SX) -> ca.SX:
+    """values[index] for an integer-valued SX index, by selection (no arithmetic)."""
+    picked = values[0]
+    for j in range(1, len(values)):
+        picked = ca.if_else(index == j, values[j], picked)
+    return picked
+
+
+def scout_events() -> ca.Function:
+    """(nodes, rates, clearance_min, step_errors, h, rho0) of one scout call from touchdown ->
+    (clean, bottom [s], liftoff [s], summed error estimate up to and with the liftoff step).
+
+    The event search of the scalar scout (:meth:`baslip.engine.driver.CompiledEngine._scout`) for
+    a stance that one call covers: ``clean`` (1 or 0) where every node is finite, the
+    bottom (rhodot rising through 0) and then the liftoff (rho rising through rho0) are
+    bracketed by nodes, and before the liftoff's step no clearance reaches zero and rho
+    does not peak just below rho0 (a possible grazing liftoff). The others take the
+    scalar scout's careful path."""
+    m = SCOUT_STEPS
+    nodes, rates = ca.SX.sym("nodes", STANCE.size, m + 1), ca.SX.sym("rates", STANCE.size, m + 1)
+    clearance, errors = ca.SX.sym("clearance_min", len(CLEARANCES), m), ca.SX.sym("step_errors", 1, m)
+    h, rho0 = ca.SX.sym("h"), ca.SX.sym("rho0")
+    times = [h * k for k in range(m + 1)]
+    rhodot = [STANCE.get(nodes[:, k], "rhodot") for k in range(m + 1)]
+    rho_rate = [STANCE.get(rates[:, k], "rhodot") for k in range(m + 1)]
+    has_bottom, j = _first_rise(rhodot)
+    bottom = hermite_root(_at(times, j - 1), _at(times, j), _at(rhodot, j - 1), _at(rhodot, j),
+                          _at(rho_rate, j - 1), _at(rho_rate, j))
+    stretch = [ca.if_else(times[k] >= bottom, STANCE.get(nodes[:, k], "rho") - rho0, -1.0) for k in range(m + 1)]
+    has_liftoff, k = _first_rise(stretch)
+    liftoff = hermite_root(_at(times, k - 1), _at(times, k), _at(stretch, k - 1), _at(stretch, k),
+                           _at(rhodot, k - 1), _at(rhodot, k))
+    blocked = ca.SX(0)  # a clearance at zero or a grazing peak of rho in a step before liftoff's
+    for i in range(m):
+        peak = ca.logic_and(ca.logic_and(rhodot[i] > 0, rhodot[i + 1] <= 0), ca.logic_and(stretch[i] < 0, stretch[i + 1] < 0))
+        reach = ca.fmax(stretch[i] + 0.5 * h * rhodot[i], stretch[i + 1] - 0.5 * h * rhodot[i + 1])
+        fell = ca.logic_or(ca.logic_or(clearance[0, i] <= 0, clearance[1, i] <= 0), clearance[2, i] <= 0)
+        hit = ca.logic_or(fell, ca.logic_and(peak, reach > 0))
+        blocked = ca.logic_or(blocked, ca.logic_and(i < k - 1, hit))
+    finite = ca.SX(1)
+    for value in ca.vertsplit(ca.vec(ca.vertcat(nodes, rates))):
+        finite = ca.logic_and(finite, ca.fabs(value) < ca.inf)
+    summed = [errors[0]]
+    for i in range(1, m):
+        summed.append(summed[-1] + errors[i])  # in order, as numpy's cumsum
+    clean = ca.logic_and(ca.logic_and(finite, ca.logic_and(has_bottom, has_liftoff)), ca.logic_not(blocked))
+    return ca.Function(
+        "scout_events", [nodes, rates, clearance, errors, h, rho0], [clean, bottom, liftoff, _at(summed, k - 1)],
+        ["nodes", "rates", "clearance_min", "step_errors", "h", "rho0"], ["clean", "bottom", "liftoff", "error"],
+    )
+
+
+def _names() -> list[str]:
+    """Names of the engine's functions, in the order :meth:`StrideFunctions._all` builds them."""
+    batched = ["stance_plan", *(f"stride_{n}" for n in TIERS)]
+    return ["stance_scout", *batched, *(f"stride_jacobian_{n}" for n in TIERS), *(f"batch_{name}" for name in batched)]
+
+
+def sources() -> list[pathlib.Path]:
+    """The modules the engine's functions are derived from: the compiled library's key."""
+    return module_files(_layout, _dynamics, _hiplaw, _outcome_module, flow, sys.modules[__name__], _codegen)

@@ -1,0 +1,225 @@
+"""What a stride can end in, shared by every return-map engine.
+
+A stride ends at the next apex or in a named :class:`Fall`; falls are outcomes, not
+exceptions. :func:`precheck` finds the falls visible before any integration and brackets
+the touchdown time, in closed form.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+
+from baslip.errors import RunError
+from baslip.model.dynamics import APEX, PARAMS, descent_foot_height
+from baslip.model.hiplaw import CONTROL
+
+_RHO0, _D, _G = PARAMS.index("rho0"), PARAMS.index("d"), PARAMS.index("g")
+_THETA_TD = CONTROL.index("theta_td")
+_Z, _THETA_H, _SPIN = APEX.index("z"), APEX.index("theta_h"), APEX.index("theta_h_dot")
+
+PHASES = ("descent", "compression", "decompression", "ascent")
+
+#: Leg length below which the leg counts as collapsed, as a fraction of rho0.
+COLLAPSE_FRACTION = 0.05
+#: Stance that has not ended after this many spring half-periods pi*sqrt(m/k) "never ends".
+STANCE_HORIZON_HALF_PERIODS = 40.0
+
+
+class Fall(str, Enum):
+    """Named reasons a stride does not reach the next apex."""
+
+    FOOT_BELOW_GROUND = "foot below ground at apex"
+    NO_TOUCHDOWN = "no touchdown (leg cannot reach the ground)"
+    LEG_EXTENDING_AT_TOUCHDOWN = "leg extending at touchdown (rhodot >= 0)"
+    COM_HITS_GROUND = "CoM touches the ground"
+    HIP_HITS_GROUND = "hip touches the ground"
+    LEG_COLLAPSES = "leg collapses (rho below floor)"
+    STANCE_NEVER_ENDS = "stance never ends"
+    LIFTOFF_DESCENDING = "liftoff with zdot <= 0"
+    NOT_FINITE = "non-finite state"
+    INTEGRATION_FAILED = "integration failed"
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """Integrator tolerances (relative and absolute) of a return map."""
+
+    rtol: float = 1e-10
+    atol: float = 1e-10
+
+
+@dataclass(frozen=True)
+class Stride:
+    """Outcome of one stride: the next apex, or the reason the runner fell."""
+
+    apex: np.ndarray | None  # next apex X [z m, theta_h rad, ydot m/s, theta_h_dot rad/s]
+    durations: dict[str, float]  # phase -> duration [s]; phases not reached are absent
+    fall: Fall | None = None
+    error: float | None = None  # the engine's error estimate of the stance integration, if it has one
+
+    @property
+    def ok(self) -> bool:
+        return self.fall is None
+
+    def __repr__(self) -> str:
+        if not self.ok:
+            return f"<Stride fell: {self.fall.value}>"
+        time = sum(self.durations.values())
+        return f"<Stride to z = {self.apex[0]:.6g} m, ydot = {self.apex[2]:.6g} m/s in {time:.4g} s>"
+
+    def _repr_html_(self) -> str:
+        return repr(self).replace("<", "&lt;").replace(">", "&gt;")
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """Apex sequence of a multi-stride run; ``fall`` is set if it ended early."""
+
+    apexes: np.ndarray  # (n + 1) x 4, the initial apex first
+    durations: list[dict[str, float]] = field(default_factory=list)
+    fall: Fall | None = None
+    fall_stride: int | None = None  # 0-based index of the stride that fell
+
+    def __repr__(self) -> str:
+        strides = len(self.apexes) - 1
+        end = f", then fell in stride {self.fall_stride}: {self.fall.value}" if self.fall is not None else ""
+        return f"<Simulation: {strides} strides{end}>"
+
+    def _repr_html_(self) -> str:
+        return repr(self).replace("<", "&lt;").replace(">", "&gt;")
+
+
+class RunnerFell(RunError):
+    """Raised by :meth:`ReturnMap.__call__` when a stride falls; carries the :class:`Fall`."""
+
+    def __init__(self, fall: Fall):
+        super().__init__(fall.value)
+        self.fall = fall
+
+
+def touchdown_guess(X, u, p) -> float | None:
+    """First zero of the foot height after apex, bracketed then refined to round-off [s].
+
+    Returns None when the foot cannot reach the ground. The foot height is
+    h(t) = c - g t^2/2 - d sin(theta_h + w t) with c = z - rho0 cos(theta_td), so
+    h < 0 for all t > sqrt(2 (c + d) / g): the first root lies in that bracket. It is
+    found on a grid of :data:`TOUCHDOWN_GRID` points over the bracket, then refined to
+    round-off; the rootfinders of the engines converge on it from this guess.
+    :func:`touchdown_guesses` gives the same numbers for many apexes at once.
+    """
+    z, theta_h, spin = float(X[_Z]), float(X[_THETA_H]), float(X[_SPIN])
+    rho0, d, g = float(p[_RHO0]), float(p[_D]), float(p[_G])
+    theta_td = float(u[_THETA_TD])
+    if not abs(theta_td) < math.pi / 2:
+        return None
+    clearance = z - rho0 * math.cos(theta_td)
+    grid = _descent_bound(clearance, d, g) * _GRID_FRACTIONS
+    below = np.nonzero(descent_foot_height(grid[1:], z, theta_h, spin, theta_td, d, rho0, g) <= 0.0)[0]
+    if len(below) == 0:
+        return None
+    return _refine_root(grid[below[0]], grid[below[0] + 1], theta_h, spin, clearance, d, g)
+
+
+#: Points of the grid that brackets the first touchdown root.
+TOUCHDOWN_GRID = 257
+_GRID_FRACTIONS = np.linspace(0.0, 1.0, TOUCHDOWN_GRID)
+
+
+def touchdown_guesses(X: np.ndarray, U: np.ndarray, p) -> np.ndarray:
+    """:func:`touchdown_guess` from each apex (rows of X, n x 4) under the rows of U
+    (n x 5), the grid search done for all rows at once; NaN where the foot cannot reach
+    the ground."""
+    X, U, p = np.asarray(X, dtype=float), np.asarray(U, dtype=float), np.asarray(p, dtype=float)
+    z, theta_h, spin = X[:, _Z], X[:, _THETA_H], X[:, _SPIN]
+    rho0, d, g = float(p[_RHO0]), float(p[_D]), float(p[_G])
+    theta_td = U[:, _THETA_TD]
+    guesses = np.full(len(X), np.nan)
+    reaches = np.abs(theta_td) < math.pi / 2
+    clearance = z - rho0 * np.cos(theta_td)
+    grid = _descent_bound(clearance, d, g)[:, None] * _GRID_FRACTIONS[None, :]
+    height = descent_foot_height(grid[:, 1:], z[:, None], theta_h[:, None], spin[:, None], theta_td[:, None], d, rho0, g)
+    below = height <= 0.0
+    found = reaches & below.any(axis=1)
+    first = np.argmax(below, axis=1)
+    for i in np.nonzero(found)[0]:
+        lo, hi = grid[i, first[i]], grid[i, first[i] + 1]
+        guesses[i] = _refine_root(lo, hi, float(theta_h[i]), float(spin[i]), float(clearance[i]), d, g)
+    return guesses
+
+
+def _descent_bound(clearance, d: float, g: float):
+    """Time after apex [s] past which the foot is surely below ground (numbers or arrays)."""
+    return np.sqrt(2.0 * np.maximum(clearance + d, 0.0) / g) + 1e-9
+
+
+def _refine_root(lo: float, hi: float, theta_h: float, w: float, clearance: float, d: float, g: float) -> float:
+    """The root of h(t) = clearance - g t^2/2 - d sin(theta_h + w t) in [lo, hi] (h(lo) > 0
+    >= h(hi)), to round-off: Newton, with a bisection whenever it would leave the bracket."""
+    t = 0.5 * (lo + hi)
+    for _ in range(60):
+        height = clearance - 0.5 * g * t * t - d * math.sin(theta_h + w * t)
+        if height > 0.0:
+            lo = t
+        else:
+            hi = t
+        slope = -g * t - d * w * math.cos(theta_h + w * t)
+        t_new = t - height / slope if slope < 0.0 else 0.5 * (lo + hi)
+        # Converged before the bracket test: a Newton update that rounds to nothing lands
+        # on the bracket's end, which would otherwise force a needless bisection.
+        if abs(t_new - t) <= 1e-15 * t or hi - lo <= 1e-15 * hi:
+            return t_new if lo <= t_new <= hi else t
+        if not lo < t_new < hi:
+            t_new = 0.5 * (lo + hi)
+        t = t_new
+    return t
+
+
+def precheck(X, u, p) -> tuple[Stride | None, float | None]:
+    """Checks before any integration: a fall found already, or the touchdown time guess [s].
+    :func:`prechecks` does the same for many apexes at once."""
+    if not (np.isfinite(X).all() and np.isfinite(u).all() and np.isfinite(p).all()):
+        return Stride(None, {}, Fall.NOT_FINITE), None
+    if _foot_height_at_apex(X[_Z], X[_THETA_H], u[_THETA_TD], p) < 0.0:
+        return Stride(None, {}, Fall.FOOT_BELOW_GROUND), None
+    t_guess = touchdown_guess(X, u, p)
+    if t_guess is None:
+        return Stride(None, {}, Fall.NO_TOUCHDOWN), None
+    return None, t_guess
+
+
+def _foot_height_at_apex(z, theta_h, theta_td, p):
+    """Foot height [m] at the apex, with the leg at its touchdown angle (numbers or arrays)."""
+    return z - p[_D] * np.sin(theta_h) - p[_RHO0] * np.cos(theta_td)
+
+
+def prechecks(X: np.ndarray, U: np.ndarray, p) -> tuple[list[Stride | None], np.ndarray]:
+    """:func:`precheck` of each row of X (n x 4) under the rows of U (n x 5): the falls
+    found before any integration (None for the rest) and the touchdown time guesses [s]
+    (NaN after a fall)."""
+    X, U, p = np.asarray(X, dtype=float), np.asarray(U, dtype=float), np.asarray(p, dtype=float)
+    falls: list[Stride | None] = [None] * len(X)
+    finite = np.isfinite(X).all(axis=1) & np.isfinite(U).all(axis=1) & bool(np.isfinite(p).all())
+    if not finite.all():  # keep non-finite rows out of the trigonometry (no warnings)
+        X, U = np.where(finite[:, None], X, 0.0), np.where(finite[:, None], U, 0.0)
+    above = finite & (_foot_height_at_apex(X[:, _Z], X[:, _THETA_H], U[:, _THETA_TD], p) >= 0.0)
+    guesses = np.full(len(X), np.nan)
+    guesses[above] = touchdown_guesses(X[above], U[above], p)
+    for i in np.nonzero(~finite)[0]:
+        falls[i] = Stride(None, {}, Fall.NOT_FINITE)
+    for i in np.nonzero(finite & ~above)[0]:
+        falls[i] = Stride(None, {}, Fall.FOOT_BELOW_GROUND)
+    for i in np.nonzero(above & np.isnan(guesses))[0]:
+        falls[i] = Stride(None, {}, Fall.NO_TOUCHDOWN)
+    return falls, guesses
+
+
+def vec(v) -> np.ndarray:
+    return np.asarray(v, dtype=float).ravel()
+
+
+def param_vector(params) -> np.ndarray:
+    return params.vector() if hasattr(params, "vector") else vec(params)

@@ -1,0 +1,236 @@
+"""The apex-to-apex return map r(X, u), its Jacobians, and multi-stride simulation.
+
+One stride: apex -> descent -> touchdown -> compression -> bottom -> decompression ->
+liftoff -> ascent -> apex. Two engines compute it:
+
+* the **compiled engine** (:mod:`baslip.engine.driver`, the default): fixed-step order-8 flows
+  generated as C, with an error estimate that must stay within the tolerance;
+* the **event map** (:mod:`baslip.engine.eventmap`): CasADi's adaptive ``erk`` or ``rosenbrock``
+  integrators with zero-crossing events. It serves tolerances tighter than the compiled
+  engine guarantees, the independent verification, and every stride the compiled engine
+  cannot vouch for (it is then built on first use).
+
+Falls are outcomes, not exceptions: :meth:`ReturnMap.stride` returns a :class:`Stride`
+whose ``fall`` names the reason, and :meth:`ReturnMap.simulate` stops there.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from baslip.engine.eventmap import EventMap
+from baslip.engine.outcome import (  # noqa: F401  (re-exported: the public names of the return map)
+    COLLAPSE_FRACTION,
+    PHASES,
+    Fall,
+    RunnerFell,
+    Simulation,
+    Stride,
+    Tolerances,
+    param_vector,
+    precheck,
+    touchdown_guess,
+    vec,
+)
+from baslip.model.dynamics import APEX, PARAMS
+from baslip.model.hiplaw import CONTROL
+
+#: The compiled engine's error bound is met down to this tolerance; tighter ones use the
+#: adaptive event map.
+COMPILED_TIGHTEST = 1e-12
+#: Plugin name of the compiled engine.
+COMPILED = "compiled"
+
+
+class ReturnMap:
+    """The apex return map of the BA-SLIP under the PD hip law, built once per tolerance.
+
+    ``plugin`` is ``"compiled"`` (the default for tolerances down to 1e-12), ``"erk"`` (the
+    default below that) or ``"rosenbrock"``. ``compile`` forces the C route (of the
+    compiled engine, or of an event map's strides) on or off; None follows
+    ``BASLIP_NO_COMPILE``.
+
+    >>> rmap = ReturnMap()
+    >>> stride = rmap.stride(X, u, Params())     # numeric, with fall detection
+    >>> A, B = rmap.jacobians(X, u, Params())    # dr/dX (4x4) and dr/du (4x5)
+    >>> A2, B2 = rmap.jacobians(X, u, Params(), strides=2)   # of r(r(X, u), u)
+    """
+
+    def __init__(self, tolerances: Tolerances = Tolerances(), plugin: str | None = None, compile: bool | None = None):
+        self.tolerances = tolerances
+        tolerance = min(tolerances.rtol, tolerances.atol)
+        if plugin is None:
+            plugin = COMPILED if tolerance >= COMPILED_TIGHTEST else "erk"
+        if plugin == COMPILED and tolerance < COMPILED_TIGHTEST:
+            raise ValueError(f"the compiled engine guarantees tolerances down to {COMPILED_TIGHTEST:g}, not {tolerance:g}")
+        self.plugin = plugin
+        self._compiled = None
+        if plugin == COMPILED:
+            from baslip.engine.driver import CompiledEngine  # the compiled engine is loaded only when used
+
+            self._compiled = CompiledEngine(tolerance, compile)
+        self._events = None if plugin == COMPILED else EventMap(tolerances, plugin, compile)
+        self._compile = compile
+        self._batch = None  # the batched compiled engine, built on first use
+        self.fallbacks = 0  # strides the compiled engine handed to the event map
+
+    @property
+    def event_map(self) -> EventMap:
+        """The adaptive event map at this map's tolerances (built on first use)."""
+        if self._events is None:
+            self._events = EventMap(self.tolerances, "erk", self._compile)
+        return self._events
+
+    @property
+    def compiled_engine(self):
+        """The compiled engine (:class:`baslip.engine.driver.CompiledEngine`), or None for an
+        event-map plugin."""
+        return self._compiled
+
+    def describe(self) -> str:
+        """One phrase naming the engine and its tolerance."""
+        if self.plugin == COMPILED:
+            return f"compiled DOP853, error estimate <= {self._compiled.tolerance:g}"
+        return f"{self.plugin}, rtol = {self.tolerances.rtol:g}, atol = {self.tolerances.atol:g}"
+
+    # -- one stride ------------------------------------------------------------------
+
+    def stride(self, X, u, params) -> Stride:
+        """One apex-to-apex stride from apex ``X`` under control ``u`` with ``params``."""
+        X, u, p = vec(X), vec(u), param_vector(params)
+        fallen, t_guess = precheck(X, u, p)
+        if fallen is not None:
+            return fallen
+        if self._compiled is not None:
+            result = self._compiled.stride(X, u, p, t_guess)
+            if result is not None:
+                return result
+            self.fallbacks += 1
+        return self.event_map.stride(X, u, p, t_guess)
+
+    def __call__(self, X, u, params) -> np.ndarray:
+        """r(X, u): the next apex; raises :class:`RunnerFell` if the stride falls."""
+        result = self.stride(X, u, params)
+        if result.fall is not None:
+            raise RunnerFell(result.fall)
+        return result.apex
+
+    def _stride_jacobian(self, X, u, p, with_parameters: bool) -> tuple[np.ndarray, np.ndarray]:
+        """One stride's Jacobian in (X, u) or (X, u, p), and the next apex; raises
+        :class:`RunnerFell` if it falls."""
+        fallen, t_guess = precheck(X, u, p)
+        if fallen is not None:
+            raise RunnerFell(fallen.fall)
+        answer = None
+        if self._compiled is not None:
+            answer = self._compiled.stride_jacobian(X, u, p, t_guess)
+            if answer is None:
+                self.fallbacks += 1
+        if answer is None:
+            answer = self.event_map.stride_jacobian(X, u, p, t_guess, with_parameters)
+        jac, outcome = answer
+        if outcome.fall is not None:
+            raise RunnerFell(outcome.fall)
+        return jac[:, : APEX.size + CONTROL.size + (PARAMS.size if with_parameters else 0)], outcome.apex
+
+    # -- Jacobians of r^n ------------------------------------------------------------
+
+    def jacobians(self, X, u, params, strides: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """(dr/dX, dr/du) by algorithmic differentiation through the event times.
+
+        With ``strides = n`` these are the Jacobians of the n-stride map r^n (the same
+        control every stride), by the chain rule: dr^n/dX is the product of the strides'
+        dr/dX. Raises :class:`RunnerFell` if a stride falls: there is no Jacobian then.
+        """
+        dX, du, _ = self._chained_jacobians(X, u, params, strides, with_parameters=False)
+        return dX, du
+
+    def parameter_jacobian(self, X, u, params, strides: int = 1) -> np.ndarray:
+        """dr^n/dp (4 x 6) with respect to the model parameters (m, I, k, rho0, d, g)."""
+        return self.all_jacobians(X, u, params, strides)[2]
+
+    def all_jacobians(self, X, u, params, strides: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(dr^n/dX, dr^n/du, dr^n/dp) from one pass over the strides."""
+        return self._chained_jacobians(X, u, params, strides, with_parameters=True)
+
+    def _chained_jacobians(self, X, u, params, strides: int, with_parameters: bool):
+        """Jacobians of r^n in (X, u), and in p if asked, accumulated stride by stride."""
+        X, u, p = vec(X), vec(u), param_vector(params)
+        nx, nu = APEX.size, CONTROL.size
+        dX, du = np.eye(nx), np.zeros((nx, nu))
+        dp = np.zeros((nx, PARAMS.size))
+        for _ in range(strides):
+            jac, apex_next = self._stride_jacobian(X, u, p, with_parameters)
+            step_X, step_u = jac[:, :nx], jac[:, nx : nx + nu]
+            if with_parameters:
+                dp = step_X @ dp + jac[:, nx + nu :]
+            dX, du = step_X @ dX, step_X @ du + step_u
+            X = apex_next
+        return dX, du, dp if with_parameters else None
+
+    # -- many strides ----------------------------------------------------------------
+
+    def strides(self, X, U, params) -> list[Stride]:
+        """One stride from each row of ``X`` (n x 4) under the row of ``U`` (n x 5, or
+        one control for all): the compiled engine takes them in batches on both cores."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        U = np.broadcast_to(np.asarray(U, dtype=float), (len(X), CONTROL.size))
+        p = param_vector(params)
+        if self._compiled is None:
+            return [self.stride(x, u, p) for x, u in zip(X, U)]
+        if self._batch is None:
+            from baslip.engine.batch import BatchEngine
+
+            self._batch = BatchEngine(self._compiled, compile=self._compile)
+        results = self._batch.strides(X, U, p)
+        for i, result in enumerate(results):
+            if result is None:
+                self.fallbacks += 1
+                results[i] = self.event_map.stride(X[i], U[i], p, precheck(X[i], U[i], p)[1])
+        return results
+
+    def simulate_many(self, X0, U, params, strides: int) -> list[Simulation]:
+        """:meth:`simulate` from each row of ``X0`` (under the rows of ``U``, or one
+        control), run in lockstep so that every stride is one batch."""
+        X0 = np.atleast_2d(np.asarray(X0, dtype=float))
+        U = np.broadcast_to(np.asarray(U, dtype=float), (len(X0), CONTROL.size))
+        apexes = [[x] for x in X0]
+        durations: list[list[dict]] = [[] for _ in X0]
+        falls: dict[int, tuple[Fall, int]] = {}
+        alive = np.arange(len(X0))
+        for n in range(strides):
+            if not alive.size:
+                break
+            results = self.strides(np.array([apexes[i][-1] for i in alive]), U[alive], params)
+            for i, result in zip(alive, results):
+                if result.fall is not None:
+                    falls[i] = (result.fall, n)
+                else:
+                    apexes[i].append(result.apex)
+                    durations[i].append(result.durations)
+            alive = np.array([i for i in alive if i not in falls], dtype=int)
+        return [
+            Simulation(np.array(apexes[i]), durations[i], *falls.get(i, (None, None)))
+            for i in range(len(X0))
+        ]
+
+    def simulate(self, X0, u, params, strides: int) -> Simulation:
+        """Apply ``u`` for up to ``strides`` strides from apex ``X0``."""
+        apexes, durations = [vec(X0)], []
+        for n in range(strides):
+            result = self.stride(apexes[-1], u, params)
+            if result.fall is not None:
+                return Simulation(np.array(apexes), durations, result.fall, n)
+            apexes.append(result.apex)
+            durations.append(result.durations)
+        return Simulation(np.array(apexes), durations)
+
+    def stance_samples(self, x_touchdown, u, params, duration: float, n: int) -> np.ndarray:
+        """Stance states (6 x n) at n equal steps up to ``duration`` [s] after touchdown,
+        for drawing; ``duration`` is normally the stride's stance time."""
+        return self.event_map.stance_samples(x_touchdown, u, params, duration, n)
+
+    @staticmethod
+    def touchdown_guess(X, u, p) -> float | None:
+        """First zero of the foot height after apex [s]; see :func:`baslip.engine.outcome.touchdown_guess`."""
+        return touchdown_guess(X, u, p)

@@ -1,0 +1,1 @@
+"""Files a run writes: atomic JSON and CSV, the one-writer folder lock, provenance."""

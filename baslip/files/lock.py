@@ -1,0 +1,91 @@
+"""One writer per output folder.
+
+A run holds an exclusive lock on ``<folder>/.baslip.lock`` for as long as it writes there;
+the file names the process (pid, host and command line) so that a second run can say who
+holds the folder. The lock is the kernel's (``flock``): it goes with the process that took
+it, ``kill -9`` included, so a lock file left behind by a dead process is simply taken
+over. The file is removed when the lock is released.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+import socket
+import sys
+import time
+from pathlib import Path
+
+from baslip.errors import InputError
+from baslip.problem.text import clip
+
+LOCK_NAME = ".baslip.lock"
+
+
+class FolderBusy(InputError):
+    """Another process is writing into the folder."""
+
+
+def _holder(handle, attempts: int = 20) -> str:
+    """The holder's description; it writes it just after locking, so wait a moment."""
+    for _ in range(attempts):
+        handle.seek(0)
+        text = handle.read(400).strip()
+        if text:
+            return clip(text, 120)
+        time.sleep(0.025)
+    return "an unknown process"
+
+
+@contextlib.contextmanager
+def hold(folder: Path):
+    """Hold ``folder`` for writing (creating it); raise :class:`FolderBusy` naming the
+    holder if another process holds it."""
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / LOCK_NAME
+    while True:
+        handle = open(path, "a+")
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = _holder(handle)
+            handle.close()
+            raise FolderBusy("", f"output folder {folder} is in use by {holder}; wait for it or choose another --out") from None
+        # The previous holder may have removed the file between our open and our lock:
+        # then we hold a lock on a deleted file, and must lock the file now at the path.
+        try:
+            current = os.stat(path)
+        except FileNotFoundError:
+            handle.close()
+            continue
+        if (current.st_dev, current.st_ino) == (os.fstat(handle.fileno()).st_dev, os.fstat(handle.fileno()).st_ino):
+            break
+        handle.close()
+    try:
+        handle.seek(0)
+        handle.truncate()
+        command = " ".join(Path(sys.argv[0]).name if i == 0 else a for i, a in enumerate(sys.argv))
+        handle.write(f"process {os.getpid()} on {socket.gethostname()} ({command})\n")
+        handle.flush()
+        yield
+    finally:
+        with contextlib.suppress(OSError):
+            path.unlink()
+        handle.close()
+
+
+def busy(folder: Path) -> str | None:
+    """Who holds ``folder`` for writing, or None if nobody does (checked, not held)."""
+    path = folder / LOCK_NAME
+    try:
+        handle = open(path)
+    except OSError:
+        return None
+    with handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return _holder(handle)
+        fcntl.flock(handle, fcntl.LOCK_UN)
+    return None

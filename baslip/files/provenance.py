@@ -1,0 +1,102 @@
+"""Where a result came from: the resolved problem, its hash, the software, the code path.
+
+Every ``result.json`` that baslip writes carries a ``provenance`` record:
+
+* ``problem``: the problem as baslip understood it (SI units and radians, defaults
+  filled in): params, fix, guess, bounds, objective, strides, solver, study, continuation;
+* ``problem_hash``: SHA-256 of that record without ``name`` and ``solver.print_level``,
+  which do not change any number; a resumed study must have the same hash;
+* ``versions``: baslip, CasADi, IPOPT, NumPy and Python;
+* ``code``: whether compiled C or CasADi's virtual machine evaluated the model.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import dataclasses
+import glob
+import hashlib
+import json
+import os
+import platform
+from importlib import metadata
+
+import casadi as ca
+import numpy as np
+
+from baslip.engine.codegen import code_path
+from baslip.problem.reader import Problem
+
+
+def resolved_problem(problem: Problem) -> dict:
+    """The problem as plain JSON data (tuples become lists, mappings dicts)."""
+    return json.loads(json.dumps(_plain(problem)))
+
+
+def _plain(value):
+    if dataclasses.is_dataclass(value):
+        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if hasattr(value, "items"):  # dict or MappingProxyType
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
+
+
+def problem_hash(problem: Problem) -> str:
+    """SHA-256 (hex) of everything in the problem that can change a number."""
+    record = resolved_problem(problem)
+    record.pop("name")
+    record["solver"].pop("print_level")
+    return hashlib.sha256(json.dumps(record, sort_keys=True).encode()).hexdigest()
+
+
+def versions() -> dict:
+    """Versions of the software that computes the results."""
+    try:
+        baslip_version = metadata.version("baslip")
+    except metadata.PackageNotFoundError:
+        baslip_version = "unknown"
+    return {
+        "baslip": baslip_version,
+        "casadi": ca.__version__,
+        "ipopt": ipopt_version(),
+        "numpy": np.__version__,
+        "python": platform.python_version(),
+    }
+
+
+def ipopt_version() -> str:
+    """The version of the IPOPT library that CasADi's nlpsol plugin loads."""
+    for library in sorted(glob.glob(os.path.join(os.path.dirname(ca.__file__), "libipopt.*"))):
+        try:
+            get = ctypes.CDLL(library).GetIpoptVersion
+        except (OSError, AttributeError):
+            continue
+        major, minor, release = ctypes.c_int(), ctypes.c_int(), ctypes.c_int()
+        get(ctypes.byref(major), ctypes.byref(minor), ctypes.byref(release))
+        return f"{major.value}.{minor.value}.{release.value}"
+    return "unknown"
+
+
+def provenance(problem: Problem) -> dict:
+    """The ``provenance`` record of a result of ``problem`` computed in this process."""
+    return {
+        "problem": resolved_problem(problem),
+        "problem_hash": problem_hash(problem),
+        "versions": versions(),
+        "code": code_path(),
+    }
+
+
+def changed_entries(old: dict, new: dict, prefix: str = "") -> list[str]:
+    """Dotted names of the entries that differ between two resolved problems."""
+    names = []
+    for key in sorted(set(old) | set(new)):
+        a, b = old.get(key), new.get(key)
+        dotted = f"{prefix}{key}"
+        if isinstance(a, dict) and isinstance(b, dict):
+            names += changed_entries(a, b, dotted + ".")
+        elif a != b:
+            names.append(dotted)
+    return names

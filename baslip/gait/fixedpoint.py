@@ -1,0 +1,345 @@
+"""Verified fixed points: NLP, Newton polish on the return map, independent check, stability.
+
+1. IPOPT solves the multiple-shooting NLP (:mod:`baslip.gait.shooting`), whose RK4
+   discretisation is accurate to about 1e-6; if IPOPT fails with the default objective
+   Hessian, the exact-Hessian NLP gets a second try.
+2. Gauss-Newton on the compiled return map (:mod:`baslip.gait.polish`) polishes the free
+   quantities until ``r(X, u) = X`` to integrator accuracy. Quantities at an active
+   bound stay there.
+3. An independent return map, a different integrator (Rosenbrock) at rtol = atol = 1e-12,
+   re-simulates the stride; only ``eps = |r(X) - X| / |X| <= 1e-10`` (thesis eq. 4.1) is
+   reported as ``converged``.
+4. Stability from the eigenvalues of dr/dX by algorithmic differentiation.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from baslip.engine.returnmap import PHASES, ReturnMap, Tolerances
+from baslip.gait.polish import Polish
+from baslip.gait.polish import eps as _eps
+from baslip.gait.shooting import FixedPointSpec, NlpSolution, ShootingNLP, ShootingOptions, torque_effort
+from baslip.gait.stability import Stability, classify
+from baslip.model.dynamics import APEX, Params
+from baslip.model.hiplaw import CONTROL
+from baslip.model.quantities import DESIGN, NOMINAL
+from baslip.status import VERIFY_EPS, Status
+
+#: Tolerances of the independent verification map.
+VERIFY_TOLERANCES = Tolerances(rtol=1e-12, atol=1e-12)
+#: IPOPT outcomes whose point goes on to polish and verification ("Feasible_Point_Found"
+#: is IPOPT's success for square problems, e.g. the SLIP limit at fixed energy).
+ACCEPTED_IPOPT = ("Solve_Succeeded", "Solved_To_Acceptable_Level", "Feasible_Point_Found")
+
+
+@dataclass(frozen=True)
+class SolverReport:
+    """What IPOPT said, plus the wall time of the whole solve [s]."""
+
+    return_status: str
+    iterations: int
+    time_s: float
+
+
+@dataclass(frozen=True)
+class FixedPointResult:
+    """A fixed-point solve: status, the gait, its residual and stability.
+
+    ``status`` is ``converged`` (verified, eps <= 1e-10), ``not_verified`` (IPOPT succeeded
+    but the independent re-simulation disagrees or falls) or ``failed`` (IPOPT failed).
+    Units: SI and radians throughout.
+    """
+
+    name: str
+    status: Status
+    message: str
+    solver: SolverReport
+    params: Params
+    X: np.ndarray
+    u: np.ndarray
+    durations: Mapping[str, float] | None
+    energy: float
+    residual: float | None
+    stability: Stability | None
+    polish_iterations: int = 0
+    residual_source: str = ""  # which map measured ``residual``
+    nlp_w: np.ndarray | None = None  # IPOPT's point, to warm-start a neighbouring solve
+    strides: int = 1  # the orbit's period asked for, in strides
+    orbit: np.ndarray | None = None  # strides x 4: the apexes of a multi-stride orbit, X first
+
+    @property
+    def converged(self) -> bool:
+        return self.status == Status.CONVERGED
+
+    @property
+    def apex(self) -> dict[str, float]:
+        return APEX.to_dict(self.X)
+
+    @property
+    def control(self) -> dict[str, float]:
+        return CONTROL.to_dict(self.u)
+
+    @property
+    def eigenvalues(self) -> list[complex] | None:
+        return None if self.stability is None else [m.value for m in self.stability.multipliers]
+
+    @property
+    def spectral_radius(self) -> float | None:
+        return None if self.stability is None else self.stability.spectral_radius
+
+    @property
+    def stable(self) -> bool | None:
+        return None if self.stability is None else self.stability.stable
+
+    # -- for people: text, notebooks, motion and figures ---------------------------------
+
+    def __repr__(self) -> str:
+        verdict = {True: "stable", False: "unstable", None: "stability unknown"}[self.stable]
+        radius = f", radius {self.spectral_radius:.4g}" if self.spectral_radius is not None else ""
+        eps = f", eps {self.residual:.1e}" if self.residual is not None else ""
+        return f"<FixedPointResult {self.name}: {self.status}, {verdict}{radius}{eps}>"
+
+    def _repr_html_(self) -> str:
+        from html import escape
+
+        rows = [("status", f"{self.status} ({self.message})")]
+        rows += [(n, f"{v:.6g}") for n, v in {**self.apex, **self.control}.items()]
+        rows += [("energy [J]", f"{self.energy:.6g}")]
+        if self.residual is not None:
+            rows.append(("residual eps", f"{self.residual:.2e}"))
+        if self.stability is not None:
+            rows.append(("multipliers", ", ".join(f"{m.value:.4g}" for m in self.stability.multipliers)))
+            rows.append(("spectral radius", f"{self.spectral_radius:.6g} ({'stable' if self.stable else 'unstable'})"))
+        body = "".join(f"<tr><th style='text-align:left'>{escape(k)}</th><td>{escape(v)}</td></tr>" for k, v in rows)
+        return f"<b>{escape(self.name)}</b><table>{body}</table><small>SI units, radians</small>"
+
+    def summary(self) -> str:
+        """A short human-readable account (as the command line prints it)."""
+        from baslip.gait.describe import summary_text
+
+        return summary_text(self)
+
+    def to_dataframe(self):
+        """The gait as a one-row pandas DataFrame (needs pandas): status, apex, control,
+        phase durations [s], energy [J], residual and spectral radius, in SI units and radians."""
+        try:
+            import pandas
+        except ImportError:
+            raise ImportError("to_dataframe needs pandas: pip install pandas") from None
+        row = {"name": self.name, "status": str(self.status), **self.apex, **self.control,
+               **{f"duration_{phase}": value for phase, value in (self.durations or {}).items()},
+               "energy": self.energy, "residual": self.residual, "spectral_radius": self.spectral_radius,
+               "stable": self.stable}
+        return pandas.DataFrame([row])
+
+    def trajectory(self, strides: int = 1, samples: int = 100):
+        """The continuous motion of the gait (:class:`baslip.engine.trajectory.Motion`):
+        ``samples`` per phase over ``strides`` strides, from the verified apex."""
+        from baslip.engine.returnmap import ReturnMap, Tolerances
+        from baslip.engine.trajectory import motion
+
+        return motion(ReturnMap(Tolerances(1e-10, 1e-10)), self.X, self.u, self.params, strides, samples)
+
+    def plot(self, strides: int = 2):
+        """A matplotlib Figure of the gait: CoM path, trunk angle and ground reaction force
+        over ``strides`` strides. Writes nothing."""
+        from baslip.viz.figures import gait_figure
+
+        return gait_figure(self.trajectory(strides), self.name)
+
+    def animate(self, strides: int = 2):
+        """The gait as an animation for a notebook (IPython HTML), or a matplotlib
+        FuncAnimation when IPython is not there."""
+        from baslip.viz.animation import notebook_animation
+
+        return notebook_animation(self.X, self.u, self.params, self.name, strides)
+
+    def to_json_dict(self) -> dict:
+        """The ``result.json`` record: exactly the documented keys, plain JSON types."""
+        eigenvalues = self.eigenvalues
+        return {
+            "name": self.name,
+            "status": self.status,
+            "solver": {
+                "return_status": self.solver.return_status,
+                "iterations": self.solver.iterations,
+                "time_s": self.solver.time_s,
+            },
+            "params": self.params.to_dict(),
+            "apex": self.apex,
+            "control": self.control,
+            "durations": None if self.durations is None else {k: float(v) for k, v in self.durations.items()},
+            "energy": float(self.energy),
+            "residual": None if self.residual is None else float(self.residual),
+            "eigenvalues": None if eigenvalues is None else [[ev.real, ev.imag] for ev in eigenvalues],
+            "spectral_radius": self.spectral_radius,
+            "stable": self.stable,
+        } | self._orbit_json()
+
+    def _orbit_json(self) -> dict:
+        """Extra keys of a multi-stride orbit: its stride count, apexes and minimal period."""
+        if self.strides == 1:
+            return {}
+        if self.orbit is None:  # the solve failed or the orbit falls
+            return {"strides": self.strides, "orbit": None, "minimal_period": None}
+        return {
+            "strides": self.strides,
+            "orbit": [APEX.to_dict(apex) for apex in self.orbit],
+            "minimal_period": minimal_period(np.vstack([self.orbit, self.orbit[:1]])),
+        }
+
+
+class FixedPointSolver:
+    """Builds the NLP and the return maps once; solves and verifies many problems."""
+
+    def __init__(self, options: ShootingOptions = ShootingOptions()):
+        self.options = options
+        self.nlp = ShootingNLP(options)
+        self._nlps: dict[tuple[int, str], ShootingNLP] = {}
+        self.residual_map = ReturnMap(Tolerances(1e-12, 1e-12))
+        # The compiled engine's Jacobian at 1e-12 costs a few ms once per solve; a second
+        # map at 1e-10 would cost a second build of the engine in every process.
+        self.jacobian_map = self.residual_map
+        self.verify_map = ReturnMap(VERIFY_TOLERANCES, plugin="rosenbrock")
+        self._polish = Polish(self.residual_map, self.jacobian_map)
+
+    def solve(self, spec: FixedPointSpec, name: str = "problem", w0: np.ndarray | None = None) -> FixedPointResult:
+        """Solve ``spec`` from its guess (or from the NLP point ``w0``) and verify the answer."""
+        nlp = self.nlp_for(spec.strides)  # built once, outside the timed solve
+        start = time.perf_counter()
+        sol = self._run_nlp(nlp, spec, w0)
+        if sol.return_status not in ACCEPTED_IPOPT and nlp.options.hessian != "exact":
+            # The fast NLP drops the constraints' curvature; from a poor start the exact
+            # Hessian sometimes succeeds where it fails (measured in the README), so it gets
+            # a second try, from the same start.
+            retry = self._run_nlp(self.nlp_for(spec.strides, exact=True), spec, w0)
+            sol = replace(retry, iterations=sol.iterations + retry.iterations)
+        if sol.return_status not in ACCEPTED_IPOPT:
+            return self._result(spec, name, Status.FAILED, f"IPOPT: {sol.return_status}", sol, start, sol.X, sol.u)
+        return self._polish_and_verify(spec, name, sol, start)
+
+    def verify_point(self, spec: FixedPointSpec, X, u, name: str = "problem") -> FixedPointResult:
+        """The same polish, independent re-simulation and stability as :meth:`solve`, for a
+        point found some other way (IPOPT does not run; its report says so)."""
+        start = time.perf_counter()
+        X, u = np.asarray(X, dtype=float), np.asarray(u, dtype=float)
+        given = NlpSolution(X, u, np.full(len(PHASES), np.nan), "not run (point given)", 0, 0.0)
+        return self._polish_and_verify(spec, name, given, start)
+
+    def _polish_and_verify(self, spec: FixedPointSpec, name: str, sol: NlpSolution, start: float) -> FixedPointResult:
+        X, u, iterations, note = self._polish.run(spec, sol.X, sol.u)
+        check = self.verify_map.simulate(X, u, spec.params, spec.strides)
+        if check.fall is not None:
+            return self._result(spec, name, Status.NOT_VERIFIED, f"re-simulation falls: {check.fall.value}", sol, start, X, u, iterations)
+        eps = _eps(check.apexes[-1], X)
+        problem = self._violation(spec, X, u)
+        if eps > VERIFY_EPS or problem:
+            what = f"eps = {eps:.2e} > {VERIFY_EPS:g}" if eps > VERIFY_EPS else problem
+            return self._result(spec, name, Status.NOT_VERIFIED, f"re-simulation: {what}{note}", sol, start, X, u, iterations, check)
+        stability = classify(self.jacobian_map.jacobians(X, u, spec.params, spec.strides)[0], spec.params, u)
+        message = "verified fixed point" if spec.strides == 1 else f"verified {spec.strides}-stride orbit"
+        period = minimal_period(check.apexes)
+        if period < spec.strides:
+            message += f"; it repeats after {period} stride{'s' if period > 1 else ''}"
+        return self._result(spec, name, Status.CONVERGED, message, sol, start, X, u, iterations, check, stability)
+
+    def nlp_for(self, strides: int, exact: bool = False) -> ShootingNLP:
+        """The NLP for orbits of ``strides`` strides, built on first use; ``exact`` gives
+        its exact-Hessian variant, the second try after a failure."""
+        options = replace(self.options, hessian="exact") if exact else self.options
+        key = (strides, options.hessian)
+        if key not in self._nlps:
+            self._nlps[key] = self.nlp if key == (1, self.options.hessian) else ShootingNLP(options, strides)
+        return self._nlps[key]
+
+    def _run_nlp(self, nlp: ShootingNLP, spec: FixedPointSpec, w0) -> NlpSolution:
+        try:
+            return nlp.solve(spec, w0=w0, rmap=self.residual_map)
+        except RuntimeError as err:  # CasADi could not even run IPOPT
+            return NlpSolution(spec.start_design()[: APEX.size], spec.start_design()[APEX.size :],
+                               np.full(len(PHASES), np.nan), f"Error: {_first_line(err)}", 0, 0.0)
+
+    # -- pieces --------------------------------------------------------------------------
+
+    def _violation(self, spec: FixedPointSpec, X, u) -> str | None:
+        """What the polished point breaks, if anything: a fixed energy or any bound."""
+        energy = self.energy(X, spec.params)
+        tolerance = VERIFY_EPS * max(1.0, abs(energy))
+        if "energy" in spec.fixed and abs(energy - spec.fixed["energy"]) > tolerance:
+            return f"apex energy {energy:.12g} J is off its fixed value {spec.fixed['energy']:g} J"
+        lo, hi = spec.bounds.get("energy", (-np.inf, np.inf))
+        if not lo - tolerance <= energy <= hi + tolerance:
+            return f"apex energy {energy:.12g} J lies outside bounds [{lo:g}, {hi:g}] J"
+        for name, value in zip(DESIGN, np.concatenate([X, u])):
+            lo, hi = spec.bounds_of(name)
+            slack = 1e-9 * NOMINAL[name]
+            if not lo - slack <= value <= hi + slack:
+                return f"{name} = {value:.12g} lies outside its bounds [{lo:g}, {hi:g}]"
+        return None
+
+    def torque_effort(self, result: FixedPointResult) -> float:
+        """Integral of tau^2 dt over the stance of a result's (first) stride [N^2 m^2 s]."""
+        durations = [result.durations[ph] for ph in PHASES]
+        return torque_effort(self.nlp.interval, result.X, result.u, durations, result.params)
+
+    def energy(self, X, params: Params) -> float:
+        """Total mechanical energy at apex ``X`` [J]."""
+        return self._polish.energy(X, params)
+
+    def _result(self, spec, name, status, message, sol, start, X, u, polish_iterations=0, check=None, stability=None):
+        if check is not None and check.fall is None:
+            durations = {ph: check.durations[0][ph] for ph in PHASES}
+            residual, source = _eps(check.apexes[-1], X), f"independent re-simulation ({_describe(self.verify_map)})"
+            orbit = check.apexes[:-1] if spec.strides > 1 else None
+        else:
+            durations = dict(zip(PHASES, map(float, sol.durations)))
+            probe = self.residual_map.simulate(X, u, spec.params, spec.strides)
+            residual = _eps(probe.apexes[-1], X) if probe.fall is None else None
+            source = f"return map ({_describe(self.residual_map)})" if probe.fall is None else ""
+            orbit = probe.apexes[:-1] if spec.strides > 1 and probe.fall is None else None
+        return FixedPointResult(
+            name=name,
+            status=status,
+            message=message,
+            solver=SolverReport(sol.return_status, sol.iterations, time.perf_counter() - start),
+            params=spec.params,
+            X=np.asarray(X, dtype=float),
+            u=np.asarray(u, dtype=float),
+            durations=durations,
+            energy=self.energy(X, spec.params),
+            residual=residual,
+            stability=stability,
+            polish_iterations=polish_iterations,
+            residual_source=source,
+            nlp_w=sol.w,
+            strides=spec.strides,
+            orbit=orbit,
+        )
+
+
+#: Relative distance below which two apexes of an orbit count as the same.
+SAME_APEX = 1e-8
+
+
+def minimal_period(apexes: np.ndarray) -> int:
+    """Smallest k with apex k equal to apex 0, for the apexes X_0..X_N of a closed N-stride
+    orbit (X_N = X_0); k divides N."""
+    n = len(apexes) - 1
+    for k in range(1, n):
+        if n % k == 0 and _eps(apexes[k], apexes[0]) <= SAME_APEX:
+            return k
+    return n
+
+
+def _describe(rmap: ReturnMap) -> str:
+    return rmap.describe()
+
+
+def _first_line(err: Exception) -> str:
+    lines = str(err).strip().splitlines()
+    return lines[-1] if lines else type(err).__name__

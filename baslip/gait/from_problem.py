@@ -1,0 +1,71 @@
+"""A problem file's gait: the NLP settings and the fixed-point spec it asks for, solved.
+
+>>> from baslip import load_problem, solve_problem
+>>> result = solve_problem(load_problem("problems/downward.yaml"))
+>>> result.status, result.residual, result.spectral_radius
+"""
+
+from __future__ import annotations
+
+from baslip.errors import ProblemKindError
+from baslip.gait.fixedpoint import FixedPointResult, FixedPointSolver
+from baslip.gait.shooting import FixedPointSpec, ShootingOptions, ipopt_options
+from baslip.problem.reader import Problem
+
+
+def shooting_options(problem: Problem) -> ShootingOptions:
+    """The NLP settings a problem asks for."""
+    s = problem.solver
+    return ShootingOptions(nodes=s.nodes, substeps=s.substeps, ipopt=ipopt_options(s))
+
+
+def fixed_point_spec(problem: Problem) -> FixedPointSpec:
+    """What the NLP solves for a problem."""
+    return FixedPointSpec(
+        params=problem.params,
+        fixed=dict(problem.fix),
+        guess=problem.full_guess(),
+        bounds=dict(problem.bounds),
+        objective=problem.objective,
+        strides=problem.strides,
+    )
+
+
+def solver_for(problem: Problem) -> FixedPointSolver:
+    """A solver built with the discretisation and IPOPT settings ``problem`` asks for."""
+    return FixedPointSolver(shooting_options(problem))
+
+
+def solve_problem(problem: Problem, solver: FixedPointSolver | None = None) -> FixedPointResult:
+    """Solve and verify the gait of ``problem``.
+
+    Parameters
+    ----------
+    problem : Problem
+        A problem with no ``study:`` and no ``continuation:`` section (run those with
+        :func:`baslip.run`).
+    solver : FixedPointSolver, optional
+        A built solver, to reuse across problems; its own settings are then used, not
+        the problem's ``solver:`` section.
+
+    Returns
+    -------
+    FixedPointResult
+        The verified gait, or a result whose status says why there is none.
+
+    Raises
+    ------
+    ProblemKindError
+        If ``problem`` holds a study or a continuation.
+    """
+    for section in ("study", "continuation"):
+        if getattr(problem, section) is not None:
+            raise ProblemKindError(section, f"problem {problem.name!r} holds a {section}, which solve_problem "
+                                   "does not run; use baslip.run(problem) for it")
+    return solve_start(problem, solver)
+
+
+def solve_start(problem: Problem, solver: FixedPointSolver | None = None) -> FixedPointResult:
+    """Solve and verify the problem's own fixed point, whatever else it holds: the gait a
+    study or a branch starts from."""
+    return (solver or solver_for(problem)).solve(fixed_point_spec(problem), name=problem.name)

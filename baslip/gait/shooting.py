@@ -1,0 +1,482 @@
+"""The periodic-stride NLP: phase-level multiple shooting over the compiled stance flow,
+solved by IPOPT.
+
+Decision variables (all in SI units and radians):
+
+* the apex state ``X`` (4) and the control ``u`` (5); fixed quantities have equal bounds;
+* the four phase durations ``T = (descent, compression, decompression, ascent)``;
+* shooting-node states in compression and decompression, ``nodes`` intervals each, every
+  interval integrated by ``substeps`` DOP853 steps of the stance flow of
+  :mod:`baslip.engine.kernels`, of length ``T_phase / (nodes * substeps)``.
+
+Constraints:
+
+* continuity at the nodes; the touchdown map at the start of stance;
+* each guard zero at its phase end, with its crossing direction as an inequality
+  (transversality, by ``margin``);
+* periodicity ``r(X, u) = X``, or for an orbit of N strides ``r^N(X, u) = X`` with the
+  intermediate apexes as variables; optionally the apex energy;
+* sanity: the foot above ground through descent, the leg compressing in compression and
+  compressed in decompression, CoM, hip and leg clear of the ground at every stage point,
+  rising liftoff, durations bounded away from zero.
+
+The objective picks one point on the fixed-point manifold (see :data:`OBJECTIVES`).
+The NLP is built once per discretisation; parameters, guess, fixed values, bounds and the
+objective's weights enter as numbers, so one built solver serves every problem. Its
+functions are compiled to C like the stride engine, so IPOPT's iterations run in C.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import pathlib
+import sys
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from baslip.engine.codegen import compile_library, module_files
+from baslip.engine.kernels import StanceFlow, stance_clearances
+from baslip.engine.kernels import sources as kernel_sources
+from baslip.engine.returnmap import PHASES, ReturnMap, Stride
+from baslip.model import quantities as _quantities
+from baslip.model.dynamics import (
+    APEX,
+    FLIGHT,
+    PARAMS,
+    STANCE,
+    Params,
+    apex_energy,
+    apex_to_flight,
+    ballistic_flight,
+    bottom_guard,
+    liftoff_guard,
+    liftoff_map,
+    stance_dynamics,
+    touchdown_guard,
+    touchdown_guard_rate,
+    touchdown_map,
+)
+from baslip.model.hiplaw import CONTROL, hip_torque, touchdown_angle
+from baslip.model.quantities import DEFAULT_BOUNDS, DESIGN, NOMINAL, OBJECTIVES, start_value
+from baslip.problem.reader import SolverSettings
+
+#: Hessians IPOPT can be given: ``exact``, the Hessian of the Lagrangian through the
+#: intervals; ``objective``, the objective's Hessian alone (the constraints' curvature
+#: dropped; Gauss-Newton for the torque term); or IPOPT's ``limited-memory`` BFGS. The
+#: README's table measures them; ``objective`` is the default, with ``exact`` as the
+#: second try after a failure (see :class:`baslip.gait.fixedpoint.FixedPointSolver`).
+HESSIANS = ("exact", "objective", "limited-memory")
+
+
+@dataclass(frozen=True)
+class ShootingOptions:
+    """Discretisation and solver settings of the NLP."""
+
+    nodes: int = SolverSettings.nodes  # shooting intervals per stance phase
+    substeps: int = SolverSettings.substeps  # steps of the scheme per interval
+    hessian: str = "objective"  # see HESSIANS
+    scheme: str = "rk4"  # the interval's steps: "rk4" or "dop853" (see the README's measurements)
+    margin: float = 1e-3  # transversality margin on guard rates [SI]
+    min_duration: float = 1e-3  # [s]
+    max_duration: float = 5.0  # [s]
+    ipopt: Mapping[str, object] = field(default_factory=lambda: ipopt_options(SolverSettings()))
+
+
+def ipopt_options(settings: SolverSettings) -> dict[str, object]:
+    """IPOPT's options for a problem's solver settings (iterations, tolerances, verbosity)."""
+    return {"max_iter": settings.max_iter, "tol": settings.tol, "acceptable_tol": max(settings.tol, 1e-8),
+            "print_level": settings.print_level}
+
+
+@dataclass(frozen=True)
+class FixedPointSpec:
+    """What to solve: parameters, fixed values, guess, bounds and objective."""
+
+    params: Params
+    fixed: Mapping[str, float]  # subset of QUANTITIES
+    guess: Mapping[str, float]  # every design quantity that is not fixed
+    bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    objective: str = "nearest_guess"
+    strides: int = 1  # the orbit's period in strides; fixed values and guess are its first apex
+
+    def bounds_of(self, name: str) -> tuple[float, float]:
+        """Bounds of a design quantity: the problem's, inside the physical ones."""
+        lo, hi = DEFAULT_BOUNDS[name]
+        if name in self.bounds:
+            lo, hi = max(lo, self.bounds[name][0]), min(hi, self.bounds[name][1])
+        return lo, hi
+
+    def start_design(self) -> np.ndarray:
+        """Starting value of each design quantity (fixed, guessed, or default in bounds)."""
+        return np.array([start_value(n, self.fixed, self.guess, self.bounds) for n in DESIGN])
+
+
+@dataclass(frozen=True)
+class NlpSolution:
+    """IPOPT's answer: design values, durations and solver statistics."""
+
+    X: np.ndarray
+    u: np.ndarray
+    durations: np.ndarray
+    return_status: str
+    iterations: int
+    time_s: float
+    w: np.ndarray | None = None  # every NLP variable, to warm-start a neighbouring solve
+
+
+def _rk4_interval(substeps: int) -> ca.Function:
+    """One shooting interval: ``substeps`` RK4 steps of the closed-loop stance ODE.
+
+    Returns the end state and the integral of tau^2 [N^2 m^2 s] over the interval.
+    """
+    x, u, p, h = STANCE.sym("x"), CONTROL.sym("u"), PARAMS.sym("p"), ca.SX.sym("h")
+    aug = ca.vertcat(x, 0)
+
+    def rhs(a):
+        xs = a[: STANCE.size]
+        tau = hip_torque(xs, u)
+        return ca.vertcat(stance_dynamics(xs, tau, p), tau**2)
+
+    dt = h / substeps
+    for _ in range(substeps):
+        k1 = rhs(aug)
+        k2 = rhs(aug + dt / 2 * k1)
+        k3 = rhs(aug + dt / 2 * k2)
+        k4 = rhs(aug + dt * k3)
+        aug = aug + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    # One derivative direction per generated function keeps the compiled NLP's exact
+    # Hessian (second derivatives through every interval) to a 30 s compile, not 160 s.
+    return ca.Function("rk4_interval", [x, u, p, h], [aug[: STANCE.size], aug[-1]], {"max_num_dir": 1})
+
+
+class ShootingNLP:
+    """The periodic-orbit NLP for one step count and stride count, built once and solved
+    many times.
+
+    Decision variables per stride: the apex (after the first stride), the four phase
+    durations and the shooting nodes of compression and decompression, each interval
+    ``substeps`` DOP853 steps of the stance flow (time scaled by the phase duration). With
+    ``strides = N`` consecutive strides are joined (X_{k+1} = r(X_k)) and the last closes
+    the orbit.
+
+    The NLP's functions (objective and constraints, their gradient and Jacobian, and the
+    Hessian, see :data:`HESSIANS`) are generated as C and cached like the stride engine.
+    """
+
+    def __init__(self, options: ShootingOptions = ShootingOptions(), strides: int = 1, compile: bool | None = None):
+        if strides < 1:
+            raise ValueError(f"strides must be at least 1, got {strides}")
+        if options.hessian not in HESSIANS:
+            raise ValueError(f"hessian must be one of {HESSIANS}, got {options.hessian!r}")
+        self.options = options
+        self.strides = strides
+        self.interval = _rk4_interval(1)  # for torque_effort, a reporting quadrature
+        self._stance = StanceFlow()
+        self._interval = self._shooting_interval()
+        self._build(compile)
+
+    # -- construction ------------------------------------------------------------------
+
+    def _shooting_interval(self) -> ca.Function:
+        """One shooting interval, ``substeps`` steps of the scheme: (x0, h, theta) -> end state."""
+        x0, h, theta = STANCE.sym("x0", ca.MX), ca.MX.sym("h"), ca.MX.sym("theta", CONTROL.size + PARAMS.size)
+        if self.options.scheme == "rk4":
+            end = _rk4_interval(self.options.substeps)(x0, theta[: CONTROL.size], theta[CONTROL.size :], h)[0]
+        else:
+            end = self._stance.chain(self.options.substeps)(x0, h, theta)[0][:, -1]
+        return ca.Function("shooting_interval", [x0, h, theta], [end])
+
+    def _build(self, compile: bool | None) -> None:
+        u, p = CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
+        guess, weights = ca.MX.sym("guess", len(DESIGN)), ca.MX.sym("weights", 2)
+        constraints: list[tuple[ca.MX, float, float]] = []
+
+        def constrain(expr, lo, hi):
+            constraints.append((ca.vec(expr), lo, hi))
+
+        apexes, blocks, effort, apex_next = [], [], [], None
+        for k in range(self.strides):
+            X = APEX.sym(f"X{k}", ca.MX)
+            T = ca.MX.sym(f"T{k}", len(PHASES))
+            comp_nodes = ca.MX.sym(f"compression_nodes{k}", STANCE.size, self.options.nodes)
+            decomp_nodes = ca.MX.sym(f"decompression_nodes{k}", STANCE.size, self.options.nodes)
+            if apex_next is not None:
+                constrain(apex_next - X, 0, 0)  # strides join
+            apex_next, stride_effort = _shoot_stride(self._stance, self._interval, self.options, X, u, p, T,
+                                                     comp_nodes, decomp_nodes, constrain)
+            effort.append(stride_effort)
+            apexes.append(X)
+            # X_0 and u lead the vector so that the design is w[:len(DESIGN)] for any N.
+            blocks += ([] if k == 0 else [X]) + [T, ca.vec(comp_nodes), ca.vec(decomp_nodes)]
+        X0 = apexes[0]
+        self._periodicity_row = sum(c[0].numel() for c in constraints)
+        constrain(apex_next - X0, 0, 0)  # the orbit closes
+        self._energy_row = sum(c[0].numel() for c in constraints)
+        constrain(apex_energy(X0, p), -ca.inf, ca.inf)  # bounded or fixed per problem
+
+        design = ca.vertcat(X0, u)
+        scale = ca.DM([NOMINAL[name] for name in DESIGN])
+        distance = ca.sumsqr((design - guess) / scale)
+        w = ca.vertcat(X0, u, *blocks)
+        self._n_w = w.numel()
+        params = ca.vertcat(p, guess, weights)
+        g = ca.vertcat(*(c[0] for c in constraints))
+        self._lbg = np.concatenate([np.full(c[0].numel(), c[1], dtype=float) for c in constraints])
+        self._ubg = np.concatenate([np.full(c[0].numel(), c[2], dtype=float) for c in constraints])
+        self.functions = compile_library(  # objective, constraints and derivatives
+            f"baslip_nlp_{self.strides}_{self.options.nodes}x{self.options.substeps}_{self.options.scheme}_"
+            f"{self.options.hessian.replace('-', '_')}",
+            [f"nlp_{n}" for n in ("fg", "grad_f", "jac_g", "hess_l")],
+            lambda: _nlp_functions(w, params, weights, distance, ca.vertcat(*effort), g, self.options.hessian),
+            _nlp_sources(), enabled=compile,
+        )
+        self._solver = self._nlpsol(self.functions)
+
+    def _nlpsol(self, functions: dict[str, ca.Function]) -> ca.Function:
+        """IPOPT over the (compiled) NLP functions; CasADi differentiates nothing itself."""
+        w, params = ca.MX.sym("w", self._n_w), ca.MX.sym("P", functions["nlp_fg"].size1_in(1))
+        f, g = functions["nlp_fg"](w, params)
+        ipopt = {"print_level": 0, "sb": "yes", **dict(self.options.ipopt)}
+        # lam_p would need derivatives of the compiled functions that IPOPT never uses.
+        options = {"ipopt": ipopt, "print_time": False, "error_on_fail": False, "calc_lam_p": False, "no_nlp_grad": True,
+                   "grad_f": functions["nlp_grad_f"], "jac_g": functions["nlp_jac_g"]}
+        if self.options.hessian == "limited-memory":
+            ipopt["hessian_approximation"] = "limited-memory"
+        else:
+            options["hess_lag"] = functions["nlp_hess_l"]
+        return ca.nlpsol("periodic_orbit", "ipopt", {"x": w, "p": params, "f": f, "g": g}, options)
+
+    # -- solving -----------------------------------------------------------------------
+
+    def _durations_index(self, k: int) -> int:
+        """Position of stride k's first phase duration in the NLP vector, laid out as
+        (X_0, u, T_0, nodes_0, X_1, T_1, nodes_1, ...)."""
+        nodes = 2 * STANCE.size * self.options.nodes
+        return len(DESIGN) + k * (APEX.size + len(PHASES) + nodes)
+
+    def _bounds(self, spec: FixedPointSpec) -> tuple[np.ndarray, np.ndarray]:
+        lbx = np.full(self._n_w, -np.inf)
+        ubx = np.full(self._n_w, np.inf)
+        for i, name in enumerate(DESIGN):
+            lo, hi = spec.bounds_of(name)
+            if name in spec.fixed:
+                lo = hi = spec.fixed[name]
+            lbx[i], ubx[i] = lo, hi
+        for k in range(self.strides):
+            t0 = self._durations_index(k)
+            lbx[t0 : t0 + len(PHASES)] = self.options.min_duration
+            ubx[t0 : t0 + len(PHASES)] = self.options.max_duration
+        return lbx, ubx
+
+    def initial_guess(self, spec: FixedPointSpec, rmap: ReturnMap | None = None) -> np.ndarray:
+        """Initial point: the guess's design, then for each stride the apex reached by
+        simulating the guess (the guess itself if it falls), its durations, and nodes
+        propagated through stance by the NLP's own steps."""
+        design = spec.start_design()
+        X, u = design[: APEX.size], design[APEX.size :]
+        p = spec.params.vector()
+        parts = [design]
+        for k in range(self.strides):
+            stride = rmap.stride(X, u, spec.params) if rmap is not None else None
+            durations = _guess_durations(X, u, spec.params, stride)
+            comp, decomp = (np.asarray(v) for v in self._guess_nodes()(X, u, p, durations[:3]))
+            parts += ([X] if k else []) + [durations, comp.T.ravel(), decomp.T.ravel()]
+            X = stride.apex if stride is not None and stride.ok else X
+        return np.concatenate(parts)
+
+    def _guess_nodes(self) -> ca.Function:
+        """(X, u, p, (t_descent, t_compression, t_decompression)) -> the nodes of both
+        stance phases (6 x nodes each), propagated without the bottom guard (built on
+        first use)."""
+        if not hasattr(self, "_guess_nodes_fn"):
+            X, u, p = APEX.sym("X", ca.MX), CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
+            T = ca.MX.sym("T", 3)
+            n, steps = self.options.nodes, self.options.substeps
+            x_td = touchdown_map(ballistic_flight(apex_to_flight(X), T[0], p), touchdown_angle(u), p)
+            chain = self._stance.chain(n * steps)
+            comp = chain(x_td, T[1] / (n * steps), ca.vertcat(u, p))[0][:, steps - 1 :: steps]
+            decomp = chain(comp[:, -1], T[2] / (n * steps), ca.vertcat(u, p))[0][:, steps - 1 :: steps]
+            self._guess_nodes_fn = ca.Function("guess_nodes", [X, u, p, T], [comp, decomp])
+        return self._guess_nodes_fn
+
+    def solve(self, spec: FixedPointSpec, w0: np.ndarray | None = None, rmap: ReturnMap | None = None) -> NlpSolution:
+        """Solve the NLP from ``w0`` (default: :meth:`initial_guess`)."""
+        if spec.strides != self.strides:
+            raise ValueError(f"this NLP is built for {self.strides}-stride orbits, not {spec.strides}")
+        if w0 is None:
+            w0 = self.initial_guess(spec, rmap)
+        lbx, ubx = self._bounds(spec)
+        w0 = np.clip(w0, lbx, ubx)
+        guess = spec.start_design()
+        weights = np.array(OBJECTIVES[spec.objective])
+        lbg, ubg = self._lbg.copy(), self._ubg.copy()
+        energy_bounds = spec.bounds.get("energy", (-np.inf, np.inf))
+        if "energy" in spec.fixed:
+            energy_bounds = (spec.fixed["energy"], spec.fixed["energy"])
+        lbg[self._energy_row], ubg[self._energy_row] = energy_bounds
+        for name in implied_periodicity(spec):
+            row = self._periodicity_row + APEX.index(name)
+            lbg[row], ubg[row] = -np.inf, np.inf
+        params = np.concatenate([spec.params.vector(), guess, weights])
+        start = time.perf_counter()
+        # CasADi warns on stderr when a trial point gives NaN; IPOPT recovers or reports a
+        # failure status, which is what the caller sees.
+        with contextlib.redirect_stderr(io.StringIO()):
+            sol = self._solver(x0=w0, p=params, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        elapsed = time.perf_counter() - start
+        stats = self._solver.stats()
+        w = np.asarray(sol["x"]).ravel()
+        n_design = len(DESIGN)
+        return NlpSolution(
+            X=w[: APEX.size],
+            u=w[APEX.size : n_design],
+            durations=w[n_design : n_design + len(PHASES)],
+            return_status=str(stats["return_status"]),
+            iterations=int(stats["iter_count"]),
+            time_s=elapsed,
+            w=w,
+        )
+
+
+def _shoot_stride(stance: StanceFlow, interval: ca.Function, opt: ShootingOptions, X, u, p, T, comp_nodes,
+                  decomp_nodes, constrain):
+    """Constrain one shot stride from apex ``X`` through ``constrain(expr, lo, hi)``; return
+    its next apex and the residuals r whose sum of squares is its tau^2 integral
+    [N^2 m^2 s] by the trapezoidal rule over the nodes."""
+    n = opt.nodes
+    t_descent, t_compression, t_decompression, t_ascent = (T[i] for i in range(len(PHASES)))
+    theta = ca.repmat(ca.vertcat(u, p), 1, n)
+    theta_td = touchdown_angle(u)
+    apex_flight = apex_to_flight(X)
+    # Descent: the foot stays above ground until it crosses zero, falling.
+    for fraction in (0.0, 0.25, 0.5, 0.75):
+        constrain(touchdown_guard(ballistic_flight(apex_flight, fraction * t_descent, p), theta_td, p), 0, ca.inf)
+    at_touchdown = ballistic_flight(apex_flight, t_descent, p)
+    constrain(touchdown_guard(at_touchdown, theta_td, p), 0, 0)
+    constrain(touchdown_guard_rate(at_touchdown, p), -ca.inf, -opt.margin)
+    x_td = touchdown_map(at_touchdown, theta_td, p)
+
+    starts_c = ca.horzcat(x_td, comp_nodes[:, :-1])
+    ends_c = interval.map(n)(starts_c, ca.repmat(t_compression / n, 1, n), theta)
+    constrain(comp_nodes - ends_c, 0, 0)
+    bottom = comp_nodes[:, -1]
+    constrain(bottom_guard(bottom), 0, 0)
+    rho_accel = STANCE.get(stance.rhs(bottom, ca.vertcat(u, p)), "rhodot")
+    constrain(rho_accel, opt.margin, ca.inf)
+    # The leg shortens from touchdown (transversally) until the bottom.
+    constrain(bottom_guard(x_td), -ca.inf, -opt.margin)
+    constrain(bottom_guard(comp_nodes[:, :-1]), -ca.inf, 0)
+
+    starts_d = ca.horzcat(bottom, decomp_nodes[:, :-1])
+    ends_d = interval.map(n)(starts_d, ca.repmat(t_decompression / n, 1, n), theta)
+    constrain(decomp_nodes - ends_d, 0, 0)
+    x_lo = decomp_nodes[:, -1]
+    constrain(liftoff_guard(x_lo, p), 0, 0)
+    constrain(STANCE.get(x_lo, "rhodot"), opt.margin, ca.inf)
+    # The leg stays compressed until liftoff.
+    constrain(liftoff_guard(starts_d[:, 1:], p), -ca.inf, 0)
+    # CoM, hip and leg clear of the ground at the nodes (smooth constraints; the
+    # compiled map checks every stage point when it polishes and re-simulates).
+    for nodes in (comp_nodes, decomp_nodes):
+        for k in range(n):
+            constrain(stance_clearances(nodes[:, k], ca.vertcat(u, p)), 0, ca.inf)
+
+    at_liftoff = liftoff_map(x_lo, p)
+    constrain(FLIGHT.get(at_liftoff, "zdot"), opt.margin, ca.inf)
+    at_apex = ballistic_flight(at_liftoff, t_ascent, p)
+    constrain(FLIGHT.get(at_apex, "zdot"), 0, 0)  # apex guard
+    apex_next = ca.vertcat(*(FLIGHT.get(at_apex, name) for name in APEX.names))
+    effort = ca.vertcat(_effort_residuals(ca.horzcat(x_td, comp_nodes), u, t_compression / n),
+                        _effort_residuals(ca.horzcat(bottom, decomp_nodes), u, t_decompression / n))
+    return apex_next, effort
+
+
+def implied_periodicity(spec: FixedPointSpec) -> tuple[str, ...]:
+    """Apex coordinates whose periodicity follows from the others by structure.
+
+    Without hip torque (Kp = Kd = 0 fixed) energy is conserved, so a periodic ydot and
+    theta_h_dot make z periodic. With d = 0 as well, the trunk spins freely: theta_h_dot is
+    always periodic, and theta_h is too when theta_h_dot is fixed at zero. These rows are
+    exactly dependent on the others; the discretisation breaks the dependence by its
+    truncation error, which makes IPOPT declare the problem infeasible. So the NLP leaves
+    them out of the row that closes the orbit (the joins of a multi-stride orbit keep all
+    four, or its intermediate apexes would float); the Newton polish and the verification
+    still check all four on the exact map.
+    """
+    torque_free = spec.fixed.get("Kp") == 0.0 and spec.fixed.get("Kd") == 0.0
+    if not torque_free:
+        return ()
+    implied = ["z"]
+    if spec.params.d == 0.0:
+        implied.append("theta_h_dot")
+        if spec.fixed.get("theta_h_dot") == 0.0:
+            implied.append("theta_h")
+    return tuple(implied)
+
+
+def torque_effort(interval: ca.Function, X, u, durations, params: Params, n: int = 200) -> float:
+    """Integral of tau^2 over stance [N^2 m^2 s] for phase ``durations``, by RK4 quadrature."""
+    p = params.vector()
+    x = np.asarray(_touchdown_state(X, u, p, durations[0])).ravel()
+    total = 0.0
+    for duration in durations[1:3]:
+        for _ in range(n):
+            x_next, effort = interval(x, u, p, duration / n)
+            x, total = np.asarray(x_next).ravel(), total + float(effort)
+    return total
+
+
+def _touchdown_state(X, u, p, t_descent) -> ca.DM:
+    """Stance state at touchdown after ``t_descent`` seconds of descent from apex ``X``."""
+    X, u, p = ca.DM(X), ca.DM(u), ca.DM(p)
+    xf = ca.evalf(ballistic_flight(apex_to_flight(X), t_descent, p))
+    return touchdown_map(xf, float(CONTROL.get(u, "theta_td")), p)
+
+
+def _guess_durations(X, u, params: Params, stride: Stride | None) -> np.ndarray:
+    """Phase durations of the guess's simulated ``stride``, or spring-based estimates if
+    it falls (or was not simulated)."""
+    if stride is not None and stride.ok:
+        return np.array([stride.durations[ph] for ph in PHASES])
+    p = params.vector()
+    t_down = ReturnMap.touchdown_guess(X, u, p) or 0.1
+    quarter = 0.5 * np.pi * np.sqrt(params.m / params.k)
+    return np.array([t_down, quarter, quarter, t_down])
+
+
+def _effort_residuals(states, u, h):
+    """r with sum(r^2) = the trapezoidal tau^2 integral over states h apart."""
+    tau = hip_torque(states, u)
+    weights = ca.DM.ones(1, states.size2())
+    weights[0], weights[-1] = 0.5, 0.5
+    return ca.vec(tau * ca.sqrt(h * weights))
+
+
+def _nlp_functions(w, params, weights, distance, effort, g, kind: str) -> list[ca.Function]:
+    """The NLP's objective and constraints, their first derivatives, and the Hessian that
+    :data:`HESSIANS` names by ``kind`` (for ``limited-memory`` it is built but unused)."""
+    f = weights[0] * distance + weights[1] * ca.sumsqr(effort)
+    lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", g.numel())
+    if kind == "exact":
+        hessian = ca.hessian(lam_f * f + ca.dot(lam_g, g), w)[0]
+    else:  # exact for the distance term, Gauss-Newton (2 J^T J) for the torque term
+        effort_jacobian = ca.jacobian(effort, w)
+        hessian = lam_f * (weights[0] * ca.hessian(distance, w)[0]
+                           + 2 * weights[1] * ca.mtimes(effort_jacobian.T, effort_jacobian))
+    return [
+        ca.Function("nlp_fg", [w, params], [f, g], ["x", "p"], ["f", "g"]),
+        ca.Function("nlp_grad_f", [w, params], [f, ca.gradient(f, w)], ["x", "p"], ["f", "grad_f_x"]),
+        ca.Function("nlp_jac_g", [w, params], [g, ca.jacobian(g, w)], ["x", "p"], ["g", "jac_g_x"]),
+        ca.Function("nlp_hess_l", [w, params, lam_f, lam_g], [ca.triu(hessian)],
+                    ["x", "p", "lam_f", "lam_g"], ["hess_gamma_x_x"]),
+    ]
+
+
+def _nlp_sources() -> list[pathlib.Path]:
+    """The modules the NLP is derived from: the compiled library's key."""
+    return [*kernel_sources(), *module_files(_quantities, sys.modules[__name__])]

@@ -1,0 +1,88 @@
+"""Stability of a fixed point from the eigenvalues of the return-map Jacobian dr/dX.
+
+Some multipliers equal 1 by structure, whatever the gait:
+
+* ``energy``: with no hip torque (Kp = Kd = 0) the total energy is conserved, so the
+  energy gradient is a left eigenvector of dr/dX with eigenvalue 1;
+* ``spin`` (two, a Jordan pair): with d = 0 and no torque the trunk decouples and spins
+  freely, so (theta_h, theta_h_dot) map as [[1, T], [0, 1]].
+
+They are labelled, when a multiplier lies within :data:`TRIVIAL_TOLERANCE` of 1, and left
+out of ``spectral_radius`` and ``stable``: stability then means asymptotic stability
+transverse to those neutral directions (e.g. on the energy level). ``stable`` also asks for
+a margin: a radius within :data:`STABILITY_MARGIN` of 1 is neutral to the accuracy of the
+Jacobian, not stable.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from baslip.model.dynamics import Params
+from baslip.model.hiplaw import CONTROL
+
+#: Distance from 1 within which a structurally trivial multiplier is recognised (the spin
+#: Jordan pair splits by about the square root of the Jacobian's error).
+TRIVIAL_TOLERANCE = 1e-5
+#: Radii in [1 - margin, 1) are called neutral, not stable.
+STABILITY_MARGIN = 1e-6
+
+
+@dataclass(frozen=True)
+class Multiplier:
+    """One eigenvalue of dr/dX, with ``label`` naming it if it is trivial by structure."""
+
+    value: complex
+    label: str | None = None  # None, "energy" or "spin"
+
+    @property
+    def trivial(self) -> bool:
+        return self.label is not None
+
+
+@dataclass(frozen=True)
+class Stability:
+    """Multipliers of a fixed point; radius and verdict over the non-trivial ones."""
+
+    jacobian: np.ndarray  # dr/dX, 4 x 4
+    multipliers: tuple[Multiplier, ...]
+    spectral_radius: float
+    stable: bool
+
+    def __repr__(self) -> str:
+        values = ", ".join(f"{m.value:.4g}" + (f" [{m.label}]" if m.label else "") for m in self.multipliers)
+        return f"<Stability: {'stable' if self.stable else 'unstable'}, radius {self.spectral_radius:.6g}; {values}>"
+
+    def _repr_html_(self) -> str:
+        return repr(self).replace("<", "&lt;").replace(">", "&gt;")
+
+
+def trivial_labels(params: Params, u) -> list[str]:
+    """Labels of the multipliers that equal 1 by the structure of the problem.
+
+    The spin pair comes first: it is 1 at every apex, the energy multiplier only at a
+    fixed point, and labels go to the multipliers nearest 1 in this order.
+    """
+    control = CONTROL.unpack(np.asarray(u, dtype=float))
+    if not (control["Kp"] == 0.0 and control["Kd"] == 0.0):
+        return []
+    return (["spin", "spin"] if params.d == 0.0 else []) + ["energy"]
+
+
+def classify(jacobian: np.ndarray, params: Params, u) -> Stability:
+    """Eigenvalues of ``jacobian``; the trivial ones are those expected by structure that
+    lie nearest to 1, and within :data:`TRIVIAL_TOLERANCE` of it."""
+    eigenvalues = np.linalg.eigvals(np.asarray(jacobian, dtype=float))
+    labels = trivial_labels(params, u)
+    order = np.argsort(np.abs(eigenvalues - 1.0))
+    label_of = {
+        int(i): label
+        for i, label in zip(order, labels)
+        if abs(eigenvalues[i] - 1.0) <= TRIVIAL_TOLERANCE
+    }
+    multipliers = tuple(Multiplier(complex(ev), label_of.get(i)) for i, ev in enumerate(eigenvalues))
+    nontrivial = [abs(m.value) for m in multipliers if not m.trivial]
+    radius = max(nontrivial) if nontrivial else 0.0
+    return Stability(np.asarray(jacobian), multipliers, float(radius), bool(radius < 1.0 - STABILITY_MARGIN))

@@ -1,0 +1,106 @@
+"""The quantities of a fixed-point problem: names, scales, physical bounds, defaults.
+
+A small vocabulary shared by the problem schema and the NLP, so that neither has to
+import the other.
+"""
+
+from __future__ import annotations
+
+import math
+
+from baslip.model.dynamics import APEX
+from baslip.model.hiplaw import CONTROL
+
+#: Design quantities: the apex state and the control.
+DESIGN = APEX.names + CONTROL.names
+#: Everything a problem can fix or bound: the design quantities and the apex energy [J].
+QUANTITIES = DESIGN + ("energy",)
+
+#: Scale of each design quantity for the ``nearest_guess`` distance and the polish step.
+NOMINAL = {
+    "z": 0.1, "theta_h": 0.1, "ydot": 0.1, "theta_h_dot": 1.0,
+    "Kp": 1.0, "Kd": 0.1, "theta2_des": 0.1, "theta2_dot_des": 1.0, "theta_td": 0.1,
+}
+
+#: Physical bounds of each design quantity; a problem's bounds must lie inside them.
+DEFAULT_BOUNDS = {
+    "z": (0.0, 10.0),
+    "theta_h": (-2 * math.pi, 2 * math.pi),
+    "ydot": (-20.0, 20.0),
+    "theta_h_dot": (-100.0, 100.0),
+    "Kp": (-1e3, 1e3),
+    "Kd": (-1e2, 1e2),
+    "theta2_des": (-2 * math.pi, 2 * math.pi),
+    "theta2_dot_des": (-100.0, 100.0),
+    "theta_td": (-1.5, 1.5),
+}
+
+#: Physical range of each model parameter: (lo, hi, whether lo itself is allowed).
+#: Mass [kg], inertia [kg m^2], stiffness [N/m], rest length [m], hip offset [m], gravity [m/s^2].
+PARAM_RANGES = {
+    "m": (0.0, 1e4, False),
+    "I": (0.0, 1e4, False),
+    "k": (0.0, 1e8, False),
+    "rho0": (0.0, 10.0, False),
+    "d": (0.0, 10.0, True),
+    "g": (0.0, 100.0, False),
+}
+
+#: Physical range of the apex energy [J] (z, ydot and theta_h_dot within their bounds
+#: and the parameters within theirs never give more).
+ENERGY_RANGE = (0.0, 1e8)
+
+
+#: SI unit of each quantity and parameter, for messages and axis labels.
+UNITS = {
+    "z": "m", "theta_h": "rad", "ydot": "m/s", "theta_h_dot": "rad/s",
+    "Kp": "N m/rad", "Kd": "N m s/rad", "theta2_des": "rad", "theta2_dot_des": "rad/s", "theta_td": "rad",
+    "energy": "J", "m": "kg", "I": "kg m^2", "k": "N/m", "rho0": "m", "d": "m", "g": "m/s^2",
+}
+
+
+def physical_range(name: str) -> tuple[float, float]:
+    """Documented range of a design quantity, ``energy`` or a model parameter."""
+    if name in DEFAULT_BOUNDS:
+        return DEFAULT_BOUNDS[name]
+    if name == "energy":
+        return ENERGY_RANGE
+    lo, hi, _ = PARAM_RANGES[name]
+    return lo, hi
+
+
+#: Starting values of design quantities that a problem neither fixes nor guesses (they are
+#: clipped into the problem's bounds).
+DEFAULT_GUESS = {
+    "z": 0.4,
+    "theta_h": math.pi / 2,
+    "ydot": 0.5,
+    "theta_h_dot": 0.0,
+    "Kp": 0.0,
+    "Kd": 0.0,
+    "theta2_des": math.pi - 0.1,
+    "theta2_dot_des": 0.0,
+    "theta_td": 0.1,
+}
+
+#: Objectives and their weights (nearest-guess distance, integral of tau^2 dt):
+#: ``nearest_guess``, ``min_torque`` (with a 1e-6 nearest-guess term to make the minimiser
+#: unique) and ``feasibility`` (the constraints, with only that 1e-6 nearest-guess term:
+#: with none at all IPOPT's answer followed round-off in its path, and a start changed
+#: at 1e-14 moved it from Kp = 2.6 to Kp = 881 N m/rad).
+OBJECTIVES = {
+    "nearest_guess": (1.0, 0.0),
+    "min_torque": (1e-6, 1.0),
+    "feasibility": (1e-6, 0.0),
+}
+
+
+def start_value(name: str, fixed, guess, bounds) -> float:
+    """Value a design quantity starts from: fixed, else guessed, else its default clipped
+    into the problem's bounds."""
+    if name in fixed:
+        return fixed[name]
+    if name in guess:
+        return guess[name]
+    lo, hi = bounds.get(name, (-math.inf, math.inf))
+    return min(max(DEFAULT_GUESS[name], lo), hi)

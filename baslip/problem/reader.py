@@ -1,0 +1,512 @@
+"""Problem files: YAML validated into frozen dataclasses, with errors that name the key.
+
+A problem file says *what* to solve::
+
+    name: downward
+    params: {m: 1.0, I: 0.0033, k: 1000, rho0: 0.2, d: 0.04, g: 9.81}
+    fix: {ydot: 0.5, z: 0.4}
+    guess: {theta_h: "-90 deg", Kp: 1.0, theta_td: "8 deg"}
+    bounds: {theta_h: ["-120 deg", "-60 deg"]}
+    objective: nearest_guess
+    solver: {nodes: 20, substeps: 1, max_iter: 300, tol: 1.0e-10, print_level: 0}
+
+Values are SI units and radians. Angles (``theta_h``, ``theta2_des``, ``theta_td``) may be
+written ``"-90 deg"`` and rates (``theta_h_dot``, ``theta2_dot_des``) ``"30 deg/s"``.
+Every problem in a file raises :class:`ProblemError` carrying the offending key.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+import re
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+from baslip.errors import ProblemError
+from baslip.model.dynamics import PARAMS, Params
+from baslip.model.quantities import (
+    DEFAULT_BOUNDS,
+    DESIGN,
+    OBJECTIVES,
+    PARAM_RANGES,
+    QUANTITIES,
+    UNITS,
+    physical_range,
+    start_value,
+)
+from baslip.problem.study import STUDY_KINDS, Basin, Optimal, Study, Sweep, parse_study
+from baslip.problem.text import NonScalarKey, UnreadableText, clip, excerpt, read_yaml
+from baslip.problem.values import ANGLES, RATES
+from baslip.problem.values import number as _number
+
+TOP_LEVEL_KEYS = ("name", "params", "fix", "guess", "bounds", "objective", "strides", "solver", "study", "continuation")
+#: Longest orbit, in strides, that a problem may ask for.
+MAX_STRIDES = 16
+#: Most fixed points one sweep may ask for (a day of solving on two cores).
+MAX_SWEEP_POINTS = 100_000
+#: Range of IPOPT's tolerance, and the largest first continuation step (scaled units).
+TOLERANCES = (1e-16, 1e-2)
+MAX_STEP = 10.0
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """Discretisation and IPOPT settings.
+
+    nodes: shooting intervals per stance phase; substeps: RK4 steps per interval;
+    max_iter: IPOPT iteration limit; tol: IPOPT tolerance; print_level: IPOPT verbosity.
+    """
+
+    nodes: int = 20
+    substeps: int = 1
+    max_iter: int = 300
+    tol: float = 1e-10
+    print_level: int = 0
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A validated fixed-point problem (values in SI units and radians)."""
+
+    name: str
+    params: Params = Params()
+    fix: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
+    guess: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
+    bounds: Mapping[str, tuple[float, float]] = field(default_factory=lambda: MappingProxyType({}))
+    objective: str = "nearest_guess"
+    strides: int = 1  # period of the orbit in strides; fix and guess refer to its first apex
+    solver: SolverSettings = SolverSettings()
+    study: Study | None = None  # many solves or simulations instead of one fixed point
+    continuation: ContinuationSpec | None = None  # trace a branch instead
+
+    def full_guess(self) -> dict[str, float]:
+        """Starting value of every design quantity that is not fixed."""
+        return {n: self.start_value(n) for n in DESIGN if n not in self.fix}
+
+    def start_value(self, name: str) -> float:
+        """The fixed value of ``name`` if fixed, else its starting value."""
+        return start_value(name, self.fix, self.guess, self.bounds)
+
+    def __reduce__(self):
+        # Workers get the problem itself, as data; mapping proxies do not pickle, so they
+        # travel as dicts and are wrapped again on arrival.
+        state = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        return _unpickled_problem, ({k: dict(v) if k in _MAPPINGS else v for k, v in state.items()},)
+
+    def replace(self, **changes: Any) -> Problem:
+        """A new problem with ``changes`` to its top-level keys, checked like a problem file.
+
+        Values are given as in a problem file (``fix={"z": 0.45}``, ``params={"k": 2000}``,
+        ``study={...}``), or as the objects the problem holds (``params=Params(k=2000)``).
+        Raises :class:`ProblemError` with the same one-line message a file would get.
+        """
+        return replace_problem(self, **changes)
+
+
+#: The fields of a problem held as read-only mappings.
+_MAPPINGS = ("fix", "guess", "bounds")
+
+
+def _unpickled_problem(state: dict) -> Problem:
+    return Problem(**{k: MappingProxyType(v) if k in _MAPPINGS else v for k, v in state.items()})
+
+
+def load_problem(path: str | Path) -> Problem:
+    """Read and validate a YAML problem file."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ProblemError("", f"no such problem file: {path}") from None
+    except UnicodeDecodeError:
+        raise ProblemError("", f"problem file {path} is not UTF-8 text") from None
+    except OSError as err:
+        raise ProblemError("", f"cannot read problem file {path}: {err.strerror}") from None
+    try:
+        data = read_yaml(text)
+    except UnreadableText as err:
+        raise ProblemError("", str(err)) from None
+    if data is None:
+        raise ProblemError("", "the problem file is empty (it holds only comments, '---' or null)")
+    return parse_problem(data, default_name=re.sub(r"[^A-Za-z0-9_.-]", "_", path.stem))
+
+
+def parse_problem(data: Any, default_name: str = "problem") -> Problem:
+    """Validate a problem given as plain data (as read from YAML).
+
+    ``params`` and ``solver`` may also be given as :class:`Params` and
+    :class:`SolverSettings` objects; they are checked like their mappings.
+    """
+    top = _mapping(data, "", TOP_LEVEL_KEYS)
+    fields = {key: _FIELDS[key](top[key]) for key in TOP_LEVEL_KEYS if key in top}
+    fields.setdefault("name", _name(default_name))
+    return _checked(Problem(**fields))
+
+
+def replace_problem(problem: Problem, **changes: Any) -> Problem:
+    """``problem`` with ``changes`` (top-level keys, as in a problem file), validated by the
+    same rules as a problem file. Raises :class:`ProblemError` naming the key."""
+    for key in changes:
+        if key not in TOP_LEVEL_KEYS:
+            raise ProblemError(clip(str(key)), f"unknown key (expected one of {', '.join(TOP_LEVEL_KEYS)})")
+    fields = {key: _FIELDS[key](value) for key, value in changes.items()}
+    return _checked(dataclasses.replace(problem, **fields))
+
+
+def _checked(problem: Problem) -> Problem:
+    """``problem``, once the rules that tie its sections together hold."""
+    if problem.study is not None and problem.continuation is not None:
+        raise ProblemError("continuation", "a problem has either a study or a continuation, not both")
+    if problem.study is not None and problem.strides != 1:
+        raise ProblemError("strides", "studies solve one-stride gaits; remove strides or the study")
+    _check_consistency(problem)
+    _check_sweep(problem)
+    _check_basin(problem)
+    _check_continuation(problem)
+    return problem
+
+
+def _name(value: Any) -> str:
+    if not isinstance(value, str) or not re.fullmatch(r"[A-Za-z0-9_.-]{1,100}", value) or set(value) == {"."}:
+        raise ProblemError("name", f"expected up to 100 letters, digits, '_', '-' or '.', got {excerpt(value)}")
+    return value
+
+
+def _objective(value: Any) -> str:
+    if not isinstance(value, str) or value not in OBJECTIVES:
+        raise ProblemError("objective", f"expected one of {', '.join(OBJECTIVES)}, got {excerpt(value)}")
+    return value
+
+
+def _optional(parse: Callable[[Any], Any], kinds: tuple[type, ...]) -> Callable[[Any], Any]:
+    """A section's parser that also takes its parsed form (or None, for no section)."""
+    return lambda value: value if value is None or isinstance(value, kinds) else parse(value)
+
+
+# --- pieces -------------------------------------------------------------------------------
+
+
+def _mapping(value: Any, key: str, allowed: tuple[str, ...]) -> dict[str, Any]:
+    where = key or "the problem file"
+    if not isinstance(value, dict):
+        raise ProblemError(key, f"expected a mapping for {where}, got {type(value).__name__}")
+    for name in value:
+        dotted = f"{key}.{clip(str(name))}" if key else clip(str(name))
+        if isinstance(name, NonScalarKey):
+            raise ProblemError(dotted, f"a key must be a plain name, not a {name.kind}")
+        if name not in allowed:
+            raise ProblemError(dotted, f"unknown key (expected one of {', '.join(allowed)})")
+    return value
+
+
+
+
+def _params(value: Any) -> Params:
+    raw = _mapping(value, "params", PARAMS.names)
+    return Params(**{name: _physical(name, _number(v, f"params.{name}"), f"params.{name}") for name, v in raw.items()})
+
+
+def _physical(name: str, value: float, key: str) -> float:
+    """``value`` if it lies in the documented physical range of ``name``, else an error."""
+    unit = UNITS[name]
+    if name in PARAM_RANGES:
+        lo, hi, closed = PARAM_RANGES[name]
+        if value < lo or (value == lo and not closed):
+            raise ProblemError(key, f"must be {'zero or ' if closed else ''}positive, got {value:g} {unit}")
+        if value > hi:
+            raise ProblemError(key, f"{value:g} {unit} exceeds the physical range (at most {hi:g} {unit})")
+        return value
+    lo, hi = physical_range(name)
+    if not lo <= value <= hi:
+        hint = ""
+        if name in ANGLES and abs(value) > 2 * math.pi:  # looks like degrees
+            hint = ' (angles are in radians; write "-90 deg" for degrees)'
+        elif name in RATES:
+            hint = ' (rates are in rad/s; write "30 deg/s" for degrees)'
+        raise ProblemError(key, f"{value:g} {unit} lies outside the physical range [{lo:g}, {hi:g}] {unit}{hint}")
+    return value
+
+
+def _quantities(value: Any, key: str, allowed: tuple[str, ...]) -> dict[str, float]:
+    raw = _mapping(value, key, allowed)
+    return {name: _physical(name, _number(v, f"{key}.{name}"), f"{key}.{name}") for name, v in raw.items()}
+
+
+def _bounds(value: Any) -> dict[str, tuple[float, float]]:
+    raw = _mapping(value, "bounds", QUANTITIES)
+    bounds = {}
+    for name, pair in raw.items():
+        key = f"bounds.{name}"
+        if not isinstance(pair, (list, tuple)) or len(pair) != 2:
+            raise ProblemError(key, f"expected [lo, hi] (null for no bound), got {excerpt(pair)}")
+        # A missing end is the physical limit; a written one must lie within the range.
+        lo = -math.inf if pair[0] is None else _physical(name, _number(pair[0], key), key)
+        hi = math.inf if pair[1] is None else _physical(name, _number(pair[1], key), key)
+        if lo > hi:
+            raise ProblemError(key, f"lower bound {lo:g} exceeds upper bound {hi:g}")
+        bounds[name] = (lo, hi)
+    return bounds
+
+
+@dataclass(frozen=True)
+class ContinuationSpec:
+    """Trace the branch of fixed points as ``parameter`` varies over [lo, hi].
+
+    parameter: a fixed quantity (or energy) or a model parameter; step: first arclength
+    step (scaled units); max_points: limit on the points; direction: +1 or -1, the way
+    lambda first moves; plot: apex quantity on the diagram's vertical axis; switch:
+    ``period_doubling`` to also trace, from each period doubling found on the first
+    branch, the branch of orbits of twice the period.
+    """
+
+    parameter: str
+    lo: float
+    hi: float
+    step: float = 0.05
+    max_points: int = 300
+    direction: int | str = 1
+    plot: str = "z"
+    switch: str | None = None  # "period_doubling": also trace the doubled-period branches
+    second: str | None = None  # with a second parameter, bifurcation curves are followed
+    second_lo: float = -math.inf
+    second_hi: float = math.inf
+    follow: tuple[str, ...] = ()  # curve types, each from a special point of the branch
+    starts: str = "first"  # "first": one curve per type; "all": one from each such point
+
+
+#: Branch switches a continuation can make at its special points.
+SWITCHES = ("period_doubling",)
+#: Bifurcation curves a continuation can follow in two parameters.
+FOLLOWS = ("fold", "period_doubling", "neimark_sacker")
+CONTINUATION_KEYS = ("parameter", "range", "step", "max_points", "direction", "plot", "switch",
+                     "second", "second_range", "follow", "starts")
+
+
+def _continuation(value: Any) -> ContinuationSpec:
+    raw = _mapping(value, "continuation", CONTINUATION_KEYS)
+    parameter = _continued(raw.get("parameter"), "continuation.parameter")
+    lo, hi = _continuation_range(raw.get("range"), parameter, "continuation.range")
+    step = _number(raw.get("step", 0.05), "continuation.step")
+    if not 0 < step <= MAX_STEP:
+        raise ProblemError("continuation.step", f"expected a step in (0, {MAX_STEP:g}] (scaled units), got {step:g}")
+    max_points = raw.get("max_points", 300)
+    if isinstance(max_points, bool) or not isinstance(max_points, int) or not 2 <= max_points <= 100000:
+        raise ProblemError("continuation.max_points", f"expected an integer in [2, 100000], got {excerpt(max_points)}")
+    direction = raw.get("direction", 1)
+    if isinstance(direction, bool) or direction not in (1, -1, "both"):
+        raise ProblemError("continuation.direction", f"expected 1, -1 or both, got {excerpt(direction)}")
+    plot = raw.get("plot", "z")
+    if plot not in DESIGN:
+        raise ProblemError("continuation.plot", f"expected a design quantity, got {excerpt(plot)}")
+    switch = raw.get("switch")
+    if switch is not None and switch not in SWITCHES:
+        raise ProblemError("continuation.switch", f"expected one of {', '.join(SWITCHES)}, got {excerpt(switch)}")
+    curves = _curves(raw, parameter)
+    if curves and switch is not None:
+        raise ProblemError("continuation.switch", "a continuation either switches branches or follows curves, not both")
+    return ContinuationSpec(parameter, lo, hi, step, max_points, direction, plot, switch, **curves)
+
+
+def _continued(name: Any, key: str) -> str:
+    if name not in QUANTITIES + PARAMS.names:
+        raise ProblemError(key, f"expected a quantity or a model parameter, got {excerpt(name)}")
+    return name
+
+
+def _continuation_range(bounds: Any, name: str, key: str) -> tuple[float, float]:
+    if not isinstance(bounds, (list, tuple)) or len(bounds) != 2:
+        raise ProblemError(key, f"expected [lo, hi], got {excerpt(bounds)}")
+    where = f"{key}.{name}"
+    lo, hi = (_physical(name, _number(b, where), where) for b in bounds)
+    if lo >= hi:
+        raise ProblemError(key, f"expected lo < hi, got [{lo:g}, {hi:g}]")
+    return lo, hi
+
+
+def _curves(raw: dict, parameter: str) -> dict:
+    """The two-parameter keys (second, second_range, follow, starts): all or none."""
+    present = [k for k in ("second", "second_range", "follow", "starts") if k in raw]
+    if not present:
+        return {}
+    for key in ("second", "second_range", "follow"):
+        if key not in raw:
+            raise ProblemError(f"continuation.{key}", f"is needed with {', '.join(present)} (a curve in two parameters)")
+    second = _continued(raw["second"], "continuation.second")
+    if second == parameter:
+        raise ProblemError("continuation.second", f"must differ from the first parameter ({parameter})")
+    second_lo, second_hi = _continuation_range(raw["second_range"], second, "continuation.second_range")
+    follow = raw["follow"] if isinstance(raw["follow"], list) else [raw["follow"]]
+    if not follow or any(f not in FOLLOWS for f in follow) or len(set(follow)) != len(follow):
+        raise ProblemError("continuation.follow", f"expected one or more of {', '.join(FOLLOWS)}, got {excerpt(raw['follow'])}")
+    starts = raw.get("starts", "first")
+    if starts not in ("first", "all"):
+        raise ProblemError("continuation.starts", f"expected first or all, got {excerpt(starts)}")
+    return {"second": second, "second_lo": second_lo, "second_hi": second_hi, "follow": tuple(follow), "starts": starts}
+
+
+def _strides(value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_STRIDES:
+        raise ProblemError("strides", f"expected an integer in [1, {MAX_STRIDES}], got {excerpt(value)}")
+    return value
+
+
+def _study(value: Any) -> Study:
+    return parse_study(value)
+
+
+def _solver(value: Any) -> SolverSettings:
+    raw = _mapping(value, "solver", ("nodes", "substeps", "max_iter", "tol", "print_level"))
+    limits = {"nodes": (2, 200), "substeps": (1, 20), "max_iter": (1, 100000), "print_level": (0, 12)}
+    settings = {}
+    for name, v in raw.items():
+        key = f"solver.{name}"
+        if name == "tol":
+            settings[name] = _number(v, key)
+            if not TOLERANCES[0] <= settings[name] <= TOLERANCES[1]:
+                raise ProblemError(key, f"expected a tolerance in [{TOLERANCES[0]:g}, {TOLERANCES[1]:g}], got {settings[name]:g}")
+            continue
+        lo, hi = limits[name]
+        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+            raise ProblemError(key, f"expected an integer in [{lo}, {hi}], got {excerpt(v)}")
+        settings[name] = v
+    return SolverSettings(**settings)
+
+
+#: The parser of each top-level key's value.
+_FIELDS: dict[str, Callable[[Any], Any]] = {
+    "name": _name,
+    "params": lambda v: _params(dataclasses.asdict(v) if isinstance(v, Params) else v),
+    "fix": lambda v: MappingProxyType(_quantities(v, "fix", QUANTITIES)),
+    "guess": lambda v: MappingProxyType(_quantities(v, "guess", DESIGN)),
+    "bounds": lambda v: MappingProxyType(_bounds(v)),
+    "objective": _objective,
+    "strides": lambda v: _strides(v),
+    "solver": lambda v: _solver(dataclasses.asdict(v) if isinstance(v, SolverSettings) else v),
+    "study": _optional(lambda v: _study(v), STUDY_KINDS),
+    "continuation": _optional(lambda v: _continuation(v), (ContinuationSpec,)),
+}
+
+
+def _check_consistency(problem: Problem) -> None:
+    for name, value in problem.fix.items():
+        if name in problem.guess:
+            raise ProblemError(f"guess.{name}", f"{name} is fixed at {value:g}; remove it from guess")
+        lo, hi = problem.bounds.get(name, (-math.inf, math.inf))
+        if not lo <= value <= hi:
+            raise ProblemError(f"fix.{name}", f"{value:g} lies outside bounds.{name} = [{lo:g}, {hi:g}]")
+    for name, value in problem.guess.items():
+        lo, hi = problem.bounds.get(name, (-math.inf, math.inf))
+        if not lo <= value <= hi:
+            raise ProblemError(f"guess.{name}", f"{value:g} lies outside bounds.{name} = [{lo:g}, {hi:g}]")
+    _check_energy(problem)
+    theta_td = problem.start_value("theta_td")
+    if not abs(theta_td) < math.pi / 2:
+        key = "fix.theta_td" if "theta_td" in problem.fix else "guess.theta_td"
+        raise ProblemError(key, f"touchdown angle {theta_td:g} rad must lie within (-pi/2, pi/2)")
+    z, theta_h = problem.start_value("z"), problem.start_value("theta_h")
+    p = problem.params
+    foot_height = z - p.d * math.sin(theta_h) - p.rho0 * math.cos(theta_td)
+    if foot_height < 0:
+        key = "fix.z" if "z" in problem.fix else "guess.z"
+        raise ProblemError(
+            key,
+            f"apex height {z:g} m puts the foot below ground at apex (foot at {foot_height:.4g} m "
+            f"with theta_h = {theta_h:.4g} rad, theta_td = {theta_td:.4g} rad)",
+        )
+
+
+def _check_energy(problem: Problem) -> None:
+    """A fixed apex energy must be reachable: E = m g z + m ydot^2/2 + I theta_h_dot^2/2."""
+    if "energy" not in problem.fix:
+        return
+    p, fix = problem.params, problem.fix
+    energy = fix["energy"]
+
+    def least(name: str) -> float:
+        """Smallest value of name (if fixed, its value) allowed by the bounds, in its term."""
+        if name in fix:
+            return fix[name] if name == "z" else fix[name] ** 2
+        lo, hi = problem.bounds.get(name, DEFAULT_BOUNDS[name])
+        lo, hi = max(lo, DEFAULT_BOUNDS[name][0]), min(hi, DEFAULT_BOUNDS[name][1])
+        return lo if name == "z" else (0.0 if lo <= 0.0 <= hi else min(lo * lo, hi * hi))
+
+    lowest = p.m * p.g * least("z") + 0.5 * p.m * least("ydot") + 0.5 * p.I * least("theta_h_dot")
+    tolerance = 1e-9 * max(1.0, abs(energy))
+    if energy < lowest - tolerance:
+        raise ProblemError("fix.energy", f"{energy:g} J is below the least apex energy {lowest:.6g} J that the other values allow")
+    if all(n in fix for n in ("z", "ydot", "theta_h_dot")) and energy > lowest + tolerance:
+        raise ProblemError(
+            "fix.energy",
+            f"{energy:g} J contradicts fix.z, fix.ydot and fix.theta_h_dot, which make it {lowest:.12g} J",
+        )
+
+
+def check_point(problem: Problem, values: Mapping[str, float]) -> None:
+    """Raise :class:`ProblemError` unless ``problem`` with ``values`` fixed on top of its own
+    fixed values passes every check a written ``fix`` gets (physical range, the problem's
+    bounds, touchdown angle, foot above ground at apex, reachable energy)."""
+    for name, value in values.items():
+        _physical(name, value, f"fix.{name}")
+    guess = {n: v for n, v in problem.guess.items() if n not in values}
+    variant = replace(problem, fix=MappingProxyType({**problem.fix, **values}), guess=MappingProxyType(guess))
+    _check_consistency(variant)
+
+
+def _check_sweep(problem: Problem) -> None:
+    """Every point of a sweep (or an optimal-gait search) must be a problem that would be
+    accepted written out."""
+    if not isinstance(problem.study, (Sweep, Optimal)):
+        return
+    axes = problem.study.axes
+    points = math.prod(len(a.values) for a in axes) * getattr(problem.study, "starts", 1)
+    if points > MAX_SWEEP_POINTS:
+        raise ProblemError("study.vary", f"{points} points is more than {MAX_SWEEP_POINTS}")
+    for point in itertools.product(*(a.values for a in axes)):
+        values = {a.name: v for a, v in zip(axes, point)}
+        try:
+            check_point(problem, values)
+        except ProblemError as err:
+            name = err.key.rsplit(".", 1)[-1]
+            where = ", ".join(f"{n} = {v:g}" for n, v in values.items())
+            key = f"study.vary.{name}" if name in values else "study.vary"
+            raise ProblemError(key, f"at {where}: {err.message}") from None
+
+
+def _check_basin(problem: Problem) -> None:
+    """Basin start states lie in the physical ranges of ydot and z."""
+    study = problem.study
+    if not isinstance(study, Basin):
+        return
+    for axis in study.grid:
+        for value in axis.values:
+            _physical(axis.name, value, f"study.grid.{axis.name}")
+    for key, (ydot, z) in (("study.stable_at", study.stable_at), ("study.unstable_at", study.unstable_at)):
+        _physical("ydot", ydot, f"{key}.ydot")
+        _physical("z", z, f"{key}.z")
+
+
+def _check_continuation(problem: Problem) -> None:
+    """A branch starts at the problem's own value of its parameter, inside its range."""
+    spec = problem.continuation
+    if spec is None:
+        return
+    ranges = [(spec.parameter, spec.lo, spec.hi, "continuation.range")]
+    if spec.second is not None:
+        ranges.append((spec.second, spec.second_lo, spec.second_hi, "continuation.second_range"))
+    for name, lo, hi, key in ranges:
+        if name in PARAMS.names:
+            start = getattr(problem.params, name)
+        elif name in problem.fix:
+            start = problem.fix[name]
+        else:
+            continue  # not fixed: refused with its own message when the branch is checked
+        if not lo <= start <= hi:
+            raise ProblemError(
+                key,
+                f"the branch starts at {name} = {start:g} {UNITS[name]}, "
+                f"outside [{lo:g}, {hi:g}]; widen the range or change the start",
+            )

@@ -1,0 +1,46 @@
+"""The problem files that ship with baslip: where they are, and copying them out.
+
+In a wheel they travel as ``baslip/problems``; in a clone (an editable install) they are
+the repository's ``problems/`` folder.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+
+def problems_dir() -> Path:
+    """The folder of the shipped ``*.yaml`` problem files."""
+    packaged = Path(__file__).resolve().parents[1] / "problems"
+    if packaged.is_dir():
+        return packaged
+    return Path(__file__).resolve().parents[2] / "problems"
+
+
+def shipped_problems() -> list[Path]:
+    """The shipped problem files, sorted by name."""
+    return sorted(problems_dir().glob("*.yaml"))
+
+
+def describe(path: Path) -> str:
+    """The first comment line of a problem file (what it is), or ''."""
+    for line in path.read_text(encoding="utf-8").splitlines():
+        if line.startswith("#"):
+            return line.lstrip("# ").strip()
+        if line.strip():
+            break
+    return ""
+
+
+def copy_problems(target: Path) -> list[Path]:
+    """Copy every shipped problem into ``target`` (created if needed), never overwriting a
+    file already there; return the files copied."""
+    target.mkdir(parents=True, exist_ok=True)
+    copied = []
+    for path in shipped_problems():
+        destination = target / path.name
+        if not destination.exists():
+            shutil.copyfile(path, destination)
+            copied.append(destination)
+    return copied

@@ -1,0 +1,253 @@
+"""The ``study:`` section of a problem file, validated into frozen dataclasses.
+
+Kinds:
+
+* ``sweep``: fixed points over a grid of one or two quantities,
+  ``vary: {ydot: [start, stop, step], z: [start, stop, step]}`` (both ends included);
+* ``random``: ``count`` fixed points at random values of the two quantities of a finished
+  sweep (``region``), inside its stable region: the region interpolated from the grid, or,
+  with ``boundary``, inside the stability boundary traced by a finished continuation in
+  those two quantities (:mod:`baslip.studies.boundary`); ``seed`` makes the draw repeatable;
+* ``basin``: convergence regions, by simulation, of the stable fixed points of a finished
+  sweep (``source``) over a ``grid`` of (ydot, z) apex states; ``stable_at`` and
+  ``unstable_at`` pick the example points; ``strides`` and ``tolerance`` decide convergence;
+* ``adaptive``: re-solve the control at every apex for ``strides`` strides from the
+  problem's fixed point, then hold the last control for at most ``frozen_strides``;
+* ``optimal``: at every point of a grid of one or two quantities (``vary``, as a sweep),
+  ``starts`` fixed points with gains drawn over their whole bounds, each followed by a
+  descent of at most ``iterations`` steps to the least spectral radius nearby
+  (:mod:`baslip.analysis.descent`); ``seed`` makes the draws repeatable.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+from baslip.errors import ProblemError
+from baslip.model.quantities import DESIGN
+from baslip.problem.text import NonScalarKey, clip, excerpt
+from baslip.problem.values import number
+
+#: Most values along one axis of a sweep or a basin grid.
+MAX_AXIS_VALUES = 100_000
+
+
+class StudyError(ProblemError):
+    """An invalid study section; ``key`` is the dotted path of the offending entry."""
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One swept quantity and its values (SI units and radians)."""
+
+    name: str
+    values: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Sweep:
+    axes: tuple[Axis, ...]
+    kind: str = "sweep"
+
+
+@dataclass(frozen=True)
+class RandomSample:
+    region: str  # name of a finished two-quantity sweep
+    count: int
+    seed: int = 0
+    boundary: str | None = None  # name of a finished curve run: sample inside its boundary
+    kind: str = "random"
+
+
+@dataclass(frozen=True)
+class Basin:
+    source: str  # name of a finished (ydot, z) sweep
+    grid: tuple[Axis, Axis]  # ydot and z of the initial apex states
+    stable_at: tuple[float, float]  # (ydot, z) near the stable example
+    unstable_at: tuple[float, float]  # (ydot, z) near the unstable example
+    strides: int = 40
+    tolerance: float = 1e-6
+    kind: str = "basin"
+
+
+@dataclass(frozen=True)
+class Adaptive:
+    strides: int = 2048
+    frozen_strides: int = 1000
+    perturbation: tuple[tuple[str, float], ...] = ()  # offsets of the first apex from the gait
+    criterion: str = "thesis"  # "thesis": next apex near the current one; "tracking": near the gait
+    probe_strides: int = 200  # strides a perturbed start must survive to count as recovered
+    kind: str = "adaptive"
+
+
+@dataclass(frozen=True)
+class Optimal:
+    axes: tuple[Axis, ...]
+    starts: int = 16
+    seed: int = 0
+    iterations: int = 60  # most quasi-Newton iterations of each descent
+    kind: str = "optimal"
+
+
+@dataclass(frozen=True)
+class Controllers:
+    perturbation: tuple[tuple[str, float], ...]  # half-width of the box in each apex quantity
+    samples: int = 200
+    seed: int = 0
+    strides: int = 100
+    tolerance: float = 1e-3
+    criterion: str = "tracking"  # of the per-stride re-solve: "thesis" or "tracking"
+    lqr_scale: tuple[tuple[str, float], ...] = ()  # apex deviation costing as much as a nominal control change
+    kind: str = "controllers"
+
+
+Study = Sweep | RandomSample | Basin | Adaptive | Optimal | Controllers
+#: The study classes, for ``isinstance``.
+STUDY_KINDS = (Sweep, RandomSample, Basin, Adaptive, Optimal, Controllers)
+KINDS = ("sweep", "random", "basin", "adaptive", "optimal", "controllers")
+
+
+def parse_study(data) -> Study:
+    """Validate a ``study`` mapping into its frozen dataclass."""
+    if not isinstance(data, dict):
+        raise StudyError("study", f"expected a mapping, got {type(data).__name__}")
+    kind = data.get("kind")
+    if not isinstance(kind, str) or kind not in KINDS:
+        raise StudyError("study.kind", f"expected one of {', '.join(KINDS)}, got {excerpt(kind)}")
+    allowed = {
+        "sweep": ("kind", "vary"),
+        "random": ("kind", "region", "count", "seed", "boundary"),
+        "basin": ("kind", "source", "grid", "stable_at", "unstable_at", "strides", "tolerance"),
+        "adaptive": ("kind", "strides", "frozen_strides", "perturbation", "criterion", "probe_strides"),
+        "optimal": ("kind", "vary", "starts", "seed", "iterations"),
+        "controllers": ("kind", "perturbation", "samples", "seed", "strides", "tolerance", "criterion", "lqr_scale"),
+    }[kind]
+    for key in data:
+        if isinstance(key, NonScalarKey):
+            raise StudyError(f"study.{key}", f"a key must be a plain name, not a {key.kind}")
+        if key not in allowed:
+            raise StudyError(f"study.{clip(str(key))}", f"unknown key for a {kind} study (expected one of {', '.join(allowed)})")
+    if kind in ("sweep", "optimal"):
+        axes = _axes(data.get("vary"), "study.vary", DESIGN)
+        if not 1 <= len(axes) <= 2:
+            raise StudyError("study.vary", f"expected one or two quantities, got {len(axes)}")
+        if kind == "sweep":
+            return Sweep(axes)
+        return Optimal(
+            axes,
+            starts=_integer(data.get("starts", 16), "study.starts", 1, 10000),
+            seed=_integer(data.get("seed", 0), "study.seed", 0, 2**31 - 1),
+            iterations=_integer(data.get("iterations", 60), "study.iterations", 1, 10000),
+        )
+    if kind == "random":
+        return RandomSample(
+            region=_name(data.get("region"), "study.region"),
+            count=_integer(data.get("count"), "study.count", 1, 100000),
+            seed=_integer(data.get("seed", 0), "study.seed", 0, 2**31 - 1),
+            boundary=_name(data["boundary"], "study.boundary") if "boundary" in data else None,
+        )
+    if kind == "basin":
+        grid = _axes(data.get("grid"), "study.grid", ("ydot", "z"))
+        if tuple(a.name for a in grid) != ("ydot", "z"):
+            raise StudyError("study.grid", "expected ydot and z, in that order")
+        return Basin(
+            source=_name(data.get("source"), "study.source"),
+            grid=(grid[0], grid[1]),
+            stable_at=_pair(data.get("stable_at"), "study.stable_at"),
+            unstable_at=_pair(data.get("unstable_at"), "study.unstable_at"),
+            strides=_integer(data.get("strides", 40), "study.strides", 1, 100000),
+            tolerance=_fraction(data.get("tolerance", 1e-6), "study.tolerance"),
+        )
+    if kind == "controllers":
+        criterion = _criterion(data.get("criterion", "tracking"))
+        return Controllers(
+            perturbation=_apex_map(data.get("perturbation"), "study.perturbation", positive=True, required=True),
+            samples=_integer(data.get("samples", 200), "study.samples", 1, 100000),
+            seed=_integer(data.get("seed", 0), "study.seed", 0, 2**31 - 1),
+            strides=_integer(data.get("strides", 100), "study.strides", 1, 100000),
+            tolerance=_fraction(data.get("tolerance", 1e-3), "study.tolerance"),
+            criterion=criterion,
+            lqr_scale=_apex_map(data.get("lqr_scale", {}), "study.lqr_scale", positive=True),
+        )
+    return Adaptive(
+        strides=_integer(data.get("strides", 2048), "study.strides", 1, 1000000),
+        frozen_strides=_integer(data.get("frozen_strides", 1000), "study.frozen_strides", 1, 1000000),
+        perturbation=_apex_map(data.get("perturbation", {}), "study.perturbation", positive=False),
+        criterion=_criterion(data.get("criterion", "thesis")),
+        probe_strides=_integer(data.get("probe_strides", 200), "study.probe_strides", 1, 100000),
+    )
+
+
+def _axes(data, key, allowed) -> tuple[Axis, ...]:
+    if not isinstance(data, dict) or not data:
+        raise StudyError(key, "expected a mapping of quantity to [start, stop, step]")
+    axes = []
+    for name, spec in data.items():
+        where = f"{key}.{clip(str(name))}"
+        if isinstance(name, NonScalarKey):
+            raise StudyError(where, f"a key must be a plain name, not a {name.kind}")
+        if name not in allowed:
+            raise StudyError(where, f"unknown quantity (expected one of {', '.join(allowed)})")
+        if not isinstance(spec, (list, tuple)) or len(spec) != 3:
+            raise StudyError(where, f"expected [start, stop, step], got {excerpt(spec)}")
+        start, stop, step = (number(v, where) for v in spec)
+        if step <= 0 or stop < start:
+            raise StudyError(where, "expected start <= stop and a positive step")
+        ratio = (stop - start) / step
+        if not ratio < MAX_AXIS_VALUES:  # also catches an infinite ratio from a tiny step
+            raise StudyError(where, f"[{start:g}, {stop:g}] in steps of {step:g} is more than {MAX_AXIS_VALUES} values")
+        count = math.floor(ratio + 1e-9) + 1
+        axes.append(Axis(name, tuple(round(start + i * step, 12) for i in range(count))))
+    return tuple(axes)
+
+
+def _criterion(value) -> str:
+    if value not in ("thesis", "tracking"):
+        raise StudyError("study.criterion", f"expected thesis or tracking, got {excerpt(value)}")
+    return value
+
+
+def _apex_map(data, key, positive: bool, required: bool = False) -> tuple[tuple[str, float], ...]:
+    """A map of apex quantity to a size (``positive``: in (0, 10]) or an offset (any sign,
+    at most 10 in size); SI units, and angles may carry units."""
+    apex = ("z", "theta_h", "ydot", "theta_h_dot")
+    what = "a size" if positive else "an offset"
+    if not isinstance(data, dict) or (required and not data):
+        raise StudyError(key, f"expected a mapping of apex quantity ({', '.join(apex)}) to {what}")
+    pairs = []
+    for name, value in data.items():
+        where = f"{key}.{clip(str(name))}"
+        if isinstance(name, NonScalarKey) or name not in apex:
+            raise StudyError(where, f"unknown apex quantity (expected one of {', '.join(apex)})")
+        value = number(value, f"{key}.{name}")
+        if not (0 < value <= 10 if positive else abs(value) <= 10):
+            raise StudyError(where, f"expected {'a size in (0, 10]' if positive else 'an offset of at most 10 in size'}, got {value:g}")
+        pairs.append((name, value))
+    return tuple(pairs)
+
+
+def _pair(data, key) -> tuple[float, float]:
+    if not isinstance(data, dict) or set(map(str, data)) != {"ydot", "z"} or len(data) != 2:
+        raise StudyError(key, "expected {ydot: ..., z: ...}")
+    return number(data["ydot"], f"{key}.ydot"), number(data["z"], f"{key}.z")
+
+
+def _name(value, key) -> str:
+    if not isinstance(value, str) or not re.fullmatch(r"[A-Za-z0-9_.-]{1,100}", value) or set(value) == {"."}:
+        raise StudyError(key, f"expected the name of another study, got {excerpt(value)}")
+    return value
+
+
+def _integer(value, key, lo, hi) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+        raise StudyError(key, f"expected an integer in [{lo}, {hi}], got {excerpt(value)}")
+    return value
+
+
+def _fraction(value, key) -> float:
+    value = number(value, key)
+    if not 0 < value <= 1:
+        raise StudyError(key, f"expected a relative tolerance in (0, 1], got {value:g}")
+    return value

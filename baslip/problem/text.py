@@ -1,0 +1,176 @@
+"""Reading untrusted text: YAML with bounded size, and short excerpts for error messages.
+
+A problem file is small. Anything that would make it large (a huge file, aliases that
+expand to millions of values, nesting hundreds of levels deep, an alias that contains
+itself) is refused before any value is built, so a hostile file costs neither memory nor
+a many-megabyte error line.
+
+Beyond YAML's safe loader:
+
+* a key repeated in one mapping is an error, not "last one wins"; merge keys (``<<``)
+  still work, and a mapping's own keys override merged ones as YAML intends;
+* a key that is itself a list or a mapping (``{[z, ydot]: 0.4}``) is kept as a
+  :class:`NonScalarKey`, so the schema can name the place and refuse it in one line.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import yaml
+from yaml.nodes import MappingNode, ScalarNode, SequenceNode
+
+from baslip.errors import InputError
+
+#: Largest problem file read, in bytes.
+MAX_BYTES = 1_000_000
+#: Most values (scalars, lists and mappings) a file may hold once aliases are expanded.
+MAX_VALUES = 20_000
+#: Deepest nesting of lists and mappings.
+MAX_DEPTH = 32
+#: Longest excerpt of a value quoted in an error message, in characters.
+EXCERPT = 40
+
+_MERGE = "tag:yaml.org,2002:merge"
+
+
+class UnreadableText(InputError):
+    """Text that cannot be read as a problem file; the message is one short line."""
+
+
+def excerpt(value: Any, limit: int = EXCERPT) -> str:
+    """``repr(value)`` on one line, cut to about ``limit`` characters."""
+    text = _short_repr(value, limit)
+    text = text.replace("\r", "\\r").replace("\n", "\\n")
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def clip(text: str, limit: int = EXCERPT) -> str:
+    """``text`` on one line (runs of white space made one space), cut to ``limit``."""
+    text = " ".join(text.split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _short_repr(value: Any, limit: int) -> str:
+    # Never repr a whole container: one built from aliases may be enormous.
+    if isinstance(value, (list, tuple)):
+        parts, size = [], 0
+        for item in value:
+            if size > limit:
+                parts.append("...")
+                break
+            parts.append(_short_repr(item, limit))
+            size += len(parts[-1]) + 2
+        return "[" + ", ".join(parts) + "]"
+    if isinstance(value, dict):
+        parts, size = [], 0
+        for key, item in value.items():
+            if size > limit:
+                parts.append("...")
+                break
+            parts.append(f"{_short_repr(key, limit)}: {_short_repr(item, limit)}")
+            size += len(parts[-1]) + 2
+        return "{" + ", ".join(parts) + "}"
+    if isinstance(value, str) and len(value) > limit:
+        value = value[:limit]
+    return repr(value)
+
+
+class NonScalarKey:
+    """A mapping key written as a list or mapping: kept so the schema can refuse it."""
+
+    def __init__(self, node: yaml.Node):
+        self.kind = "list" if isinstance(node, SequenceNode) else "mapping"
+        start, end = node.start_mark, node.end_mark
+        text = start.buffer[start.index : end.index] if start.buffer is not None else ""
+        self.text = clip(text, 30)
+
+    def __str__(self) -> str:
+        return self.text
+
+    def __repr__(self) -> str:
+        return self.text
+
+
+class _BoundedLoader(yaml.SafeLoader):
+    """YAML's safe loader with strict keys (see the module docstring)."""
+
+    def construct_mapping(self, node, deep=False):
+        if not isinstance(node, MappingNode):
+            return super().construct_mapping(node, deep=deep)
+        seen = set()
+        for key_node, _ in node.value:
+            if isinstance(key_node, ScalarNode) and key_node.tag != _MERGE:
+                key = self.construct_object(key_node, deep=deep)
+                if key in seen:
+                    raise yaml.constructor.ConstructorError(None, None, f"duplicate key {excerpt(key)}", key_node.start_mark)
+                seen.add(key)
+        self.flatten_mapping(node)  # merged keys first, then the mapping's own: own keys win
+        mapping = {}
+        for key_node, value_node in node.value:
+            if isinstance(key_node, ScalarNode):
+                key = self.construct_object(key_node, deep=deep)
+            else:
+                key = NonScalarKey(key_node)
+            mapping[key] = self.construct_object(value_node, deep=deep)
+        return mapping
+
+
+def read_yaml(text: str) -> Any:
+    """The single YAML document in ``text`` as plain data (None if it holds nothing).
+
+    Raises :class:`InputError` with a one-line message for text that is too large, does
+    not parse, or expands beyond :data:`MAX_VALUES` values or :data:`MAX_DEPTH` levels.
+    """
+    if len(text.encode("utf-8", "surrogatepass")) > MAX_BYTES:
+        raise UnreadableText("", f"larger than {MAX_BYTES // 1000} kB; a problem file is a few lines")
+    loader = _BoundedLoader(text)
+    try:
+        node = loader.get_single_node()
+        if node is None:
+            return None
+        _check_expansion(node)
+        return loader.construct_document(node)
+    except yaml.YAMLError as err:
+        mark = getattr(err, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = clip(str(getattr(err, "problem", None) or "cannot parse"), 80)
+        raise UnreadableText("", f"malformed YAML{where}: {problem}") from None
+    except RecursionError:
+        raise UnreadableText("", f"malformed YAML: nested more than {MAX_DEPTH} levels deep") from None
+    finally:
+        loader.dispose()
+
+
+def _check_expansion(root: yaml.Node) -> None:
+    """Refuse a node graph that, with every alias expanded, is too large, too deep or
+    infinite. Sizes are memoised per node, so a file of nested aliases is measured in
+    time proportional to its own length."""
+    sizes: dict[int, tuple[int, int]] = {}  # id(node) -> (values, depth) when expanded
+    active: set[int] = set()
+
+    def measure(node: yaml.Node, level: int) -> tuple[int, int]:
+        if level > MAX_DEPTH:
+            raise UnreadableText("", f"malformed YAML: nested more than {MAX_DEPTH} levels deep")
+        if isinstance(node, ScalarNode):
+            return 1, 0
+        if id(node) in sizes:
+            values, depth = sizes[id(node)]
+            if level + depth > MAX_DEPTH:
+                raise UnreadableText("", f"malformed YAML: nested more than {MAX_DEPTH} levels deep")
+            return values, depth
+        if id(node) in active:
+            raise UnreadableText("", f"malformed YAML at line {node.start_mark.line + 1}: an alias refers to a value that contains it")
+        active.add(id(node))
+        children = [n for pair in node.value for n in pair] if isinstance(node, MappingNode) else node.value
+        values, depth = 1, 0
+        for child in children:
+            child_values, child_depth = measure(child, level + 1)
+            values, depth = values + child_values, max(depth, child_depth + 1)
+            if values > MAX_VALUES:
+                raise UnreadableText("", f"YAML expands to more than {MAX_VALUES} values (aliases nested too deeply?)")
+        active.discard(id(node))
+        sizes[id(node)] = (values, depth)
+        return values, depth
+
+    measure(root, 0)

@@ -1,0 +1,59 @@
+"""Numbers in a problem file: finite floats, and angles and rates with their units.
+
+Every number a problem file holds, in any section, is read by :func:`number`, so that
+``-90 deg``, ``'1e-8'`` (which YAML 1.1 leaves a string) and the errors for anything
+else are the same everywhere.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from typing import Any
+
+from baslip.errors import ProblemError
+from baslip.problem.text import excerpt
+
+#: Quantities that may be given in ``deg`` or ``rad``, and rates in ``deg/s`` or ``rad/s``.
+ANGLES = ("theta_h", "theta2_des", "theta_td")
+RATES = ("theta_h_dot", "theta2_dot_des")
+
+
+def number(value: Any, key: str) -> float:
+    """A finite float; angles and rates may carry 'deg', 'rad', 'deg/s' or 'rad/s'."""
+    quantity = key.rsplit(".", 1)[-1]
+    if isinstance(value, str):
+        value = _plain_or_with_unit(value, key, quantity)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ProblemError(key, f"expected a number, got {type(value).__name__} {excerpt(value)}")
+    try:
+        value = float(value)
+    except OverflowError:
+        raise ProblemError(key, "number too large") from None
+    if not math.isfinite(value):
+        raise ProblemError(key, f"expected a finite number, got {value}")
+    return value
+
+
+def _plain_or_with_unit(text: str, key: str, quantity: str) -> float:
+    """A number YAML left as a string: '1e-8' (YAML 1.1 wants '1.0e-8') or '-90 deg'."""
+    if re.fullmatch(r"\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*", text):
+        return float(text)
+    return _with_unit(text, key, quantity)
+
+
+def _with_unit(text: str, key: str, quantity: str) -> float:
+    match = re.fullmatch(r"\s*([-+]?[0-9.]+(?:[eE][-+]?[0-9]+)?)\s*([a-z/]+)\s*", text)
+    units = {"deg": math.pi / 180, "rad": 1.0} if quantity in ANGLES else {}
+    if quantity in RATES:
+        units = {"deg/s": math.pi / 180, "rad/s": 1.0}
+    if not match or match.group(2) not in units:
+        accepted = f" or a string with unit {' / '.join(units)}" if units else ""
+        raise ProblemError(key, f"expected a number{accepted}, got {excerpt(text)}")
+    try:
+        value = float(match.group(1)) * units[match.group(2)]
+    except ValueError:
+        raise ProblemError(key, f"expected a number, got {excerpt(text)}") from None
+    if not math.isfinite(value):
+        raise ProblemError(key, f"expected a finite number, got {excerpt(text)}")
+    return value

@@ -1,0 +1,79 @@
+"""``results/REPORT.md``: each claim of the thesis's chapter 4 beside what baslip finds.
+
+    python -m baslip.report [--results DIR]    (the command: :mod:`baslip.cli.report`)
+
+Reads the studies' CSV and JSON files (run ``make studies`` first). Where a result
+contradicts the thesis, the report re-simulates the contradicting fixed point with an
+integrator none of the solves used (erk at rtol = atol = 1e-13) and prints its eps.
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from baslip.report.beyond import branch_sections, curve_sections, upright_section
+from baslip.report.evidence import Evidence
+from baslip.report.thesis import (
+    adaptive_claims,
+    angle_claims,
+    basin_claims,
+    controllability_claim,
+    dimension_claim,
+    region_claims,
+    scan_claims,
+    speed_claims,
+)
+
+HEADER = """# baslip against the thesis, chapter 4
+
+Each claim of chapter 4 of the MSc thesis *Identification and stability analysis of periodic
+motions for a planar legged runner with a rigid body and a compliant leg* (2013) is set
+beside what baslip finds. Every fixed point counted here was verified by an independent
+re-simulation (Rosenbrock, rtol = atol = 1e-12) with eps (eq. 4.1) <= 1e-10. The thesis
+accepted eps < 1e-5.
+
+**Limits of the comparison.** The thesis prints the leg rest length (0.2 m) and the hip
+offset (0.04 m) but not the mass, the inertia or the leg stiffness. baslip uses m = 1 kg,
+I = 0.0033 kg m^2 and k = 1000 N/m (see the README). Stability margins, the size and
+position of the stable region, and multiplier magnitudes all depend on these. So the
+comparison is about qualitative structure and existence, not exact numbers. Also, the
+fixed points form a manifold, and which point a solve returns depends on the objective.
+Ours is `nearest_guess`, with the guesses given in each problem file.
+
+Regenerate everything with `make studies`. The figures are in each study's folder under
+`results/`.
+
+"""
+
+
+def build_report(results: Path) -> str:
+    ev = Evidence(results)
+    sections = [
+        ("Sec. 4.3: fixed points for a given speed", speed_claims(ev)),
+        ("Sec. 4.4: fixed points for a given speed and height", angle_claims(ev)),
+        ("Sec. 4.5: stability region and convergence regions", region_claims(ev) + basin_claims(ev)),
+        ("Sec. 4.6: the fixed-point manifold", scan_claims(ev) + dimension_claim(ev) + controllability_claim(ev)),
+        ("Sec. 4.7: time-varying control", adaptive_claims(ev)),
+        ("Can an upright BA-SLIP run stably?", upright_section(ev)),
+        ("Beyond the thesis: branches of fixed points and their bifurcations", branch_sections(ev)),
+        ("Beyond the thesis: bifurcation curves in two parameters", curve_sections(ev)),
+    ]
+    body = "".join(f"## {title}\n\n" + "\n".join(parts) + "\n" for title, parts in sections)
+    return HEADER + verdict_table(body) + body
+
+
+def verdict_table(body: str) -> str:
+    """A table of every claim (a ``### `` heading with a ``**Verdict:**`` line) and its
+    verdict, linked to its section, to open the report."""
+    rows, title = [], None
+    for line in body.splitlines():
+        if line.startswith("### "):
+            title = line[4:].strip()
+        elif line.startswith("- **Verdict:** ") and title:
+            anchor = re.sub(r"[^a-z0-9 -]", "", title.lower()).replace(" ", "-")
+            shown = title.replace("|", "\\|")  # a bare | would end the table cell
+            rows.append(f"| [{shown}](#{anchor}) | {line[len('- **Verdict:** '):]} |")
+            title = None
+    if not rows:
+        return ""
+    return "## Summary: every claim and its verdict\n\n| claim | verdict |\n|---|---|\n" + "\n".join(rows) + "\n\n"

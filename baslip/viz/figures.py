@@ -1,0 +1,545 @@
+"""Figures of the studies, as PNG files with labelled axes and units.
+
+Angles are shown in degrees. Stable fixed points are drawn as filled blue circles,
+unstable ones as red crosses, and points without a verified fixed point as grey dots.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.colors import LogNorm  # noqa: E402
+
+from baslip.status import Status
+from baslip.viz.labels import SPECIAL_NAMES  # noqa: E402
+
+DEG = 180 / math.pi
+ANGLES = ("theta_h", "theta2_des", "theta_td")
+LABELS = {
+    "z": "apex height z [m]",
+    "ydot": "forward speed ydot [m/s]",
+    "theta_h": "body angle theta_h [deg]",
+    "theta_h_dot": "body rate theta_h_dot [rad/s]",
+    "Kp": "Kp [N m/rad]",
+    "Kd": "Kd [N m s/rad]",
+    "theta2_des": "theta2_des [deg]",
+    "theta2_dot_des": "theta2_dot_des [rad/s]",
+    "theta_td": "touchdown angle theta_td [deg]",
+    "spectral_radius": "largest |multiplier| (non-trivial)",
+    "residual": "residual eps (eq. 4.1)",
+    "eps": "eps between consecutive apexes",
+    "energy": "apex energy [J]",
+    "m": "mass m [kg]", "I": "inertia I [kg m^2]", "k": "leg stiffness k [N/m]",
+    "rho0": "leg rest length rho0 [m]", "d": "hip offset d [m]", "g": "gravity g [m/s^2]",
+}
+
+
+def shown(name: str, values):
+    """Values as plotted: angles in degrees."""
+    values = np.asarray(values, dtype=float)
+    return values * DEG if name in ANGLES else values
+
+
+#: Formats figures can be written in; the run's is matplotlib's ``savefig.format``
+#: (``baslip solve --format`` sets it for the run), PNG otherwise.
+FORMATS = ("png", "svg", "pdf")
+PNG_DPI = 110
+
+
+def figure_format() -> str:
+    """The format figures are written in now: matplotlib's savefig.format if it is one of
+    :data:`FORMATS`, else png."""
+    chosen = str(plt.rcParams["savefig.format"]).lower()
+    return chosen if chosen in FORMATS else "png"
+
+
+def figure_file(stem: str) -> str:
+    """A figure's file name in the current format, e.g. ``diagram.svg``."""
+    return f"{stem}.{figure_format()}"
+
+
+def _in(out_dir: Path | None, name: str) -> Path | None:
+    """Where a figure goes: ``out_dir / name``, or nowhere (None) when the figure is to
+    be returned open instead of written."""
+    return None if out_dir is None else out_dir / name
+
+
+def _save(fig, path):
+    """Save to ``path`` (a file name, whose suffix becomes the current format, or a
+    binary file object) and close the figure; return where it went. With ``path`` None
+    only lay the figure out (it is returned to the caller)."""
+    fig.tight_layout()
+    if path is None:
+        return None
+    fmt = figure_format()
+    if isinstance(path, (str, Path)):
+        path = Path(path).with_suffix(f".{fmt}")
+    fig.savefig(path, dpi=PNG_DPI if fmt == "png" else None, format=fmt)
+    plt.close(fig)
+    return path
+
+
+def _column(rows, name):
+    return np.array([r[name] if isinstance(r[name], float) else np.nan for r in rows], dtype=float)
+
+
+def _classes(rows):
+    converged = np.array([r["status"] == Status.CONVERGED for r in rows])
+    stable = np.array([r["status"] == Status.CONVERGED and r["stable"] is True for r in rows])
+    return stable, converged & ~stable, ~converged
+
+
+# --- sweeps -------------------------------------------------------------------------------
+
+
+def sweep_figures(rows: list[dict], names: list[str], out_dir: Path) -> list[Path]:
+    """1-D sweeps: z, theta_h, spectral radius and residual against the swept quantity.
+    2-D sweeps: maps of theta_h and of the spectral radius, with the stable region."""
+    if not rows:
+        return []
+    if len(names) == 1:
+        return [_sweep_line(rows, names[0], y, out_dir) for y in ("z", "theta_h", "spectral_radius", "residual")]
+    return [_sweep_map(rows, names, value, out_dir) for value in ("theta_h", "spectral_radius")]
+
+
+def _sweep_line(rows, name, quantity, out_dir) -> Path:
+    x = shown(name, _column(rows, f"sweep_{name}"))
+    y = _column(rows, quantity)
+    y = y if quantity in ("spectral_radius", "residual") else shown(quantity, y)
+    stable, unstable, missing = _classes(rows)
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    ax.plot(x[stable], y[stable], "o", color="tab:blue", ms=4, label="stable")
+    ax.plot(x[unstable], y[unstable], "x", color="tab:red", ms=4, label="unstable")
+    if quantity in ("z", "theta_h", "residual"):
+        ax.plot(x[missing], y[missing], ".", color="0.6", ms=4, label="not verified / failed")
+    elif missing.any():
+        for xv in x[missing]:
+            ax.axvline(xv, color="0.85", lw=0.8, zorder=0)
+        ax.plot([], [], "-", color="0.85", label="no verified fixed point")
+    if quantity == "spectral_radius":
+        ax.axhline(1.0, color="k", lw=0.8, ls="--")
+        ax.set_yscale("log")
+    if quantity == "residual":
+        ax.axhline(1e-10, color="k", lw=0.8, ls="--", label="verification threshold")
+        ax.set_yscale("log")
+    ax.set_xlabel(LABELS.get(name, name))
+    ax.set_ylabel(LABELS[quantity])
+    ax.legend(fontsize=8)
+    path = _in(out_dir, f"{quantity}.png")
+    return _save(fig, path)
+
+
+def _grid(rows, names, quantity):
+    a = sorted({r[f"sweep_{names[0]}"] for r in rows})
+    b = sorted({r[f"sweep_{names[1]}"] for r in rows})
+    values = np.full((len(b), len(a)), np.nan)
+    stable = np.zeros_like(values, dtype=bool)
+    for r in rows:
+        i, j = b.index(r[f"sweep_{names[1]}"]), a.index(r[f"sweep_{names[0]}"])
+        if r["status"] == Status.CONVERGED and isinstance(r[quantity], float):
+            values[i, j] = r[quantity]
+            stable[i, j] = r["stable"] is True
+    return np.array(a), np.array(b), values, stable
+
+
+def _sweep_map(rows, names, quantity, out_dir) -> Path:
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    draw_map(fig, ax, rows, names, quantity)
+    ax.legend(fontsize=8, loc="upper right")
+    return _save(fig, _in(out_dir, f"{quantity}_map.png"))
+
+
+def draw_map(fig, ax, rows, names, quantity) -> None:
+    """A sweep's map of ``quantity`` over its two axes on ``ax``, with a colour bar; stable
+    cells ringed, unstable ones crossed, cells without a verified fixed point marked."""
+    a, b, values, stable = _grid(rows, names, quantity)
+    cmap = plt.get_cmap("viridis" if quantity == "theta_h" else "coolwarm").with_extremes(bad="0.85")
+    extent = _extent(shown(names[0], a), shown(names[1], b))
+    if quantity == "spectral_radius":
+        finite = values[np.isfinite(values) & (values > 0)]
+        # Symmetric in log10 about 1, so that white is the stability boundary.
+        span = max(np.abs(np.log10(finite)).max(), np.log10(2.0)) if finite.size else 1.0
+        norm = LogNorm(vmin=10**-span, vmax=10**span)
+        image = ax.imshow(values, origin="lower", aspect="auto", extent=extent, cmap=cmap, norm=norm)
+        label = LABELS[quantity] + " (log scale)"
+    else:
+        image = ax.imshow(shown(quantity, values), origin="lower", aspect="auto", extent=extent, cmap=cmap)
+        label = LABELS[quantity]
+    fig.colorbar(image, ax=ax, label=label)
+    A, B = np.meshgrid(shown(names[0], a), shown(names[1], b))
+    unstable = np.isfinite(values) & ~stable
+    if stable.any():  # only what is there gets a legend entry
+        ax.plot(A[stable], B[stable], "o", mfc="none", mec="k", ms=7, label="stable")
+    if unstable.any():
+        ax.plot(A[unstable], B[unstable], "x", color="k", ms=5, mew=0.8, label="unstable")
+    if np.isnan(values).any():
+        ax.plot(A[np.isnan(values)], B[np.isnan(values)], "s", color="0.5", ms=3, label="no verified fixed point")
+    ax.set_xlabel(LABELS.get(names[0], names[0]))
+    ax.set_ylabel(LABELS.get(names[1], names[1]))
+
+
+def _extent(a, b):
+    da = (a[1] - a[0]) / 2 if len(a) > 1 else 0.5
+    db = (b[1] - b[0]) / 2 if len(b) > 1 else 0.5
+    return (a[0] - da, a[-1] + da, b[0] - db, b[-1] + db)
+
+
+def random_figure(rows: list[dict], region_rows: list[dict], names, out_dir: Path, curve_rows=None) -> Path:
+    """The random points over the region's stable grid points, and over the traced
+    stability boundary when there is one."""
+    fig, ax = plt.subplots(figsize=(7.2, 4.8) if curve_rows else (6.4, 4.8))
+    if curve_rows:  # the region's map of the largest |multiplier|, the boundary over it
+        draw_map(fig, ax, region_rows, list(names), "spectral_radius")
+        limits = ax.get_xlim(), ax.get_ylim()
+        draw_curves(ax, curve_rows, names[0], names[1])
+        ax.set_xlim(*limits[0])
+        ax.set_ylim(*limits[1])
+    else:
+        a, b, _, stable_grid = _grid(region_rows, list(names), "spectral_radius")
+        A, B = np.meshgrid(a, b)
+        ax.plot(A[stable_grid], B[stable_grid], "s", color="tab:blue", alpha=0.25, ms=12, label="stable grid point")
+    stable, unstable, missing = _classes(rows)
+    x, y = _column(rows, f"sweep_{names[0]}"), _column(rows, f"sweep_{names[1]}")
+    # Over a colour map the stable samples are white with a black edge, to stand out.
+    stable_color = "white" if curve_rows else "tab:blue"
+    for mask, style, color, word in ((stable, "o", stable_color, "stable sample"), (unstable, "x", "tab:red", "unstable sample"),
+                                     (missing, ".", "0.5", "not verified / failed")):
+        if mask.any():  # only what is there gets a legend entry
+            ax.plot(x[mask], y[mask], style, color=color, mec="k" if style == "o" and curve_rows else color,
+                    ms=4 if style == "o" else 5, label=f"{word} ({mask.sum()})")
+    ax.set_xlabel(LABELS.get(names[0], names[0]))
+    ax.set_ylabel(LABELS.get(names[1], names[1]))
+    ax.legend(fontsize=8)
+    path = _in(out_dir, "samples.png")
+    return _save(fig, path)
+
+
+# --- convergence regions --------------------------------------------------------------------
+
+
+def basin_figures(basin_rows, stable, unstable, example_index, example_unstable, trajectories, grid, out_dir) -> list[Path]:
+    """The convergence region of one stable point and the union of all, over the grid of
+    starting states ``grid`` = (ydot values [m/s], z values [m]); and each example run
+    (``trajectories``: case -> (outcome, strides, _, apexes)) in the (ydot, z) plane and
+    stride by stride."""
+    paths = []
+    ydots, zs = np.array(grid[0], dtype=float), np.array(grid[1], dtype=float)
+    converged_by_point: dict[int, set] = {}
+    for r in basin_rows:
+        if r["outcome"] == "converged":
+            converged_by_point.setdefault(int(r["point"]), set()).add((r["sweep_ydot"], r["sweep_z"]))
+    union = set().union(*converged_by_point.values()) if converged_by_point else set()
+    panels = [("region.png", converged_by_point.get(example_index, set()), "convergence region of one stable point"),
+              ("union.png", union, "union of the convergence regions of all stable points")]
+    for name, cells, title in panels:
+        fig, ax = plt.subplots(figsize=(6.4, 4.8))
+        mask = np.array([[(y, z) in cells for y in ydots] for z in zs])
+        # The region is a set of grid cells: drawn as cells, edges included (a contour of
+        # the 0/1 mask would cut the corners into odd hexagons).
+        ax.imshow(mask, origin="lower", aspect="auto", extent=_extent(ydots, zs), cmap="Blues", vmin=0, vmax=1.6)
+        if mask.any():
+            from matplotlib.patches import Patch
+
+            ax.add_artist(ax.legend(handles=[Patch(color=plt.get_cmap("Blues")(1 / 1.6),
+                                                   label=f"starts that converge ({int(mask.sum())} cells)")],
+                                    fontsize=8, loc="lower right"))
+        xs = [r["ydot"] for r in stable]
+        ax.plot(xs, [r["z"] for r in stable], "o", color="tab:blue", ms=4, label="stable fixed points")
+        if name == "region.png" and example_index is not None:
+            ax.plot(stable[example_index]["ydot"], stable[example_index]["z"], "o", mfc="none", mec="k", ms=12, label="this stable point")
+        if example_unstable is not None:
+            ax.plot(example_unstable["ydot"], example_unstable["z"], "x", color="tab:red", ms=10, mew=2, label="unstable example")
+        ax.set_xlabel(LABELS["ydot"])
+        ax.set_ylabel(LABELS["z"])
+        ax.set_title(title, fontsize=10)
+        ax.legend(fontsize=8, loc="upper right")
+        path = _in(out_dir, name)
+        paths.append(_save(fig, path))
+    for case, (outcome, n, _, apexes) in trajectories.items():
+        fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4))
+        z, ydot = apexes[:, 0], apexes[:, 2]
+        left.plot(ydot, z, "--.", color="tab:blue")
+        left.plot(ydot[0], z[0], "x", color="tab:red", ms=10, mew=2, label="start (unstable fixed point)")
+        left.set_xlabel(LABELS["ydot"])
+        left.set_ylabel(LABELS["z"])
+        left.legend(fontsize=8)
+        steps = np.arange(len(z))
+        # Speed and height on axes of their own: one unit per axis.
+        right.plot(steps, ydot, "-o", ms=3, color="tab:blue")
+        right.set_ylabel(LABELS["ydot"], color="tab:blue")
+        height = right.twinx()
+        height.plot(steps, z, "-s", ms=3, color="tab:orange")
+        height.set_ylabel(LABELS["z"], color="tab:orange")
+        right.set_xlabel("stride n")
+        right.set_title(f"{case.replace('_', ' ')}: {outcome} after {n} strides", fontsize=10)
+        path = _in(out_dir, f"{case}.png")
+        paths.append(_save(fig, path))
+    return paths
+
+
+# --- time-varying control -------------------------------------------------------------------
+
+
+def adaptive_figures(rows: list[dict], out_dir: Path) -> list[Path]:
+    adaptive = [r for r in rows if r["phase"] == "adaptive"]
+    frozen = [r for r in rows if r["phase"] == "frozen"]
+    if not adaptive:
+        return []
+
+    def col(rs, name):
+        return np.array([float(r[name]) for r in rs])
+
+    n = col(adaptive, "n")
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.8))
+    axes[0].plot(col(adaptive, "ydot"), col(adaptive, "z"), "-", lw=0.8)
+    axes[0].set_xlabel(LABELS["ydot"])
+    axes[0].set_ylabel(LABELS["z"])
+    axes[0].ticklabel_format(useOffset=False)
+    for ax, name in zip(axes[1:], ("ydot", "z")):
+        ax.plot(n, col(adaptive, name), "-", lw=0.8)
+        ax.set_xlabel("stride n")
+        ax.set_ylabel(LABELS[name])
+        ax.ticklabel_format(useOffset=False)
+    path_states = _save(fig, _in(out_dir, "adaptive_states.png"))
+
+    fig, axes = plt.subplots(2, 3, figsize=(12, 6.5))
+    for ax, name in zip(axes.ravel(), ("Kp", "Kd", "theta_td", "theta2_des", "theta2_dot_des", "eps")):
+        values = col(adaptive, name)
+        ax.plot(n, values if name == "eps" else shown(name, values), "-", lw=0.8)
+        ax.set_xlabel("stride n")
+        ax.set_ylabel(LABELS[name])
+        if name == "eps":
+            ax.set_yscale("log")
+        else:
+            ax.ticklabel_format(useOffset=False)
+            _unless_round_off(ax, shown(name, values))
+    path_controls = _save(fig, _in(out_dir, "adaptive_controls.png"))
+
+    paths = [path_states, path_controls]
+    if frozen:
+        fig, ax = plt.subplots(figsize=(6.4, 4.0))
+        m = col(frozen, "n")
+        ax.semilogy(m, col(frozen, "eps"), "-o", ms=3)
+        ax.set_xlabel("stride after freezing the control")
+        ax.set_ylabel("|X_n - X_2048| / |X_2048|")
+        ax.set_title(f"last control held fixed: {len(frozen)} strides before the fall", fontsize=10)
+        path = _in(out_dir, "frozen_control.png")
+        paths.append(_save(fig, path))
+    return paths
+
+
+def _unless_round_off(ax, values) -> None:
+    """If ``values`` change only by round-off (a control held fixed), show them as the
+    constant they are, on a readable scale, instead of magnifying the noise."""
+    finite = np.asarray(values, dtype=float)
+    finite = finite[np.isfinite(finite)]
+    if finite.size == 0:
+        return
+    middle = float(np.mean(finite))
+    if np.ptp(finite) <= 1e-9 * max(1.0, abs(middle)):
+        band = 0.05 * max(1.0, abs(middle))
+        ax.set_ylim(middle - band, middle + band)
+        ax.text(0.5, 0.9, "held constant", transform=ax.transAxes, ha="center", fontsize=8, color="0.4")
+
+
+# --- continuation ---------------------------------------------------------------------------
+
+
+def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path=None):
+    """Branch diagram: stable segments solid, unstable dashed, special points labelled.
+    ``path`` is a file name or a binary file object; without one the Figure is returned.
+
+    Rows carry ``branch``, ``strides`` and ``orbit`` (the apexes of the orbit): an orbit
+    of N strides is drawn at each of its N apexes, so a period-2 branch shows both.
+    """
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for number in sorted({r["branch"] for r in rows}):
+        branch = [r for r in rows if r["branch"] == number]
+        color = colors[int(number) % len(colors)]
+        stable = [r["stable"] for r in branch]
+        for k in range(len(branch[0].get("orbit", [None]))):
+            x = shown(parameter, [_orbit_value(r, k, parameter) for r in branch])
+            y = shown(quantity, [_orbit_value(r, k, quantity) for r in branch])
+            for i in range(len(branch) - 1):
+                style = "-" if stable[i] and stable[i + 1] else "--"
+                ax.plot(x[i : i + 2], y[i : i + 2], style, color=color)
+        strides = int(branch[0]["strides"])
+        for style, word, present in (("-", "stable", any(stable)), ("--", "unstable", not all(stable))):
+            if present:  # only the styles drawn get a legend entry
+                ax.plot([], [], style, color=color, label=f"{strides}-stride orbits, {word}")
+    markers = {"fold": ("s", "tab:red"), "turning_point": ("<", "tab:brown"), "period_doubling": ("D", "tab:green"),
+               "neimark_sacker": ("^", "tab:purple"), "branch_point": ("o", "tab:orange")}
+    x_mid = np.mean(ax.get_xlim())
+    for i, r in enumerate(r for r in rows if r["special"]):
+        marker, color = markers[r["special"]]
+        xv, yv = shown(parameter, [r[parameter]])[0], shown(quantity, [_orbit_value(r, 0, quantity)])[0]
+        ax.plot(xv, yv, marker, color=color, ms=8)
+        value = r[parameter] * DEG if parameter in ANGLES else r[parameter]
+        # Labels alternate above and below, in their marker's colour and tied to it by a
+        # line, so that neighbouring points stay readable and unambiguous; they lean
+        # towards the middle, so that they stay inside the frame.
+        right = xv <= x_mid
+        ax.annotate(f"{SPECIAL_NAMES[r['special']]}\n{value:.6g}", (xv, yv), textcoords="offset points",
+                    xytext=(14 if right else -14, 12 if i % 2 == 0 else -30), ha="left" if right else "right",
+                    fontsize=8, color=color, arrowprops={"arrowstyle": "-", "color": color, "lw": 0.7})
+    ax.set_xlabel(LABELS.get(parameter, f"{parameter}"))
+    ax.set_ylabel(LABELS.get(quantity, quantity))
+    ax.legend(fontsize=8)
+    saved = _save(fig, path)
+    return fig if path is None else saved
+
+
+#: Colours of the curve types, and how they are named in legends.
+CURVE_STYLES = {"fold": ("tab:red", "fold (+1)"), "period_doubling": ("tab:green", "period doubling (-1)"),
+                "neimark_sacker": ("tab:purple", "Neimark-Sacker"), "neutral_saddle": ("0.6", "neutral saddle (no bifurcation)")}
+
+
+def curve_diagram(rows: list[dict], first: str, second: str, path=None):
+    """Bifurcation curves in the (first, second) plane: solid where they bound a region
+    of stable gaits, dotted where the gaits are unstable on both sides; codimension-two
+    points marked and named. ``path`` is a file name or a binary file object; without
+    one the Figure is returned."""
+    from baslip.viz.labels import CODIM2_NAMES
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    draw_curves(ax, rows, first, second)
+    specials = [r for r in rows if r["special"]]
+    if specials:
+        ax.plot([], [], "o", color="k", mfc="none", label="codimension-two point")
+    x_mid = np.mean(ax.get_xlim())
+    for r in specials:
+        x, y = shown(first, [r[first]])[0], shown(second, [r[second]])[0]
+        ax.plot(x, y, "o", color="k", mfc="none", ms=9)
+        # Labels lean towards the middle, so that they stay inside the frame.
+        ax.annotate(CODIM2_NAMES[r["special"]], (x, y), textcoords="offset points", fontsize=8,
+                    xytext=(10 if x <= x_mid else -10, 8), ha="left" if x <= x_mid else "right")
+    ax.set_xlabel(LABELS.get(first, first))
+    ax.set_ylabel(LABELS.get(second, second))
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=8)
+    saved = _save(fig, path)
+    return fig if path is None else saved
+
+
+def draw_curves(ax, rows: list[dict], first: str, second: str) -> None:
+    """The curves of ``rows`` (curve.csv rows) on ``ax``, with legend entries for the
+    types and styles present."""
+    present = set()
+    for number in sorted({r["curve"] for r in rows}):
+        curve = [r for r in rows if r["curve"] == number]
+        x, y = shown(first, [r[first] for r in curve]), shown(second, [r[second] for r in curve])
+        for i in range(len(curve) - 1):
+            kind = curve[i]["type"] if curve[i]["type"] == curve[i + 1]["type"] else "neutral_saddle"
+            bounding = curve[i]["stability_boundary"] and curve[i + 1]["stability_boundary"]
+            style = "-" if bounding else ":"
+            ax.plot(x[i : i + 2], y[i : i + 2], style, color=CURVE_STYLES[kind][0], lw=1.8 if bounding else 1.2)
+            present.add((kind, bounding))
+    for kind, (color, name) in CURVE_STYLES.items():
+        for bounding, words in ((True, "bounds stable gaits"), (False, "unstable both sides")):
+            if (kind, bounding) in present:
+                ax.plot([], [], "-" if bounding else ":", color=color, label=f"{name}, {words}")
+
+
+def _orbit_value(row: dict, k: int, quantity: str) -> float:
+    """``quantity`` at apex k of the row's orbit (controls and model parameters are the
+    same at every apex)."""
+    if "orbit" not in row:  # read back from branch.csv: the first apex only
+        return row[quantity]
+    return row["orbit"][k][quantity] if quantity in row["orbit"][k] else row[quantity]
+
+
+# --- stability-optimal gaits ----------------------------------------------------------------
+
+
+def trunk_motion_figure(motions: list[tuple[str, np.ndarray, np.ndarray]], out_dir: Path) -> Path:
+    """Trunk angle over one stride of each gait: (label, t [s], theta_h [rad]), with the
+    band of 'upright throughout' (within 45 deg of vertical) shaded."""
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    ax.axhspan(45, 135, color="0.92", label="within 45 deg of vertical")
+    for label, t, theta_h in motions:
+        ax.plot(t, shown("theta_h", theta_h), lw=1.2, label=label)
+    ax.set_xlabel("time from apex t [s]")
+    ax.set_ylabel(LABELS["theta_h"])
+    ax.legend(fontsize=7, loc="best")
+    path = _in(out_dir, "best_gaits_trunk.png")
+    return _save(fig, path)
+
+
+# --- controllers ----------------------------------------------------------------------------
+
+OUTCOME_STYLE = {"converged": ("o", "tab:blue"), "bounded": ("s", "tab:orange"), "fell": ("x", "tab:red")}
+
+
+def controllers_figure(rows: list[dict], perturbation: dict, out_dir: Path) -> Path:
+    """Left: the share of perturbed starts each controller brings back to the gait, keeps
+    up without converging, or lets fall. Right, per controller: the starts in the plane of
+    the two most perturbed apex quantities, marked by outcome."""
+    names = [n for n in ("constant", "feedback", "resolve") if any(r["controller"] == n for r in rows)]
+    axes_names = sorted(perturbation, key=lambda n: -perturbation[n] / _NOMINAL_APEX[n])[:2]
+    if len(axes_names) < 2:
+        axes_names = (axes_names + ["z", "ydot"])[:2]
+    fig, axes = plt.subplots(1, 1 + len(names), figsize=(4.0 * (1 + len(names)), 3.8))
+    outcomes = ("converged", "bounded", "fell")
+    bottom = np.zeros(len(names))
+    for outcome in outcomes:
+        share = np.array([np.mean([r["outcome"] == outcome for r in rows if r["controller"] == n]) for n in names])
+        axes[0].bar(names, share, bottom=bottom, color=OUTCOME_STYLE[outcome][1], label=outcome)
+        bottom += share
+    axes[0].set_ylabel("share of perturbed starts")
+    axes[0].set_ylim(0, 1)
+    axes[0].legend(fontsize=8)
+    for ax, name in zip(axes[1:], names):
+        mine = [r for r in rows if r["controller"] == name]
+        for outcome in outcomes:
+            pick = [r for r in mine if r["outcome"] == outcome]
+            if pick:
+                marker, color = OUTCOME_STYLE[outcome]
+                ax.plot(shown(axes_names[0], [r[f"d_{axes_names[0]}"] for r in pick]),
+                        shown(axes_names[1], [r[f"d_{axes_names[1]}"] for r in pick]),
+                        marker, color=color, ms=4, ls="none", label=outcome)
+        ax.set_title(name, fontsize=9)
+        ax.set_xlabel("change of " + LABELS[axes_names[0]])
+        ax.set_ylabel("change of " + LABELS[axes_names[1]])
+        ax.legend(fontsize=7)
+    path = _in(out_dir, "controllers.png")
+    return _save(fig, path)
+
+
+_NOMINAL_APEX = {"z": 0.1, "theta_h": 0.1, "ydot": 0.1, "theta_h_dot": 1.0}
+
+
+# --- a gait's motion ----------------------------------------------------------------------
+
+
+def gait_figure(motion, title: str):
+    """Three panels of a gait's motion (a :class:`baslip.engine.trajectory.Motion`): the CoM and
+    hip paths [m], the trunk angle [deg], and the ground reaction force [N], with stance
+    shaded. Returns the Figure; writes nothing."""
+    fig, (path_ax, angle_ax, force_ax) = plt.subplots(3, 1, figsize=(6.4, 7.2))
+    stance = np.isin(motion["phase"], ("compression", "decompression"))
+    t = motion["t"]
+    path_ax.plot(motion["y"], motion["z"], label="CoM")
+    path_ax.plot(motion["hip_y"], motion["hip_z"], "--", label="hip")
+    path_ax.set_xlabel("forward position y [m]")
+    path_ax.set_ylabel("height z [m]")
+    path_ax.set_aspect("equal", adjustable="datalim")
+    path_ax.legend(fontsize=8)
+    path_ax.set_title(title)
+    angle_ax.plot(t, shown("theta_h", motion["theta_h"]))
+    angle_ax.set_ylabel(LABELS["theta_h"])
+    force_ax.plot(t, motion["grf_z"], label="vertical")
+    force_ax.plot(t, motion["grf_y"], label="horizontal")
+    force_ax.set_ylabel("ground reaction force [N]")
+    force_ax.legend(fontsize=8)
+    for ax in (angle_ax, force_ax):
+        ax.set_xlabel("time t [s]")
+        ax.fill_between(t, 0, 1, where=stance, color="0.9", transform=ax.get_xaxis_transform(), label="_stance")
+    fig.tight_layout()
+    return fig
