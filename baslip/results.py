@@ -14,7 +14,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from html import escape
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 from baslip.status import Status
 
@@ -55,7 +55,7 @@ class RunResults:
 
     def rows(self, table: str | None = None) -> list[dict]:
         """The rows of a table, numbers as floats and flags as bools."""
-        from baslip.studies.sweep import points_from
+        from baslip.files.rows import points_from
 
         with self._open(table or self._default_table()) as handle:
             return points_from(handle)
@@ -117,11 +117,11 @@ class RunResults:
             plots.trunk_motion_figure(best_gait_motions(best, names, params), None)
         if self.kind == "random":
             rows = self.rows("points")
-            names = tuple(c[len("sweep_"):] for c in rows[0] if c.startswith("sweep_"))
+            pair = tuple(c[len("sweep_"):] for c in rows[0] if c.startswith("sweep_"))
             region = self._source(self.record["region"]).rows("points")
             boundary = self.record.get("boundary")
             curves = self._source(boundary).rows("curve") if boundary else None
-            plots.random_figure(rows, region, names, None, curves)
+            plots.random_figure(rows, region, pair, None, curves)
         elif self.kind == "adaptive":
             plots.adaptive_figures(self.rows("strides"), None)
         elif self.kind == "controllers":
@@ -147,7 +147,7 @@ class RunResults:
         """The quantities a table's rows were swept over (its ``sweep_`` columns)."""
         return [c[len("sweep_"):] for c in (rows[0] if rows else {}) if c.startswith("sweep_")]
 
-    def _basin_inputs(self) -> tuple:
+    def _basin_inputs(self) -> tuple[Any, Any, Any, Any, Any, Any, Any]:
         """The arguments of :func:`baslip.viz.figures.basin_figures` (without the folder), read
         back from the basin study's files and its source sweep's points."""
         import numpy as np

@@ -1,5 +1,6 @@
 """A tour of baslip from Python: solve, inspect, plot, simulate, a trajectory, a small
-sweep and a branch. Run it from the repository root (about half a minute):
+sweep and a branch, all through the Python verbs (no YAML text, no command line). Run
+it from the repository root (about half a minute):
 
     .venv/bin/python examples/tour.py [OUTPUT_FOLDER]
 
@@ -10,14 +11,12 @@ In a notebook, paste the steps into cells: results show themselves as tables the
 """
 
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 import baslip
-from baslip import ReturnMap, Tolerances, load_problem, open_results, solve_problem
-from baslip.cli.solve import main as solve_command
+from baslip import ReturnMap, Tolerances, load_problem, solve_problem
 
 
 def main() -> None:
@@ -46,25 +45,20 @@ def main() -> None:
           f"energy change {motion['energy'][-1] - motion['energy'][0]:.2e} J")
     (out / "downward_trajectory.csv").write_text(motion.csv_text())
 
-    # 5. A small sweep over speed, as a problem file (here written on the fly).
-    sweep = (problems / "speed_sweep.yaml").read_text().replace("name: speed_sweep", "name: tour_sweep")
-    with tempfile.TemporaryDirectory() as folder:
-        path = Path(folder) / "tour_sweep.yaml"
-        lines = [line if not line.strip().startswith("vary:") else "  vary: {ydot: [0.3, 0.7, 0.1]}" for line in sweep.splitlines()]
-        path.write_text("\n".join(lines) + "\n")
-        assert solve_command([str(path), "--out", str(out / "tour_sweep"), "--quiet"]) == 0
-    sweep_results = open_results(out / "tour_sweep")
+    # 5. A small sweep over speed: the shipped problem, changed and checked in Python.
+    speeds = load_problem(problems / "speed_sweep.yaml").replace(
+        name="tour_sweep", study={"kind": "sweep", "vary": {"ydot": [0.3, 0.7, 0.1]}})
+    sweep_results = baslip.run(speeds, out=out / "tour_sweep", progress=False)
     print(sweep_results)
+    print(sweep_results.summary())
 
-    # 6. A branch: the SLIP's stable band in touchdown angle, with its two edges.
-    branch = (problems / "continuation_slip_attack.yaml").read_text().replace("  switch: period_doubling\n", "")
-    with tempfile.TemporaryDirectory() as folder:
-        path = Path(folder) / "band.yaml"
-        path.write_text(branch)
-        assert solve_command([str(path), "--out", str(out / "band"), "--quiet"]) == 0
-    band = open_results(out / "band")
+    # 6. A branch: the SLIP's stable band in touchdown angle, with its two edges. Without
+    #    ``out`` nothing is written; the result holds its tables.
+    slip = load_problem(problems / "continuation_slip_attack.yaml")
+    band = baslip.run(slip.replace(continuation={"parameter": "theta_td", "range": ["20 deg", "25 deg"],
+                                                 "step": 0.05, "direction": 1, "plot": "z"}), progress=False)
     print(band)
-    for point in band.summary["special_points"]:
+    for point in band.record["special_points"]:
         print(f"  {point['type']} at theta_td = {np.degrees(point['theta_td']):.4f} deg")
     band.plot()[0].savefig(out / "band_diagram.png", dpi=110)
     print(f"wrote the tour's files into {out}/")

@@ -12,6 +12,7 @@ import ast
 import importlib
 import inspect
 import pathlib
+import re
 import subprocess
 import sys
 
@@ -201,3 +202,15 @@ def test_library_keys_name_the_modules_themselves():
     for path in [*kernels.sources(), *shooting._nlp_sources()]:
         assert path.is_file(), path
     assert pathlib.Path(kernels.__file__) in kernels.sources()
+
+
+def test_the_readmes_python_examples_type_check(tmp_path):
+    blocks = re.findall(r"```python\n(.*?)```", (ROOT / "README.md").read_text(), re.S)
+    assert len(blocks) >= 3
+    files = []
+    for k, block in enumerate(blocks):
+        files.append(tmp_path / f"readme_example_{k}.py")
+        files[-1].write_text(block)
+    result = subprocess.run([*_tool("mypy"), "--ignore-missing-imports", "--no-error-summary", *map(str, files)],
+                            cwd=ROOT, capture_output=True, text=True)
+    assert result.returncode == 0, result.stdout[-3000:]

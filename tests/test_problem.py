@@ -5,11 +5,13 @@ line on stderr and exit code 2 (see test_solve.py).
 """
 
 import math
+import pickle
 
 import pytest
 
+from baslip.model.dynamics import Params
 from baslip.model.quantities import DEFAULT_GUESS
-from baslip.problem.reader import ProblemError, load_problem, parse_problem
+from baslip.problem.reader import ProblemError, SolverSettings, load_problem, parse_problem
 
 VALID = {
     "name": "ok",
@@ -161,3 +163,47 @@ def test_strides_and_switch_are_read():
     ))
     assert problem.strides == 2 and problem.continuation.switch == "period_doubling"
     assert parse_problem(VALID).strides == 1 and load_problem("problems/downward_period2.yaml").strides == 2
+
+
+# --- a problem changed in Python is checked like a file ------------------------------------
+
+
+def test_replace_refuses_what_a_file_would_refuse_with_the_same_message():
+    problem = parse_problem(VALID)
+    with pytest.raises(ProblemError) as from_file:
+        parse_problem(with_(fix={"z": -1.0}))
+    with pytest.raises(ProblemError) as from_python:
+        problem.replace(fix={"z": -1.0, "ydot": 0.5})
+    assert str(from_python.value) == str(from_file.value) and from_python.value.key == "fix.z"
+
+
+def test_replace_checks_the_sections_together_and_refuses_unknown_keys():
+    problem = parse_problem(VALID)
+    with pytest.raises(ProblemError, match="either a study or a continuation"):
+        problem.replace(study={"kind": "sweep", "vary": {"ydot": [0.4, 0.5, 0.1]}},
+                        continuation={"parameter": "ydot", "range": [0.4, 0.6]})
+    with pytest.raises(ProblemError) as caught:
+        problem.replace(fixed={"z": 0.4})
+    assert caught.value.key == "fixed" and "unknown key" in str(caught.value)
+
+
+def test_replace_keeps_what_it_is_not_given_and_takes_parsed_objects():
+    problem = parse_problem(VALID)
+    stiffer = problem.replace(params=Params(k=2000.0), guess={"theta_td": "6 deg"})
+    assert stiffer.params.k == 2000.0 and stiffer.fix == problem.fix
+    assert stiffer.guess == {"theta_td": pytest.approx(math.radians(6))}
+    with pytest.raises(ProblemError, match="params.k"):
+        problem.replace(params=Params(k=-1.0))
+
+
+def test_parse_problem_takes_params_and_solver_objects():
+    problem = parse_problem({**VALID, "params": Params(m=2.0), "solver": SolverSettings(nodes=30)})
+    assert problem.params.m == 2.0 and problem.solver.nodes == 30
+
+
+def test_a_problem_travels_to_workers_as_data():
+    problem = parse_problem(with_(study={"kind": "sweep", "vary": {"ydot": [0.4, 0.5, 0.1]}}))
+    copy = pickle.loads(pickle.dumps(problem))
+    assert copy == problem and type(copy.fix) is type(problem.fix)
+    with pytest.raises(TypeError):
+        copy.fix["z"] = 1.0  # still read-only after the trip

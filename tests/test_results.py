@@ -23,7 +23,7 @@ def test_a_sweep_reads_back_with_a_short_repr_a_table_and_figures():
     assert "<table>" in grid._repr_html_()
     frame = grid.to_dataframe()
     assert len(frame) == 90 and str(frame["stable"].dtype) == "boolean"
-    assert int(frame["stable"].sum()) == grid.summary["stable"]
+    assert int(frame["stable"].sum()) == grid.record["stable"]
     figures = grid.plot()
     assert len(figures) == 2 and "multiplier" in figures[1].axes[1].get_ylabel()
 
@@ -69,8 +69,8 @@ def test_convergence_regions_redrawn_from_files_hold_the_counted_cells():
     region, union = basin.plot()[:2]
     labels = [text.get_text() for fig in (region, union) for legend in fig.axes[0].artists + [fig.axes[0].get_legend()]
               for text in legend.get_texts() if "cells" in text.get_text()]
-    assert labels == [f"starts that converge ({basin.summary['example_region_states']} cells)",
-                      f"starts that converge ({basin.summary['union_region_states']} cells)"]
+    assert labels == [f"starts that converge ({basin.record['example_region_states']} cells)",
+                      f"starts that converge ({basin.record['union_region_states']} cells)"]
 
 
 def test_optimal_gaits_redrawn_show_the_least_radius_per_cell():

@@ -141,6 +141,7 @@ class CurveSystem:
     def _bordered(self, M: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
         """(g, phi, psi): the bordered solutions, phi and psi near M's right and left
         null vectors (c.phi = 1, b.psi = 1)."""
+        assert self._border is not None, "_set_border comes first"
         b, c = self._border
         k = len(M)
         bordered = np.zeros((k + 1, k + 1))

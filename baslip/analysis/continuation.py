@@ -201,15 +201,15 @@ def continue_branch(
             h /= 2
             continue
         outside = _outside(point.v, settings)
-        if outside:  # end exactly on the range's end, never beyond it
-            point = _on_bound(system, here, point, *outside, settings, accept)
-        for kind in _crossings(system, here, point) if point is not None else ():
-            located = locate(system, here, point, kind, settings)
-            if _inside(located.v, settings):
-                branch.points.append(located)
-        if point is not None:
-            branch.points.append(point)
-            progress(len(branch.points), point)
+        # End exactly on the range's end, never beyond it (None: no point there).
+        end = _on_bound(system, here, point, *outside, settings, accept) if outside else point
+        if end is not None:
+            for kind in _crossings(system, here, end):
+                located = locate(system, here, end, kind, settings)
+                if _inside(located.v, settings):
+                    branch.points.append(located)
+            branch.points.append(end)
+            progress(len(branch.points), end)
         if outside:
             branch.stop_reason = "end of range"
             return branch

@@ -260,7 +260,8 @@ class StabilityDescent:
         pivoting), the best-conditioned set of free quantities to solve the equations for."""
         free = self._free(spec, design)
         C = self._constraints(spec, design)[:, free]
-        dependent, residual = [], C.copy()
+        dependent: list[int] = []
+        residual = C.copy()
         for _ in range(min(C.shape)):
             norms = np.linalg.norm(residual, axis=0)
             norms[dependent] = -1

@@ -192,6 +192,7 @@ def run_closed_loop(rmap: ReturnMap, params: Params, controller, X0, X_star, str
         residuals.append(residual)
         if not stride.ok:
             return ClosedLoopRun(np.array(apexes), np.array(controls), np.array(residuals), "fell", None)
+        assert stride.apex is not None  # a stride that did not fall reached its apex
         apexes.append(stride.apex)
         if eps(stride.apex, X_star) <= tolerance:
             return ClosedLoopRun(np.array(apexes), np.array(controls), np.array(residuals), "converged", n + 1)

@@ -246,7 +246,7 @@ class FixedPointSystem:
         names = self.dynamic_coordinates(u, params)
         index = [APEX.index(n) for n in names]
         lifted = self._lift(X, index, shift, params, len(names) < APEX.size)
-        if shift is None and v.tobytes() == (self._cache[0] if self._cache else None):
+        if shift is None and self._cache is not None and v.tobytes() == self._cache[0]:
             dr_dX = self._cache[1][3]
         else:
             dr_dX = self._map_jacobians(lifted, u, params)[0]

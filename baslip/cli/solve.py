@@ -18,8 +18,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from baslip.cli.common import EXIT_BAD_INPUT, EXIT_NOT_CONVERGED, EXIT_OK, OneLineParser
-from baslip.errors import InputError
-from baslip.files.lock import FolderBusy
+from baslip.errors import InputError, RunError
 from baslip.gait.describe import summary_text as summary
 from baslip.problem.reader import ProblemError, load_problem
 from baslip.results import run_summary_text
@@ -97,24 +96,25 @@ def main(argv: list[str] | None = None, prog: str = "python -m baslip.solve") ->
         problem = replace(problem, solver=replace(problem.solver, print_level=5))
     out_dir = args.out if args.out is not None else Path("results") / problem.name
     # The run's modules load CasADi; `baslip --help` and bad input do not need them.
-    from baslip.api import NothingToSchedule, OutputUnwritable, check_run
-    from baslip.studies.runner import SchedulerError
+    from baslip.api import check_run
 
     try:
         check_run(problem, out_dir, out_dir.parent, args.scheduler)
-    except (NothingToSchedule, OutputUnwritable) as err:
-        print(f"error: {err}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except SchedulerError as err:
-        print(f"error: --scheduler: {err}", file=sys.stderr)
-        return EXIT_BAD_INPUT
     except InputError as err:
-        print(f"error: {args.problem}: {err}", file=sys.stderr)
+        print(refusal(err, args.problem), file=sys.stderr)
         return EXIT_BAD_INPUT
     import matplotlib
 
     with matplotlib.rc_context({"savefig.format": args.format}):  # for this run's figures only
         return _run(problem, args, out_dir)
+
+
+def refusal(err: InputError, problem_path: Path) -> str:
+    """The one line for refused input: an entry of the problem file is named after the
+    file; an option (``--scheduler: ...``) or a folder speaks for itself."""
+    if err.key and not err.key.startswith("-"):
+        return f"error: {problem_path}: {err}"
+    return f"error: {err}"
 
 
 def _run(problem, args, out_dir: Path) -> int:
@@ -126,9 +126,12 @@ def _run(problem, args, out_dir: Path) -> int:
         if problem.continuation is not None:
             return _run_continuation(problem, out_dir, args.quiet)
         return _solve_and_write(problem, out_dir, args.quiet)
-    except FolderBusy as err:
-        print(f"error: {err}", file=sys.stderr)
+    except InputError as err:  # found only once running: a busy or stale folder, a lost scheduler
+        print(refusal(err, args.problem), file=sys.stderr)
         return EXIT_BAD_INPUT
+    except RunError as err:  # valid input, but the run could not start
+        print(f"error: {problem.name}: {err}", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
     except KeyboardInterrupt:
         print(f"{problem.name}: interrupted", file=sys.stderr)
         return EXIT_NOT_CONVERGED
@@ -139,20 +142,9 @@ def _run(problem, args, out_dir: Path) -> int:
 
 def _run_study(problem, out_dir: Path, quiet: bool, fresh: bool, jobs: int | None,
                scheduler: str | None, lanes: int | None = None) -> int:
-    from baslip.studies.registry import StaleFolder, StudyFailed, outcome, run_study
-    from baslip.studies.runner import SchedulerError
+    from baslip.studies.registry import outcome, run_study
 
-    try:
-        summary = run_study(problem, out_dir, quiet, fresh, jobs, scheduler, lanes)
-    except SchedulerError as err:
-        print(f"error: --scheduler: {err}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except StaleFolder as err:
-        print(f"error: {err}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except StudyFailed as err:
-        print(f"error: {problem.name}: {err}", file=sys.stderr)
-        return EXIT_NOT_CONVERGED
+    summary = run_study(problem, out_dir, quiet, fresh, jobs, scheduler, lanes)
     failure = outcome(summary)
     if not quiet:
         print(run_summary_text(summary))
@@ -164,13 +156,9 @@ def _run_study(problem, out_dir: Path, quiet: bool, fresh: bool, jobs: int | Non
 
 
 def _run_continuation(problem, out_dir: Path, quiet: bool) -> int:
-    from baslip.studies.branch import BranchStartFailed, run_continuation
+    from baslip.studies.branch import run_continuation
 
-    try:
-        summary = run_continuation(problem, out_dir, quiet)
-    except BranchStartFailed as err:
-        print(f"error: {problem.name}: {err}", file=sys.stderr)
-        return EXIT_NOT_CONVERGED
+    summary = run_continuation(problem, out_dir, quiet)
     if not quiet:
         print(run_summary_text(summary))
         from baslip.viz.figures import figure_file

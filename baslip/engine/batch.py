@@ -85,7 +85,7 @@ class _Batch:
             self._stance(live, t_descent)
         for i in self._pending():  # the careful path, one by one
             self.results[i] = self.engine.stride(self.X[i], self.U[i], self.p, t_descent[i])
-        return self.results
+        return [r for r in self.results if not isinstance(r, str)]  # none is pending now
 
     def _pending(self) -> np.ndarray:
         return np.array([i for i, r in enumerate(self.results) if isinstance(r, str)], dtype=int)

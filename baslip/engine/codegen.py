@@ -412,7 +412,7 @@ def _read(sources: Sequence[pathlib.Path]) -> list[bytes]:
 def _key(fingerprint: Sequence[bytes], names: Sequence[str], compiler: list[str], version: str) -> str:
     """sha256 of everything that decides a library's contents."""
     digest = hashlib.sha256()
-    parts = [*fingerprint, " ".join(names).encode(), ca.__version__.encode(),
+    parts = [*fingerprint, " ".join(names).encode(), ca.__version__.encode(),  # type: ignore[attr-defined]
              shlex.join([*compiler, *CFLAGS, *LDLIBS]).encode(), version.encode()]
     for part in parts:
         digest.update(part)

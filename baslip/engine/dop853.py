@@ -100,7 +100,8 @@ def step_function(
     x = ca.SX.sym("x", rhs.size1_in(0))
     theta = ca.SX.sym("theta", rhs.size1_in(1))
     h = ca.SX.sym("h")
-    slopes, stage_states = [], []
+    slopes: list = []
+    stage_states: list = []
     for row in tableau.a:
         stage = x + h * _weighted(row, slopes) if any(row) else x
         stage_states.append(stage)

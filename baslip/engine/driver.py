@@ -145,7 +145,7 @@ class CompiledEngine:
             n = TIERS[i]
             apex, durations, diagnostics = (o.ravel() for o in self.functions.final(n)(X, u, p, guesses))
             verdict = self.judge(apex, durations, diagnostics)
-            if verdict != "refine":
+            if not isinstance(verdict, str):  # the one string verdict is "refine"
                 return n, verdict
             result = np.concatenate([apex, durations])
             if coarse is None and i > lowest:
@@ -153,7 +153,9 @@ class CompiledEngine:
                 coarse = below, np.concatenate([o.ravel() for o in self.functions.final(below)(X, u, p, guesses)[:2]])
             error = np.inf if coarse is None else float(richardson_error(result, coarse[1], coarse[0], n))
             if error <= self.tolerance:
-                return n, stride_of_verdict(ACCEPTED, apex, durations, error)
+                accepted = stride_of_verdict(ACCEPTED, apex, durations, error)
+                assert isinstance(accepted, Stride)
+                return n, accepted
             i, coarse = next_tier(i, error, self.tolerance), (n, result)
         return TIERS[-1], None
 
@@ -224,6 +226,7 @@ class CompiledEngine:
                 return self._fall_in_step(nodes[:, fall_step], h, theta)
             if liftoff_step is not None:
                 k = liftoff_step
+                assert bottom is not None  # the liftoff is searched for only after the bottom
                 liftoff = hermite_root(times[k - 1 : k + 1], stretch[k - 1 : k + 1], rhodot[k - 1 : k + 1])
                 # Summed in order, as the compiled planning sums (np.sum pairs terms otherwise).
                 return Scouted(bottom, liftoff, rate, h, error + float(np.cumsum(errors[0])[k - 1]))

@@ -66,8 +66,9 @@ class Stride:
         return self.fall is None
 
     def __repr__(self) -> str:
-        if not self.ok:
+        if self.fall is not None:
             return f"<Stride fell: {self.fall.value}>"
+        assert self.apex is not None
         time = sum(self.durations.values())
         return f"<Stride to z = {self.apex[0]:.6g} m, ydot = {self.apex[2]:.6g} m/s in {time:.4g} s>"
 

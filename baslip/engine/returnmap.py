@@ -16,6 +16,8 @@ whose ``fall`` names the reason, and :meth:`ReturnMap.simulate` stops there.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from baslip.engine.eventmap import EventMap
@@ -40,6 +42,9 @@ from baslip.model.hiplaw import CONTROL
 COMPILED_TIGHTEST = 1e-12
 #: Plugin name of the compiled engine.
 COMPILED = "compiled"
+
+if TYPE_CHECKING:
+    from baslip.engine.batch import BatchEngine
 
 
 class ReturnMap:
@@ -71,7 +76,7 @@ class ReturnMap:
             self._compiled = CompiledEngine(tolerance, compile)
         self._events = None if plugin == COMPILED else EventMap(tolerances, plugin, compile)
         self._compile = compile
-        self._batch = None  # the batched compiled engine, built on first use
+        self._batch: BatchEngine | None = None  # the batched compiled engine, built on first use
         self.fallbacks = 0  # strides the compiled engine handed to the event map
 
     @property
@@ -90,6 +95,7 @@ class ReturnMap:
     def describe(self) -> str:
         """One phrase naming the engine and its tolerance."""
         if self.plugin == COMPILED:
+            assert self._compiled is not None
             return f"compiled DOP853, error estimate <= {self._compiled.tolerance:g}"
         return f"{self.plugin}, rtol = {self.tolerances.rtol:g}, atol = {self.tolerances.atol:g}"
 
@@ -113,6 +119,7 @@ class ReturnMap:
         result = self.stride(X, u, params)
         if result.fall is not None:
             raise RunnerFell(result.fall)
+        assert result.apex is not None
         return result.apex
 
     def _stride_jacobian(self, X, u, p, with_parameters: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -120,6 +127,7 @@ class ReturnMap:
         :class:`RunnerFell` if it falls."""
         fallen, t_guess = precheck(X, u, p)
         if fallen is not None:
+            assert fallen.fall is not None
             raise RunnerFell(fallen.fall)
         answer = None
         if self._compiled is not None:
@@ -131,6 +139,7 @@ class ReturnMap:
         jac, outcome = answer
         if outcome.fall is not None:
             raise RunnerFell(outcome.fall)
+        assert outcome.apex is not None and jac is not None  # a stride that did not fall has both
         return jac[:, : APEX.size + CONTROL.size + (PARAMS.size if with_parameters else 0)], outcome.apex
 
     # -- Jacobians of r^n ------------------------------------------------------------
@@ -182,12 +191,13 @@ class ReturnMap:
             from baslip.engine.batch import BatchEngine
 
             self._batch = BatchEngine(self._compiled, compile=self._compile)
-        results = self._batch.strides(X, U, p)
-        for i, result in enumerate(results):
+        strides = []
+        for i, result in enumerate(self._batch.strides(X, U, p)):
             if result is None:
                 self.fallbacks += 1
-                results[i] = self.event_map.stride(X[i], U[i], p, precheck(X[i], U[i], p)[1])
-        return results
+                result = self.event_map.stride(X[i], U[i], p, precheck(X[i], U[i], p)[1])
+            strides.append(result)
+        return strides
 
     def simulate_many(self, X0, U, params, strides: int) -> list[Simulation]:
         """:meth:`simulate` from each row of ``X0`` (under the rows of ``U``, or one
@@ -204,7 +214,7 @@ class ReturnMap:
             results = self.strides(np.array([apexes[i][-1] for i in alive]), U[alive], params)
             for i, result in zip(alive, results):
                 if result.fall is not None:
-                    falls[i] = (result.fall, n)
+                    falls[int(i)] = (result.fall, n)
                 else:
                     apexes[i].append(result.apex)
                     durations[i].append(result.durations)
@@ -216,11 +226,13 @@ class ReturnMap:
 
     def simulate(self, X0, u, params, strides: int) -> Simulation:
         """Apply ``u`` for up to ``strides`` strides from apex ``X0``."""
-        apexes, durations = [vec(X0)], []
+        apexes = [vec(X0)]
+        durations: list[dict[str, float]] = []
         for n in range(strides):
             result = self.stride(apexes[-1], u, params)
             if result.fall is not None:
                 return Simulation(np.array(apexes), durations, result.fall, n)
+            assert result.apex is not None
             apexes.append(result.apex)
             durations.append(result.durations)
         return Simulation(np.array(apexes), durations)

@@ -74,7 +74,7 @@ def _stride_from(rmap: ReturnMap, X, u, params: Params, y: float):
     theta_h_dot) at that apex with the CoM at horizontal position ``y`` [m]; raises
     :class:`RunnerFell` if the stride falls."""
     stride = rmap.stride(X, u, params)
-    if not stride.ok:
+    if stride.fall is not None:
         raise RunnerFell(stride.fall)
     a = APEX.unpack(X)
     return stride, np.array([y, a["z"], a["theta_h"], a["ydot"], 0.0, a["theta_h_dot"]])

@@ -59,7 +59,7 @@ def versions() -> dict:
         baslip_version = "unknown"
     return {
         "baslip": baslip_version,
-        "casadi": ca.__version__,
+        "casadi": ca.__version__,  # type: ignore[attr-defined]
         "ipopt": ipopt_version(),
         "numpy": np.__version__,
         "python": platform.python_version(),

@@ -24,7 +24,7 @@ from baslip.engine.returnmap import PHASES, ReturnMap, Tolerances
 from baslip.gait.polish import Polish
 from baslip.gait.polish import eps as _eps
 from baslip.gait.shooting import FixedPointSpec, NlpSolution, ShootingNLP, ShootingOptions, torque_effort
-from baslip.gait.stability import Stability, classify
+from baslip.gait.stability import Multiplier, Stability, classify
 from baslip.model.dynamics import APEX, Params
 from baslip.model.hiplaw import CONTROL
 from baslip.model.quantities import DESIGN, NOMINAL
@@ -91,6 +91,12 @@ class FixedPointResult:
     @property
     def spectral_radius(self) -> float | None:
         return None if self.stability is None else self.stability.spectral_radius
+
+    @property
+    def multipliers(self) -> tuple[Multiplier, ...]:
+        """The eigenvalues of dr/dX with their trivial labels; empty when there is no
+        stability (a failed or unverified solve)."""
+        return () if self.stability is None else self.stability.multipliers
 
     @property
     def stable(self) -> bool | None:
@@ -284,6 +290,7 @@ class FixedPointSolver:
 
     def torque_effort(self, result: FixedPointResult) -> float:
         """Integral of tau^2 dt over the stance of a result's (first) stride [N^2 m^2 s]."""
+        assert result.durations is not None, "a result with a stance has its phase durations"
         durations = [result.durations[ph] for ph in PHASES]
         return torque_effort(self.nlp.interval, result.X, result.u, durations, result.params)
 

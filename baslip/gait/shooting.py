@@ -249,7 +249,8 @@ class ShootingNLP:
             ipopt["hessian_approximation"] = "limited-memory"
         else:
             options["hess_lag"] = functions["nlp_hess_l"]
-        return ca.nlpsol("periodic_orbit", "ipopt", {"x": w, "p": params, "f": f, "g": g}, options)
+        # CasADi's stubs list SX only; nlpsol takes MX expressions as well.
+        return ca.nlpsol("periodic_orbit", "ipopt", {"x": w, "p": params, "f": f, "g": g}, options)  # type: ignore[dict-item, arg-type]
 
     # -- solving -----------------------------------------------------------------------
 
@@ -286,7 +287,7 @@ class ShootingNLP:
             durations = _guess_durations(X, u, spec.params, stride)
             comp, decomp = (np.asarray(v) for v in self._guess_nodes()(X, u, p, durations[:3]))
             parts += ([X] if k else []) + [durations, comp.T.ravel(), decomp.T.ravel()]
-            X = stride.apex if stride is not None and stride.ok else X
+            X = stride.apex if stride is not None and stride.apex is not None else X
         return np.concatenate(parts)
 
     def _guess_nodes(self) -> ca.Function:

@@ -6,12 +6,13 @@ integers, so that ``STANCE.get(x, "rhodot")`` reads like the physics it encodes.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import casadi as ca
 import numpy as np
+from numpy.typing import ArrayLike
 
 
 @dataclass(frozen=True)
@@ -34,7 +35,7 @@ class Layout:
     def get(self, vec: Any, name: str) -> Any:
         """Entry ``name`` of ``vec`` (CasADi or numpy); a row when ``vec`` has many columns."""
         i = self.index(name)
-        shape = getattr(vec, "shape", ())
+        shape: tuple[int, ...] = getattr(vec, "shape", ())
         return vec[i, :] if len(shape) == 2 and shape[1] > 1 else vec[i]
 
     def unpack(self, vec: Any) -> dict[str, Any]:
@@ -51,11 +52,11 @@ class Layout:
             return ca.vertcat(*entries)
         return np.array(entries, dtype=float)
 
-    def sym(self, name: str, kind: type = ca.SX) -> Any:
+    def sym(self, name: str, kind: Any = ca.SX) -> Any:
         """A fresh symbolic column vector of this layout's size."""
         return kind.sym(name, self.size)
 
-    def to_dict(self, vec: Sequence[float]) -> dict[str, float]:
+    def to_dict(self, vec: ArrayLike) -> dict[str, float]:
         """Plain-float dictionary of a numeric vector, for JSON output."""
         flat = np.asarray(vec, dtype=float).ravel()
         return {name: float(flat[i]) for i, name in enumerate(self.names)}

@@ -112,7 +112,8 @@ _MAPPINGS = ("fix", "guess", "bounds")
 
 
 def _unpickled_problem(state: dict) -> Problem:
-    return Problem(**{k: MappingProxyType(v) if k in _MAPPINGS else v for k, v in state.items()})
+    fields: dict[str, Any] = {k: MappingProxyType(v) if k in _MAPPINGS else v for k, v in state.items()}
+    return Problem(**fields)
 
 
 def load_problem(path: str | Path) -> Problem:
@@ -142,7 +143,7 @@ def parse_problem(data: Any, default_name: str = "problem") -> Problem:
     :class:`SolverSettings` objects; they are checked like their mappings.
     """
     top = _mapping(data, "", TOP_LEVEL_KEYS)
-    fields = {key: _FIELDS[key](top[key]) for key in TOP_LEVEL_KEYS if key in top}
+    fields: dict[str, Any] = {key: _FIELDS[key](top[key]) for key in TOP_LEVEL_KEYS if key in top}
     fields.setdefault("name", _name(default_name))
     return _checked(Problem(**fields))
 
@@ -361,7 +362,7 @@ def _study(value: Any) -> Study:
 def _solver(value: Any) -> SolverSettings:
     raw = _mapping(value, "solver", ("nodes", "substeps", "max_iter", "tol", "print_level"))
     limits = {"nodes": (2, 200), "substeps": (1, 20), "max_iter": (1, 100000), "print_level": (0, 12)}
-    settings = {}
+    settings: dict[str, Any] = {}
     for name, v in raw.items():
         key = f"solver.{name}"
         if name == "tol":

@@ -47,8 +47,9 @@ def upright_section(ev: Evidence) -> list[str]:
             ["optimal_upright/spectral_radius_map.png", "optimal_upright/best_gaits_trunk.png",
              "optimal_downward/spectral_radius_map.png"],
         ))
-    controllers = {name: ev.summary(name) for name in ("controllers_upright", "controllers_downward")}
-    if all(controllers.values()):
+    found = {name: ev.summary(name) for name in ("controllers_upright", "controllers_downward")}
+    controllers = {name: summary for name, summary in found.items() if summary is not None}
+    if len(controllers) == len(found):
         rows = ["| gait | controller | converged | kept up, not converged | fell | median strides to converge | median cost a stride |",
                 "|---|---|---|---|---|---|---|"]
         for name, summary in controllers.items():

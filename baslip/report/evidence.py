@@ -4,15 +4,16 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from baslip.engine.returnmap import ReturnMap, Tolerances
+from baslip.files.rows import read_points
 from baslip.model.dynamics import APEX, Params
 from baslip.model.hiplaw import CONTROL
 from baslip.status import Status
-from baslip.studies.sweep import read_points
 
 DEG = 180 / math.pi
 
@@ -22,7 +23,7 @@ class Evidence:
 
     def __init__(self, results: Path):
         self.results = results
-        self._map = None
+        self._map: ReturnMap | None = None
 
     def points(self, name: str) -> list[dict]:
         path = self.results / name / "points.csv"
@@ -57,14 +58,16 @@ class Evidence:
         X = np.array([row[n] for n in APEX.names])
         u = np.array([row[n] for n in CONTROL.names])
         stride = self._map.stride(X, u, Params())
-        return float(np.linalg.norm(stride.apex - X) / np.linalg.norm(X)) if stride.ok else math.nan
+        if stride.apex is None:
+            return math.nan
+        return float(np.linalg.norm(stride.apex - X) / np.linalg.norm(X))
 
 
 def converged(rows):
     return [r for r in rows if r["status"] == Status.CONVERGED]
 
 
-def claim(title: str, thesis: str, ours: str, verdict: str, why: str, figures: list[str] = ()) -> str:
+def claim(title: str, thesis: str, ours: str, verdict: str, why: str, figures: Sequence[str] = ()) -> str:
     lines = [f"### {title}", "", f"- **Thesis:** {thesis}", f"- **baslip:** {ours}"]
     if figures:
         lines.append("- **Figures:** " + ", ".join(f"[{f}]({f})" for f in figures))

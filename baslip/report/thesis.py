@@ -78,7 +78,7 @@ def region_claims(ev: Evidence) -> list[str]:
     if not rows:
         return ["### Stable region\n\nNot run.\n"]
     stable = [r for r in converged(rows) if r["stable"] is True]
-    by_z = {}
+    by_z: dict = {}
     for r in stable:
         by_z.setdefault(round(r["sweep_z"], 3), []).append(r["sweep_ydot"])
     description = "; ".join(f"z = {z:g} m: ydot in [{min(v):g}, {max(v):g}] ({len(v)} cells)" for z, v in sorted(by_z.items()))

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -28,7 +29,11 @@ from baslip.analysis.feedback import ResolvedControl
 from baslip.gait.polish import eps
 from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import CONTROL
-from baslip.studies.runner import ResumableCsv
+from baslip.problem.reader import Problem
+from baslip.problem.study import Adaptive
+from baslip.studies.common import StudyFailed, study_table
+from baslip.studies.runner import ResumableCsv, Workers
+from baslip.viz import figures
 
 STRIDE_COLUMNS = ["phase", "n", *APEX.names, *CONTROL.names, "eps", "eps_to_gait", "solve_time_s", "note"]
 #: Bisection steps on the perturbation factor, and the largest factor tried.
@@ -48,9 +53,11 @@ def run_adaptive(controller: ResolvedControl, X0, params, strides: int, frozen_s
         last = adaptive[-1]
         controller.last = _control(last)
         stride = rmap.stride(_apex(last), controller.last, params)
-        X = stride.apex
-        if not stride.ok:
+        if stride.fall is not None:
             failure = f"stride {len(adaptive) - 1}: the runner falls ({stride.fall.value})"
+        else:
+            assert stride.apex is not None
+            X = stride.apex
     start = time.perf_counter()
     for n in range(len(adaptive), strides):
         if frozen or failure:
@@ -61,9 +68,10 @@ def run_adaptive(controller: ResolvedControl, X0, params, strides: int, frozen_s
         table.append({"phase": "adaptive", "n": n, **APEX.to_dict(X), **CONTROL.to_dict(u), "eps": residual,
                       "eps_to_gait": eps(X, X_star), "solve_time_s": solve_time})
         stride = rmap.stride(X, u, params)
-        if not stride.ok:
+        if stride.fall is not None:
             failure = f"stride {n}: the runner falls ({stride.fall.value})"
             break
+        assert stride.apex is not None
         X = stride.apex
         if not quiet and (n + 1) % 256 == 0:
             elapsed = time.perf_counter() - start
@@ -146,16 +154,52 @@ def _run_frozen(rmap, last_adaptive, last_frozen, params, frozen_strides: int, t
     strides completed."""
     u = _control(last_adaptive)
     first = rmap.stride(_apex(last_adaptive), u, params)
-    if not first.ok:
+    if first.fall is not None:
         table.append({"phase": "fall", "n": 0, **APEX.to_dict(_apex(last_adaptive)), **CONTROL.to_dict(u), "note": first.fall.value})
         return
+    assert first.apex is not None
     start = first.apex
     X, done = (start, 0) if last_frozen is None else (_apex(last_frozen), int(float(last_frozen["n"])))
     for n in range(done, frozen_strides):
         stride = rmap.stride(X, u, params)
-        if not stride.ok:
+        if stride.fall is not None:
             table.append({"phase": "fall", "n": n, **APEX.to_dict(X), **CONTROL.to_dict(u), "note": stride.fall.value})
             return
+        assert stride.apex is not None
         X = stride.apex
         table.append({"phase": "frozen", "n": n + 1, **APEX.to_dict(X), **CONTROL.to_dict(u),
                       "eps": eps(X, start), "solve_time_s": 0.0})
+
+
+def run_adaptive_study(problem: Problem, study: Adaptive, out_dir: Path, sources: Path, quiet: bool, lanes: int, workers: Workers) -> dict:
+    """Per-stride re-optimised control from a perturbed apex (one lane; ``lanes`` and ``workers`` unused)."""
+    from baslip.gait.from_problem import fixed_point_spec, solve_start, solver_for
+
+    solver = solver_for(problem)
+    result = solve_start(problem, solver)
+    if not result.converged:
+        raise StudyFailed(f"the starting fixed point did not converge: {result.status} ({result.message})")
+    spec = fixed_point_spec(problem)
+    bounds = np.array([spec.bounds_of(n) for n in CONTROL.names])
+    held = tuple(i for i, n in enumerate(CONTROL.names) if n in problem.fix)
+
+    def controller():
+        return ResolvedControl(solver.residual_map, problem.params, result.X, result.u, study.criterion,
+                               fixed=held, lower=bounds[:, 0], upper=bounds[:, 1])
+
+    offset = np.array([dict(study.perturbation).get(n, 0.0) for n in APEX.names])
+    table = study_table(out_dir / "strides.csv", STRIDE_COLUMNS, ["phase", "n"], quiet)
+    summary = run_adaptive(controller(), result.X + offset, problem.params, study.strides, study.frozen_strides, table, quiet)
+    figures.adaptive_figures(table.rows, out_dir)
+    recovery = None
+    if offset.any():
+        if not quiet:
+            print(f"{problem.name}: bisecting the largest recovered perturbation...", file=sys.stderr)
+        recovery = largest_recovered(controller, solver.residual_map, problem.params, result.X, offset, study.probe_strides)
+    return {
+        "start": {"apex": result.apex, "control": result.control, "spectral_radius": result.spectral_radius},
+        "perturbation": dict(study.perturbation),
+        "criterion": study.criterion,
+        **summary,
+        "largest_recovered": recovery,
+    }

@@ -8,12 +8,23 @@ stable point of a finished sweep; the union over them is thesis fig. 4.16.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from baslip.engine.returnmap import ReturnMap, Tolerances
+from baslip.files.atomic import write_files_atomically
+from baslip.files.rows import read_points
 from baslip.model.dynamics import APEX, Params
+from baslip.model.hiplaw import CONTROL
+from baslip.problem.reader import Problem
 from baslip.problem.study import Basin
+from baslip.status import Status
+from baslip.studies.common import run_info, study_table
+from baslip.studies.runner import Workers, run_tasks, split_lanes
+from baslip.studies.sources import StudyInputError, source_points
 from baslip.studies.sweep import key_column
+from baslip.viz import figures
 
 #: Simulation accuracy: convergence is judged at 1e-4, far above the map's error.
 SIMULATION_TOLERANCES = Tolerances(1e-8, 1e-8)
@@ -46,6 +57,7 @@ def run_from(rmap: ReturnMap, X0, X_star, u_star, params: Params, strides: int, 
         stride = rmap.stride(apexes[-1], u_star, params)
         if not stride.ok:
             return "fell", n, float("nan"), np.array(apexes)
+        assert stride.apex is not None
         apexes.append(stride.apex)
         eps = float(np.linalg.norm(stride.apex - X_star) / np.linalg.norm(X_star))
         if eps <= tolerance and stop_on_arrival:
@@ -97,3 +109,76 @@ def basin_worker(chunk: list[dict], context: tuple, queue) -> None:
             queue.put({**chunk[i], "outcome": outcome, "strides_run": n, "final_eps": eps})
     finally:
         queue.put(None)
+
+
+def run_basin(problem: Problem, study: Basin, out_dir: Path, sources: Path, quiet: bool, lanes: int, workers: Workers) -> dict:
+    """Convergence regions: each stable point of the source sweep run from every grid state."""
+    from baslip.engine.returnmap import ReturnMap
+
+    rows, names = source_points(sources, study.source, "study.source")
+    if set(names) != {"ydot", "z"}:
+        raise StudyInputError("study.source", f"{study.source} does not sweep ydot and z")
+    converged = [r for r in rows if r["status"] == Status.CONVERGED]
+    stable = [r for r in converged if r["stable"] is True]
+    unstable = [r for r in converged if r["stable"] is False]
+    points = [_point(r) for r in stable]
+    table = study_table(out_dir / "basin.csv", ["point", key_column("ydot"), key_column("z"), *BASIN_COLUMNS[1:]],
+                   ["point", key_column("ydot"), key_column("z")], quiet)
+    context = (points, problem.params, study.strides, study.tolerance)
+    report = run_tasks(split_lanes(basin_tasks(study, len(points)), lanes), basin_worker, context, table, problem.name,
+                       quiet=quiet, workers=workers)
+
+    example_stable, example_unstable = _nearest(stable, study.stable_at), _nearest(unstable, study.unstable_at)
+    rmap = ReturnMap(SIMULATION_TOLERANCES)
+    trajectories = {}
+    if example_unstable is not None:
+        X_u, u_u = _point(example_unstable)
+        trajectories["unstable_own_control"] = run_from(
+            rmap, X_u, X_u, u_u, problem.params, study.strides, study.tolerance, stop_on_arrival=False
+        )
+        if example_stable is not None:
+            X_s, u_s = _point(example_stable)
+            trajectories["unstable_with_stable_control"] = run_from(rmap, X_u, X_s, u_s, problem.params, study.strides, study.tolerance)
+    _write_trajectories(out_dir / "trajectories.csv", trajectories)
+
+    basin_rows = read_points(out_dir / "basin.csv")
+    example_index = stable.index(example_stable) if example_stable is not None else None
+    grid = (study.grid[0].values, study.grid[1].values)
+    figures.basin_figures(basin_rows, stable, unstable, example_index, example_unstable, trajectories, grid, out_dir)
+    grid_size = len(study.grid[0].values) * len(study.grid[1].values)
+    union = {(r[key_column("ydot")], r[key_column("z")]) for r in basin_rows if r["outcome"] == "converged"}
+    example_cells = sum(1 for r in basin_rows if r["outcome"] == "converged" and r["point"] == example_index)
+    return {
+        "source": study.source,
+        "stable_points": len(stable),
+        "grid_states": grid_size,
+        "simulations": len(basin_rows),
+        "example_stable_point": None if example_stable is None else {"ydot": example_stable["ydot"], "z": example_stable["z"]},
+        "example_unstable_point": None if example_unstable is None else {"ydot": example_unstable["ydot"], "z": example_unstable["z"]},
+        "example_region_states": example_cells,
+        "union_region_states": len(union),
+        "trajectories": {name: {"outcome": t[0], "strides": t[1]} for name, t in trajectories.items()},
+        **run_info(report),
+    }
+
+
+def check_basin(problem: Problem, study: Basin, sources: Path) -> None:
+    """Refuse a basin study whose source sweep is not there, finished and baslip's."""
+    source_points(sources, study.source, "study.source")
+
+
+def _write_trajectories(path: Path, trajectories: dict) -> None:
+    lines = ["case,n," + ",".join(APEX.names)]
+    for name, (_, _, _, apexes) in trajectories.items():
+        lines += [f"{name},{n}," + ",".join(repr(float(v)) for v in X) for n, X in enumerate(apexes)]
+    write_files_atomically({path: "\n".join(lines) + "\n"})
+
+
+def _point(row: dict) -> tuple[np.ndarray, np.ndarray]:
+    return np.array([row[n] for n in APEX.names]), np.array([row[n] for n in CONTROL.names])
+
+
+def _nearest(rows: list[dict], at: tuple[float, float]) -> dict | None:
+    if not rows:
+        return None
+    return min(rows, key=lambda r: ((r["ydot"] - at[0]) / 0.1) ** 2 + ((r["z"] - at[1]) / 0.05) ** 2)

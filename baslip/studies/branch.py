@@ -91,7 +91,7 @@ def _run_continuation(problem, out_dir: Path, quiet: bool) -> dict:
     rows = [_row(t, p, solver) for t in traced for p in t.branch.points]
     diagram = io.BytesIO()
     plots.bifurcation_diagram(rows, spec.parameter, spec.plot, diagram)
-    files = {}
+    files: dict[Path, str | bytes] = {}
     curves = None
     if spec.second is not None:
 

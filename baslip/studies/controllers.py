@@ -17,12 +17,19 @@ share of the box's samples that converge.
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import numpy as np
 
+from baslip.files.rows import read_points
 from baslip.model.dynamics import APEX
+from baslip.model.hiplaw import CONTROL
 from baslip.model.quantities import NOMINAL
+from baslip.problem.reader import Problem
 from baslip.problem.study import Controllers
+from baslip.studies.common import StudyFailed, run_info, study_table
+from baslip.studies.runner import Workers, run_tasks, split_lanes
+from baslip.viz import figures
 
 CONTROLLERS = ("constant", "feedback", "resolve")
 CONTROLLER_COLUMNS = [
@@ -87,3 +94,58 @@ def controllers_worker(chunk: list[dict], context: dict, queue) -> None:
             })
     finally:
         queue.put(None)
+
+
+def run_controllers(problem: Problem, study: Controllers, out_dir: Path, sources: Path, quiet: bool, lanes: int, workers: Workers) -> dict:
+    """Three stride-to-stride controllers on one gait, from the same perturbed starts."""
+    from baslip.analysis.feedback import CONTROL_SCALE, closed_loop_multipliers, control_rank, deadbeat_gain, lqr_gain
+    from baslip.gait.from_problem import fixed_point_spec, solve_start, solver_for
+
+    solver = solver_for(problem)
+    gait = solve_start(problem, solver)
+    if not gait.converged:
+        raise StudyFailed(f"the gait did not converge: {gait.status} ({gait.message})")
+    A, B = solver.jacobian_map.jacobians(gait.X, gait.u, problem.params)
+    rank = control_rank(B)
+    try:
+        K = deadbeat_gain(A, B) if rank == APEX.size else lqr_gain(A, B, lqr_weights(study), np.diag(1 / CONTROL_SCALE**2))
+    except ValueError as err:
+        raise StudyFailed(f"no linear feedback for this gait: {err}") from None
+    spec = fixed_point_spec(problem)
+    bounds = np.array([spec.bounds_of(n) for n in CONTROL.names])
+    context = {
+        "X": gait.X, "u": gait.u, "K": K, "params": problem.params, "strides": study.strides,
+        "tolerance": study.tolerance, "criterion": study.criterion, "lower": bounds[:, 0], "upper": bounds[:, 1],
+        "held": tuple(i for i, n in enumerate(CONTROL.names) if n in problem.fix),
+    }
+    table = study_table(out_dir / "controllers.csv", CONTROLLER_COLUMNS, ["controller", "sample"], quiet)
+    report = run_tasks(split_lanes(controller_tasks(study), lanes), controllers_worker, context, table,
+                       problem.name, quiet=quiet, workers=workers)
+    rows = read_points(out_dir / "controllers.csv")
+    figures.controllers_figure(rows, dict(study.perturbation), out_dir)
+    multipliers = closed_loop_multipliers(A, B, K)
+
+    def tally(name: str) -> dict:
+        mine = [r for r in rows if r["controller"] == name]
+        converged = [r for r in mine if r["outcome"] == "converged"]
+        return {
+            "samples": len(mine),
+            "basin_fraction": len(converged) / len(mine) if mine else None,
+            "bounded_fraction": sum(r["outcome"] == "bounded" for r in mine) / len(mine) if mine else None,
+            "fell_fraction": sum(r["outcome"] == "fell" for r in mine) / len(mine) if mine else None,
+            "median_strides_to_converge": float(np.median([r["strides_to_converge"] for r in converged])) if converged else None,
+            "median_ms_per_stride": float(np.median([r["ms_per_stride"] for r in mine])) if mine else None,
+        }
+
+    return {
+        "gait": {"apex": gait.apex, "control": gait.control, "spectral_radius": gait.spectral_radius,
+                 "rank_dr_du": rank},
+        "feedback": {"kind": "deadbeat" if rank == APEX.size else "lqr", "K": K.tolist(),
+                     "rows": list(CONTROL.names), "columns": list(APEX.names),
+                     "closed_loop_multipliers": [[float(m.real), float(m.imag)] for m in multipliers],
+                     "closed_loop_radius": float(np.max(np.abs(multipliers)))},
+        "perturbation": dict(study.perturbation), "tolerance": study.tolerance, "strides": study.strides,
+        "resolve_criterion": study.criterion,
+        "controllers": {name: tally(name) for name in CONTROLLERS},
+        **run_info(report),
+    }

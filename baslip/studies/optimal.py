@@ -14,13 +14,20 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
+from baslip.files.rows import read_points
+from baslip.model.dynamics import APEX
+from baslip.model.hiplaw import CONTROL
 from baslip.problem.reader import Problem
 from baslip.problem.study import Optimal
 from baslip.status import Status
+from baslip.studies.common import run_info, status_counts, study_table
+from baslip.studies.runner import Workers, run_tasks, split_lanes
 from baslip.studies.sweep import RESULT_COLUMNS, key_column, result_row, sweep_tasks
+from baslip.viz import figures
 
 #: Upright at the apex: |theta_h - 90 deg| within this; upright throughout: the trunk
 #: within UPRIGHT_THROUGHOUT of vertical at every instant of the stride [rad].
@@ -74,16 +81,18 @@ def optimal_worker(chunk: list[dict], problem: Problem, queue) -> None:
     from baslip.analysis.descent import StabilityDescent, optimise_from, random_start
     from baslip.gait.from_problem import fixed_point_spec, solver_for
 
+    study = problem.study
+    assert isinstance(study, Optimal)
     try:
         solver = solver_for(problem)
-        descent = StabilityDescent(solver.residual_map, max_iterations=problem.study.iterations)
+        descent = StabilityDescent(solver.residual_map, max_iterations=study.iterations)
         base = fixed_point_spec(problem)
         for task in chunk:
             if task.get("done"):
                 continue
             swept = {k[len("sweep_"):]: v for k, v in task.items() if k.startswith("sweep_")}
             spec = replace(base, fixed={**base.fixed, **swept})
-            held = random_start(spec, task_rng(problem.study, task))
+            held = random_start(spec, task_rng(study, task))
             started = time.perf_counter()
             gait = optimise_from(solver, descent, spec, held, problem.name)
             row = optimal_row(task, gait, solver.residual_map, problem.params)
@@ -122,3 +131,40 @@ def best_rows(rows: list[dict], names: list[str], where=lambda row: True) -> lis
         if cell not in best or row["spectral_radius"] < best[cell]["spectral_radius"]:
             best[cell] = row
     return [best[cell] for cell in sorted(best)]
+
+
+def run_optimal(problem: Problem, study: Optimal, out_dir: Path, sources: Path, quiet: bool, lanes: int, workers: Workers) -> dict:
+    """The most stable gait at every grid point, from many random starts each."""
+    names = [a.name for a in study.axes]
+    keys = [key_column(n) for n in names]
+    table = study_table(out_dir / "points.csv", keys + OPTIMAL_COLUMNS, keys + ["start"], quiet)
+    report = run_tasks(split_lanes(optimal_tasks(study), lanes), optimal_worker, problem, table,
+                       problem.name, quiet=quiet, workers=workers)
+    rows = read_points(out_dir / "points.csv")
+    best = best_rows(rows, names)
+    figures.sweep_figures(best, names, out_dir)
+    figures.trunk_motion_figure(best_gait_motions(best, names, problem.params), out_dir)
+
+    def least(where) -> dict | None:
+        candidates = best_rows(rows, names, where)
+        if not candidates:
+            return None
+        row = min(candidates, key=lambda r: r["spectral_radius"])
+        return {**{n: row[key_column(n)] for n in names}, "start": int(row["start"]),
+                "spectral_radius": row["spectral_radius"], "stable": row["stable"],
+                "apex": {n: row[n] for n in APEX.names}, "control": {n: row[n] for n in CONTROL.names},
+                "trunk_range_deg": [row["trunk_min_deg"], row["trunk_max_deg"]]}
+
+    not_solved = [{**{k: r[k] for k in keys}, "start": r["start"], "status": r["status"], "reason": r["reason"]}
+                  for r in rows if r["status"] != Status.CONVERGED]
+    return {
+        **status_counts(rows), **run_info(report), "swept": names, "starts": study.starts,
+        "descended": sum(1 for r in rows if r["descent_steps"] != "" and r["status"] == Status.CONVERGED),
+        "least_per_point": [{**{n: r[key_column(n)] for n in names}, "spectral_radius": r["spectral_radius"],
+                             "stable": r["stable"], "trunk_range_deg": [r["trunk_min_deg"], r["trunk_max_deg"]]}
+                            for r in best],
+        "least": least(lambda r: True),
+        "least_upright_at_apex": least(lambda r: r["upright_apex"] is True),
+        "least_upright_throughout": least(lambda r: r["upright_throughout"] is True),
+        "not_solved": not_solved,
+    }

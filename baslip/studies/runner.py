@@ -35,6 +35,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from queue import Empty
+from typing import Any
 
 import numpy as np
 
@@ -165,7 +166,7 @@ class StateLog:
             os.fsync(handle.fileno())
 
     def read(self) -> dict[tuple[str, ...], list]:
-        states = {}
+        states: dict[tuple[str, ...], list] = {}
         if not self.path.exists():
             return states
         for line in self.path.read_text(errors="replace").splitlines():
@@ -211,12 +212,12 @@ class RunReport:
 
 def run_tasks(
     lanes: Sequence[Sequence[dict]],
-    worker: Callable[[list[dict], object, multiprocessing.Queue], None],
+    worker: Callable[[list[dict], Any, Any], None],
     context: object,
     table: ResumableCsv,
     label: str,
     quiet: bool = False,
-    workers: Workers = None,
+    workers: Workers | None = None,
 ) -> RunReport:
     """Run the tasks not yet in ``table`` on ``workers`` (:class:`Workers`): one worker
     process per lane by default, at most one per core.
@@ -327,13 +328,13 @@ def check_scheduler(scheduler: str) -> None:
     try:
         from distributed import Client
     except ImportError:
-        raise SchedulerError("", "--scheduler needs Dask: pip install 'baslip[dask]'") from None
+        raise SchedulerError("--scheduler", "needs Dask: pip install 'baslip[dask]'") from None
     if scheduler == "local":
         return
     try:
         Client(scheduler, timeout=DASK_CONNECT_TIMEOUT).close()
     except (OSError, TimeoutError, ValueError) as err:
-        raise SchedulerError("", f"cannot reach the Dask scheduler at {scheduler}: {str(err).splitlines()[0][:120]}") from None
+        raise SchedulerError("--scheduler", f"cannot reach the Dask scheduler at {scheduler}: {str(err).splitlines()[0][:120]}") from None
 
 
 def run_lanes_on_dask(todo, worker, context, table, label, quiet, skipped, total, start, scheduler: str,
@@ -350,7 +351,7 @@ def run_lanes_on_dask(todo, worker, context, table, label, quiet, skipped, total
     try:
         from distributed import Client, LocalCluster, Queue
     except ImportError:
-        raise SchedulerError("", "--scheduler needs Dask: pip install 'baslip[dask]'") from None
+        raise SchedulerError("--scheduler", "needs Dask: pip install 'baslip[dask]'") from None
     cluster = None
     try:
         if scheduler == "local":
@@ -360,7 +361,7 @@ def run_lanes_on_dask(todo, worker, context, table, label, quiet, skipped, total
         else:
             client = Client(scheduler, timeout=DASK_CONNECT_TIMEOUT)
     except (OSError, TimeoutError) as err:
-        raise SchedulerError("", f"cannot reach the Dask scheduler at {scheduler}: {err}") from None
+        raise SchedulerError("--scheduler", f"cannot reach the Dask scheduler at {scheduler}: {err}") from None
     with client:
         queue = Queue(f"baslip-rows-{os.getpid()}-{time.time_ns()}", client=client)
         futures = [client.submit(_lane_on_dask, worker, lane, context, queue, pure=False, retries=DASK_RETRIES)

@@ -8,25 +8,29 @@ point is warm-started from IPOPT's answer at the previous point when that one co
 
 from __future__ import annotations
 
-import csv
 import math
 import random
 from dataclasses import replace
 from pathlib import Path
-from typing import IO
+from typing import Any
 
 import numpy as np
 
 from baslip.engine.returnmap import PHASES
+from baslip.errors import ProblemError
+from baslip.files.rows import read_points
 from baslip.gait.fixedpoint import FixedPointResult
 from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import CONTROL
 from baslip.model.quantities import DESIGN
-from baslip.problem.reader import Problem
-from baslip.problem.study import RandomSample, Sweep
+from baslip.problem.reader import Problem, check_point
+from baslip.problem.study import Optimal, RandomSample, Sweep
 from baslip.status import Status
 from baslip.studies.boundary import inside
-from baslip.studies.runner import LANES, split_lanes
+from baslip.studies.common import run_info, status_counts, study_table
+from baslip.studies.runner import LANES, Workers, run_tasks, split_lanes
+from baslip.studies.sources import StudyInputError, source_points, traced_boundary
+from baslip.viz import figures
 
 RESULT_COLUMNS = [
     *APEX.names, *CONTROL.names, *PHASES,
@@ -55,7 +59,7 @@ def sweep_lanes(study: Sweep, start: dict, lanes: int = LANES) -> list[list[dict
     return split_lanes(sweep_tasks(study), lanes)
 
 
-def sweep_tasks(study: Sweep) -> list[dict]:
+def sweep_tasks(study: Sweep | Optimal) -> list[dict]:
     """Grid points in snake order: consecutive points are neighbours."""
     if len(study.axes) == 1:
         (axis,) = study.axes
@@ -66,26 +70,6 @@ def sweep_tasks(study: Sweep) -> list[dict]:
         values = inner.values if i % 2 == 0 else tuple(reversed(inner.values))
         tasks += [{key_column(outer.name): a, key_column(inner.name): b} for b in values]
     return tasks
-
-
-def read_points(path: Path) -> list[dict]:
-    """Rows of a points.csv as dicts of floats (status and empty cells kept as strings)."""
-    with open(path, encoding="utf-8", newline="") as handle:
-        return points_from(handle)
-
-
-def points_from(handle: IO[str]) -> list[dict]:
-    """Rows of CSV text as dicts of floats (status and empty cells kept as strings)."""
-    return [{k: _number_or_text(v) for k, v in row.items()} for row in csv.DictReader(handle)]
-
-
-def _number_or_text(text: str):
-    if text in ("true", "false"):
-        return text == "true"
-    try:
-        return float(text)
-    except ValueError:
-        return text
 
 
 def radius_grid(rows: list[dict], names: tuple[str, str]):
@@ -102,7 +86,7 @@ def radius_grid(rows: list[dict], names: tuple[str, str]):
 
 def interpolated_radius(a, b, radius, x: float, y: float) -> float:
     """Bilinear interpolation of the radius grid; NaN outside it or next to a gap."""
-    i, j = np.searchsorted(a, x) - 1, np.searchsorted(b, y) - 1
+    i, j = int(np.searchsorted(a, x)) - 1, int(np.searchsorted(b, y)) - 1
     i, j = min(max(i, 0), len(a) - 2), min(max(j, 0), len(b) - 2)
     if not (a[0] <= x <= a[-1] and b[0] <= y <= b[-1]):
         return math.nan
@@ -137,7 +121,7 @@ def random_tasks(study: RandomSample, region_rows: list[dict], names: tuple[str,
         return inside((x, y), (reference[names[0]], reference[names[1]]), segments)
 
     rng = random.Random(study.seed)
-    draws = []
+    draws: list[tuple[float, float]] = []
     for _ in range(1000 * study.count):
         if len(draws) == study.count or not stable:
             break
@@ -147,7 +131,7 @@ def random_tasks(study: RandomSample, region_rows: list[dict], names: tuple[str,
     draws.sort()
     tasks = []
     for x, y in draws:
-        task = {key_column(names[0]): x, key_column(names[1]): y}
+        task: dict[str, Any] = {key_column(names[0]): x, key_column(names[1]): y}
         if segments is None:
             start = nearest(x, y)
             task["guess"] = {n: start[n] for n in DESIGN if n not in names}
@@ -191,7 +175,52 @@ def solve_worker(chunk: list[dict], problem: Problem, queue) -> None:
             # A task with its own guess starts from it; the others from their predecessor.
             result = solver.solve(spec, name=problem.name, w0=None if "guess" in task else warm)
             warm = result.nlp_w if result.converged else warm
-            state = result.nlp_w.tolist() if result.converged else None
+            state = result.nlp_w.tolist() if result.converged and result.nlp_w is not None else None
             queue.put({**result_row(task, result), "state": state})
     finally:
         queue.put(None)
+
+
+def run_sweep(problem: Problem, study: Sweep, out_dir: Path, sources: Path, quiet: bool, lanes: int, workers: Workers) -> dict:
+    """A grid sweep (or body-angle scan): its points, warm-started along each lane."""
+    origin = {a.name: problem.start_value(a.name) for a in study.axes}
+    names = [a.name for a in study.axes]
+    summary = solve_points(problem, out_dir, sweep_lanes(study, origin, lanes), names, quiet, workers)
+    figures.sweep_figures(read_points(out_dir / "points.csv"), names, out_dir)
+    return summary
+
+
+def run_random(problem: Problem, study: RandomSample, out_dir: Path, sources: Path, quiet: bool, lanes: int, workers: Workers) -> dict:
+    """Random samples over the stable cells of a finished sweep (or inside a traced boundary)."""
+    region_rows, names = source_points(sources, study.region, "study.region")
+    curve_rows, segments = traced_boundary(sources, study, names)
+    tasks = split_lanes(random_tasks(study, region_rows, names, segments), lanes)
+    summary = solve_points(problem, out_dir, tasks, list(names), quiet, workers)
+    summary["region"] = study.region
+    if study.boundary is not None:
+        summary["boundary"] = study.boundary
+    figures.random_figure(read_points(out_dir / "points.csv"), region_rows, names, out_dir, curve_rows)
+    return summary
+
+
+def check_random(problem: Problem, study: RandomSample, sources: Path) -> None:
+    """Refuse a sample whose region or boundary is not there, or whose draws the problem refuses."""
+    rows, names = source_points(sources, study.region, "study.region")
+    for task in random_tasks(study, rows, names, traced_boundary(sources, study, names)[1]):
+        values = {n: task[key_column(n)] for n in names}
+        try:
+            check_point(problem, values)
+        except ProblemError as err:
+            where = ", ".join(f"{n} = {v:g}" for n, v in values.items())
+            raise StudyInputError("study.region", f"the draw at {where}: {err.message}") from None
+
+
+def solve_points(problem: Problem, out_dir: Path, lanes: list, names: list[str], quiet: bool, workers: Workers) -> dict:
+    """Solve each lane's points into ``points.csv``; the counts of what was solved."""
+    keys = [key_column(n) for n in names]
+    table = study_table(out_dir / "points.csv", keys + RESULT_COLUMNS, keys, quiet)
+    report = run_tasks(lanes, solve_worker, problem, table, problem.name, quiet=quiet, workers=workers)
+    rows = read_points(out_dir / "points.csv")
+    not_solved = [{**{k: r[k] for k in keys}, "status": r["status"], "reason": r["reason"]}
+                  for r in rows if r["status"] != Status.CONVERGED]
+    return {**status_counts(rows), **run_info(report), "swept": names, "not_solved": not_solved}

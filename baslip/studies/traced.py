@@ -15,6 +15,7 @@ import time
 from dataclasses import dataclass
 
 from baslip.analysis.continuation import Branch
+from baslip.analysis.gaitsystem import FixedPointSystem, NearestGuessSystem
 from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import CONTROL
 from baslip.studies.runner import format_value
@@ -25,7 +26,7 @@ class TracedBranch:
     """One traced branch: its fixed-point system, points, and where it came from."""
 
     number: int  # 0 for the branch from the problem's start, then in order of switching
-    system: object  # baslip.analysis.gaitsystem.FixedPointSystem or NearestGuessSystem
+    system: FixedPointSystem | NearestGuessSystem
     branch: Branch
     origin: dict | None = None  # the special point it was switched from
 

@@ -70,7 +70,7 @@ def _in(out_dir: Path | None, name: str) -> Path | None:
     return None if out_dir is None else out_dir / name
 
 
-def _save(fig, path):
+def _save(fig, path) -> Path | None:
     """Save to ``path`` (a file name, whose suffix becomes the current format, or a
     binary file object) and close the figure; return where it went. With ``path`` None
     only lay the figure out (it is returned to the caller)."""
@@ -98,7 +98,7 @@ def _classes(rows):
 # --- sweeps -------------------------------------------------------------------------------
 
 
-def sweep_figures(rows: list[dict], names: list[str], out_dir: Path) -> list[Path]:
+def sweep_figures(rows: list[dict], names: list[str], out_dir: Path | None) -> list[Path | None]:
     """1-D sweeps: z, theta_h, spectral radius and residual against the swept quantity.
     2-D sweeps: maps of theta_h and of the spectral radius, with the stable region."""
     if not rows:
@@ -108,7 +108,7 @@ def sweep_figures(rows: list[dict], names: list[str], out_dir: Path) -> list[Pat
     return [_sweep_map(rows, names, value, out_dir) for value in ("theta_h", "spectral_radius")]
 
 
-def _sweep_line(rows, name, quantity, out_dir) -> Path:
+def _sweep_line(rows, name, quantity, out_dir) -> Path | None:
     x = shown(name, _column(rows, f"sweep_{name}"))
     y = _column(rows, quantity)
     y = y if quantity in ("spectral_radius", "residual") else shown(quantity, y)
@@ -148,7 +148,7 @@ def _grid(rows, names, quantity):
     return np.array(a), np.array(b), values, stable
 
 
-def _sweep_map(rows, names, quantity, out_dir) -> Path:
+def _sweep_map(rows, names, quantity, out_dir) -> Path | None:
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     draw_map(fig, ax, rows, names, quantity)
     ax.legend(fontsize=8, loc="upper right")
@@ -190,7 +190,7 @@ def _extent(a, b):
     return (a[0] - da, a[-1] + da, b[0] - db, b[-1] + db)
 
 
-def random_figure(rows: list[dict], region_rows: list[dict], names, out_dir: Path, curve_rows=None) -> Path:
+def random_figure(rows: list[dict], region_rows: list[dict], names, out_dir: Path | None, curve_rows=None) -> Path | None:
     """The random points over the region's stable grid points, and over the traced
     stability boundary when there is one."""
     fig, ax = plt.subplots(figsize=(7.2, 4.8) if curve_rows else (6.4, 4.8))
@@ -223,7 +223,7 @@ def random_figure(rows: list[dict], region_rows: list[dict], names, out_dir: Pat
 # --- convergence regions --------------------------------------------------------------------
 
 
-def basin_figures(basin_rows, stable, unstable, example_index, example_unstable, trajectories, grid, out_dir) -> list[Path]:
+def basin_figures(basin_rows, stable, unstable, example_index, example_unstable, trajectories, grid, out_dir: Path | None) -> list[Path | None]:
     """The convergence region of one stable point and the union of all, over the grid of
     starting states ``grid`` = (ydot values [m/s], z values [m]); and each example run
     (``trajectories``: case -> (outcome, strides, _, apexes)) in the (ydot, z) plane and
@@ -286,7 +286,7 @@ def basin_figures(basin_rows, stable, unstable, example_index, example_unstable,
 # --- time-varying control -------------------------------------------------------------------
 
 
-def adaptive_figures(rows: list[dict], out_dir: Path) -> list[Path]:
+def adaptive_figures(rows: list[dict], out_dir: Path | None) -> list[Path | None]:
     adaptive = [r for r in rows if r["phase"] == "adaptive"]
     frozen = [r for r in rows if r["phase"] == "frozen"]
     if not adaptive:
@@ -458,7 +458,7 @@ def _orbit_value(row: dict, k: int, quantity: str) -> float:
 # --- stability-optimal gaits ----------------------------------------------------------------
 
 
-def trunk_motion_figure(motions: list[tuple[str, np.ndarray, np.ndarray]], out_dir: Path) -> Path:
+def trunk_motion_figure(motions: list[tuple[str, np.ndarray, np.ndarray]], out_dir: Path | None) -> Path | None:
     """Trunk angle over one stride of each gait: (label, t [s], theta_h [rad]), with the
     band of 'upright throughout' (within 45 deg of vertical) shaded."""
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
@@ -477,7 +477,7 @@ def trunk_motion_figure(motions: list[tuple[str, np.ndarray, np.ndarray]], out_d
 OUTCOME_STYLE = {"converged": ("o", "tab:blue"), "bounded": ("s", "tab:orange"), "fell": ("x", "tab:red")}
 
 
-def controllers_figure(rows: list[dict], perturbation: dict, out_dir: Path) -> Path:
+def controllers_figure(rows: list[dict], perturbation: dict, out_dir: Path | None) -> Path | None:
     """Left: the share of perturbed starts each controller brings back to the gait, keeps
     up without converging, or lets fall. Right, per controller: the starts in the plane of
     the two most perturbed apex quantities, marked by outcome."""

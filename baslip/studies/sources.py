@@ -1,0 +1,87 @@
+"""Reading the runs a study reads: a source sweep's points, a traced boundary's curves.
+
+Each is looked up by name in the ``sources`` folder (by default the one that holds the
+study's own folder), and refused with one line naming the study key when it is missing,
+still being written, unfinished or not baslip's.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import json
+from pathlib import Path
+
+from baslip.errors import InputError
+from baslip.files.lock import busy
+from baslip.files.rows import read_points
+from baslip.model.dynamics import APEX
+from baslip.model.hiplaw import CONTROL
+from baslip.problem.study import RandomSample
+from baslip.studies.boundary import boundary_segments, read_curves
+
+
+class StudyInputError(InputError):
+    """A study refers to something that is not there (e.g. an unfinished source study)."""
+
+
+def source_points(sources: Path, name: str, key: str) -> tuple[list[dict], tuple[str, str]]:
+    """The rows and swept quantities of the finished two-quantity sweep ``sources/name``."""
+    folder = sources / name
+    path = folder / "points.csv"
+    if not path.exists():
+        raise StudyInputError(key, f"{path} does not exist: run the study {name!r} first")
+    holder = busy(folder)
+    if holder is not None:
+        raise StudyInputError(key, f"the study {name!r} is still being run by {holder}; wait for it to finish")
+    record = {}
+    with contextlib.suppress(OSError, ValueError):
+        record = json.loads((folder / "result.json").read_text())
+    if not isinstance(record, dict) or record.get("complete") is not True:
+        raise StudyInputError(key, f"the study {name!r} has not run to the end (its result.json does not say complete); rerun it first")
+    try:
+        rows = read_points(path)
+        names = tuple(c[len("sweep_"):] for c in rows[0] if c.startswith("sweep_")) if rows else ()
+        for row in rows:
+            for column in (*APEX.names, *CONTROL.names, "spectral_radius", "stable", "status"):
+                if column not in row:
+                    raise ValueError(f"it has no column {column}")
+                if column in ("stable", "status"):
+                    continue
+                if row[column] != "" and not isinstance(row[column], float):
+                    raise ValueError(f"its column {column} holds {str(row[column])[:20]!r}")
+    except UnicodeDecodeError:
+        raise StudyInputError(key, f"{path} is not a points.csv written by baslip (it is not UTF-8 text)") from None
+    except csv.Error:
+        raise StudyInputError(key, f"{path} is not a points.csv written by baslip (it is not CSV)") from None
+    except ValueError as err:
+        raise StudyInputError(key, f"{path} is not a points.csv written by baslip ({err})") from None
+    if len(names) != 2:
+        raise StudyInputError(key, f"{path} is not a sweep over two quantities")
+    return rows, names
+
+
+def traced_boundary(sources: Path, study: RandomSample, names: tuple[str, str]):
+    """(curve rows, boundary segments) of the study's traced boundary, or (None, None)."""
+    if study.boundary is None:
+        return None, None
+    folder = sources / study.boundary
+    path = folder / "curve.csv"
+    if not path.exists():
+        raise StudyInputError("study.boundary", f"{path} does not exist: run the continuation {study.boundary!r} first")
+    holder = busy(folder)
+    if holder is not None:
+        raise StudyInputError("study.boundary", f"{study.boundary!r} is still being run by {holder}; wait for it to finish")
+    try:
+        rows = read_curves(path)
+        missing = [n for n in (*names, "curve", "stability_boundary") if rows and n not in rows[0]]
+        if missing:
+            raise ValueError(f"it has no column {missing[0]}")
+    except UnicodeDecodeError:
+        raise StudyInputError("study.boundary", f"{path} is not a curve.csv written by baslip (it is not UTF-8 text)") from None
+    except (csv.Error, ValueError, TypeError) as err:
+        raise StudyInputError("study.boundary", f"{path} is not a curve.csv written by baslip ({err})") from None
+    segments = boundary_segments(rows, names)
+    if not segments:
+        raise StudyInputError("study.boundary", f"{path} holds no curve that bounds stable gaits in ({', '.join(names)})")
+    return rows, segments
