@@ -87,26 +87,19 @@ def run(problem: Problem | str | Path, out: str | Path | None = None, *, jobs: i
 
 
 def check_run(problem: Problem, out: Path | None, sources: Path, scheduler: str | None = None) -> None:
-    """Every check of a run that needs more than its problem file: the runs a study reads,
-    the branch a continuation follows, the scheduler, and the output folder.
+    """Every check of a run beyond its problem (which was checked whole when it was read):
+    the runs a study reads, the scheduler, and the output folder.
 
     Raises
     ------
     InputError
         The first check that fails, naming its key or option.
     """
-    from baslip.analysis.gaitsystem import check_branch
-    from baslip.gait.from_problem import fixed_point_spec
     from baslip.studies.registry import check_study_inputs
     from baslip.studies.runner import check_scheduler
 
     if problem.study is not None:
         check_study_inputs(problem, sources)
-    if problem.continuation is not None:
-        spec = fixed_point_spec(problem)
-        check_branch(spec, problem.continuation.parameter)
-        if problem.continuation.second is not None:
-            check_branch(spec, problem.continuation.second, "continuation.second")
     if scheduler is not None:
         if problem.study is None:
             raise NothingToSchedule("--scheduler", f"{problem.name} has no study to run on a cluster")

@@ -15,10 +15,11 @@ import pytest
 from test_slip_limit import slip_apex_map, slip_fixed_point  # an independent SLIP (tests/ is on sys.path)
 
 from baslip.analysis.continuation import Settings, continue_branch, switch_branch
-from baslip.analysis.gaitsystem import BranchError, FixedPointSystem, check_branch
+from baslip.analysis.gaitsystem import FixedPointSystem
 from baslip.gait.fixedpoint import minimal_period
 from baslip.gait.from_problem import fixed_point_spec
 from baslip.gait.shooting import FixedPointSpec
+from baslip.problem.continuation import BranchError, check_branch
 from baslip.problem.reader import load_problem
 
 
@@ -88,18 +89,23 @@ def test_the_branch_turns_back_at_the_fold_and_stays_verified(slip_branch, solve
         assert check.ok and np.linalg.norm(check.apex - X) / np.linalg.norm(X) <= 1e-10
 
 
+def shape(spec: FixedPointSpec) -> tuple:
+    """What the problem reader's branch check reads of a spec: fixed values, parameters, objective."""
+    return spec.fixed, spec.params, spec.objective
+
+
 def test_a_branch_needs_as_many_free_quantities_as_equations_or_an_objective_that_picks():
     problem = load_problem("problems/downward.yaml")
     spec = fixed_point_spec(problem)
-    check_branch(spec, "ydot")  # 7 free, 4 equations: the nearest-guess family
+    check_branch(*shape(spec), "ydot")  # 7 free, 4 equations: the nearest-guess family
     for objective in ("min_torque", "feasibility"):
         with pytest.raises(BranchError, match="as many free quantities as equations"):
-            check_branch(replace(spec, objective=objective), "ydot")
+            check_branch(*shape(replace(spec, objective=objective)), "ydot")
     too_few = replace(spec, fixed={**spec.fixed, "Kp": -0.75, "Kd": 1.5, "theta2_des": -0.05, "theta_td": 0.1})
     with pytest.raises(BranchError, match="3 free"):
-        check_branch(too_few, "ydot")
+        check_branch(*shape(too_few), "ydot")
     with pytest.raises(BranchError, match="must be fixed"):
-        check_branch(FixedPointSpec(problem.params, fixed={}, guess={}), "z")
+        check_branch(*shape(FixedPointSpec(problem.params, fixed={}, guess={})), "z")
 
 
 def test_a_model_parameter_can_be_varied(solver):

@@ -207,3 +207,15 @@ def test_a_problem_travels_to_workers_as_data():
     assert copy == problem and type(copy.fix) is type(problem.fix)
     with pytest.raises(TypeError):
         copy.fix["z"] = 1.0  # still read-only after the trip
+
+
+def test_a_continuation_that_defines_no_branch_is_refused_when_read():
+    branch = {"parameter": "ydot", "range": [0.4, 0.6]}
+    unfixed = {**with_(continuation=branch), "fix": {"z": 0.4}}
+    with pytest.raises(ProblemError) as caught:
+        parse_problem(unfixed)
+    assert caught.value.key == "continuation.parameter" and "must be fixed" in str(caught.value)
+    with pytest.raises(ProblemError, match="as many free quantities as equations") as caught:
+        parse_problem(with_(continuation=branch, objective="min_torque"))
+    assert caught.value.key == "fix"
+    parse_problem(with_(continuation=branch))  # nearest_guess picks the family

@@ -23,51 +23,17 @@ import numpy as np
 
 from baslip.analysis.continuation import CorrectionFailed
 from baslip.engine.returnmap import ReturnMap, RunnerFell
-from baslip.errors import InputError
 from baslip.gait.fixedpoint import VERIFY_EPS, minimal_period
 from baslip.gait.shooting import FixedPointSpec, implied_periodicity
 from baslip.gait.stability import classify
 from baslip.model.dynamics import APEX, PARAMS, Params, apex_energy
 from baslip.model.hiplaw import CONTROL
 from baslip.model.quantities import DESIGN, NOMINAL
+from baslip.problem.continuation import BranchError, branch_shape, check_branch, check_parameter
 
 #: A phase lasting less than this fraction of its flight (descent) or stance (compression,
 #: decompression) counts as grazing: the branch is about to lose or gain an event.
 GRAZING_FRACTION = 0.02
-
-
-class BranchError(InputError):
-    """The problem does not define a one-dimensional branch; ``key`` names the entry."""
-
-
-def check_branch(spec: FixedPointSpec, parameter: str, key: str = "continuation.parameter") -> None:
-    """Raise :class:`BranchError` unless the problem defines a one-dimensional branch in
-    ``parameter`` (named by ``key`` in the problem file): as many free quantities as
-    equations, or more with the ``nearest_guess`` objective, which then picks the family
-    (:class:`NearestGuessSystem`)."""
-    _check_parameter(spec, parameter, key)
-    free, equations = _free(spec), _equation_count(spec)
-    if len(free) < equations or (len(free) > equations and spec.objective != "nearest_guess"):
-        raise BranchError(
-            "fix",
-            f"a branch needs as many free quantities as equations (or more, with objective nearest_guess): "
-            f"{len(free)} free ({', '.join(free)}) but {equations} equations; fix or free quantities to match",
-        )
-
-
-def _check_parameter(spec: FixedPointSpec, parameter: str, key: str) -> None:
-    if parameter not in DESIGN + ("energy",) + PARAMS.names:
-        raise BranchError(key, f"{parameter!r} cannot be varied")
-    if parameter in DESIGN + ("energy",) and parameter not in spec.fixed:
-        raise BranchError(key, f"{parameter} must be fixed (at its starting value)")
-
-
-def _free(spec: FixedPointSpec) -> list[str]:
-    return [n for n in DESIGN if n not in spec.fixed]
-
-
-def _equation_count(spec: FixedPointSpec) -> int:
-    return len([n for n in APEX.names if n not in implied_periodicity(spec)]) + ("energy" in spec.fixed)
 
 
 def branch_system(spec: FixedPointSpec, parameter: str, residual_map: ReturnMap, jacobian_map: ReturnMap,
@@ -75,12 +41,22 @@ def branch_system(spec: FixedPointSpec, parameter: str, residual_map: ReturnMap,
     """The continuation system of the problem's fixed points: :class:`FixedPointSystem`
     when the equations fix the free quantities, :class:`NearestGuessSystem` when the
     problem leaves more free and its objective picks among them."""
-    check_branch(spec, parameter)
+    _check(spec, parameter, "continuation.parameter", square=True)
     if second is not None:
-        check_branch(spec, second, "continuation.second")
-    if len(_free(spec)) == _equation_count(spec):
+        _check(spec, second, "continuation.second", square=True)
+    free, equations = branch_shape(spec.fixed, spec.params)
+    if len(free) == equations:
         return FixedPointSystem(spec, parameter, residual_map, jacobian_map, second)
     return NearestGuessSystem(spec, parameter, residual_map, jacobian_map, second)
+
+
+def _check(spec: FixedPointSpec, parameter: str, key: str, square: bool) -> None:
+    """The problem reader's checks of a branch parameter: that it can vary, and for a
+    square system that the equations fix the free quantities."""
+    if square:
+        check_branch(spec.fixed, spec.params, spec.objective, parameter, key)
+    else:
+        check_parameter(spec.fixed, parameter, key)
 
 
 class FixedPointSystem:
@@ -93,11 +69,11 @@ class FixedPointSystem:
 
     def __init__(self, spec: FixedPointSpec, parameter: str, residual_map: ReturnMap, jacobian_map: ReturnMap,
                  second: str | None = None, square: bool = True):
-        (check_branch if square else _check_parameter)(spec, parameter, "continuation.parameter")
+        _check(spec, parameter, "continuation.parameter", square)
         if second is not None:
             if second == parameter:
                 raise BranchError("continuation.second", f"the second parameter must differ from the first ({parameter})")
-            (check_branch if square else _check_parameter)(spec, second, "continuation.second")
+            _check(spec, second, "continuation.second", square)
         self.spec, self.parameter = spec, parameter
         self.parameters = (parameter,) if second is None else (parameter, second)
         self.residual_map, self.jacobian_map = residual_map, jacobian_map

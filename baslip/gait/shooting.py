@@ -63,6 +63,7 @@ from baslip.model.dynamics import (
 )
 from baslip.model.hiplaw import CONTROL, hip_torque, touchdown_angle
 from baslip.model.quantities import DEFAULT_BOUNDS, DESIGN, NOMINAL, OBJECTIVES, start_value
+from baslip.model.quantities import implied_periodicity as structurally_implied
 from baslip.problem.reader import SolverSettings
 
 #: Hessians IPOPT can be given: ``exact``, the Hessian of the Lagrangian through the
@@ -398,26 +399,16 @@ def _shoot_stride(stance: StanceFlow, interval: ca.Function, opt: ShootingOption
 
 
 def implied_periodicity(spec: FixedPointSpec) -> tuple[str, ...]:
-    """Apex coordinates whose periodicity follows from the others by structure.
+    """Apex coordinates whose periodicity follows from the others by structure
+    (:func:`baslip.model.quantities.implied_periodicity`).
 
-    Without hip torque (Kp = Kd = 0 fixed) energy is conserved, so a periodic ydot and
-    theta_h_dot make z periodic. With d = 0 as well, the trunk spins freely: theta_h_dot is
-    always periodic, and theta_h is too when theta_h_dot is fixed at zero. These rows are
-    exactly dependent on the others; the discretisation breaks the dependence by its
-    truncation error, which makes IPOPT declare the problem infeasible. So the NLP leaves
-    them out of the row that closes the orbit (the joins of a multi-stride orbit keep all
-    four, or its intermediate apexes would float); the Newton polish and the verification
-    still check all four on the exact map.
+    These rows are exactly dependent on the others; the discretisation breaks the
+    dependence by its truncation error, which makes IPOPT declare the problem infeasible.
+    So the NLP leaves them out of the row that closes the orbit (the joins of a
+    multi-stride orbit keep all four, or its intermediate apexes would float); the Newton
+    polish and the verification still check all four on the exact map.
     """
-    torque_free = spec.fixed.get("Kp") == 0.0 and spec.fixed.get("Kd") == 0.0
-    if not torque_free:
-        return ()
-    implied = ["z"]
-    if spec.params.d == 0.0:
-        implied.append("theta_h_dot")
-        if spec.fixed.get("theta_h_dot") == 0.0:
-            implied.append("theta_h")
-    return tuple(implied)
+    return structurally_implied(spec.fixed, spec.params)
 
 
 def torque_effort(interval: ca.Function, X, u, durations, params: Params, n: int = 200) -> float:

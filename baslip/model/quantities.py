@@ -7,8 +7,9 @@ import the other.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
-from baslip.model.dynamics import APEX
+from baslip.model.dynamics import APEX, Params
 from baslip.model.hiplaw import CONTROL
 
 #: Design quantities: the apex state and the control.
@@ -104,3 +105,21 @@ def start_value(name: str, fixed, guess, bounds) -> float:
         return guess[name]
     lo, hi = bounds.get(name, (-math.inf, math.inf))
     return min(max(DEFAULT_GUESS[name], lo), hi)
+
+
+def implied_periodicity(fixed: Mapping[str, float], params: Params) -> tuple[str, ...]:
+    """Apex coordinates whose periodicity follows from the others by structure.
+
+    Without hip torque (Kp = Kd = 0 fixed) energy is conserved, so a periodic ydot and
+    theta_h_dot make z periodic. With d = 0 as well, the trunk spins freely: theta_h_dot is
+    always periodic, and theta_h is too when theta_h_dot is fixed at zero.
+    """
+    torque_free = fixed.get("Kp") == 0.0 and fixed.get("Kd") == 0.0
+    if not torque_free:
+        return ()
+    implied = ["z"]
+    if params.d == 0.0:
+        implied.append("theta_h_dot")
+        if fixed.get("theta_h_dot") == 0.0:
+            implied.append("theta_h")
+    return tuple(implied)

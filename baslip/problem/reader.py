@@ -33,15 +33,13 @@ from baslip.model.quantities import (
     DEFAULT_BOUNDS,
     DESIGN,
     OBJECTIVES,
-    PARAM_RANGES,
     QUANTITIES,
-    UNITS,
-    physical_range,
     start_value,
 )
+from baslip.problem.continuation import ContinuationSpec, check_continuation, parse_continuation
 from baslip.problem.study import STUDY_KINDS, Basin, Optimal, Study, Sweep, parse_study
-from baslip.problem.text import NonScalarKey, UnreadableText, clip, excerpt, read_yaml
-from baslip.problem.values import ANGLES, RATES
+from baslip.problem.text import UnreadableText, clip, excerpt, read_yaml
+from baslip.problem.values import mapping, physical
 from baslip.problem.values import number as _number
 
 TOP_LEVEL_KEYS = ("name", "params", "fix", "guess", "bounds", "objective", "strides", "solver", "study", "continuation")
@@ -49,9 +47,8 @@ TOP_LEVEL_KEYS = ("name", "params", "fix", "guess", "bounds", "objective", "stri
 MAX_STRIDES = 16
 #: Most fixed points one sweep may ask for (a day of solving on two cores).
 MAX_SWEEP_POINTS = 100_000
-#: Range of IPOPT's tolerance, and the largest first continuation step (scaled units).
+#: Range of IPOPT's tolerance.
 TOLERANCES = (1e-16, 1e-2)
-MAX_STEP = 10.0
 
 @dataclass(frozen=True)
 class SolverSettings:
@@ -142,7 +139,7 @@ def parse_problem(data: Any, default_name: str = "problem") -> Problem:
     ``params`` and ``solver`` may also be given as :class:`Params` and
     :class:`SolverSettings` objects; they are checked like their mappings.
     """
-    top = _mapping(data, "", TOP_LEVEL_KEYS)
+    top = mapping(data, "", TOP_LEVEL_KEYS)
     fields: dict[str, Any] = {key: _FIELDS[key](top[key]) for key in TOP_LEVEL_KEYS if key in top}
     fields.setdefault("name", _name(default_name))
     return _checked(Problem(**fields))
@@ -191,162 +188,30 @@ def _optional(parse: Callable[[Any], Any], kinds: tuple[type, ...]) -> Callable[
 # --- pieces -------------------------------------------------------------------------------
 
 
-def _mapping(value: Any, key: str, allowed: tuple[str, ...]) -> dict[str, Any]:
-    where = key or "the problem file"
-    if not isinstance(value, dict):
-        raise ProblemError(key, f"expected a mapping for {where}, got {type(value).__name__}")
-    for name in value:
-        dotted = f"{key}.{clip(str(name))}" if key else clip(str(name))
-        if isinstance(name, NonScalarKey):
-            raise ProblemError(dotted, f"a key must be a plain name, not a {name.kind}")
-        if name not in allowed:
-            raise ProblemError(dotted, f"unknown key (expected one of {', '.join(allowed)})")
-    return value
-
-
-
-
 def _params(value: Any) -> Params:
-    raw = _mapping(value, "params", PARAMS.names)
-    return Params(**{name: _physical(name, _number(v, f"params.{name}"), f"params.{name}") for name, v in raw.items()})
-
-
-def _physical(name: str, value: float, key: str) -> float:
-    """``value`` if it lies in the documented physical range of ``name``, else an error."""
-    unit = UNITS[name]
-    if name in PARAM_RANGES:
-        lo, hi, closed = PARAM_RANGES[name]
-        if value < lo or (value == lo and not closed):
-            raise ProblemError(key, f"must be {'zero or ' if closed else ''}positive, got {value:g} {unit}")
-        if value > hi:
-            raise ProblemError(key, f"{value:g} {unit} exceeds the physical range (at most {hi:g} {unit})")
-        return value
-    lo, hi = physical_range(name)
-    if not lo <= value <= hi:
-        hint = ""
-        if name in ANGLES and abs(value) > 2 * math.pi:  # looks like degrees
-            hint = ' (angles are in radians; write "-90 deg" for degrees)'
-        elif name in RATES:
-            hint = ' (rates are in rad/s; write "30 deg/s" for degrees)'
-        raise ProblemError(key, f"{value:g} {unit} lies outside the physical range [{lo:g}, {hi:g}] {unit}{hint}")
-    return value
+    raw = mapping(value, "params", PARAMS.names)
+    return Params(**{name: physical(name, _number(v, f"params.{name}"), f"params.{name}") for name, v in raw.items()})
 
 
 def _quantities(value: Any, key: str, allowed: tuple[str, ...]) -> dict[str, float]:
-    raw = _mapping(value, key, allowed)
-    return {name: _physical(name, _number(v, f"{key}.{name}"), f"{key}.{name}") for name, v in raw.items()}
+    raw = mapping(value, key, allowed)
+    return {name: physical(name, _number(v, f"{key}.{name}"), f"{key}.{name}") for name, v in raw.items()}
 
 
 def _bounds(value: Any) -> dict[str, tuple[float, float]]:
-    raw = _mapping(value, "bounds", QUANTITIES)
+    raw = mapping(value, "bounds", QUANTITIES)
     bounds = {}
     for name, pair in raw.items():
         key = f"bounds.{name}"
         if not isinstance(pair, (list, tuple)) or len(pair) != 2:
             raise ProblemError(key, f"expected [lo, hi] (null for no bound), got {excerpt(pair)}")
         # A missing end is the physical limit; a written one must lie within the range.
-        lo = -math.inf if pair[0] is None else _physical(name, _number(pair[0], key), key)
-        hi = math.inf if pair[1] is None else _physical(name, _number(pair[1], key), key)
+        lo = -math.inf if pair[0] is None else physical(name, _number(pair[0], key), key)
+        hi = math.inf if pair[1] is None else physical(name, _number(pair[1], key), key)
         if lo > hi:
             raise ProblemError(key, f"lower bound {lo:g} exceeds upper bound {hi:g}")
         bounds[name] = (lo, hi)
     return bounds
-
-
-@dataclass(frozen=True)
-class ContinuationSpec:
-    """Trace the branch of fixed points as ``parameter`` varies over [lo, hi].
-
-    parameter: a fixed quantity (or energy) or a model parameter; step: first arclength
-    step (scaled units); max_points: limit on the points; direction: +1 or -1, the way
-    lambda first moves; plot: apex quantity on the diagram's vertical axis; switch:
-    ``period_doubling`` to also trace, from each period doubling found on the first
-    branch, the branch of orbits of twice the period.
-    """
-
-    parameter: str
-    lo: float
-    hi: float
-    step: float = 0.05
-    max_points: int = 300
-    direction: int | str = 1
-    plot: str = "z"
-    switch: str | None = None  # "period_doubling": also trace the doubled-period branches
-    second: str | None = None  # with a second parameter, bifurcation curves are followed
-    second_lo: float = -math.inf
-    second_hi: float = math.inf
-    follow: tuple[str, ...] = ()  # curve types, each from a special point of the branch
-    starts: str = "first"  # "first": one curve per type; "all": one from each such point
-
-
-#: Branch switches a continuation can make at its special points.
-SWITCHES = ("period_doubling",)
-#: Bifurcation curves a continuation can follow in two parameters.
-FOLLOWS = ("fold", "period_doubling", "neimark_sacker")
-CONTINUATION_KEYS = ("parameter", "range", "step", "max_points", "direction", "plot", "switch",
-                     "second", "second_range", "follow", "starts")
-
-
-def _continuation(value: Any) -> ContinuationSpec:
-    raw = _mapping(value, "continuation", CONTINUATION_KEYS)
-    parameter = _continued(raw.get("parameter"), "continuation.parameter")
-    lo, hi = _continuation_range(raw.get("range"), parameter, "continuation.range")
-    step = _number(raw.get("step", 0.05), "continuation.step")
-    if not 0 < step <= MAX_STEP:
-        raise ProblemError("continuation.step", f"expected a step in (0, {MAX_STEP:g}] (scaled units), got {step:g}")
-    max_points = raw.get("max_points", 300)
-    if isinstance(max_points, bool) or not isinstance(max_points, int) or not 2 <= max_points <= 100000:
-        raise ProblemError("continuation.max_points", f"expected an integer in [2, 100000], got {excerpt(max_points)}")
-    direction = raw.get("direction", 1)
-    if isinstance(direction, bool) or direction not in (1, -1, "both"):
-        raise ProblemError("continuation.direction", f"expected 1, -1 or both, got {excerpt(direction)}")
-    plot = raw.get("plot", "z")
-    if plot not in DESIGN:
-        raise ProblemError("continuation.plot", f"expected a design quantity, got {excerpt(plot)}")
-    switch = raw.get("switch")
-    if switch is not None and switch not in SWITCHES:
-        raise ProblemError("continuation.switch", f"expected one of {', '.join(SWITCHES)}, got {excerpt(switch)}")
-    curves = _curves(raw, parameter)
-    if curves and switch is not None:
-        raise ProblemError("continuation.switch", "a continuation either switches branches or follows curves, not both")
-    return ContinuationSpec(parameter, lo, hi, step, max_points, direction, plot, switch, **curves)
-
-
-def _continued(name: Any, key: str) -> str:
-    if name not in QUANTITIES + PARAMS.names:
-        raise ProblemError(key, f"expected a quantity or a model parameter, got {excerpt(name)}")
-    return name
-
-
-def _continuation_range(bounds: Any, name: str, key: str) -> tuple[float, float]:
-    if not isinstance(bounds, (list, tuple)) or len(bounds) != 2:
-        raise ProblemError(key, f"expected [lo, hi], got {excerpt(bounds)}")
-    where = f"{key}.{name}"
-    lo, hi = (_physical(name, _number(b, where), where) for b in bounds)
-    if lo >= hi:
-        raise ProblemError(key, f"expected lo < hi, got [{lo:g}, {hi:g}]")
-    return lo, hi
-
-
-def _curves(raw: dict, parameter: str) -> dict:
-    """The two-parameter keys (second, second_range, follow, starts): all or none."""
-    present = [k for k in ("second", "second_range", "follow", "starts") if k in raw]
-    if not present:
-        return {}
-    for key in ("second", "second_range", "follow"):
-        if key not in raw:
-            raise ProblemError(f"continuation.{key}", f"is needed with {', '.join(present)} (a curve in two parameters)")
-    second = _continued(raw["second"], "continuation.second")
-    if second == parameter:
-        raise ProblemError("continuation.second", f"must differ from the first parameter ({parameter})")
-    second_lo, second_hi = _continuation_range(raw["second_range"], second, "continuation.second_range")
-    follow = raw["follow"] if isinstance(raw["follow"], list) else [raw["follow"]]
-    if not follow or any(f not in FOLLOWS for f in follow) or len(set(follow)) != len(follow):
-        raise ProblemError("continuation.follow", f"expected one or more of {', '.join(FOLLOWS)}, got {excerpt(raw['follow'])}")
-    starts = raw.get("starts", "first")
-    if starts not in ("first", "all"):
-        raise ProblemError("continuation.starts", f"expected first or all, got {excerpt(starts)}")
-    return {"second": second, "second_lo": second_lo, "second_hi": second_hi, "follow": tuple(follow), "starts": starts}
 
 
 def _strides(value: Any) -> int:
@@ -360,7 +225,7 @@ def _study(value: Any) -> Study:
 
 
 def _solver(value: Any) -> SolverSettings:
-    raw = _mapping(value, "solver", ("nodes", "substeps", "max_iter", "tol", "print_level"))
+    raw = mapping(value, "solver", ("nodes", "substeps", "max_iter", "tol", "print_level"))
     limits = {"nodes": (2, 200), "substeps": (1, 20), "max_iter": (1, 100000), "print_level": (0, 12)}
     settings: dict[str, Any] = {}
     for name, v in raw.items():
@@ -388,7 +253,7 @@ _FIELDS: dict[str, Callable[[Any], Any]] = {
     "strides": lambda v: _strides(v),
     "solver": lambda v: _solver(dataclasses.asdict(v) if isinstance(v, SolverSettings) else v),
     "study": _optional(lambda v: _study(v), STUDY_KINDS),
-    "continuation": _optional(lambda v: _continuation(v), (ContinuationSpec,)),
+    "continuation": _optional(lambda v: parse_continuation(v), (ContinuationSpec,)),
 }
 
 
@@ -451,7 +316,7 @@ def check_point(problem: Problem, values: Mapping[str, float]) -> None:
     fixed values passes every check a written ``fix`` gets (physical range, the problem's
     bounds, touchdown angle, foot above ground at apex, reachable energy)."""
     for name, value in values.items():
-        _physical(name, value, f"fix.{name}")
+        physical(name, value, f"fix.{name}")
     guess = {n: v for n, v in problem.guess.items() if n not in values}
     variant = replace(problem, fix=MappingProxyType({**problem.fix, **values}), guess=MappingProxyType(guess))
     _check_consistency(variant)
@@ -484,30 +349,12 @@ def _check_basin(problem: Problem) -> None:
         return
     for axis in study.grid:
         for value in axis.values:
-            _physical(axis.name, value, f"study.grid.{axis.name}")
+            physical(axis.name, value, f"study.grid.{axis.name}")
     for key, (ydot, z) in (("study.stable_at", study.stable_at), ("study.unstable_at", study.unstable_at)):
-        _physical("ydot", ydot, f"{key}.ydot")
-        _physical("z", z, f"{key}.z")
+        physical("ydot", ydot, f"{key}.ydot")
+        physical("z", z, f"{key}.z")
 
 
 def _check_continuation(problem: Problem) -> None:
-    """A branch starts at the problem's own value of its parameter, inside its range."""
-    spec = problem.continuation
-    if spec is None:
-        return
-    ranges = [(spec.parameter, spec.lo, spec.hi, "continuation.range")]
-    if spec.second is not None:
-        ranges.append((spec.second, spec.second_lo, spec.second_hi, "continuation.second_range"))
-    for name, lo, hi, key in ranges:
-        if name in PARAMS.names:
-            start = getattr(problem.params, name)
-        elif name in problem.fix:
-            start = problem.fix[name]
-        else:
-            continue  # not fixed: refused with its own message when the branch is checked
-        if not lo <= start <= hi:
-            raise ProblemError(
-                key,
-                f"the branch starts at {name} = {start:g} {UNITS[name]}, "
-                f"outside [{lo:g}, {hi:g}]; widen the range or change the start",
-            )
+    if problem.continuation is not None:
+        check_continuation(problem.continuation, problem.fix, problem.params, problem.objective)

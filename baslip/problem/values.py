@@ -1,4 +1,5 @@
-"""Numbers in a problem file: finite floats, and angles and rates with their units.
+"""Values in a problem file: mappings with known keys, finite numbers, angles and rates
+with their units, and the physical range of each quantity.
 
 Every number a problem file holds, in any section, is read by :func:`number`, so that
 ``-90 deg``, ``'1e-8'`` (which YAML 1.1 leaves a string) and the errors for anything
@@ -12,7 +13,8 @@ import re
 from typing import Any
 
 from baslip.errors import ProblemError
-from baslip.problem.text import excerpt
+from baslip.model.quantities import PARAM_RANGES, UNITS, physical_range
+from baslip.problem.text import NonScalarKey, clip, excerpt
 
 #: Quantities that may be given in ``deg`` or ``rad``, and rates in ``deg/s`` or ``rad/s``.
 ANGLES = ("theta_h", "theta2_des", "theta_td")
@@ -56,4 +58,39 @@ def _with_unit(text: str, key: str, quantity: str) -> float:
         raise ProblemError(key, f"expected a number, got {excerpt(text)}") from None
     if not math.isfinite(value):
         raise ProblemError(key, f"expected a finite number, got {excerpt(text)}")
+    return value
+
+
+def mapping(value: Any, key: str, allowed: tuple[str, ...]) -> dict[str, Any]:
+    """``value`` if it is a mapping whose keys are all in ``allowed``; ``key`` names it."""
+    where = key or "the problem file"
+    if not isinstance(value, dict):
+        raise ProblemError(key, f"expected a mapping for {where}, got {type(value).__name__}")
+    for name in value:
+        dotted = f"{key}.{clip(str(name))}" if key else clip(str(name))
+        if isinstance(name, NonScalarKey):
+            raise ProblemError(dotted, f"a key must be a plain name, not a {name.kind}")
+        if name not in allowed:
+            raise ProblemError(dotted, f"unknown key (expected one of {', '.join(allowed)})")
+    return value
+
+
+def physical(name: str, value: float, key: str) -> float:
+    """``value`` if it lies in the documented physical range of ``name``, else an error."""
+    unit = UNITS[name]
+    if name in PARAM_RANGES:
+        lo, hi, closed = PARAM_RANGES[name]
+        if value < lo or (value == lo and not closed):
+            raise ProblemError(key, f"must be {'zero or ' if closed else ''}positive, got {value:g} {unit}")
+        if value > hi:
+            raise ProblemError(key, f"{value:g} {unit} exceeds the physical range (at most {hi:g} {unit})")
+        return value
+    lo, hi = physical_range(name)
+    if not lo <= value <= hi:
+        hint = ""
+        if name in ANGLES and abs(value) > 2 * math.pi:  # looks like degrees
+            hint = ' (angles are in radians; write "-90 deg" for degrees)'
+        elif name in RATES:
+            hint = ' (rates are in rad/s; write "30 deg/s" for degrees)'
+        raise ProblemError(key, f"{value:g} {unit} lies outside the physical range [{lo:g}, {hi:g}] {unit}{hint}")
     return value

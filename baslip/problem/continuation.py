@@ -1,0 +1,178 @@
+"""The ``continuation:`` section: a branch in one parameter, and curves in two.
+
+Checked whole when the problem is read: the keys and ranges, that the branch starts inside
+its range, and that the problem defines a one-dimensional branch (as many free quantities
+as equations, or more with the ``nearest_guess`` objective, which then picks the family).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from baslip.errors import ProblemError
+from baslip.model.dynamics import APEX, PARAMS, Params
+from baslip.model.quantities import DESIGN, QUANTITIES, UNITS, implied_periodicity
+from baslip.problem.text import excerpt
+from baslip.problem.values import mapping, physical
+from baslip.problem.values import number as _number
+
+#: The largest first continuation step (scaled units).
+MAX_STEP = 10.0
+
+
+class BranchError(ProblemError):
+    """The problem does not define a one-dimensional branch; ``key`` names the entry."""
+
+
+@dataclass(frozen=True)
+class ContinuationSpec:
+    """Trace the branch of fixed points as ``parameter`` varies over [lo, hi].
+
+    parameter: a fixed quantity (or energy) or a model parameter; step: first arclength
+    step (scaled units); max_points: limit on the points; direction: +1 or -1, the way
+    lambda first moves; plot: apex quantity on the diagram's vertical axis; switch:
+    ``period_doubling`` to also trace, from each period doubling found on the first
+    branch, the branch of orbits of twice the period.
+    """
+
+    parameter: str
+    lo: float
+    hi: float
+    step: float = 0.05
+    max_points: int = 300
+    direction: int | str = 1
+    plot: str = "z"
+    switch: str | None = None  # "period_doubling": also trace the doubled-period branches
+    second: str | None = None  # with a second parameter, bifurcation curves are followed
+    second_lo: float = -math.inf
+    second_hi: float = math.inf
+    follow: tuple[str, ...] = ()  # curve types, each from a special point of the branch
+    starts: str = "first"  # "first": one curve per type; "all": one from each such point
+
+
+#: Branch switches a continuation can make at its special points.
+SWITCHES = ("period_doubling",)
+#: Bifurcation curves a continuation can follow in two parameters.
+FOLLOWS = ("fold", "period_doubling", "neimark_sacker")
+CONTINUATION_KEYS = ("parameter", "range", "step", "max_points", "direction", "plot", "switch",
+                     "second", "second_range", "follow", "starts")
+
+
+def parse_continuation(value: Any) -> ContinuationSpec:
+    """Validate a ``continuation`` mapping."""
+    raw = mapping(value, "continuation", CONTINUATION_KEYS)
+    parameter = _continued(raw.get("parameter"), "continuation.parameter")
+    lo, hi = _continuation_range(raw.get("range"), parameter, "continuation.range")
+    step = _number(raw.get("step", 0.05), "continuation.step")
+    if not 0 < step <= MAX_STEP:
+        raise ProblemError("continuation.step", f"expected a step in (0, {MAX_STEP:g}] (scaled units), got {step:g}")
+    max_points = raw.get("max_points", 300)
+    if isinstance(max_points, bool) or not isinstance(max_points, int) or not 2 <= max_points <= 100000:
+        raise ProblemError("continuation.max_points", f"expected an integer in [2, 100000], got {excerpt(max_points)}")
+    direction = raw.get("direction", 1)
+    if isinstance(direction, bool) or direction not in (1, -1, "both"):
+        raise ProblemError("continuation.direction", f"expected 1, -1 or both, got {excerpt(direction)}")
+    plot = raw.get("plot", "z")
+    if plot not in DESIGN:
+        raise ProblemError("continuation.plot", f"expected a design quantity, got {excerpt(plot)}")
+    switch = raw.get("switch")
+    if switch is not None and switch not in SWITCHES:
+        raise ProblemError("continuation.switch", f"expected one of {', '.join(SWITCHES)}, got {excerpt(switch)}")
+    curves = _curves(raw, parameter)
+    if curves and switch is not None:
+        raise ProblemError("continuation.switch", "a continuation either switches branches or follows curves, not both")
+    return ContinuationSpec(parameter, lo, hi, step, max_points, direction, plot, switch, **curves)
+
+
+def _continued(name: Any, key: str) -> str:
+    if name not in QUANTITIES + PARAMS.names:
+        raise ProblemError(key, f"expected a quantity or a model parameter, got {excerpt(name)}")
+    return name
+
+
+def _continuation_range(bounds: Any, name: str, key: str) -> tuple[float, float]:
+    if not isinstance(bounds, (list, tuple)) or len(bounds) != 2:
+        raise ProblemError(key, f"expected [lo, hi], got {excerpt(bounds)}")
+    where = f"{key}.{name}"
+    lo, hi = (physical(name, _number(b, where), where) for b in bounds)
+    if lo >= hi:
+        raise ProblemError(key, f"expected lo < hi, got [{lo:g}, {hi:g}]")
+    return lo, hi
+
+
+def _curves(raw: dict, parameter: str) -> dict:
+    """The two-parameter keys (second, second_range, follow, starts): all or none."""
+    present = [k for k in ("second", "second_range", "follow", "starts") if k in raw]
+    if not present:
+        return {}
+    for key in ("second", "second_range", "follow"):
+        if key not in raw:
+            raise ProblemError(f"continuation.{key}", f"is needed with {', '.join(present)} (a curve in two parameters)")
+    second = _continued(raw["second"], "continuation.second")
+    if second == parameter:
+        raise ProblemError("continuation.second", f"must differ from the first parameter ({parameter})")
+    second_lo, second_hi = _continuation_range(raw["second_range"], second, "continuation.second_range")
+    follow = raw["follow"] if isinstance(raw["follow"], list) else [raw["follow"]]
+    if not follow or any(f not in FOLLOWS for f in follow) or len(set(follow)) != len(follow):
+        raise ProblemError("continuation.follow", f"expected one or more of {', '.join(FOLLOWS)}, got {excerpt(raw['follow'])}")
+    starts = raw.get("starts", "first")
+    if starts not in ("first", "all"):
+        raise ProblemError("continuation.starts", f"expected first or all, got {excerpt(starts)}")
+    return {"second": second, "second_lo": second_lo, "second_hi": second_hi, "follow": tuple(follow), "starts": starts}
+
+
+def check_continuation(spec: ContinuationSpec, fix: Mapping[str, float], params: Params, objective: str) -> None:
+    """A branch starts at the problem's own value of its parameter, inside its range, and
+    the problem defines a one-dimensional branch in each parameter."""
+    ranges = [(spec.parameter, spec.lo, spec.hi, "continuation.range")]
+    if spec.second is not None:
+        ranges.append((spec.second, spec.second_lo, spec.second_hi, "continuation.second_range"))
+    for name, lo, hi, key in ranges:
+        if name in PARAMS.names:
+            start = getattr(params, name)
+        elif name in fix:
+            start = fix[name]
+        else:
+            continue  # not fixed: refused below, with its own message
+        if not lo <= start <= hi:
+            raise ProblemError(
+                key,
+                f"the branch starts at {name} = {start:g} {UNITS[name]}, "
+                f"outside [{lo:g}, {hi:g}]; widen the range or change the start",
+            )
+    check_branch(fix, params, objective, spec.parameter)
+    if spec.second is not None:
+        check_branch(fix, params, objective, spec.second, "continuation.second")
+
+
+def check_branch(fix: Mapping[str, float], params: Params, objective: str, parameter: str,
+                 key: str = "continuation.parameter") -> None:
+    """Raise :class:`BranchError` unless fixing ``fix`` (under ``params`` and ``objective``)
+    leaves a one-dimensional branch in ``parameter`` (named by ``key``)."""
+    check_parameter(fix, parameter, key)
+    free, equations = branch_shape(fix, params)
+    if len(free) < equations or (len(free) > equations and objective != "nearest_guess"):
+        raise BranchError(
+            "fix",
+            f"a branch needs as many free quantities as equations (or more, with objective nearest_guess): "
+            f"{len(free)} free ({', '.join(free)}) but {equations} equations; fix or free quantities to match",
+        )
+
+
+def check_parameter(fix: Mapping[str, float], parameter: str, key: str) -> None:
+    """Raise :class:`BranchError` unless ``parameter`` can be varied from its fixed value."""
+    if parameter not in DESIGN + ("energy",) + PARAMS.names:
+        raise BranchError(key, f"{parameter!r} cannot be varied")
+    if parameter in DESIGN + ("energy",) and parameter not in fix:
+        raise BranchError(key, f"{parameter} must be fixed (at its starting value)")
+
+
+def branch_shape(fix: Mapping[str, float], params: Params) -> tuple[list[str], int]:
+    """The free design quantities, and the number of fixed-point equations (the apex rows
+    that structure does not already imply, plus one for a fixed energy)."""
+    implied = implied_periodicity(fix, params)
+    free = [n for n in DESIGN if n not in fix]
+    return free, len([n for n in APEX.names if n not in implied]) + ("energy" in fix)
