@@ -219,3 +219,12 @@ def test_a_continuation_that_defines_no_branch_is_refused_when_read():
         parse_problem(with_(continuation=branch, objective="min_torque"))
     assert caught.value.key == "fix"
     parse_problem(with_(continuation=branch))  # nearest_guess picks the family
+
+
+def test_a_sweep_step_below_the_rounding_of_its_values_is_refused():
+    tiny = {"kind": "sweep", "vary": {"z": [0.4, 0.40000000001, 1e-13]}}
+    with pytest.raises(ProblemError) as caught:
+        parse_problem(with_(study=tiny, fix={"ydot": 0.5}))
+    assert caught.value.key == "study.vary.z" and "finer than the 1e-12" in str(caught.value)
+    fine = {"kind": "sweep", "vary": {"z": [0.4, 0.40000000001, 1e-12]}}
+    assert len(parse_problem(with_(study=fine)).study.axes[0].values) == 11

@@ -148,6 +148,18 @@ def test_a_lock_left_by_a_dead_process_is_taken_over(tmp_path):
     assert not (out / LOCK_NAME).exists()
 
 
+def test_a_lock_that_is_a_link_is_never_followed(tmp_path, capsys):
+    out = tmp_path / "downward"
+    out.mkdir()
+    target = tmp_path / "precious.txt"
+    target.write_text("not baslip's\n")
+    (out / LOCK_NAME).symlink_to(target)
+    assert main([str(ROOT / "problems" / "downward.yaml"), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "has a link at .baslip.lock" in err
+    assert target.read_text() == "not baslip's\n" and not (out / "result.json").exists()
+
+
 def test_a_changed_problem_is_refused_unless_fresh(grid, tmp_path, capsys):
     problem, reference = grid
     out = tmp_path / "stale"

@@ -151,3 +151,19 @@ def test_continuation_with_a_switch_end_to_end(tmp_path):
     assert abs(pd["theta_td"] - summary["branches"][1]["switched_from"]["theta_td"]) < 1e-12
     assert (tmp_path / "out" / "diagram.png").stat().st_size > 10_000
     assert "branch 1 (2-stride orbits, switched at the period doubling)" in proc.stdout
+
+
+def test_a_re_solve_that_dies_leaves_the_earlier_result_whole(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "downward"
+    assert main(["problems/downward.yaml", "--out", str(out), "--quiet"]) == 0
+    before = {name: (out / name).read_bytes() for name in ("result.json", "multipliers.csv")}
+
+    from baslip.gait.fixedpoint import FixedPointSolver
+
+    def killed(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(FixedPointSolver, "solve", killed)
+    assert main(["problems/downward.yaml", "--out", str(out), "--quiet"]) == 1
+    assert "interrupted" in capsys.readouterr().err
+    assert {name: (out / name).read_bytes() for name in before} == before

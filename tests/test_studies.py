@@ -13,7 +13,7 @@ import pytest
 
 from baslip.problem.reader import ProblemError, load_problem, parse_problem
 from baslip.problem.study import Sweep
-from baslip.studies.registry import run_study
+from baslip.studies.registry import StaleFolder, run_study
 from baslip.studies.runner import ResumableCsv
 from baslip.studies.sweep import RESULT_COLUMNS, interpolated_radius, radius_grid, sweep_tasks
 
@@ -270,3 +270,20 @@ def test_a_controllers_study_compares_three_controllers_on_the_same_starts(tmp_p
     assert all(len(starts) == 1 for starts in by_sample.values())
     assert set(summary["controllers"]) == {"constant", "feedback", "resolve"}
     assert (out / "controllers.png").stat().st_size > 0
+
+    # Another seed is another problem: refused over these rows, and a fresh run redraws them.
+    reseeded = load_problem(problem_path).replace(study={**_controllers_section(text), "seed": 2})
+    with pytest.raises(StaleFolder, match="different problem"):
+        run_study(reseeded, out, quiet=True)
+    again = run_study(reseeded, out, quiet=True, fresh=True)
+    assert again["done_before_this_run"] == 0 and again["done_in_this_run"] == 12
+    with open(out / "controllers.csv") as handle:
+        redrawn = list(csv.DictReader(handle))
+    assert [r["d_z"] for r in redrawn] != [r["d_z"] for r in rows]
+
+
+def _controllers_section(text: str) -> dict:
+    """The study section of a controllers problem's text, as plain data."""
+    import yaml
+
+    return yaml.safe_load(text)["study"]

@@ -45,7 +45,7 @@ def hold(folder: Path):
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / LOCK_NAME
     while True:
-        handle = open(path, "a+")
+        handle = _open_lock(path, folder)
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -75,11 +75,24 @@ def hold(folder: Path):
         handle.close()
 
 
+def _open_lock(path: Path, folder: Path):
+    """The lock file, opened for reading and appending; never through a link, which would
+    have us truncate whatever file it points to."""
+    try:
+        descriptor = os.open(path, os.O_RDWR | os.O_CREAT | os.O_APPEND | os.O_NOFOLLOW, 0o644)
+    except OSError as err:
+        if path.is_symlink():
+            raise FolderBusy("", f"output folder {folder} has a link at {LOCK_NAME}; remove it, or choose "
+                             "another --out") from None
+        raise FolderBusy("", f"output folder {folder}: cannot open {LOCK_NAME}: {err.strerror or err}") from None
+    return os.fdopen(descriptor, "a+")
+
+
 def busy(folder: Path) -> str | None:
     """Who holds ``folder`` for writing, or None if nobody does (checked, not held)."""
     path = folder / LOCK_NAME
     try:
-        handle = open(path)
+        handle = os.fdopen(os.open(path, os.O_RDONLY | os.O_NOFOLLOW))
     except OSError:
         return None
     with handle:

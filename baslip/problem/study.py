@@ -30,6 +30,8 @@ from baslip.model.quantities import DESIGN
 from baslip.problem.text import NonScalarKey, clip, excerpt
 from baslip.problem.values import number
 
+#: Decimals to which swept values are rounded (they key a study's rows).
+VALUE_DECIMALS = 12
 #: Most values along one axis of a sweep or a basin grid.
 MAX_AXIS_VALUES = 100_000
 
@@ -199,7 +201,11 @@ def _axes(data, key, allowed) -> tuple[Axis, ...]:
         if not ratio < MAX_AXIS_VALUES:  # also catches an infinite ratio from a tiny step
             raise StudyError(where, f"[{start:g}, {stop:g}] in steps of {step:g} is more than {MAX_AXIS_VALUES} values")
         count = math.floor(ratio + 1e-9) + 1
-        axes.append(Axis(name, tuple(round(start + i * step, 12) for i in range(count))))
+        values = tuple(round(start + i * step, VALUE_DECIMALS) for i in range(count))
+        if len(set(values)) < len(values):  # rows are keyed by these values: each must be its own
+            raise StudyError(where, f"a step of {step:g} is finer than the {10.0 ** -VALUE_DECIMALS:g} to which "
+                             "swept values are rounded; take a step of at least that")
+        axes.append(Axis(name, values))
     return tuple(axes)
 
 
