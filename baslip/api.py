@@ -17,6 +17,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from baslip.errors import InputError
+from baslip.files.runs import check_folder, clear_run
 from baslip.gait.fixedpoint import FixedPointResult
 from baslip.problem.reader import Problem, load_problem
 from baslip.results import RunResults, open_results, read_into_memory
@@ -77,7 +78,7 @@ def run(problem: Problem | str | Path, out: str | Path | None = None, *, jobs: i
         problem = load_problem(Path(problem))
     folder = None if out is None else Path(out)
     where = Path(sources) if sources is not None else (folder.parent if folder is not None else Path("results"))
-    check_run(problem, folder, where, scheduler)
+    check_run(problem, folder, where, scheduler, fresh)
     with _place(folder, problem.name) as target:
         result = _run_into(problem, target, where, jobs=jobs, lanes=lanes, scheduler=scheduler, fresh=fresh,
                            quiet=not progress)
@@ -86,9 +87,11 @@ def run(problem: Problem | str | Path, out: str | Path | None = None, *, jobs: i
         return read_into_memory(target, where)
 
 
-def check_run(problem: Problem, out: Path | None, sources: Path, scheduler: str | None = None) -> None:
+def check_run(problem: Problem, out: Path | None, sources: Path, scheduler: str | None = None,
+              fresh: bool = False) -> None:
     """Every check of a run beyond its problem (which was checked whole when it was read):
-    the runs a study reads, the scheduler, and the output folder.
+    the runs a study reads, the scheduler, and the output folder (writable, and holding no
+    run of another kind or problem unless ``fresh``).
 
     Raises
     ------
@@ -105,6 +108,7 @@ def check_run(problem: Problem, out: Path | None, sources: Path, scheduler: str 
             raise NothingToSchedule("--scheduler", f"{problem.name} has no study to run on a cluster")
         check_scheduler(scheduler)
     if out is not None:
+        check_folder(problem, out, fresh)
         _check_writable(out)
 
 
@@ -129,12 +133,16 @@ def _place(folder: Path | None, name: str) -> Iterator[Path]:
 
 def _run_into(problem: Problem, out: Path, sources: Path, *, jobs, lanes, scheduler, fresh: bool,
               quiet: bool) -> FixedPointResult | RunResults:
+    from baslip.files.lock import hold
     from baslip.studies.branch import run_continuation
     from baslip.studies.registry import run_study
 
     if problem.study is not None:
         run_study(problem, out, quiet, fresh, jobs, scheduler, lanes, sources=sources)
         return open_results(out)
+    if fresh:
+        with hold(out):
+            clear_run(out)
     if problem.continuation is not None:
         run_continuation(problem, out, quiet)
         return open_results(out)

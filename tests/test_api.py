@@ -127,3 +127,23 @@ def test_bad_input_is_refused_before_anything_runs(tmp_path):
     with pytest.raises(InputError, match="--scheduler"):
         baslip.run(baslip.parse_problem(BRANCH), scheduler="local", progress=False)
     assert not (tmp_path / "basin").exists() or files_in(tmp_path / "basin") == set()
+
+
+def test_a_folder_holds_one_run_and_another_needs_fresh(tmp_path):
+    out = tmp_path / "shared"
+    baslip.run(baslip.problems_dir() / "downward.yaml", out=out)
+    with pytest.raises(InputError, match="holds a gait run, not a sweep one") as caught:
+        baslip.run(baslip.parse_problem(SWEEP), out=out, progress=False)
+    assert "--fresh" in str(caught.value) and files_in(out) == {"result.json", "multipliers.csv"}
+    baslip.run(baslip.parse_problem(SWEEP), out=out, progress=False, fresh=True, jobs=1)
+    assert "multipliers.csv" not in files_in(out) and "points.csv" in files_in(out)
+
+
+def test_a_branch_over_a_curve_run_of_another_problem_is_refused(tmp_path):
+    out = tmp_path / "continuation"
+    baslip.run(baslip.parse_problem(CURVE), out=out, progress=False)
+    assert "curve.csv" in files_in(out)
+    with pytest.raises(InputError, match="holds the continuation of another problem"):
+        baslip.run(baslip.parse_problem(BRANCH), out=out, progress=False)
+    result = baslip.run(baslip.parse_problem(BRANCH), out=out, progress=False, fresh=True)
+    assert "curve.csv" not in files_in(out) and "curve" not in result.tables

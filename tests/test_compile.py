@@ -4,6 +4,7 @@ Every test uses its own cache directory (``BASLIP_CACHE_DIR`` under ``tmp_path``
 none touches the user's cache; the compiler is gcc unless a test sets ``CC``.
 """
 
+import hashlib
 import os
 import pathlib
 import shutil
@@ -186,6 +187,45 @@ def test_corrupt_library_is_rebuilt(cache, capsys):
     assert capsys.readouterr().err == ""
 
 
+TRUNCATED_RUN = """
+import numpy as np, sys
+sys.path.insert(0, {tests!r})
+from test_compile import make_functions, assert_same_results
+from baslip.engine.codegen import compile_functions
+functions = make_functions()
+compiled = compile_functions("test_lib", functions)
+assert all(g.is_a("External") for g in compiled.values())
+assert_same_results(functions, compiled)
+"""
+
+
+def test_a_truncated_library_is_rebuilt_not_loaded(cache):
+    """A library cut short (a full disk, a killed copy) may map cleanly and then kill the
+    process with SIGBUS when called: its checksum no longer matches, so it is rebuilt."""
+    code = TRUNCATED_RUN.format(tests=str(pathlib.Path(__file__).parent))
+    env = {**os.environ, "BASLIP_CACHE_DIR": str(cache)}
+    first = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert first.returncode == 0, first.stderr
+    [library] = cache.glob("*.so")
+    whole = library.read_bytes()
+    assert (cache / f"{library.name}.sha256").read_text().strip() == hashlib.sha256(whole).hexdigest()
+    for keep in (len(whole) // 2, 4096, 0):
+        library.write_bytes(whole[:keep])
+        again = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+        assert again.returncode == 0, (keep, again.returncode, again.stderr[-500:])
+        assert again.stderr == "" and library.read_bytes() == whole
+
+
+def test_a_library_without_its_checksum_is_rebuilt(cache, capsys):
+    functions = make_functions()
+    compile_functions("test_lib", functions)
+    [library] = cache.glob("*.so")
+    (cache / f"{library.name}.sha256").unlink()
+    compiled = compile_functions("test_lib", functions)
+    assert_same_results(functions, compiled)
+    assert (cache / f"{library.name}.sha256").exists() and capsys.readouterr().err == ""
+
+
 def test_two_processes_starting_at_once_compile_once(cache, tmp_path, monkeypatch):
     """Two processes ask for the same library at the same moment: one compiles it under
     the lock, the other waits and loads it; both get compiled functions."""
@@ -223,7 +263,7 @@ def test_two_processes_starting_at_once_compile_once(cache, tmp_path, monkeypatc
         assert out.strip() == "ok" and err == ""
     assert log.read_text().split() == ["compile"]  # compiled once
     assert len(libraries(cache)) == 1
-    leftovers = [p.name for p in cache.iterdir() if not p.name.endswith((".so", ".lock"))]
+    leftovers = [p.name for p in cache.iterdir() if not p.name.endswith((".so", ".so.sha256", ".lock"))]
     assert leftovers == []  # no temporary files
 
 

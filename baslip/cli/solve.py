@@ -69,8 +69,9 @@ def _parser(prog: str = "python -m baslip.solve") -> argparse.ArgumentParser:
                              "tcp://host:8786, or 'local' for a LocalCluster (needs pip install 'baslip[dask]')")
     parser.add_argument(
         "--fresh", action="store_true",
-        help="discard what DIR holds from an earlier run instead of resuming it (a study "
-             "refuses to resume results of a changed problem without this)",
+        help="discard what DIR holds from an earlier run instead of resuming it (without "
+             "this, a folder holding another kind of run, another problem's gait or "
+             "branch, or a changed study's results is refused)",
     )
     return parser
 
@@ -99,7 +100,7 @@ def main(argv: list[str] | None = None, prog: str = "python -m baslip.solve") ->
     from baslip.api import check_run
 
     try:
-        check_run(problem, out_dir, out_dir.parent, args.scheduler)
+        check_run(problem, out_dir, out_dir.parent, args.scheduler, args.fresh)
     except InputError as err:
         print(refusal(err, args.problem), file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -123,6 +124,8 @@ def _run(problem, args, out_dir: Path) -> int:
         if problem.study is not None:
             return _run_study(problem, out_dir, args.quiet, args.fresh, args.jobs, args.scheduler,
                               args.lanes)
+        if args.fresh:
+            clear_folder(out_dir)
         if problem.continuation is not None:
             return _run_continuation(problem, out_dir, args.quiet)
         return _solve_and_write(problem, out_dir, args.quiet)
@@ -138,6 +141,15 @@ def _run(problem, args, out_dir: Path) -> int:
     except Exception as err:  # a bug, not a result: say so in one line, write nothing
         print(f"error: {problem.name}: internal error: {type(err).__name__}: {err}".splitlines()[0], file=sys.stderr)
         return EXIT_NOT_CONVERGED
+
+
+def clear_folder(out_dir: Path) -> None:
+    """Discard the run the folder holds, for ``--fresh`` (holding the folder meanwhile)."""
+    from baslip.files.lock import hold
+    from baslip.files.runs import clear_run
+
+    with hold(out_dir):
+        clear_run(out_dir)
 
 
 def _run_study(problem, out_dir: Path, quiet: bool, fresh: bool, jobs: int | None,

@@ -12,6 +12,9 @@ does this for a list of Functions at once:
 * The library is compiled to a unique temporary file next to its final name and
   renamed into place, an atomic step: processes compiling the same key at once are
   both safe, and no process ever loads a half-written library.
+* Its SHA-256 is written beside it (``<library>.sha256``, also atomically), and a
+  library is loaded only if it matches: a truncated or damaged one (which the dynamic
+  loader may map and then die on, with SIGBUS) is rebuilt, never loaded.
 * Without a working compiler or a writable cache the original Functions are returned
   (one line on stderr says so): slower, same results. Setting ``BASLIP_NO_COMPILE=1``
   or passing ``enabled=False`` returns them silently.
@@ -195,7 +198,9 @@ def _build(name: str, c_text: str, compiler: list[str], library: pathlib.Path) -
             source = pathlib.Path(scratch) / f"{name}.c"
             source.write_text(c_text, encoding="utf-8")
             _run([*compiler, *CFLAGS, str(source), "-o", partial, *LDLIBS])
+        digest = _sha256(pathlib.Path(partial))
         os.replace(partial, library)
+        _write_checksum(library, digest)
     except OSError as error:
         raise _NoCompiler(f"cannot write the library: {error.strerror or error}") from None
     finally:
@@ -360,15 +365,16 @@ def _cached(name, names, build, fingerprint: Sequence[bytes], enabled, load, fal
         compiler = _compiler()
         key = _key(fingerprint, names, compiler, _compiler_version(compiler))
         library = cache_dir() / f"{name}-{key[:20]}.so"
-        loaded = load(library, names) if os.path.isfile(library) else None
+        loaded = load(library, names) if _intact(library) else None
         if loaded is not None:
             return loaded
         with _build_lock(library):
             # Another process may have built it while this one waited for the lock.
-            loaded = load(library, names) if os.path.isfile(library) else None
+            loaded = load(library, names) if _intact(library) else None
             if loaded is not None:
                 return loaded
             _discard(library)  # corrupt, truncated or stale: rebuild once
+            _discard(_checksum_path(library))
             _build(name, generated if generated is not None else _generate(name, build()), compiler, library)
         loaded = load(library, names)
         if loaded is None:
@@ -381,6 +387,35 @@ def _cached(name, names, build, fingerprint: Sequence[bytes], enabled, load, fal
             file=sys.stderr,
         )
         return fallback(build())
+
+
+def _checksum_path(library: pathlib.Path) -> pathlib.Path:
+    return library.with_name(library.name + ".sha256")
+
+
+def _sha256(path: pathlib.Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _write_checksum(library: pathlib.Path, digest: str) -> None:
+    """``digest`` beside ``library``, written to a temporary file and renamed into place."""
+    handle, partial = tempfile.mkstemp(dir=library.parent, prefix=f".{library.stem}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "w") as out:
+            out.write(digest + "\n")
+        os.replace(partial, _checksum_path(library))
+    finally:
+        _discard(partial)
+
+
+def _intact(library: pathlib.Path) -> bool:
+    """Whether ``library`` is a regular file whose bytes match the checksum written at build."""
+    try:
+        if library.is_symlink() or not library.is_file():
+            return False
+        return _checksum_path(library).read_text().strip() == _sha256(library)
+    except (OSError, UnicodeDecodeError):
+        return False
 
 
 def _vm_kernels(functions: Sequence[ca.Function]) -> dict[str, Kernel]:

@@ -28,6 +28,7 @@ from baslip.errors import InputError, ProblemKindError
 from baslip.files.atomic import json_text, write_files_atomically
 from baslip.files.lock import hold
 from baslip.files.provenance import changed_entries, provenance
+from baslip.files.runs import clear_run
 from baslip.problem.reader import Problem
 from baslip.problem.study import Adaptive, Basin, Controllers, Optimal, RandomSample, Sweep
 from baslip.studies.adaptive import run_adaptive_study
@@ -122,9 +123,7 @@ def _claim(problem: Problem, out_dir: Path, fresh: bool, lanes: int | None = Non
     data = [out_dir / name for name in DATA_FILES if (out_dir / name).exists()]
     old = _recorded_provenance(out_dir)
     if fresh:
-        for path in data + [out_dir / "result.json"]:
-            path.unlink(missing_ok=True)
-            path.with_name(f".{path.name}.states").unlink(missing_ok=True)
+        clear_run(out_dir)
     elif data:
         if old is None:
             raise StaleFolder("", f"{out_dir} holds results with no provenance record (from an older baslip?); "

@@ -1,0 +1,70 @@
+"""What a results folder holds: one run, of one kind and one problem.
+
+A folder holds the files of one run. A run of another kind (a sweep into a gait's folder)
+or, for a gait or a continuation, of another problem is refused rather than mixed with
+what is there; ``fresh`` clears the folder's run first. (A study of the same kind checks
+its recorded problem itself, naming the entries that changed, and resumes an unchanged
+one.)
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+from pathlib import Path
+
+from baslip.errors import InputError
+from baslip.files.provenance import problem_hash
+from baslip.problem.reader import Problem
+
+#: Every data file a run of any kind writes (figures aside); a fresh run removes them.
+RUN_FILES = ("result.json", "multipliers.csv", "branch.csv", "curve.csv", "points.csv", "basin.csv",
+             "trajectories.csv", "strides.csv", "controllers.csv")
+
+
+class FolderHoldsAnotherRun(InputError):
+    """The output folder holds a run of another kind, or of another problem."""
+
+
+def run_kind(problem: Problem) -> str:
+    """``gait``, ``continuation``, or the study's kind (``sweep``, ``basin``, ...)."""
+    if problem.study is not None:
+        return problem.study.kind
+    return "continuation" if problem.continuation is not None else "gait"
+
+
+def recorded_run(folder: Path) -> tuple[str, str | None] | None:
+    """(kind, problem hash) of the run whose ``result.json`` is in ``folder``, or None."""
+    try:
+        record = json.loads((folder / "result.json").read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(record, dict):
+        return None
+    kind = record.get("kind") or ("continuation" if "branches" in record else "gait")
+    provenance = record.get("provenance")
+    return str(kind), provenance.get("problem_hash") if isinstance(provenance, dict) else None
+
+
+def check_folder(problem: Problem, folder: Path, fresh: bool) -> None:
+    """Raise :class:`FolderHoldsAnotherRun` unless ``folder`` may take a run of ``problem``."""
+    recorded = recorded_run(folder)
+    if recorded is None or fresh:
+        return
+    kind, old_hash = recorded
+    new = run_kind(problem)
+    if kind != new:
+        raise FolderHoldsAnotherRun("", f"output folder {folder} holds a {kind} run, not a {new} one; rerun with "
+                                    "--fresh to replace it, or choose another --out")
+    if new in ("gait", "continuation") and old_hash != problem_hash(problem):
+        raise FolderHoldsAnotherRun("", f"output folder {folder} holds the {kind} of another problem; rerun with "
+                                    "--fresh to replace it, or choose another --out")
+
+
+def clear_run(folder: Path) -> None:
+    """Remove the data files of the run in ``folder`` (and their saved solver states)."""
+    for name in RUN_FILES:
+        with contextlib.suppress(FileNotFoundError):
+            (folder / name).unlink()
+        with contextlib.suppress(FileNotFoundError):
+            (folder / f".{name}.states").unlink()
