@@ -158,7 +158,8 @@ CASES += [
 ]
 TRACED = put(base(RANDOM), "study.region", "good_region")
 for label, value in {"missing": "nowhere", "path": "../x", "number": 3, "junk": "junk_curves",
-                     "no stability boundary": "flat_curves", "a sweep, not curves": "good_region"}.items():
+                     "no stability boundary": "flat_curves", "a sweep, not curves": "good_region",
+                     "NaN coordinates": "nan_curves", "traced in another pair": "other_pair_curves"}.items():
     CASES.append((f"study.boundary={label}", dump(put(TRACED, "study.boundary", value)), "study.boundary"))
 BASIN = "convergence_regions"
 for label, value in {"missing": "nowhere", "junk": "junk_region", "unfinished": "unfinished_region", "number": 1}.items():
@@ -317,18 +318,24 @@ def workspace(tmp_path_factory):
     write_region(folder, "junk_region", junk=True)
     write_curves(folder, "good_curves", bounding=True)
     write_curves(folder, "flat_curves", bounding=False)
+    write_curves(folder, "nan_curves", bounding=True, z="nan")
+    write_curves(folder, "other_pair_curves", bounding=True, traced_in=("theta_td", "energy"))
     (folder / "junk_curves").mkdir()
     (folder / "junk_curves" / "curve.csv").write_bytes(b"\x00\x89PNG\r\n\xff\xfe" * 10)
     return folder
 
 
-def write_curves(folder: Path, name: str, bounding: bool) -> None:
-    """A small curve result for the random study's boundary: one curve across the region."""
+def write_curves(folder: Path, name: str, bounding: bool, z: str = "0.42",
+                 traced_in: tuple[str, str] = ("z", "ydot")) -> None:
+    """A small curve result for the random study's boundary: one curve across the region,
+    at height ``z``, traced (says its result.json) in the parameters ``traced_in``."""
     (folder / name).mkdir()
     flag = "true" if bounding else "false"
     lines = ["curve,type,z,ydot,stability_boundary,kappa,special"]
-    lines += [f"0,neimark_sacker,0.42,{ydot},{flag},0.5," for ydot in (0.3, 0.5, 0.7)]
+    lines += [f"0,neimark_sacker,{z},{ydot},{flag},0.5," for ydot in (0.3, 0.5, 0.7)]
     (folder / name / "curve.csv").write_text("\n".join(lines) + "\n")
+    record = {"parameter": traced_in[0], "curves": {"second": traced_in[1]}}
+    (folder / name / "result.json").write_text(json.dumps(record))
 
 
 def test_the_suite_is_large_and_its_cases_are_distinct():

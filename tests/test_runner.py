@@ -122,3 +122,15 @@ def test_fewer_workers_than_lanes_give_the_same_rows(tmp_path):
         rows = list(csv.DictReader(open(out / "points.csv")))
         tables.append([{k: v for k, v in r.items() if k != "time_s"} for r in rows])
     assert tables[0] == tables[1]
+
+
+def test_rows_that_are_no_task_of_the_study_are_dropped(tmp_path):
+    table = ResumableCsv(tmp_path / "points.csv", ["sweep_z", "value"], ["sweep_z"])
+    table.append({"sweep_z": 0.4, "value": 1.0})
+    with open(tmp_path / "points.csv", "a") as handle:
+        handle.write("junk,junk\n0.45,2.0\n")  # right number of cells, no task of this study
+    again = ResumableCsv(tmp_path / "points.csv", ["sweep_z", "value"], ["sweep_z"])
+    assert len(again.rows) == 3
+    note = again.keep_tasks([{"sweep_z": 0.4}, {"sweep_z": 0.5}])
+    assert note == "points.csv: dropped 2 rows that are no task of this study"
+    assert (tmp_path / "points.csv").read_text() == "sweep_z,value\n0.4,1.0\n" and again.done() == {("0.4",)}

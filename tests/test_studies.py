@@ -80,7 +80,12 @@ def tiny_grid(tmp_path_factory):
     problem_path = folder / "tiny_grid.yaml"
     problem_path.write_text(GRID)
     out = folder / "results" / "tiny_grid"
-    summary = run_study(load_problem(problem_path), out, quiet=True)
+    problem = load_problem(problem_path)
+    # The workers are given the problem itself: with its file gone meanwhile, they still
+    # solve every point of the problem the run recorded.
+    hidden = problem_path.rename(folder / "elsewhere.yaml")
+    summary = run_study(problem, out, quiet=True)
+    hidden.rename(problem_path)
     return problem_path, out, summary
 
 

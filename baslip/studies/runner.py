@@ -139,6 +139,20 @@ class ResumableCsv:
         write_files_atomically({self.path: buffer.getvalue()})
         self.rows = [{c: format_value(r.get(c, "")) for c in self.columns} for r in rows]
 
+    def keep_tasks(self, tasks: Sequence[dict]) -> str | None:
+        """Drop the rows that are no task of ``tasks`` (a row appended by hand, a key from
+        another grid), rewriting the file; the note saying so, or None."""
+        wanted = {self.key(task) for task in tasks}
+        kept = [row for row in self.rows if self.key(row) in wanted]
+        if len(kept) == len(self.rows):
+            return None
+        dropped = len(self.rows) - len(kept)
+        self.rows = kept
+        self.rewrite(kept)
+        note = f"{self.path.name}: dropped {dropped} rows that are no task of this study"
+        self.notes.append(note)
+        return note
+
     def finish(self, order: Sequence[dict]) -> None:
         """All tasks done: rewrite the rows in task order and drop the saved states."""
         position = {self.key(task): i for i, task in enumerate(order)}
@@ -229,6 +243,9 @@ def run_tasks(
     None, on the queue; a row's ``state`` entry, if not None, is saved for later resumes.
     When all tasks are done the table is put in task order (:meth:`ResumableCsv.finish`).
     """
+    note = table.keep_tasks([task for lane in lanes for task in lane])
+    if note is not None and not quiet:
+        print(f"note: {note}", file=sys.stderr)
     done, states = table.done(), table.states.read()
     total = sum(len(lane) for lane in lanes)
     marked = [[_marked(task, table.key(task), done, states) for task in lane] for lane in lanes]

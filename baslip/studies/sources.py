@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import json
+import math
 from pathlib import Path
 
 from baslip.errors import InputError
@@ -72,11 +73,19 @@ def traced_boundary(sources: Path, study: RandomSample, names: tuple[str, str]):
     holder = busy(folder)
     if holder is not None:
         raise StudyInputError("study.boundary", f"{study.boundary!r} is still being run by {holder}; wait for it to finish")
+    traced_in = _curve_parameters(folder)
+    if traced_in is not None and set(traced_in) != set(names):
+        raise StudyInputError("study.boundary", f"{study.boundary!r} traced its curves in ({', '.join(traced_in)}), "
+                              f"not in this study's ({', '.join(names)})")
     try:
         rows = read_curves(path)
         missing = [n for n in (*names, "curve", "stability_boundary") if rows and n not in rows[0]]
         if missing:
             raise ValueError(f"it has no column {missing[0]}")
+        for row in rows:
+            for n in names:
+                if not math.isfinite(row[n]):
+                    raise ValueError(f"its column {n} holds {row[n]}")
     except UnicodeDecodeError:
         raise StudyInputError("study.boundary", f"{path} is not a curve.csv written by baslip (it is not UTF-8 text)") from None
     except (csv.Error, ValueError, TypeError) as err:
@@ -85,3 +94,14 @@ def traced_boundary(sources: Path, study: RandomSample, names: tuple[str, str]):
     if not segments:
         raise StudyInputError("study.boundary", f"{path} holds no curve that bounds stable gaits in ({', '.join(names)})")
     return rows, segments
+
+
+def _curve_parameters(folder: Path) -> tuple[str, str] | None:
+    """The two parameters a continuation's curves were traced in, from its result.json
+    (None if it records none: the columns are then checked alone)."""
+    with contextlib.suppress(OSError, ValueError, AttributeError, TypeError):
+        record = json.loads((folder / "result.json").read_text())
+        first, second = record["parameter"], record["curves"]["second"]
+        if isinstance(first, str) and isinstance(second, str):
+            return first, second
+    return None
