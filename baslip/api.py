@@ -12,15 +12,23 @@ the same files, the same exit status for the same outcome.
 from __future__ import annotations
 
 import contextlib
+import sys
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
 from baslip.errors import InputError
+from baslip.files.atomic import write_result
+from baslip.files.lock import hold
+from baslip.files.provenance import provenance
 from baslip.files.runs import check_folder, clear_run
 from baslip.gait.fixedpoint import FixedPointResult
+from baslip.gait.from_problem import solve_problem, solver_for
 from baslip.problem.reader import Problem, load_problem
 from baslip.results import RunResults, open_results, read_into_memory
+from baslip.studies.branch import run_continuation
+from baslip.studies.registry import check_study_inputs, run_study
+from baslip.studies.runner import check_scheduler
 
 
 class OutputUnwritable(InputError):
@@ -98,9 +106,6 @@ def check_run(problem: Problem, out: Path | None, sources: Path, scheduler: str 
     InputError
         The first check that fails, naming its key or option.
     """
-    from baslip.studies.registry import check_study_inputs
-    from baslip.studies.runner import check_scheduler
-
     if problem.study is not None:
         check_study_inputs(problem, sources)
     if scheduler is not None:
@@ -133,10 +138,6 @@ def _place(folder: Path | None, name: str) -> Iterator[Path]:
 
 def _run_into(problem: Problem, out: Path, sources: Path, *, jobs, lanes, scheduler, fresh: bool,
               quiet: bool) -> FixedPointResult | RunResults:
-    from baslip.files.lock import hold
-    from baslip.studies.branch import run_continuation
-    from baslip.studies.registry import run_study
-
     if problem.study is not None:
         run_study(problem, out, quiet, fresh, jobs, scheduler, lanes, sources=sources)
         return open_results(out)
@@ -152,13 +153,6 @@ def _run_into(problem: Problem, out: Path, sources: Path, *, jobs, lanes, schedu
 def solve_and_write(problem: Problem, out: Path, quiet: bool = True) -> FixedPointResult:
     """Solve the gait of ``problem`` and write ``result.json`` and ``multipliers.csv`` to
     ``out``, replacing an earlier result only once the new files are complete."""
-    import sys
-
-    from baslip.files.atomic import write_result
-    from baslip.files.lock import hold
-    from baslip.files.provenance import provenance
-    from baslip.gait.from_problem import solve_problem, solver_for
-
     with hold(out):
         if not quiet:
             s = problem.solver

@@ -292,3 +292,12 @@ def _controllers_section(text: str) -> dict:
     import yaml
 
     return yaml.safe_load(text)["study"]
+
+
+def test_every_study_kind_is_registered_and_fresh_clears_its_tables():
+    from baslip.files.runs import RUN_FILES
+    from baslip.problem.study import STUDY_KINDS
+    from baslip.studies.registry import DATA_FILES, KINDS
+
+    assert set(KINDS) == set(STUDY_KINDS)
+    assert set(DATA_FILES) <= set(RUN_FILES) and "controllers.csv" in DATA_FILES
