@@ -161,6 +161,15 @@ for label, value in {"missing": "nowhere", "path": "../x", "number": 3, "junk": 
                      "no stability boundary": "flat_curves", "a sweep, not curves": "good_region",
                      "NaN coordinates": "nan_curves", "traced in another pair": "other_pair_curves"}.items():
     CASES.append((f"study.boundary={label}", dump(put(TRACED, "study.boundary", value)), "study.boundary"))
+# Text YAML's reader refuses, and YAML 1.1 surprises.
+DOWNWARD_TEXT = (ROOT / "problems" / "downward.yaml").read_text()
+assert "  z: 0.4 " in DOWNWARD_TEXT
+for label, char in {"NUL": "\x00", "ESC": "\x1b", "DEL": "\x7f", "U+FFFE": "\ufffe"}.items():
+    CASES.append((f"YAML with {label} in a comment", DOWNWARD_TEXT + f"# note {char}\n", "malformed YAML at line"))
+CASES += [
+    ("fix.z sexagesimal 1:30", DOWNWARD_TEXT.replace("  z: 0.4 ", "  z: 1:30 "), "fix.z"),
+    ("a 900 kB file", DOWNWARD_TEXT + "# " + "x" * 900_000 + "\n", "larger than 64 kB"),
+]
 BASIN = "convergence_regions"
 for label, value in {"missing": "nowhere", "junk": "junk_region", "unfinished": "unfinished_region", "number": 1}.items():
     CASES.append((f"study.source={label}", dump(put(base(BASIN), "study.source", value)), "study.source"))
@@ -259,6 +268,7 @@ CASES += [
 
 # --- the file itself ----------------------------------------------------------------------
 DOWNWARD_TEXT = (ROOT / "problems" / "downward.yaml").read_text()
+assert "  z: 0.4 " in DOWNWARD_TEXT
 CASES += [
     ("empty file", "", "empty"),
     ("only a comment", "# nothing here\n", "empty"),

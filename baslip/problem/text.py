@@ -15,6 +15,7 @@ Beyond YAML's safe loader:
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import yaml
@@ -22,8 +23,8 @@ from yaml.nodes import MappingNode, ScalarNode, SequenceNode
 
 from baslip.errors import InputError
 
-#: Largest problem file read, in bytes.
-MAX_BYTES = 1_000_000
+#: Largest problem file read, in bytes (the shipped ones are 1 to 2 kB).
+MAX_BYTES = 64_000
 #: Most values (scalars, lists and mappings) a file may hold once aliases are expanded.
 MAX_VALUES = 20_000
 #: Deepest nesting of lists and mappings.
@@ -92,8 +93,30 @@ class NonScalarKey:
         return self.text
 
 
+#: YAML 1.1's implicit int and float, as PyYAML's safe loader has them, less base-60
+#: numbers: ``1:30`` stays the text it is (which the schema then refuses), not 90.
+_INT = re.compile(r"""^(?:[-+]?0b[0-1_]+
+                    |[-+]?0[0-7_]+
+                    |[-+]?(?:0|[1-9][0-9_]*)
+                    |[-+]?0x[0-9a-fA-F_]+)$""", re.X)
+_FLOAT = re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+][0-9]+)?
+                    |\.[0-9][0-9_]*(?:[eE][-+][0-9]+)?
+                    |[-+]?\.(?:inf|Inf|INF)
+                    |\.(?:nan|NaN|NAN))$""", re.X)
+_NUMBER_TAGS = {"tag:yaml.org,2002:int": _INT, "tag:yaml.org,2002:float": _FLOAT}
+
+
+def _without_sexagesimal(resolvers: dict) -> dict:
+    """``resolvers`` with the int and float patterns replaced by :data:`_INT` and :data:`_FLOAT`."""
+    return {first: [(tag, _NUMBER_TAGS.get(tag, pattern)) for tag, pattern in entries]
+            for first, entries in resolvers.items()}
+
+
 class _BoundedLoader(yaml.SafeLoader):
-    """YAML's safe loader with strict keys (see the module docstring)."""
+    """YAML's safe loader with strict keys (see the module docstring), and no base-60
+    numbers."""
+
+    yaml_implicit_resolvers = _without_sexagesimal(yaml.SafeLoader.yaml_implicit_resolvers)
 
     def construct_mapping(self, node, deep=False):
         if not isinstance(node, MappingNode):
@@ -124,7 +147,12 @@ def read_yaml(text: str) -> Any:
     """
     if len(text.encode("utf-8", "surrogatepass")) > MAX_BYTES:
         raise UnreadableText("", f"larger than {MAX_BYTES // 1000} kB; a problem file is a few lines")
-    loader = _BoundedLoader(text)
+    try:  # the reader refuses control characters (NUL, ESC, DEL, U+FFFE) as it is built
+        loader = _BoundedLoader(text)
+    except yaml.reader.ReaderError as err:
+        line = text.count("\n", 0, err.position) + 1
+        raise UnreadableText("", f"malformed YAML at line {line}: character #x{err.character:04x} is not allowed "
+                             "(a control character?)") from None
     try:
         node = loader.get_single_node()
         if node is None:
