@@ -94,9 +94,9 @@ def main(argv: list[str] | None = None, prog: str = "python -m baslip.solve") ->
         print(f"error: {args.problem}: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
     if args.verbose:  # print_level is not part of the problem's hash: results stay comparable
-        problem = replace(problem, solver=replace(problem.solver, print_level=5))
+        problem = problem.replace(solver=replace(problem.solver, print_level=5))
     out_dir = args.out if args.out is not None else Path("results") / problem.name
-    # The run's modules load CasADi; `baslip --help` and bad input do not need them.
+    # The run's modules (engine, solver, studies) are imported only once the problem is read.
     from baslip.api import check_run
 
     try:
