@@ -155,6 +155,7 @@ CASES += [
     ("random source one axis", dump(put(base(RANDOM), "study.region", "one_axis_region")), "study.region"),
     ("random draws outside bounds", dump(put(put(base(RANDOM), "study.region", "good_region"), "bounds.z", [0.6, 0.7])),
      "study.region"),
+    ("random source with no stable point", dump(put(base(RANDOM), "study.region", "unstable_region")), "study.region"),
 ]
 TRACED = put(base(RANDOM), "study.region", "good_region")
 for label, value in {"missing": "nowhere", "path": "../x", "number": 3, "junk": "junk_curves",
@@ -178,6 +179,8 @@ for label, value in {"order": {"z": [0.3, 0.4, 0.1], "ydot": [0.1, 0.2, 0.1]}, "
     CASES.append((f"study.grid={label}", dump(put(base(BASIN), "study.grid", value)), "study.grid"))
 CASES += [
     ("study.grid.z negative", dump(put(base(BASIN), "study.grid.z", [-0.3, 0.4, 0.1])), "study.grid.z"),
+    ("study.grid of 9001 x 4001 states", dump(put(base(BASIN), "study.grid", {"ydot": [0.1, 1.0, 0.0001],
+                                                                             "z": [0.3, 0.7, 0.0001]})), "study.grid"),
     ("study.grid.ydot huge", dump(put(base(BASIN), "study.grid.ydot", [0.1, 1e3, 100])), "study.grid.ydot"),
     ("study.stable_at missing z", dump(put(base(BASIN), "study.stable_at", {"ydot": 0.6})), "study.stable_at"),
     ("study.stable_at extra", dump(put(base(BASIN), "study.stable_at", {"ydot": 0.6, "z": 0.4, "Kp": 1})), "study.stable_at"),
@@ -208,6 +211,7 @@ for key, value, names in [
     ("starts", 0, "study.starts"), ("starts", "many", "study.starts"), ("iterations", 0, "study.iterations"),
     ("seed", -3, "study.seed"), ("vary", {"z": [-0.3, 0.4, 0.1]}, "study.vary.z"),
     ("vary", {"theta_h": [60, 120, 10]}, "study.vary.theta_h"), ("count", 3, "study.count"),
+    ("vary", {"Kp": [-1, 1, 0.5]}, "study.vary.Kp"), ("vary", {"z": [0.4, 0.5, 0.1], "Kd": [0.1, 0.2, 0.1]}, "study.vary.Kd"),
 ]:
     CASES.append((f"optimal study.{key}={value!r}", dump(put(base(OPTIMAL), f"study.{key}", value)), names))
 CONTROLS = "controllers_upright"
@@ -216,7 +220,8 @@ for key, value, names in [
     ("perturbation", {"z": -0.1}, "study.perturbation.z"), ("perturbation", {"Kp": 1.0}, "study.perturbation.Kp"),
     ("samples", 0, "study.samples"), ("strides", 0, "study.strides"), ("tolerance", 0, "study.tolerance"),
     ("criterion", "best", "study.criterion"), ("lqr_scale", {"z": math.inf}, "study.lqr_scale.z"),
-    ("lqr_scale", "z", "study.lqr_scale"),
+    ("lqr_scale", "z", "study.lqr_scale"), ("lqr_scale", {"z": 1e-300}, "study.lqr_scale.z"),
+    ("lqr_scale", {"theta_h": 1e-200}, "study.lqr_scale.theta_h"), ("perturbation", {"z": 1e-200}, "study.perturbation.z"),
 ]:
     CASES.append((f"controllers study.{key}={value!r}", dump(put(base(CONTROLS), f"study.{key}", value)), names))
 CASES.append(("controllers study without perturbation",
@@ -297,8 +302,9 @@ CASES += [
 ]
 
 
-def write_region(folder: Path, name: str, complete: bool = True, two_axes: bool = True, junk: bool = False) -> None:
-    """A small source study for the random and basin cases: four stable points."""
+def write_region(folder: Path, name: str, complete: bool = True, two_axes: bool = True, junk: bool = False,
+                 stable: bool = True) -> None:
+    """A small source study for the random and basin cases: four points, stable unless not."""
     region = folder / name
     region.mkdir(parents=True)
     if junk:
@@ -311,8 +317,9 @@ def write_region(folder: Path, name: str, complete: bool = True, two_axes: bool 
         for ydot in (0.4, 0.5):
             for z in (0.4, 0.45):
                 row = {"z": z, "theta_h": -1.57, "ydot": ydot, "theta_h_dot": 0.16, "Kp": -0.75, "Kd": 1.5,
-                       "theta2_des": -0.05, "theta2_dot_des": 1.4, "theta_td": 0.11, "spectral_radius": 0.5,
-                       "stable": "true", "status": "converged"}
+                       "theta2_des": -0.05, "theta2_dot_des": 1.4, "theta_td": 0.11,
+                       "spectral_radius": 0.5 if stable else 1.5, "stable": "true" if stable else "false",
+                       "status": "converged"}
                 cells = [str(ydot), str(z)][: len(keys)] + [str(row.get(c, "")) for c in RESULT_COLUMNS]
                 lines.append(",".join(cells))
         (region / "points.csv").write_text("\n".join(lines) + "\n")
@@ -326,6 +333,7 @@ def workspace(tmp_path_factory):
     write_region(folder, "unfinished_region", complete=False)
     write_region(folder, "one_axis_region", two_axes=False)
     write_region(folder, "junk_region", junk=True)
+    write_region(folder, "unstable_region", stable=False)
     write_curves(folder, "good_curves", bounding=True)
     write_curves(folder, "flat_curves", bounding=False)
     write_curves(folder, "nan_curves", bounding=True, z="nan")

@@ -49,6 +49,7 @@ from baslip.gait.polish import Polish, eps, movable_quantities
 from baslip.gait.shooting import FixedPointSpec
 from baslip.gait.stability import classify
 from baslip.model.quantities import DESIGN, NOMINAL
+from baslip.problem.study import DRAWN_GAINS
 
 #: q of the surrogate (see the module docstring).
 SURROGATE_POWER = 8
@@ -352,7 +353,6 @@ def _bfgs(H: np.ndarray, s: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 
 #: Quantities drawn at random for a start (held while the starting gait is solved).
-DRAWN = ("Kp", "Kd")
 
 
 def random_start(spec: FixedPointSpec, rng: np.random.Generator) -> dict[str, float]:
@@ -365,7 +365,7 @@ def random_start(spec: FixedPointSpec, rng: np.random.Generator) -> dict[str, fl
     cell; with the gains held, 8 in 16 did, with radii from 3.6 to 1500.
     """
     held = {}
-    for name in DRAWN:
+    for name in DRAWN_GAINS:
         if name in spec.fixed:
             continue
         lo, hi = spec.bounds_of(name)

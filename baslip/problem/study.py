@@ -34,6 +34,13 @@ from baslip.problem.values import number
 VALUE_DECIMALS = 12
 #: Most values along one axis of a sweep or a basin grid.
 MAX_AXIS_VALUES = 100_000
+#: Most apex states in a basin grid (each is simulated from every stable point).
+MAX_GRID_STATES = 100_000
+#: Smallest size in a map of apex sizes (a perturbation, an LQR scale): its inverse square
+#: must stay a finite number.
+MIN_SIZE = 1e-12
+#: The gains an optimal study draws at random for every start, so that it cannot sweep them.
+DRAWN_GAINS = ("Kp", "Kd")
 
 
 class StudyError(ProblemError):
@@ -137,6 +144,10 @@ def parse_study(data) -> Study:
             raise StudyError("study.vary", f"expected one or two quantities, got {len(axes)}")
         if kind == "sweep":
             return Sweep(axes)
+        for axis in axes:
+            if axis.name in DRAWN_GAINS:
+                raise StudyError(f"study.vary.{axis.name}", f"an optimal study draws {axis.name} at random for every "
+                                 f"start ({', '.join(DRAWN_GAINS)}), so it cannot sweep it; fix it or sweep another quantity")
         return Optimal(
             axes,
             starts=_integer(data.get("starts", 16), "study.starts", 1, 10000),
@@ -154,6 +165,10 @@ def parse_study(data) -> Study:
         grid = _axes(data.get("grid"), "study.grid", ("ydot", "z"))
         if tuple(a.name for a in grid) != ("ydot", "z"):
             raise StudyError("study.grid", "expected ydot and z, in that order")
+        states = len(grid[0].values) * len(grid[1].values)
+        if states > MAX_GRID_STATES:
+            raise StudyError("study.grid", f"{len(grid[0].values)} x {len(grid[1].values)} = {states} apex states is "
+                             f"more than {MAX_GRID_STATES}")
         return Basin(
             source=_name(data.get("source"), "study.source"),
             grid=(grid[0], grid[1]),
@@ -216,8 +231,8 @@ def _criterion(value) -> str:
 
 
 def _apex_map(data, key, positive: bool, required: bool = False) -> tuple[tuple[str, float], ...]:
-    """A map of apex quantity to a size (``positive``: in (0, 10]) or an offset (any sign,
-    at most 10 in size); SI units, and angles may carry units."""
+    """A map of apex quantity to a size (``positive``: in [:data:`MIN_SIZE`, 10]) or an
+    offset (any sign, at most 10 in size); SI units, and angles may carry units."""
     apex = ("z", "theta_h", "ydot", "theta_h_dot")
     what = "a size" if positive else "an offset"
     if not isinstance(data, dict) or (required and not data):
@@ -228,8 +243,9 @@ def _apex_map(data, key, positive: bool, required: bool = False) -> tuple[tuple[
         if isinstance(name, NonScalarKey) or name not in apex:
             raise StudyError(where, f"unknown apex quantity (expected one of {', '.join(apex)})")
         value = number(value, f"{key}.{name}")
-        if not (0 < value <= 10 if positive else abs(value) <= 10):
-            raise StudyError(where, f"expected {'a size in (0, 10]' if positive else 'an offset of at most 10 in size'}, got {value:g}")
+        if not (MIN_SIZE <= value <= 10 if positive else abs(value) <= 10):
+            wanted = f"a size in [{MIN_SIZE:g}, 10]" if positive else "an offset of at most 10 in size"
+            raise StudyError(where, f"expected {wanted}, got {value:g}")
         pairs.append((name, value))
     return tuple(pairs)
 

@@ -206,7 +206,11 @@ def run_random(problem: Problem, study: RandomSample, out_dir: Path, sources: Pa
 def check_random(problem: Problem, study: RandomSample, sources: Path) -> None:
     """Refuse a sample whose region or boundary is not there, or whose draws the problem refuses."""
     rows, names = source_points(sources, study.region, "study.region")
-    for task in random_tasks(study, rows, names, traced_boundary(sources, study, names)[1]):
+    tasks = random_tasks(study, rows, names, traced_boundary(sources, study, names)[1])
+    if not tasks:
+        raise StudyInputError("study.region", f"{study.region!r} has no stable region to draw from (no stable "
+                              "point, or none inside the boundary)")
+    for task in tasks:
         values = {n: task[key_column(n)] for n in names}
         try:
             check_point(problem, values)
