@@ -19,7 +19,7 @@ from pathlib import Path
 
 from baslip.errors import InputError
 from baslip.files.atomic import write_result
-from baslip.files.lock import hold
+from baslip.files.lock import hold, unwritable
 from baslip.files.provenance import provenance
 from baslip.files.runs import check_folder, clear_run
 from baslip.gait.fixedpoint import FixedPointResult
@@ -118,12 +118,9 @@ def check_run(problem: Problem, out: Path | None, sources: Path, scheduler: str 
 
 
 def _check_writable(folder: Path) -> None:
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=folder):
-            pass
-    except OSError as err:
-        raise OutputUnwritable("", f"output folder {folder}: {err.strerror or err}") from None
+    reason = unwritable(folder)
+    if reason is not None:
+        raise OutputUnwritable("", f"output folder {folder}: {reason}")
 
 
 @contextlib.contextmanager

@@ -110,3 +110,35 @@ def test_strides_simulations_and_stability_are_short_too():
                          (result.stability, "<Stability: stable, radius 0.899")):
         assert repr(thing).startswith(start) and len(repr(thing)) < 200
         assert "&lt;" in thing._repr_html_()
+
+
+UNWRITABLE = "/proc/baslip-unwritable"  # not writable even by root
+
+
+@pytest.mark.parametrize("argv, names", [
+    (["trajectory", "problems/downward.yaml", "--out", f"{UNWRITABLE}.csv"], "--out"),
+    (["problems", "--copy", UNWRITABLE], "--copy"),
+    (["report", "--results", "/proc"], "--results"),
+    (["report", "--results", "problems/downward.yaml"], "--results"),
+])
+def test_an_output_place_that_cannot_be_written_is_refused_before_any_work(argv, names, capsys, monkeypatch):
+    import baslip.gait.from_problem
+
+    def no_solve(*args, **kwargs):
+        raise AssertionError("solved before the output place was checked")
+
+    monkeypatch.setattr(baslip.gait.from_problem, "solve_start", no_solve)
+    monkeypatch.chdir(ROOT)
+    assert main(argv) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and captured.err.count("\n") == 1 and captured.err.startswith(f"error: {names} ")
+
+
+def test_report_on_a_folder_of_junk_is_one_line_not_a_traceback(tmp_path, capsys):
+    (tmp_path / "grid_downward").mkdir()
+    (tmp_path / "grid_downward" / "result.json").write_text("not json")
+    (tmp_path / "grid_downward" / "points.csv").write_text("a,b\n1,2\n")
+    assert main(["report", "--results", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot read the studies' results" in err
+    assert not (tmp_path / "REPORT.md").exists()

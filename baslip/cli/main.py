@@ -74,6 +74,7 @@ def _main(argv: list[str] | None) -> int:
 
 def problems(argv: list[str]) -> int:
     """List the shipped problems with their first comment line, or copy them."""
+    from baslip.files.lock import unwritable
     from baslip.problem.shipped import copy_problems, describe, problems_dir, shipped_problems
 
     parser = OneLineParser(prog="baslip problems", description=COMMANDS["problems"])
@@ -82,6 +83,10 @@ def problems(argv: list[str]) -> int:
     if args.copy is not None:
         if args.copy.exists() and not args.copy.is_dir():
             print(f"error: --copy {args.copy}: not a folder", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        reason = unwritable(args.copy)
+        if reason is not None:
+            print(f"error: --copy {args.copy}: {reason}", file=sys.stderr)
             return EXIT_BAD_INPUT
         copied = copy_problems(args.copy)
         print(f"copied {len(copied)} problem files into {args.copy}/ ({len(shipped_problems()) - len(copied)} already there)")
@@ -96,6 +101,7 @@ def trajectory(argv: list[str]) -> int:
     """Solve a single-gait problem and write its motion as CSV."""
     from baslip.engine.returnmap import RunnerFell
     from baslip.files.atomic import write_files_atomically
+    from baslip.files.lock import unwritable
     from baslip.gait.from_problem import solve_start
     from baslip.problem.reader import ProblemError, load_problem
 
@@ -117,6 +123,10 @@ def trajectory(argv: list[str]) -> int:
     out = args.out or Path(f"{problem.name}_trajectory.csv")
     if out.is_dir() or not out.parent.is_dir():
         print(f"error: --out {out}: not a file in an existing folder", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    reason = unwritable(out.parent)
+    if reason is not None:
+        print(f"error: --out {out}: {reason}", file=sys.stderr)
         return EXIT_BAD_INPUT
     result = solve_start(problem)
     if not result.converged:

@@ -6,7 +6,9 @@ import argparse
 import sys
 from pathlib import Path
 
+from baslip.cli.common import EXIT_BAD_INPUT
 from baslip.files.atomic import write_files_atomically
+from baslip.files.lock import unwritable
 from baslip.report.page import build_report
 
 
@@ -15,7 +17,19 @@ def main(argv: list[str] | None = None, prog: str = "python -m baslip.report") -
     parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
     parser.add_argument("--results", type=Path, default=Path("results"), metavar="DIR")
     args = parser.parse_args(argv)
-    text = build_report(args.results)
+    if not args.results.is_dir():
+        print(f"error: --results {args.results}: not a folder", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    reason = unwritable(args.results)
+    if reason is not None:
+        print(f"error: --results {args.results}: {reason}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    try:
+        text = build_report(args.results)
+    except (OSError, ValueError, KeyError, TypeError, IndexError) as err:  # the folder's files are not baslip's
+        print(f"error: --results {args.results}: cannot read the studies' results there "
+              f"({type(err).__name__}: {str(err).splitlines()[0][:120] if str(err) else ''})", file=sys.stderr)
+        return EXIT_BAD_INPUT
     write_files_atomically({args.results / "REPORT.md": text})
     print(f"wrote {args.results / 'REPORT.md'}")
     return 0

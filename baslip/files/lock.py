@@ -14,6 +14,7 @@ import fcntl
 import os
 import socket
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -86,6 +87,18 @@ def _open_lock(path: Path, folder: Path):
                              "another --out") from None
         raise FolderBusy("", f"output folder {folder}: cannot open {LOCK_NAME}: {err.strerror or err}") from None
     return os.fdopen(descriptor, "a+")
+
+
+def unwritable(folder: Path) -> str | None:
+    """Why nothing can be written into ``folder`` (creating it if need be), or None if it
+    can: checked before a run or a command does any work."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as err:
+        return err.strerror or str(err)
+    return None
 
 
 def busy(folder: Path) -> str | None:
