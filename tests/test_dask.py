@@ -83,6 +83,16 @@ def test_an_unreachable_scheduler_is_one_line_and_exit_2(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("address", ["tls://127.0.0.1:9", "ucx://127.0.0.1:9"])
+def test_a_scheduler_address_baslip_cannot_set_up_is_one_line_and_exit_2(tmp_path, address):
+    path = small_grid(tmp_path)
+    done = subprocess.run([sys.executable, "-m", "baslip.solve", str(path), "--out", str(tmp_path / "out"),
+                           "--scheduler", address], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2, done.stderr[-500:]
+    assert done.stderr.count("\n") == 1 and done.stderr.startswith("error: --scheduler: ")
+    assert "tcp://HOST:PORT" in done.stderr and not (tmp_path / "out").exists()
+
+
 def test_a_run_killed_on_a_cluster_resumes_to_the_same_rows(tmp_path, local_rows):
     """The command is killed (SIGKILL) after some rows; run again on the same cluster, it
     replays the saved states of its lanes and finishes with the rows of a local run."""

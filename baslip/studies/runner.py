@@ -348,9 +348,13 @@ def check_scheduler(scheduler: str) -> None:
         raise SchedulerError("--scheduler", "needs Dask: pip install 'baslip[dask]'") from None
     if scheduler == "local":
         return
+    scheme = scheduler.split("://", 1)[0] if "://" in scheduler else "tcp"
+    if scheme != "tcp":
+        raise SchedulerError("--scheduler", f"{scheme}:// addresses need a security or transport set-up baslip does "
+                             "not make; give tcp://HOST:PORT or local")
     try:
         Client(scheduler, timeout=DASK_CONNECT_TIMEOUT).close()
-    except (OSError, TimeoutError, ValueError) as err:
+    except (OSError, TimeoutError, ValueError, TypeError) as err:
         raise SchedulerError("--scheduler", f"cannot reach the Dask scheduler at {scheduler}: {str(err).splitlines()[0][:120]}") from None
 
 
@@ -363,7 +367,7 @@ def run_lanes_on_dask(todo, worker, context, table, label, quiet, skipped, total
     included, so the rows are those of a local run. Rows stream back through a Dask
     queue and are written as they come. A lane whose worker dies is run again by Dask
     (up to :data:`DASK_RETRIES` times); rows it repeats are dropped by their key.
-    Workers must be able to import baslip and read the problem file at the same path.
+    Workers must be able to import baslip; the problem travels with each lane, as data.
     """
     try:
         from distributed import Client, LocalCluster, Queue
@@ -377,7 +381,7 @@ def run_lanes_on_dask(todo, worker, context, table, label, quiet, skipped, total
             client = Client(cluster)
         else:
             client = Client(scheduler, timeout=DASK_CONNECT_TIMEOUT)
-    except (OSError, TimeoutError) as err:
+    except (OSError, TimeoutError, ValueError, TypeError) as err:
         raise SchedulerError("--scheduler", f"cannot reach the Dask scheduler at {scheduler}: {err}") from None
     with client:
         queue = Queue(f"baslip-rows-{os.getpid()}-{time.time_ns()}", client=client)
