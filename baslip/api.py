@@ -87,10 +87,12 @@ def run(problem: Problem | str | Path, out: str | Path | None = None, *, jobs: i
     folder = None if out is None else Path(out)
     where = Path(sources) if sources is not None else (folder.parent if folder is not None else Path("results"))
     check_run(problem, folder, where, scheduler, fresh)
+    if folder is None and problem.study is None and problem.continuation is None:
+        return solve_problem(problem)  # a gait written nowhere needs no folder at all
     with _place(folder, problem.name) as target:
         result = _run_into(problem, target, where, jobs=jobs, lanes=lanes, scheduler=scheduler, fresh=fresh,
                            quiet=not progress)
-        if isinstance(result, FixedPointResult) or folder is not None:
+        if folder is not None:
             return result
         return read_into_memory(target, where)
 

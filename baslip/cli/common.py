@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import NoReturn
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
@@ -13,3 +14,18 @@ class OneLineParser(argparse.ArgumentParser):
 
     def error(self, message: str) -> NoReturn:
         self.exit(EXIT_BAD_INPUT, f"error: {message} (see --help)\n")
+
+
+def place_refusal(option: str, place: Path, *, file: bool = False, existing: bool = False) -> str | None:
+    """The one-line refusal of an output place given to ``option``, or None if it can be
+    written: a ``file`` in an existing folder, else a folder (one that must exist when
+    ``existing``, else created if need be). Checked before a command does any work."""
+    from baslip.files.lock import unwritable  # not at import: `baslip --help` stays light
+
+    if file:
+        wrong, what, folder = place.is_dir() or not place.parent.is_dir(), "not a file in an existing folder", place.parent
+    else:
+        wrong = not place.is_dir() if existing else place.exists() and not place.is_dir()
+        what, folder = "not a folder", place
+    reason = what if wrong else unwritable(folder)
+    return None if reason is None else f"error: {option} {place}: {reason}"

@@ -18,7 +18,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from baslip.cli.common import EXIT_BAD_INPUT, EXIT_NOT_CONVERGED, EXIT_OK, OneLineParser
+from baslip.cli.common import EXIT_BAD_INPUT, EXIT_NOT_CONVERGED, EXIT_OK, OneLineParser, place_refusal
 from baslip.version import __version__
 
 COMMANDS = {
@@ -74,19 +74,15 @@ def _main(argv: list[str] | None) -> int:
 
 def problems(argv: list[str]) -> int:
     """List the shipped problems with their first comment line, or copy them."""
-    from baslip.files.lock import unwritable
     from baslip.problem.shipped import copy_problems, describe, problems_dir, shipped_problems
 
     parser = OneLineParser(prog="baslip problems", description=COMMANDS["problems"])
     parser.add_argument("--copy", type=Path, metavar="DIR", help="copy every shipped problem into DIR (existing files are kept)")
     args = parser.parse_args(argv)
     if args.copy is not None:
-        if args.copy.exists() and not args.copy.is_dir():
-            print(f"error: --copy {args.copy}: not a folder", file=sys.stderr)
-            return EXIT_BAD_INPUT
-        reason = unwritable(args.copy)
-        if reason is not None:
-            print(f"error: --copy {args.copy}: {reason}", file=sys.stderr)
+        refusal = place_refusal("--copy", args.copy)
+        if refusal is not None:
+            print(refusal, file=sys.stderr)
             return EXIT_BAD_INPUT
         copied = copy_problems(args.copy)
         print(f"copied {len(copied)} problem files into {args.copy}/ ({len(shipped_problems()) - len(copied)} already there)")
@@ -101,7 +97,6 @@ def trajectory(argv: list[str]) -> int:
     """Solve a single-gait problem and write its motion as CSV."""
     from baslip.engine.returnmap import RunnerFell
     from baslip.files.atomic import write_files_atomically
-    from baslip.files.lock import unwritable
     from baslip.gait.from_problem import solve_start
     from baslip.problem.reader import ProblemError, load_problem
 
@@ -121,12 +116,9 @@ def trajectory(argv: list[str]) -> int:
         print(f"error: {args.problem}: a trajectory needs a single gait, not a study or continuation", file=sys.stderr)
         return EXIT_BAD_INPUT
     out = args.out or Path(f"{problem.name}_trajectory.csv")
-    if out.is_dir() or not out.parent.is_dir():
-        print(f"error: --out {out}: not a file in an existing folder", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    reason = unwritable(out.parent)
-    if reason is not None:
-        print(f"error: --out {out}: {reason}", file=sys.stderr)
+    refusal = place_refusal("--out", out, file=True)
+    if refusal is not None:
+        print(refusal, file=sys.stderr)
         return EXIT_BAD_INPUT
     result = solve_start(problem)
     if not result.converged:

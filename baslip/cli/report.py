@@ -6,9 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from baslip.cli.common import EXIT_BAD_INPUT
+from baslip.cli.common import EXIT_BAD_INPUT, place_refusal
 from baslip.files.atomic import write_files_atomically
-from baslip.files.lock import unwritable
 from baslip.report.page import build_report
 
 
@@ -17,12 +16,9 @@ def main(argv: list[str] | None = None, prog: str = "python -m baslip.report") -
     parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
     parser.add_argument("--results", type=Path, default=Path("results"), metavar="DIR")
     args = parser.parse_args(argv)
-    if not args.results.is_dir():
-        print(f"error: --results {args.results}: not a folder", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    reason = unwritable(args.results)
-    if reason is not None:
-        print(f"error: --results {args.results}: {reason}", file=sys.stderr)
+    refusal = place_refusal("--results", args.results, existing=True)
+    if refusal is not None:
+        print(refusal, file=sys.stderr)
         return EXIT_BAD_INPUT
     try:
         text = build_report(args.results)
