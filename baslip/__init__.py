@@ -6,16 +6,15 @@ line ``baslip solve PROBLEM.yaml``, also ``python -m baslip.solve PROBLEM.yaml``
 :class:`ReturnMap` for the apex return map and multi-stride simulation, and
 :class:`Params` / :class:`Control` for the numbers.
 
-The names are imported on first use, so that ``baslip --help`` and a worker's start
-do not load CasADi when they do not need it.
+The names (``__version__`` too) are imported on first use, so that ``baslip --help``
+and a worker's start do not load CasADi, or even the package metadata, before they
+need it.
 """
 
 from __future__ import annotations
 
 import importlib
 from typing import TYPE_CHECKING, Any
-
-from baslip.version import __version__
 
 #: Each public name and the module that defines it.
 _HOMES = {
@@ -31,6 +30,7 @@ _HOMES = {
     "solve_problem": "baslip.gait.from_problem",
     "RunResults": "baslip.results", "open_results": "baslip.results",
     "run": "baslip.api",
+    "__version__": "baslip.version",
 }
 
 __all__ = [
@@ -73,6 +73,7 @@ if TYPE_CHECKING:  # the same names, for type checkers and editors
     from baslip.problem.shipped import problems_dir
     from baslip.results import RunResults, open_results
     from baslip.status import Status
+    from baslip.version import __version__
 
 
 def __getattr__(name: str) -> Any:

@@ -2,7 +2,7 @@
 
 import sys
 
-from baslip.cli.animate import main
+if __name__ == "__main__":  # not when a spawned worker imports this module as __mp_main__
+    from baslip.cli.animate import main
 
-if __name__ == "__main__":
     sys.exit(main())

@@ -17,6 +17,7 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
+from baslip.engine.codegen import recording_code
 from baslip.errors import InputError
 from baslip.files.atomic import write_result
 from baslip.files.lock import hold, unwritable
@@ -152,7 +153,7 @@ def _run_into(problem: Problem, out: Path, sources: Path, *, jobs, lanes, schedu
 def solve_and_write(problem: Problem, out: Path, quiet: bool = True) -> FixedPointResult:
     """Solve the gait of ``problem`` and write ``result.json`` and ``multipliers.csv`` to
     ``out``, replacing an earlier result only once the new files are complete."""
-    with hold(out):
+    with hold(out), recording_code() as code:
         if not quiet:
             s = problem.solver
             orbit = "" if problem.strides == 1 else f", {problem.strides}-stride orbits"
@@ -163,5 +164,5 @@ def solve_and_write(problem: Problem, out: Path, quiet: bool = True) -> FixedPoi
         if not quiet:
             print(f"{problem.name}: solving ({problem.objective}) and verifying...", file=sys.stderr)
         result = solve_problem(problem, solver)
-        write_result(result, out, provenance(problem))
+        write_result(result, out, provenance(problem, code))
     return result

@@ -24,7 +24,7 @@ PACKAGE = ROOT / "baslip"
 #: Each sub-package or top-level module and its layer (lowest first). Entry-point shims
 #: (``python -m baslip.solve`` and friends) sit above the command line they call.
 LAYERS = {
-    "baslip.errors": 0, "baslip.version": 0, "baslip.status": 0,
+    "baslip.errors": 0, "baslip.version": 0, "baslip.status": 0, "baslip.children": 0,
     "baslip.model": 1,
     "baslip.problem": 2,
     "baslip.engine": 3,

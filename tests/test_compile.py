@@ -11,6 +11,7 @@ import shutil
 import subprocess
 import sys
 import textwrap
+import time
 
 import casadi as ca
 import numpy as np
@@ -306,3 +307,120 @@ def test_kernels_load_from_the_cache_without_building(cache):
 
     kernels = compile_kernels("kernels", names, must_not_build, sources)
     assert kernels["f"]([0.1, 0.2, 0.3])[0].shape == (3, 1)
+
+
+SLOW_COMPILER = """#!/bin/sh
+# A compiler that hands its work to a child (as gcc hands it to cc1) and takes a minute.
+case " $* " in *" -shared "*) sleep 60 & echo $! > {marker}; wait; exit 1;; esac
+exec gcc "$@"
+"""
+
+COMPILE_ONCE = """
+import sys
+sys.path.insert(0, {tests!r})
+from test_compile import make_functions
+from baslip.engine.codegen import compile_functions
+compiled = compile_functions("test_lib", make_functions())
+assert all(g.is_a("External") for g in compiled.values()), compiled
+"""
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc"), reason="needs /proc to watch processes")
+def test_a_killed_first_compile_leaves_no_process_and_the_next_build_clears_its_files(cache, tmp_path):
+    """kill -9 during a compile: the compiler and its child end within half a second;
+    the temporaries it leaves in the cache are removed by the next build of the library."""
+    from processes import descendants, gone
+
+    marker, wrapper = tmp_path / "cc1.pid", tmp_path / "cc"
+    wrapper.write_text(SLOW_COMPILER.format(marker=marker))
+    wrapper.chmod(0o755)
+    code = COMPILE_ONCE.format(tests=str(pathlib.Path(__file__).parent))
+    env = {**os.environ, "BASLIP_CACHE_DIR": str(cache), "CC": str(wrapper)}
+    run = subprocess.Popen([sys.executable, "-c", code], env=env, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not (marker.exists() and marker.read_text().strip()) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    grandchild = int(marker.read_text())
+    children = descendants(run.pid)
+    assert grandchild in children and len(children) >= 3  # the shell, the compiler, its child
+    run.kill()
+    run.wait()
+    time.sleep(0.5)
+    assert [pid for pid in children if not gone(pid)] == []
+    left = sorted(p.name for p in cache.iterdir() if p.name.startswith("."))
+    assert any(n.endswith(".tmp") for n in left) and any(n.endswith(".cc") for n in left)
+
+    wrapper.write_text('#!/bin/sh\nexec gcc "$@"\n')  # the same compiler (so the same key), now quick
+    again = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert again.returncode == 0 and again.stderr == "", again.stderr
+    assert sorted(p.name for p in cache.iterdir() if p.name.startswith(".")) == []
+
+
+def test_stale_temporaries_of_other_libraries_are_cleared_once_old(cache):
+    """A killed build of a library that is never built again leaves its temporaries; any
+    build removes those older than STALE_AFTER, and leaves younger ones (a live build)."""
+    from baslip.engine.codegen import STALE_AFTER
+
+    cache.mkdir()
+    old, young = cache / ".other-0123.abc.tmp", cache / ".other-0123.def.cc"
+    old.write_bytes(b"partial library")
+    young.mkdir()
+    (young / "other.c").write_text("int x;")
+    past = time.time() - STALE_AFTER - 60
+    os.utime(old, (past, past))
+    compile_functions("test_lib", make_functions())
+    assert not old.exists() and young.is_dir()
+
+
+def test_a_notice_is_shown_once_per_reason_and_names_it(tmp_path, monkeypatch, capsys):
+    """Three libraries that cannot be cached give one line, which blames the cache (not the
+    compiler); what each ran on is recorded for provenance."""
+    from baslip.engine.codegen import recording_code
+
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    monkeypatch.setenv("BASLIP_CACHE_DIR", str(blocker))
+    monkeypatch.delenv("BASLIP_NO_COMPILE", raising=False)
+    monkeypatch.delenv("CC", raising=False)
+    with recording_code() as used:
+        for name in ("lib_a", "lib_b", "lib_c"):
+            compile_functions(name, make_functions())
+    [line] = capsys.readouterr().err.splitlines()
+    assert "compiled-code cache" in line and "not a folder" in line and "no working C compiler" not in line
+    assert sorted(used) == ["lib_a", "lib_b", "lib_c"]
+    assert all(route.startswith("CasADi virtual machine (the compiled-code cache") for route in used.values())
+
+
+def test_what_ran_is_recorded_per_library(cache, monkeypatch):
+    from baslip.engine.codegen import recording_code
+
+    with recording_code() as used:
+        compile_functions("lib_c", make_functions())
+        compile_functions("lib_vm", make_functions(), enabled=False)
+    assert used["lib_c"].startswith("compiled C (") and "gcc" in used["lib_c"]
+    assert used["lib_vm"] == "CasADi virtual machine (compiling switched off: by the caller)"
+
+
+@pytest.mark.parametrize("home", ["", "/"])
+def test_an_empty_home_gives_no_cache_at_the_root(monkeypatch, home):
+    """HOME empty (Python then takes it to be /) or /: never /.cache/baslip. The user
+    database's home is used if it is a real folder, else there is no cache."""
+    monkeypatch.delenv("BASLIP_CACHE_DIR", raising=False)
+    monkeypatch.delenv("XDG_CACHE_HOME", raising=False)
+    monkeypatch.setenv("HOME", home)
+    found = cache_dir()
+    assert found is None or (found.is_absolute() and found.parts[1] != ".cache")
+
+
+def test_no_home_at_all_runs_in_the_virtual_machine_with_one_line(monkeypatch, capsys):
+    import baslip.engine.codegen as codegen
+
+    monkeypatch.delenv("BASLIP_CACHE_DIR", raising=False)
+    monkeypatch.delenv("BASLIP_NO_COMPILE", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", "relative/ignored")
+    monkeypatch.setattr(codegen, "_home", lambda: None)
+    functions = make_functions()
+    result = compile_functions("lib_nohome", functions)
+    assert all(result[f.name()] is f for f in functions)
+    [line] = capsys.readouterr().err.splitlines()
+    assert "HOME is empty or unset; set BASLIP_CACHE_DIR" in line

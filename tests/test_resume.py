@@ -103,13 +103,34 @@ def test_workers_do_not_outlive_a_killed_run(grid, tmp_path):
     run = start(problem, out)
     wait_for_rows(run, out, 1)
     children = descendants(run.pid)
-    assert len(children) >= 2  # the workers (and multiprocessing's resource tracker)
+    assert len(children) >= 2  # the workers and multiprocessing's resource tracker
     run.kill()
     run.wait()
     deadline = time.monotonic() + 10
     while not all(gone(pid) for pid in children) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert [pid for pid in children if not gone(pid)] == []
+
+
+@pytest.mark.parametrize("delay", [0.0, 0.05, 0.15, 0.4])
+def test_a_run_killed_while_its_workers_start_leaves_no_process(grid, tmp_path, delay):
+    """kill -9 a few moments after the first worker appears, while the workers are still
+    starting (importing baslip, building their solvers): half a second later no process
+    the run started is alive, and nothing complains of leaked semaphores."""
+    problem, _ = grid
+    out = tmp_path / "startup"
+    run = start(problem, out)
+    deadline = time.monotonic() + 60
+    while not descendants(run.pid) and time.monotonic() < deadline:
+        time.sleep(0.002)
+    time.sleep(delay)
+    children = descendants(run.pid)
+    assert children
+    run.kill()
+    run.wait()
+    time.sleep(0.5)
+    assert [pid for pid in children if not gone(pid)] == []
+    assert "leaked" not in run.stderr.read()
 
 
 def test_two_runs_started_together_give_one_writer(grid, tmp_path):

@@ -74,7 +74,8 @@ def test_saved_states_round_trip_exactly_and_finish_orders_the_rows(tmp_path):
 
 
 CHILD = """
-import multiprocessing, sys, time
+import multiprocessing, pickle, sys, time
+from baslip.children import run_pickled
 from baslip.studies.runner import _worker_main
 
 def sleeper(lane, context, queue):
@@ -82,7 +83,9 @@ def sleeper(lane, context, queue):
 
 if __name__ == "__main__":
     ctx = multiprocessing.get_context("spawn")
-    child = ctx.Process(target=_worker_main, args=(sleeper, [[]], None, None))  # one empty lane
+    payload = pickle.dumps((_worker_main, (sleeper, [[]], None)))  # one empty lane
+    reader, sender = ctx.Pipe(duplex=False)
+    child = ctx.Process(target=run_pickled, args=(payload, sender))
     child.start()
     print(child.pid, flush=True)
     time.sleep(60)

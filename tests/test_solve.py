@@ -6,6 +6,7 @@ solver fails; exit 2, one line on stderr naming the key and nothing written for 
 
 import csv
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -37,11 +38,50 @@ def test_downward_end_to_end(tmp_path):
     provenance = record["provenance"]
     assert provenance["problem"]["fix"] == {"ydot": 0.5, "z": 0.4} and len(provenance["problem_hash"]) == 64
     assert set(provenance["versions"]) == {"baslip", "casadi", "ipopt", "numpy", "python"}
-    assert provenance["versions"]["ipopt"].count(".") == 2 and provenance["code"]
+    assert provenance["versions"]["ipopt"].count(".") == 2
+    assert set(provenance["code"]) == {"baslip_stride", "baslip_nlp_1_20x1_rk4_objective", "baslip_events_rosenbrock"}
+    assert all(route.startswith(("compiled C (", "CasADi virtual machine (")) for route in provenance["code"].values())
     assert record["apex"]["z"] == 0.4 and record["apex"]["ydot"] == 0.5
     assert "converged" in proc.stdout and "spectral radius" in proc.stdout
     assert (out / "multipliers.csv").read_text().startswith("re,im,abs,label\n")
     assert "Traceback" not in proc.stderr and "WARNING" not in proc.stderr
+
+
+def run_with_cache_that_is_a_file(tmp_path, problem, out):
+    blocker = tmp_path / "cache-is-a-file"
+    blocker.write_text("")
+    env = {**os.environ, "BASLIP_CACHE_DIR": str(blocker)}
+    env.pop("BASLIP_NO_COMPILE", None)
+    return subprocess.run([sys.executable, "-m", "baslip.solve", str(problem), "--out", str(out)], cwd=ROOT,
+                          capture_output=True, text=True, timeout=600, env=env)
+
+
+def vm_routes(code: dict) -> bool:
+    return bool(code) and all(r.startswith("CasADi virtual machine (the compiled-code cache") for r in code.values())
+
+
+def test_provenance_records_the_virtual_machine_when_it_ran(tmp_path):
+    """A cache that cannot be written: every library runs in the VM, the provenance says
+    so per library (not "compiled C"), and the notice is one line that blames the cache."""
+    out = tmp_path / "vm"
+    proc = run_with_cache_that_is_a_file(tmp_path, "problems/downward.yaml", out)
+    assert proc.returncode == 0, proc.stderr
+    code = json.loads((out / "result.json").read_text())["provenance"]["code"]
+    assert len(code) == 3 and vm_routes(code)
+    notices = [line for line in proc.stderr.splitlines() if line.startswith("baslip: ")]
+    assert len(notices) == 1 and "not a folder" in notices[0] and "C compiler" not in notices[0]
+
+
+def test_a_study_records_what_its_workers_ran_and_tells_once(tmp_path):
+    problem = tmp_path / "grid.yaml"
+    problem.write_text((ROOT / "problems" / "grid_downward.yaml").read_text().replace(
+        "vary: {ydot: [0.1, 1.0, 0.1], z: [0.3, 0.7, 0.05]}", "vary: {ydot: [0.4, 0.5, 0.1], z: [0.4, 0.4, 0.05]}"))
+    out = tmp_path / "grid"
+    proc = run_with_cache_that_is_a_file(tmp_path, problem, out)
+    assert proc.returncode == 0, proc.stderr
+    code = json.loads((out / "result.json").read_text())["provenance"]["code"]
+    assert {"baslip_stride", "baslip_nlp_1_20x1_rk4_objective"} <= set(code) and vm_routes(code)
+    assert sum(line.startswith("baslip: ") for line in proc.stderr.splitlines()) == 1  # two workers, one line
 
 
 def test_default_output_folder_is_results_name(tmp_path):

@@ -15,9 +15,15 @@ does this for a list of Functions at once:
 * Its SHA-256 is written beside it (``<library>.sha256``, also atomically), and a
   library is loaded only if it matches: a truncated or damaged one (which the dynamic
   loader may map and then die on, with SIGBUS) is rebuilt, never loaded.
-* Without a working compiler or a writable cache the original Functions are returned
-  (one line on stderr says so): slower, same results. Setting ``BASLIP_NO_COMPILE=1``
-  or passing ``enabled=False`` returns them silently.
+* The compiler runs in a process group of its own that dies with this process (see
+  :mod:`baslip.children`), and its temporaries live in the cache as ``.<library>.*``: the
+  next build removes what a killed one left.
+* Without a working compiler or a writable cache the original Functions are returned,
+  with one line on stderr naming the reason (once per reason, in a study too): slower,
+  same results. Setting ``BASLIP_NO_COMPILE=1`` or passing ``enabled=False`` returns
+  them silently.
+* What each library loaded inside :func:`recording_code` runs on is recorded, for
+  provenance: compiled C, or the virtual machine and why.
 
 The flags keep results IEEE-exact: no ``-ffast-math``, no ``-march=native``, and
 ``-ffp-contract=off`` so that no compiler fuses ``a*b + c`` into one FMA (GCC does by
@@ -32,16 +38,22 @@ import fcntl
 import hashlib
 import os
 import pathlib
+import pwd
 import re
 import shlex
+import shutil
+import signal
 import subprocess
 import sys
 import tempfile
+import time
 import types
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 
 import casadi as ca
-import numpy as np
+
+from baslip.children import compiler_preexec, in_own_group
+from baslip.engine.native import Kernel, NativeKernel, VirtualMachineKernel
 
 #: Flags after the compiler command: optimised, position-independent shared library.
 CFLAGS = ("-O3", "-fPIC", "-shared", "-ffp-contract=off")
@@ -57,13 +69,107 @@ class _NoCompiler(Exception):
     """The C route failed; the message is the short reason shown to the user."""
 
 
-def cache_dir() -> pathlib.Path:
-    """$BASLIP_CACHE_DIR if set, else $XDG_CACHE_HOME/baslip, else ~/.cache/baslip."""
+def cache_dir() -> pathlib.Path | None:
+    """Where compiled libraries are kept: ``$BASLIP_CACHE_DIR`` if set, else
+    ``$XDG_CACHE_HOME/baslip`` (if absolute, as the XDG rules ask), else
+    ``~/.cache/baslip``, with the home folder taken from ``$HOME`` or, when that is empty
+    or not absolute, from the user database. None when there is no home folder either
+    (a home of ``/`` counts as none): nothing is then compiled, and one line says so."""
     if os.environ.get("BASLIP_CACHE_DIR"):
         return pathlib.Path(os.environ["BASLIP_CACHE_DIR"])
-    if os.environ.get("XDG_CACHE_HOME"):
-        return pathlib.Path(os.environ["XDG_CACHE_HOME"]) / "baslip"
-    return pathlib.Path.home() / ".cache" / "baslip"
+    xdg = os.environ.get("XDG_CACHE_HOME", "")
+    if os.path.isabs(xdg):
+        return pathlib.Path(xdg) / "baslip"
+    home = _home()
+    return None if home is None else home / ".cache" / "baslip"
+
+
+def _home() -> pathlib.Path | None:
+    """The user's home folder: $HOME, else the user database's; None if neither is an
+    absolute path other than the root."""
+    candidates = [os.environ.get("HOME", "")]
+    with contextlib.suppress(KeyError):
+        candidates.append(pwd.getpwuid(os.getuid()).pw_dir)
+    for candidate in candidates:
+        if os.path.isabs(candidate) and pathlib.Path(candidate) != pathlib.Path("/"):
+            return pathlib.Path(candidate)
+    return None
+
+
+# -- what ran: a record of this process ------------------------------------------------------
+
+
+class _ProcessRecord:
+    """What the libraries loaded by this process run on, and which fallback notices it
+    has shown. The one piece of process state in baslip, on purpose: which code ran, and
+    whether the user was told, are facts about the process rather than about one object."""
+
+    def __init__(self) -> None:
+        self.recordings: list[dict[str, str]] = []
+        self.noticed: set[str] = set()
+        self.notices_here = True
+
+
+_PROCESS = _ProcessRecord()
+
+#: The start of the description of a library that runs as compiled C.
+COMPILED_C = "compiled C"
+#: The start of the description of a library that runs in CasADi's virtual machine.
+VIRTUAL_MACHINE = "CasADi virtual machine"
+
+
+@contextlib.contextmanager
+def recording_code() -> Iterator[dict[str, str]]:
+    """Collect what every library loaded inside the block runs on.
+
+    Yields
+    ------
+    dict
+        Filled as libraries load: library name -> ``"compiled C (<compiler version>)"``
+        or ``"CasADi virtual machine (<why>)"``; a library that ran both ways (in two
+        processes, say) lists both, separated by ``"; "``. This is what provenance's
+        ``code`` records.
+    """
+    used: dict[str, str] = {}
+    _PROCESS.recordings.append(used)
+    try:
+        yield used
+    finally:
+        _PROCESS.recordings.remove(used)
+
+
+def note_code(routes: dict[str, str]) -> None:
+    """Add what another process (a study's worker) reported running to the open
+    recordings, and show here, once each, the fallback notices it left to this process."""
+    for name, route in routes.items():
+        for part in route.split("; "):
+            _note(name, part)
+
+
+def leave_notices_to_parent() -> None:
+    """In a worker: show no fallback notice here; the parent shows them, once each, from
+    what the worker reports (:func:`note_code`)."""
+    _PROCESS.notices_here = False
+
+
+def _note(name: str, route: str) -> None:
+    """Record that library ``name`` runs on ``route``, and show a fallback's reason once."""
+    for used in _PROCESS.recordings:
+        known = used[name].split("; ") if name in used else []
+        used[name] = "; ".join(sorted({*known, route}))
+    reason = route[len(VIRTUAL_MACHINE) + 2:-1] if route.startswith(VIRTUAL_MACHINE + " (") else ""
+    if reason and not reason.startswith(_SWITCHED_OFF) and _PROCESS.notices_here and reason not in _PROCESS.noticed:
+        _PROCESS.noticed.add(reason)
+        print(f"baslip: {reason}; using CasADi's virtual machine instead (slower, same results)", file=sys.stderr)
+
+
+#: How a fallback that was asked for is described (no notice is shown for it).
+_SWITCHED_OFF = "compiling switched off"
+
+
+def _note_switched_off(name: str, enabled: bool | None) -> None:
+    why = "BASLIP_NO_COMPILE is set" if enabled is None else "by the caller"
+    _note(name, f"{VIRTUAL_MACHINE} ({_SWITCHED_OFF}: {why})")
 
 
 def compile_functions(
@@ -84,6 +190,7 @@ def compile_functions(
     """
     originals = _by_name(name, functions)
     if not _compiling(enabled):
+        _note_switched_off(name, enabled)
         return originals
     c_text = _generate(name, functions)
     return _cached(name, list(originals), lambda: functions, [c_text.encode()], True, _load, lambda _: originals,
@@ -107,17 +214,6 @@ def _compiling(enabled: bool | None) -> bool:
     return os.environ.get("BASLIP_NO_COMPILE", "") in ("", "0")
 
 
-def code_path() -> str:
-    """What evaluates the model in this environment: compiled C, or CasADi's virtual
-    machine and why (the same decision :func:`compile_kernels` makes)."""
-    if not _compiling(None):
-        return "CasADi virtual machine (BASLIP_NO_COMPILE is set)"
-    try:
-        return f"compiled C ({_compiler_version(_compiler())})"
-    except _NoCompiler as reason:
-        return f"CasADi virtual machine (no working C compiler: {reason})"
-
-
 def _generate(name: str, functions: Sequence[ca.Function]) -> str:
     """The C source of one file holding all ``functions``."""
     generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})
@@ -131,37 +227,60 @@ def _compiler() -> list[str]:
     try:
         return shlex.split(os.environ.get("CC", "")) or ["gcc"]
     except ValueError as error:
-        raise _NoCompiler(f"CC={os.environ['CC']!r}: {error}") from None
+        raise _NoCompiler(f"no working C compiler (CC={os.environ['CC']!r}: {error})") from None
 
 
 def _compiler_version(compiler: list[str]) -> str:
     """First line of ``compiler --version``; raises _NoCompiler if it does not run."""
-    result = _run([*compiler, "--version"])
+    try:
+        result = _run([*compiler, "--version"])
+    except _NoCompiler as reason:
+        raise _NoCompiler(f"no working C compiler ({reason})") from None
     lines = result.stdout.splitlines() or [""]
     return lines[0].strip()
 
 
 def _run(command: list[str]) -> subprocess.CompletedProcess:
-    """Run ``command`` with output captured; raises _NoCompiler if it cannot or fails."""
+    """Run ``command`` with output captured; raises _NoCompiler if it cannot or fails.
+
+    On Linux the command runs in a process group of its own, under a shell that kills
+    the whole group when this process ends (see :mod:`baslip.children`): a killed run
+    leaves no gcc or cc1 behind. A timeout or an interrupt kills the group too.
+    """
+    linux = sys.platform.startswith("linux")
+    argv = in_own_group(command) if linux else command
+    preexec = compiler_preexec(os.getpid()) if linux else None
     try:
-        result = subprocess.run(
-            command,
-            capture_output=True,
-            text=True,
-            errors="replace",
-            timeout=COMPILER_TIMEOUT,
-            check=False,
-        )
-    except FileNotFoundError:
-        raise _NoCompiler(f"{command[0]} not found") from None
-    except subprocess.TimeoutExpired:
-        raise _NoCompiler(f"{command[0]} timed out after {COMPILER_TIMEOUT:g} s") from None
+        process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                   errors="replace", start_new_session=linux, preexec_fn=preexec)
     except OSError as error:
         raise _NoCompiler(f"{command[0]}: {error.strerror or error}") from None
-    if result.returncode != 0:
-        first = (result.stderr.strip().splitlines() or [""])[0]
-        raise _NoCompiler(f"{command[0]} exited with status {result.returncode}: {first}")
-    return result
+    try:
+        stdout, stderr = process.communicate(timeout=COMPILER_TIMEOUT)
+    except subprocess.TimeoutExpired:
+        _kill_group(process)
+        raise _NoCompiler(f"{command[0]} timed out after {COMPILER_TIMEOUT:g} s") from None
+    except BaseException:
+        _kill_group(process)
+        raise
+    if process.returncode == 127 and linux and "not found" in stderr:
+        raise _NoCompiler(f"{command[0]} not found")
+    if process.returncode == 126 and linux:
+        raise _NoCompiler(f"{command[0]}: cannot be run")
+    if process.returncode != 0:
+        first = (stderr.strip().splitlines() or [""])[0]
+        raise _NoCompiler(f"{command[0]} exited with status {process.returncode}: {first}")
+    return subprocess.CompletedProcess(argv, process.returncode, stdout, stderr)
+
+
+def _kill_group(process: subprocess.Popen) -> None:
+    """Kill ``process`` and, if it leads a process group, everything in the group."""
+    with contextlib.suppress(OSError):
+        if sys.platform.startswith("linux"):
+            os.killpg(process.pid, signal.SIGKILL)
+        else:
+            process.kill()
+    process.communicate()
 
 
 def _load(library: pathlib.Path, names: list[str]) -> dict[str, ca.Function] | None:
@@ -181,9 +300,10 @@ def _discard(path: pathlib.Path | str) -> None:
 def _build(name: str, c_text: str, compiler: list[str], library: pathlib.Path) -> None:
     """Compile ``c_text`` into ``library``, atomically; raises _NoCompiler on failure.
 
-    The source goes to a private temporary directory, the library to a unique
-    temporary file in the cache directory that is renamed onto ``library``; neither
-    temporary survives, whatever happens.
+    The source goes to a private temporary directory and the library to a unique
+    temporary file, both in the cache directory and named ``.<library stem>.*``; the
+    library is renamed onto ``library``. Neither temporary survives an error; those of
+    a killed process are removed by the next build (:func:`_clear_stale`).
     """
     try:
         library.parent.mkdir(parents=True, exist_ok=True)
@@ -192,129 +312,24 @@ def _build(name: str, c_text: str, compiler: list[str], library: pathlib.Path) -
         )
         os.close(handle)
     except OSError as error:
-        raise _NoCompiler(f"cache {library.parent} not writable: {error.strerror}") from None
+        why = "it is not a folder" if library.parent.exists() and not library.parent.is_dir() else error.strerror
+        raise _NoCompiler(f"the compiled-code cache {library.parent} is not writable ({why})") from None
     try:
-        with tempfile.TemporaryDirectory(prefix="baslip-cc-") as scratch:
+        with tempfile.TemporaryDirectory(dir=library.parent, prefix=f".{library.stem}.", suffix=".cc") as scratch:
             source = pathlib.Path(scratch) / f"{name}.c"
             source.write_text(c_text, encoding="utf-8")
-            _run([*compiler, *CFLAGS, str(source), "-o", partial, *LDLIBS])
+            try:
+                _run([*compiler, *CFLAGS, str(source), "-o", partial, *LDLIBS])
+            except _NoCompiler as reason:
+                raise _NoCompiler(f"compiling {name} failed ({reason})") from None
         digest = _sha256(pathlib.Path(partial))
         os.replace(partial, library)
         _write_checksum(library, digest)
     except OSError as error:
-        raise _NoCompiler(f"cannot write the library: {error.strerror or error}") from None
+        raise _NoCompiler(f"the compiled-code cache {library.parent} is not writable "
+                          f"({error.strerror or error})") from None
     finally:
         _discard(partial)
-
-
-# -- kernels: compiled functions called through ctypes --------------------------------------
-#
-# Calling a loaded library through ``casadi.external`` converts every input and output
-# between numpy and DM, about 35 us a call: more than a whole compiled stride phase. A
-# kernel calls the generated C entry point directly, with buffers allocated once.
-
-
-class Kernel:
-    """A callable returning each output as a 2-D numpy array (column-major like CasADi)."""
-
-    name: str
-
-    def __call__(self, *args) -> tuple[np.ndarray, ...]:  # pragma: no cover - interface
-        raise NotImplementedError
-
-
-class VirtualMachineKernel(Kernel):
-    """A CasADi Function in its virtual machine, behind the kernel interface."""
-
-    def __init__(self, function: ca.Function):
-        self.function = function
-        self.name = function.name()
-
-    def __call__(self, *args) -> tuple[np.ndarray, ...]:
-        return tuple(out.full() for out in self.function.call([ca.DM(np.asarray(a, dtype=float)) for a in args]))
-
-
-class NativeKernel(Kernel):
-    """The entry point ``name`` of a library generated by CasADi, called through ctypes.
-
-    Inputs are copied into buffers held by the kernel, so a kernel is not reentrant: use
-    one per thread.
-    """
-
-    def __init__(self, library: ctypes.CDLL, name: str):
-        self.name = name
-        self._entry = _symbol(library, name, ctypes.c_int,
-                              [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int])
-        n_in = _symbol(library, f"{name}_n_in", _CASADI_INT, [])()
-        n_out = _symbol(library, f"{name}_n_out", _CASADI_INT, [])()
-        sparsity_in = _symbol(library, f"{name}_sparsity_in", ctypes.POINTER(_CASADI_INT), [_CASADI_INT])
-        sparsity_out = _symbol(library, f"{name}_sparsity_out", ctypes.POINTER(_CASADI_INT), [_CASADI_INT])
-        self._inputs = [_Slot(sparsity_in(i)) for i in range(n_in)]
-        self._outputs = [_Slot(sparsity_out(i)) for i in range(n_out)]
-        sizes = [_CASADI_INT() for _ in range(4)]
-        _symbol(library, f"{name}_work", ctypes.c_int, [ctypes.POINTER(_CASADI_INT)] * 4)(*sizes)
-        sz_arg, sz_res, sz_iw, sz_w = (max(int(s.value), 1) for s in sizes)
-        self._arg = (ctypes.c_void_p * max(sz_arg, n_in))(*[s.data.ctypes.data for s in self._inputs])
-        self._res = (ctypes.c_void_p * max(sz_res, n_out))(*[s.data.ctypes.data for s in self._outputs])
-        self._iw = np.zeros(sz_iw, dtype=np.int64)
-        self._w = np.zeros(sz_w)
-        self._iw_pointer, self._w_pointer = self._iw.ctypes.data, self._w.ctypes.data
-        self._mem = _symbol(library, f"{name}_checkout", ctypes.c_int, [])()
-        self._library = library  # keeps the library loaded while the kernel lives
-
-    def __call__(self, *args) -> tuple[np.ndarray, ...]:
-        for slot, value in zip(self._inputs, args):
-            slot.fill(value)
-        status = self._entry(self._arg, self._res, self._iw_pointer, self._w_pointer, self._mem)
-        if status:
-            raise RuntimeError(f"{self.name} returned status {status}")
-        return tuple(slot.dense() for slot in self._outputs)
-
-
-_CASADI_INT = ctypes.c_longlong
-
-
-class _Slot:
-    """The buffer of one input or output, with its CasADi sparsity pattern."""
-
-    def __init__(self, pattern):
-        nrow, ncol = int(pattern[0]), int(pattern[1])
-        if pattern[2] == 1:  # CasADi's compact form of a dense pattern: (nrow, ncol, 1)
-            colind = np.arange(ncol + 1, dtype=np.int64) * nrow
-            rows = np.tile(np.arange(nrow, dtype=np.int64), ncol)
-        else:
-            colind = np.array([pattern[2 + j] for j in range(ncol + 1)], dtype=np.int64)
-            rows = np.array([pattern[3 + ncol + k] for k in range(int(colind[-1]))], dtype=np.int64)
-        nnz = int(colind[-1])
-        self.shape = (nrow, ncol)
-        self.data = np.zeros(max(nnz, 1))
-        self.is_dense = nnz == nrow * ncol
-        # Flat column-major positions of the nonzeros, for sparse outputs.
-        self._positions = rows + nrow * np.repeat(np.arange(ncol), np.diff(colind))
-        self._nnz = nnz
-
-    def fill(self, value) -> None:
-        if self.is_dense:
-            try:
-                self.data[: self._nnz] = value  # vectors and scalars, without a copy
-                return
-            except ValueError:  # a matrix (or an n x 1 array): flatten column-major
-                pass
-        flat = np.asarray(value, dtype=float).ravel(order="F")
-        self.data[: self._nnz] = flat if self.is_dense else flat[self._positions]
-
-    def dense(self) -> np.ndarray:
-        if self.is_dense:
-            return self.data[: self._nnz].reshape(self.shape, order="F").copy()
-        out = np.zeros(self.shape[0] * self.shape[1])
-        out[self._positions] = self.data[: self._nnz]
-        return out.reshape(self.shape, order="F")
-
-
-def _symbol(library: ctypes.CDLL, name: str, restype, argtypes):
-    entry = getattr(library, name)
-    entry.restype, entry.argtypes = restype, argtypes
-    return entry
 
 
 def compile_kernels(
@@ -360,33 +375,47 @@ def _cached(name, names, build, fingerprint: Sequence[bytes], enabled, load, fal
     if not _NAME.fullmatch(name):
         raise ValueError(f"library name {name!r} is not a C identifier")
     if not _compiling(enabled):
+        _note_switched_off(name, enabled)
         return fallback(build())
     try:
-        compiler = _compiler()
-        key = _key(fingerprint, names, compiler, _compiler_version(compiler))
-        library = cache_dir() / f"{name}-{key[:20]}.so"
+        loaded, version = _load_or_build(name, names, build, fingerprint, load, generated)
+    except _NoCompiler as reason:
+        _note(name, f"{VIRTUAL_MACHINE} ({reason})")
+        return fallback(build())
+    _note(name, f"{COMPILED_C} ({version})")
+    return loaded
+
+
+def _load_or_build(name, names, build, fingerprint, load, generated):
+    """(the loaded library, the compiler's version): from the cache if it holds an intact
+    copy, else built under a lock first; raises _NoCompiler if neither works."""
+    compiler = _compiler()
+    version = _compiler_version(compiler)
+    folder = cache_dir()
+    if folder is None:
+        raise _NoCompiler("there is no folder for compiled code (HOME is empty or unset; set BASLIP_CACHE_DIR)")
+    library = folder / f"{name}-{_key(fingerprint, names, compiler, version)[:20]}.so"
+    loaded = load(library, names) if _intact(library) else None
+    if loaded is None:
+        loaded = _build_and_load(name, names, build, load, generated, compiler, library)
+    return loaded, version
+
+
+def _build_and_load(name, names, build, load, generated, compiler, library: pathlib.Path):
+    """Build ``library`` under its lock (unless another process did while this one
+    waited) and load it; raises _NoCompiler if it cannot be built or does not load."""
+    with _build_lock(library) as locked:
         loaded = load(library, names) if _intact(library) else None
         if loaded is not None:
             return loaded
-        with _build_lock(library):
-            # Another process may have built it while this one waited for the lock.
-            loaded = load(library, names) if _intact(library) else None
-            if loaded is not None:
-                return loaded
-            _discard(library)  # corrupt, truncated or stale: rebuild once
-            _discard(_checksum_path(library))
-            _build(name, generated if generated is not None else _generate(name, build()), compiler, library)
-        loaded = load(library, names)
-        if loaded is None:
-            raise _NoCompiler(f"the freshly compiled {library.name} does not load")
-        return loaded
-    except _NoCompiler as reason:
-        print(
-            f"baslip: no working C compiler ({reason}); "
-            "using CasADi's virtual machine (slower, same results)",
-            file=sys.stderr,
-        )
-        return fallback(build())
+        _clear_stale(library, locked)
+        _discard(library)  # corrupt, truncated or stale: rebuild once
+        _discard(_checksum_path(library))
+        _build(name, generated if generated is not None else _generate(name, build()), compiler, library)
+    loaded = load(library, names)
+    if loaded is None:
+        raise _NoCompiler(f"the freshly compiled {library.name} does not load")
+    return loaded
 
 
 def _checksum_path(library: pathlib.Path) -> pathlib.Path:
@@ -464,9 +493,35 @@ def _build_lock(library: pathlib.Path):
         library.parent.mkdir(parents=True, exist_ok=True)
         handle = open(library.with_suffix(".lock"), "w")
     except OSError:
-        yield
+        yield False
         return
     with handle:
-        with contextlib.suppress(OSError):
+        try:
             fcntl.flock(handle, fcntl.LOCK_EX)
-        yield
+        except OSError:
+            yield False
+        else:
+            yield True
+
+
+#: Seconds after which a temporary of any build in the cache is certainly abandoned: no
+#: live build runs longer than the compiler's timeout.
+STALE_AFTER = 2 * COMPILER_TIMEOUT
+
+
+def _clear_stale(library: pathlib.Path, locked: bool) -> None:
+    """Remove what killed builds left in the cache: this library's temporaries (no other
+    build of it can be running while ``locked``) and any build's temporaries older than
+    :data:`STALE_AFTER`."""
+    now = time.time()
+    with contextlib.suppress(OSError):
+        for entry in library.parent.iterdir():
+            if not entry.name.startswith(".") or not entry.name.endswith((".tmp", ".cc")):
+                continue
+            own = entry.name.startswith(f".{library.stem}.")
+            with contextlib.suppress(OSError):
+                if (own and locked) or now - entry.lstat().st_mtime > STALE_AFTER:
+                    if entry.is_dir() and not entry.is_symlink():
+                        shutil.rmtree(entry, ignore_errors=True)
+                    else:
+                        entry.unlink()

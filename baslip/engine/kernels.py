@@ -42,7 +42,8 @@ import numpy as np
 from baslip.engine import codegen as _codegen
 from baslip.engine import dop853 as flow
 from baslip.engine import outcome as _outcome_module
-from baslip.engine.codegen import Kernel, compile_kernels, module_files
+from baslip.engine.codegen import compile_kernels, module_files
+from baslip.engine.native import Kernel
 from baslip.engine.outcome import COLLAPSE_FRACTION
 from baslip.model import dynamics as _dynamics
 from baslip.model import hiplaw as _hiplaw

@@ -7,7 +7,10 @@ Every ``result.json`` that baslip writes carries a ``provenance`` record:
 * ``problem_hash``: SHA-256 of that record without ``name`` and ``solver.print_level``,
   which do not change any number; a resumed study must have the same hash;
 * ``versions``: baslip, CasADi, IPOPT, NumPy and Python;
-* ``code``: whether compiled C or CasADi's virtual machine evaluated the model.
+* ``code``: what each compiled library of the run actually ran on, by library name:
+  ``"compiled C (<compiler version>)"`` or ``"CasADi virtual machine (<why>)"``, as
+  recorded while the run loaded them (:func:`baslip.engine.codegen.recording_code`),
+  in its worker processes too.
 """
 
 from __future__ import annotations
@@ -24,7 +27,6 @@ from importlib import metadata
 import casadi as ca
 import numpy as np
 
-from baslip.engine.codegen import code_path
 from baslip.problem.reader import Problem
 
 
@@ -79,13 +81,22 @@ def ipopt_version() -> str:
     return "unknown"
 
 
-def provenance(problem: Problem) -> dict:
-    """The ``provenance`` record of a result of ``problem`` computed in this process."""
+def provenance(problem: Problem, code: dict[str, str]) -> dict:
+    """The ``provenance`` record of a result of ``problem``.
+
+    Parameters
+    ----------
+    problem : Problem
+        The resolved problem that every part of the run solved.
+    code : dict
+        Library name -> what it ran on, as collected by
+        :func:`baslip.engine.codegen.recording_code` around the run.
+    """
     return {
         "problem": resolved_problem(problem),
         "problem_hash": problem_hash(problem),
         "versions": versions(),
-        "code": code_path(),
+        "code": dict(sorted(code.items())),
     }
 
 

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from baslip.analysis.continuation import CorrectionFailed, Point, Settings, continue_branch, join, switch_branch
+from baslip.engine.codegen import recording_code
 from baslip.errors import RunError
 from baslip.files.atomic import json_text, write_files_atomically
 from baslip.files.lock import hold
@@ -48,11 +49,11 @@ def run_continuation(problem, out_dir: Path, quiet: bool = False) -> dict:
     """Trace the problem's branches, write branch.csv, result.json and diagram.png to
     ``out_dir`` together, and return the summary that result.json holds. Raises
     :class:`baslip.files.lock.FolderBusy` if another process is writing into ``out_dir``."""
-    with hold(out_dir):
-        return _run_continuation(problem, out_dir, quiet)
+    with hold(out_dir), recording_code() as code:
+        return _run_continuation(problem, out_dir, quiet, code)
 
 
-def _run_continuation(problem, out_dir: Path, quiet: bool) -> dict:
+def _run_continuation(problem, out_dir: Path, quiet: bool, code: dict[str, str]) -> dict:
     from baslip.analysis.gaitsystem import branch_system
     from baslip.files.provenance import provenance
     from baslip.gait.from_problem import fixed_point_spec, solve_start, solver_for
@@ -115,7 +116,7 @@ def _run_continuation(problem, out_dir: Path, quiet: bool) -> dict:
         "special_points": [_special(r, spec.parameter) for r in rows if r["special"]],
         **({"curves": curves} if curves is not None else {}),
         "wall_time_s": time.perf_counter() - start_time,
-        "provenance": provenance(problem),
+        "provenance": provenance(problem, code),
     }
     # All files or none: an error before this point leaves the old ones as they were.
     write_files_atomically({

@@ -24,6 +24,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from baslip.engine.codegen import recording_code
 from baslip.errors import InputError, ProblemKindError
 from baslip.files.atomic import json_text, write_files_atomically
 from baslip.files.lock import hold
@@ -104,22 +105,36 @@ def run_study(problem: Problem, out_dir: Path, quiet: bool = False, fresh: bool 
     study = problem.study
     if study is None:
         raise ProblemKindError("study", f"problem {problem.name!r} holds no study")
-    with hold(out_dir):
-        record = _claim(problem, out_dir, fresh, lanes)
+    with hold(out_dir), recording_code() as code:
+        record, earlier = _claim(problem, out_dir, fresh, lanes)
         start = time.perf_counter()
         summary = KINDS[type(study)].run(problem, study, out_dir, sources or out_dir.parent, quiet,
                                          record["lanes"], Workers(jobs, scheduler))
+        record = _what_ran(record, earlier, code)
         summary = {"name": problem.name, "kind": study.kind, **summary,
                    "wall_time_s": time.perf_counter() - start, "provenance": record}
         write_files_atomically({out_dir / "result.json": json_text(summary)})
     return summary
 
 
-def _claim(problem: Problem, out_dir: Path, fresh: bool, lanes: int | None = None) -> dict:
+def _what_ran(record: dict, earlier: dict | None, code: dict[str, str]) -> dict:
+    """The run's provenance ``record`` with the code its libraries ran on (in this process
+    and in its workers), and, for a resumed run, the versions and code of the earlier
+    runs when they differ from this one's."""
+    record = {**record, "code": dict(sorted(code.items()))}
+    if earlier is not None and (earlier.get("versions") != record["versions"] or earlier.get("code") != record["code"]):
+        record["earlier_runs"] = [{"versions": earlier.get("versions"), "code": earlier.get("code")},
+                                  *earlier.get("earlier_runs", [])]
+    return record
+
+
+def _claim(problem: Problem, out_dir: Path, fresh: bool, lanes: int | None = None) -> tuple[dict, dict | None]:
     """Check that ``out_dir`` holds nothing but earlier results of this same problem, run
     in the same number of lanes (or clear it if ``fresh``); record this run's provenance
-    in result.json; return it."""
-    record = {**provenance(problem), "lanes": lanes or LANES}
+    in result.json (its ``code`` is empty until the run has loaded its libraries).
+    Return the record and, for a resumed run, the earlier run's."""
+    record = {**provenance(problem, {}), "lanes": lanes or LANES}
+    earlier = None
     data = [out_dir / name for name in DATA_FILES if (out_dir / name).exists()]
     old = _recorded_provenance(out_dir)
     if fresh:
@@ -137,12 +152,11 @@ def _claim(problem: Problem, out_dir: Path, fresh: bool, lanes: int | None = Non
             raise StaleFolder("", f"{out_dir} holds a run in {old.get('lanes', LANES)} lanes, not {lanes}; rerun with "
                               "--fresh to start again in the new count, or leave out --lanes to resume")
         record["lanes"] = old.get("lanes", LANES)
-        if old.get("versions") != record["versions"] or old.get("code") != record["code"]:
-            record["earlier_runs"] = [{"versions": old.get("versions"), "code": old.get("code")}, *old.get("earlier_runs", [])]
+        earlier = old
     assert problem.study is not None
     write_files_atomically({out_dir / "result.json": json_text(
         {"name": problem.name, "kind": problem.study.kind, "complete": False, "provenance": record})})
-    return record
+    return record, earlier
 
 
 def _recorded_provenance(out_dir: Path) -> dict | None:

@@ -19,26 +19,25 @@
 
 from __future__ import annotations
 
-import contextlib
 import csv
-import ctypes
 import io
 import json
 import multiprocessing
 import multiprocessing.connection
 import os
+import pickle
 import signal
 import sys
-import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from queue import Empty
 from typing import Any
 
 import numpy as np
 
+from baslip.children import run_pickled
+from baslip.engine.codegen import leave_notices_to_parent, note_code, recording_code
 from baslip.errors import InputError, RunError
 from baslip.files.atomic import write_files_atomically
 
@@ -280,21 +279,31 @@ def worker_count(jobs: int | None, lanes: int) -> int:
 
 
 def _run_lanes(todo, worker, context, table, label, quiet, skipped, total, start, jobs=None) -> tuple[int, bool]:
+    """Run the lanes ``todo`` on spawned worker processes, each sending its rows back on a
+    pipe of its own. Pipes, not a multiprocessing queue: they need no semaphores, so no
+    resource-tracker process is started that could outlive a killed run."""
     ctx = multiprocessing.get_context("spawn")
-    queue = ctx.Queue()
     count = worker_count(jobs, len(todo))
     shares = [todo[k::count] for k in range(count)]  # lanes dealt out in turn
-    processes = [ctx.Process(target=_worker_main, args=(worker, share, context, queue), daemon=True) for share in shares]
+    pipes = [ctx.Pipe(duplex=False) for _ in shares]
+    # The work travels pickled, and is unpickled (its modules imported) only after the
+    # worker has asked to die with this process: see baslip.children.run_pickled.
+    processes = [ctx.Process(target=run_pickled, args=(pickle.dumps((_worker_main, (worker, share, context))), sender),
+                             daemon=True) for share, (_, sender) in zip(shares, pipes)]
     progress = Progress(label, total, quiet)
     for process in processes:
         process.start()
+    for _, sender in pipes:
+        sender.close()  # this process only reads; a worker's end closes when it ends
+    inbox = _Inbox([reader for reader, _ in pipes], processes)
     try:
-        return _collect(lambda: _next_row(queue, processes), len(todo), table, progress, skipped, start)
+        return _collect(inbox.next_row, len(todo), table, progress, skipped, start)
     finally:
         for process in processes:
             if process.is_alive():
                 process.terminate()
             process.join(timeout=5)
+        inbox.close()
 
 
 def _collect(next_row, lanes: int, table, progress, skipped: int, start: float, seen: set | None = None):
@@ -305,6 +314,9 @@ def _collect(next_row, lanes: int, table, progress, skipped: int, start: float, 
     try:
         while finished < lanes:
             row = next_row()
+            if isinstance(row, WorkerCode):
+                note_code(row.routes)
+                continue
             if row is None:
                 finished += 1
                 continue
@@ -407,46 +419,69 @@ def run_lanes_on_dask(todo, worker, context, table, label, quiet, skipped, total
 
 
 def _lane_on_dask(worker, lane, context, queue) -> None:
-    """A Dask task: one lane, rows onto the Dask queue, then None."""
-    worker(lane, context, queue)
+    """A Dask task: one lane, rows onto the Dask queue, then what ran, then None."""
+    leave_notices_to_parent()
+    with recording_code() as used:
+        worker(lane, context, _Reporting(queue.put, used))
 
 
-def _next_row(queue, processes, poll: float = 1.0):
-    """The next row from the workers; raises :class:`WorkerDied` if one died silently."""
-    while True:
-        with contextlib.suppress(Empty):
-            return queue.get(timeout=poll)
-        dead = [p for p in processes if p.exitcode not in (None, 0)]
-        if dead and queue.empty():
-            raise WorkerDied(f"a worker process ended with exit code {dead[0].exitcode}")
+@dataclass(frozen=True)
+class WorkerCode:
+    """What the libraries of a worker ran on (see :func:`baslip.engine.codegen.recording_code`),
+    sent before the first row that follows a library's loading."""
+
+    routes: dict[str, str]
 
 
-def _worker_main(worker, lanes, context, queue) -> None:
-    """Entry of a worker process: die with the parent, leave Ctrl-C to the parent, run
-    its lanes in turn."""
-    die_with_parent()
+class _Reporting:
+    """The queue a worker function puts its rows on: rows go to ``send`` as they are,
+    each after a :class:`WorkerCode` if the worker has loaded libraries since the last,
+    so that the parent records (and tells the user) what ran as soon as it is known."""
+
+    def __init__(self, send: Callable[[object], None], used: dict[str, str]):
+        self._send, self._used = send, used
+        self._sent: dict[str, str] = {}
+
+    def put(self, item) -> None:
+        if self._used != self._sent:
+            self._sent = dict(self._used)
+            self._send(WorkerCode(self._sent))
+        self._send(item)
+
+
+class _Inbox:
+    """The reading ends of the workers' pipes: the next message from any worker."""
+
+    def __init__(self, readers: list, processes: list, poll: float = 1.0):
+        self.readers, self.processes, self.poll = list(readers), processes, poll
+
+    def next_row(self):
+        """The next row (or WorkerCode, or None) from the workers; raises
+        :class:`WorkerDied` if one ended before finishing its lanes."""
+        while True:
+            for reader in multiprocessing.connection.wait(self.readers, timeout=self.poll):
+                try:
+                    return reader.recv()
+                except EOFError:  # that worker has ended; its exit code says how
+                    self.readers.remove(reader)
+            dead = [p for p in self.processes if p.exitcode not in (None, 0)]
+            if dead or not self.readers:
+                code = dead[0].exitcode if dead else 0
+                raise WorkerDied(f"a worker process ended with exit code {code}")
+
+    def close(self) -> None:
+        for reader in self.readers:
+            reader.close()
+
+
+def _worker_main(worker, lanes, context, connection) -> None:
+    """A worker process's work, once it has asked to die with its parent: leave Ctrl-C and
+    the fallback notices to the parent, run its lanes in turn, report what ran."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent stops the workers itself
-    for lane in lanes:
-        worker(lane, context, queue)
-
-
-def die_with_parent() -> None:
-    """Make this (child) process end when the process that started it ends, however it
-    ends: the kernel's parent-death signal on Linux, and a watcher thread everywhere."""
-    parent = multiprocessing.parent_process()
-    if parent is None:
-        return
-    with contextlib.suppress(OSError, AttributeError):
-        PR_SET_PDEATHSIG = 1
-        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
-    if os.getppid() != parent.pid:  # it died before the signal was set up
-        os._exit(1)
-
-    def watch():
-        multiprocessing.connection.wait([parent.sentinel])
-        os._exit(1)
-
-    threading.Thread(target=watch, name="die-with-parent", daemon=True).start()
+    leave_notices_to_parent()
+    with recording_code() as used:
+        for lane in lanes:
+            worker(lane, context, _Reporting(connection.send, used))
 
 
 def split_lanes(tasks: Sequence[dict], n: int = LANES) -> list[list[dict]]:
