@@ -10,6 +10,7 @@ same problem as the plain spelling.
 
 import json
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -271,6 +272,75 @@ CASES += [
                                             "continuation.range", [-1, 2])), "continuation.range"),
 ]
 
+# --- the newer study kinds, as hardened as the problem file --------------------------------
+#: Values no whole-number study key may take.
+BAD_COUNTS = {"negative": -2, "float": 2.5, "list": [3], "map": {"n": 3}, "bool": True, "null": None, "nan": math.nan,
+              "10^400": 10**400}
+
+
+def study_cases(problem: str, label: str, key: str, values: dict, names: str | None = None):
+    data = base(problem)
+    return [(f"{label} study.{key}={name}", dump(put(data, f"study.{key}", value)), names or f"study.{key}")
+            for name, value in values.items()]
+
+
+CASES += study_cases(RANDOM, "random", "count", {k: v for k, v in BAD_COUNTS.items() if k not in ("negative", "float")})
+CASES += study_cases(RANDOM, "random", "seed", {k: v for k, v in BAD_COUNTS.items() if k != "negative"})
+CASES += study_cases(RANDOM, "random", "region", {"map": {"a": 1}, "null": None, "bool": True, "dots": ".."})
+CASES += study_cases(RANDOM, "random", "extra", {"any": 1})
+CASES += study_cases(BASIN, "basin", "strides", {k: v for k, v in BAD_COUNTS.items() if k != "10^400"})
+CASES += study_cases(BASIN, "basin", "tolerance", {"text": "tight", "list": [1e-4], "bool": True, "null": None,
+                                                   "inf": math.inf, "1e300": 1e300})
+for axis in ("ydot", "z"):
+    CASES += study_cases(BASIN, "basin", f"stable_at.{axis}", BAD_NUMBERS)
+    CASES += study_cases(BASIN, "basin", f"grid.{axis}", {"scalar": 0.5, "two": [0.1, 1.0], "reversed": [1.0, 0.1, 0.1],
+                                                          "zero step": [0.1, 1.0, 0.0], "negative step": [0.1, 1.0, -0.1],
+                                                          "text": [0.1, "x", 0.1], "nan": [math.nan, 1.0, 0.1]})
+CASES += study_cases(BASIN, "basin", "unstable_at.z", {"text": "high", "list": [0.5], "-inf": -math.inf, "null": None})
+CASES += study_cases(BASIN, "basin", "source", {"map": {"a": 1}, "null": None, "path": "../x", "empty": ""})
+CASES += study_cases(BASIN, "basin", "extra", {"any": 1})
+CASES += study_cases(ADAPTIVE, "adaptive", "strides", {"float": 2.5, "list": [3], "bool": True, "null": None})
+CASES += study_cases(ADAPTIVE, "adaptive", "frozen_strides", {"negative": -1, "text": "x", "list": [3], "null": None,
+                                                              "10^400": 10**400})
+CASES += study_cases(ADAPTIVE, "adaptive", "probe_strides", {"negative": -1, "text": "x", "float": 1.5, "huge": 10**9})
+for axis in ("z", "theta_h", "ydot"):
+    CASES += study_cases(ADAPTIVE, "adaptive", f"perturbation.{axis}", {"text": "small", "nan": math.nan,
+                                                                        "inf": math.inf, "list": [0.1]})
+CASES += study_cases(ADAPTIVE, "adaptive", "criterion", {"number": 1, "null": None, "empty": ""})
+CASES += study_cases(ADAPTIVE, "adaptive", "extra", {"any": 1})
+CASES += study_cases(OPTIMAL, "optimal", "starts", {"negative": -1, "float": 2.5, "list": [3], "null": None,
+                                                    "huge": 10**9})
+CASES += study_cases(OPTIMAL, "optimal", "iterations", {"negative": -1, "text": "many", "float": 2.5, "huge": 10**9})
+CASES += study_cases(OPTIMAL, "optimal", "seed", {"text": "x", "float": 2.5, "huge": 2**40})
+CASES += study_cases(OPTIMAL, "optimal", "vary", {"empty": {}, "list": [1, 2], "speed": {"speed": [0, 1, 0.5]},
+                                                  "three": {"z": [0.3, 0.4, 0.1], "ydot": [0.1, 0.2, 0.1],
+                                                            "theta_td": [0.1, 0.2, 0.1]}},
+                     names="study.vary")
+CASES += study_cases(OPTIMAL, "optimal", "vary.ydot", {"scalar": 0.5, "reversed": [0.7, 0.3, 0.2], "nan": [math.nan, 1, 1],
+                                                       "zero step": [0.3, 0.7, 0.0]})
+CASES += study_cases(OPTIMAL, "optimal", "extra", {"any": 1})
+CASES += study_cases(CONTROLS, "controllers", "samples", {"negative": -1, "float": 2.5, "text": "x", "huge": 10**9})
+CASES += study_cases(CONTROLS, "controllers", "strides", {"negative": -1, "float": 2.5, "text": "x", "huge": 10**9})
+CASES += study_cases(CONTROLS, "controllers", "seed", {"negative": -1, "text": "x", "float": 2.5})
+CASES += study_cases(CONTROLS, "controllers", "tolerance", {"negative": -1e-6, "nan": math.nan, "text": "x",
+                                                            "huge": 1e300})
+for axis in ("z", "theta_h", "ydot", "theta_h_dot"):
+    CASES += study_cases(CONTROLS, "controllers", f"perturbation.{axis}", {"nan": math.nan, "text": "x", "inf": math.inf})
+    CASES += study_cases(CONTROLS, "controllers", f"lqr_scale.{axis}", {"zero": 0, "negative": -0.1, "nan": math.nan})
+CASES += study_cases(CONTROLS, "controllers", "lqr_scale", {"speed": {"speed": 1.0}}, names="study.lqr_scale.speed")
+CASES += study_cases(CONTROLS, "controllers", "criterion", {"number": 2, "null": None})
+CASES += study_cases(CONTROLS, "controllers", "extra", {"any": 1})
+# Source files that are not what a finished run writes (a directory, a FIFO, a row with a
+# cell too many or too few), for a random region, a basin source and a traced boundary.
+BROKEN_SOURCES = ("dir", "fifo", "wide", "short")
+for broken in BROKEN_SOURCES:
+    CASES.append((f"random region points.csv {broken}", dump(put(base(RANDOM), "study.region", f"{broken}_region")),
+                  "study.region"))
+    CASES.append((f"basin source points.csv {broken}", dump(put(base(BASIN), "study.source", f"{broken}_region")),
+                  "study.source"))
+    CASES.append((f"random boundary curve.csv {broken}", dump(put(TRACED, "study.boundary", f"{broken}_curves")),
+                  "study.boundary"))
+
 # --- the file itself ----------------------------------------------------------------------
 DOWNWARD_TEXT = (ROOT / "problems" / "downward.yaml").read_text()
 assert "  z: 0.4 " in DOWNWARD_TEXT
@@ -340,7 +410,24 @@ def workspace(tmp_path_factory):
     write_curves(folder, "other_pair_curves", bounding=True, traced_in=("theta_td", "energy"))
     (folder / "junk_curves").mkdir()
     (folder / "junk_curves" / "curve.csv").write_bytes(b"\x00\x89PNG\r\n\xff\xfe" * 10)
+    for broken in BROKEN_SOURCES:
+        write_region(folder, f"{broken}_region")
+        write_curves(folder, f"{broken}_curves", bounding=True)
+        for path in (folder / f"{broken}_region" / "points.csv", folder / f"{broken}_curves" / "curve.csv"):
+            break_file(path, broken)
     return folder
+
+
+def break_file(path: Path, how: str) -> None:
+    """Put in place of the CSV file ``path`` a directory, a FIFO, or itself with one row
+    a cell too wide or too short."""
+    if how in ("dir", "fifo"):
+        path.unlink()
+        path.mkdir() if how == "dir" else os.mkfifo(path)
+        return
+    lines = path.read_text().splitlines()
+    lines[2] = lines[2] + ",0.5" if how == "wide" else lines[2].rsplit(",", 1)[0]
+    path.write_text("\n".join(lines) + "\n")
 
 
 def write_curves(folder: Path, name: str, bounding: bool, z: str = "0.42",
@@ -357,7 +444,7 @@ def write_curves(folder: Path, name: str, bounding: bool, z: str = "0.42",
 
 
 def test_the_suite_is_large_and_its_cases_are_distinct():
-    assert len(CASES) >= 150
+    assert len(CASES) >= 520
     assert len({case_id for case_id, _, _ in CASES}) == len(CASES)
     assert len({text for _, text, _ in CASES}) == len(CASES)
 
@@ -370,8 +457,34 @@ def assert_refused(code: int, err: str, out: Path, names: str) -> None:
     assert not out.exists()
 
 
+class SolverBuilt(BaseException):
+    """Raised (past every ``except Exception``) when a run gets as far as building a
+    solver, loading compiled code or starting a worker: bad input must be refused first."""
+
+
+@pytest.fixture
+def no_solver(monkeypatch):
+    """Make building any solver, compiled library or worker an immediate failure."""
+    import baslip.engine.codegen as codegen
+    import baslip.studies.runner as runner
+
+    def refuse(*args, **kwargs):
+        raise SolverBuilt("a solver was built (or a worker started) before the input was refused")
+
+    for module, name in ((codegen, "_cached"), (codegen, "compile_functions"), (runner, "_run_lanes"),
+                         (runner, "run_lanes_on_dask")):
+        monkeypatch.setattr(module, name, refuse)
+
+
+@pytest.mark.parametrize("problem", ["downward", "grid_downward"])
+def test_the_guard_stops_a_good_problem_at_its_first_solver(tmp_path, no_solver, problem):
+    """The guard of the cases below works: a good gait or study gets as far as a solver."""
+    with pytest.raises(SolverBuilt):
+        main([str(ROOT / "problems" / f"{problem}.yaml"), "--out", str(tmp_path / "out"), "--quiet"])
+
+
 @pytest.mark.parametrize("case_id, text, names", CASES, ids=[c[0] for c in CASES])
-def test_a_bad_problem_is_refused_in_one_line(workspace, capsys, case_id, text, names):
+def test_a_bad_problem_is_refused_in_one_line(workspace, capsys, no_solver, case_id, text, names):
     problem = workspace / f"case_{abs(hash(case_id))}.yaml"
     problem.write_text(text)
     out = workspace / "out"
@@ -403,6 +516,28 @@ def test_bad_command_lines_are_refused_in_one_line(capsys, argv, names):
         main([*(["problems/downward.yaml"] if argv and argv[0] == "--bogus" else []), *argv])
     err = capsys.readouterr().err
     assert exit_info.value.code == 2 and err.count("\n") == 1 and names in err
+
+
+STUDY_OPTIONS = [
+    (["--jobs", "0"], "--jobs"), (["--jobs", "-1"], "--jobs"), (["--jobs", "two"], "--jobs"), (["--jobs", "1.5"], "--jobs"),
+    (["--jobs", "100000"], "--jobs"), (["--lanes", "0"], "--lanes"), (["--lanes", "-3"], "--lanes"),
+    (["--lanes", "x"], "--lanes"), (["--lanes", "1000000"], "--lanes"), (["--format", "gif"], "--format"),
+    (["--scheduler", ""], "--scheduler"), (["--scheduler", "tls://127.0.0.1:1"], "--scheduler"),
+    (["--scheduler", "ucx://127.0.0.1:1"], "--scheduler"), (["--quiet", "--verbose"], "--verbose"),
+    (["--jobs"], "--jobs"), (["--lanes"], "--lanes"),
+]
+
+
+@pytest.mark.parametrize("options, names", STUDY_OPTIONS, ids=[" ".join(o) for o, _ in STUDY_OPTIONS])
+def test_bad_study_options_are_refused_before_any_solver(workspace, capsys, no_solver, options, names):
+    out = workspace / "out"
+    try:
+        code = main([str(ROOT / "problems" / "grid_downward.yaml"), "--out", str(out), *options])
+    except SystemExit as stop:
+        code = stop.code
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert_refused(code, captured.err, out, names)
 
 
 def test_a_folder_or_a_missing_path_as_the_problem_is_refused(workspace, capsys):

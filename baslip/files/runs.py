@@ -15,6 +15,7 @@ from pathlib import Path
 
 from baslip.errors import InputError
 from baslip.files.provenance import problem_hash
+from baslip.files.rows import regular_text
 from baslip.problem.reader import Problem
 
 #: Every data file a run of any kind writes (figures aside); a fresh run removes them.
@@ -36,7 +37,7 @@ def run_kind(problem: Problem) -> str:
 def recorded_run(folder: Path) -> tuple[str, str | None] | None:
     """(kind, problem hash) of the run whose ``result.json`` is in ``folder``, or None."""
     try:
-        record = json.loads((folder / "result.json").read_text())
+        record = json.loads(regular_text(folder / "result.json"))
     except (OSError, ValueError):
         return None
     if not isinstance(record, dict):

@@ -10,18 +10,18 @@ of times: the reference is stable, and each crossing changes stability.
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 
 import numpy as np
+
+from baslip.files.rows import read_rows
 
 Segment = tuple[np.ndarray, np.ndarray]
 
 
 def read_curves(path: Path) -> list[dict]:
     """Rows of a curve.csv: numbers as floats, the boundary flag as bool."""
-    with open(path, encoding="utf-8", newline="") as handle:
-        rows = list(csv.DictReader(handle))
+    rows: list[dict] = list(read_rows(path))
     for row in rows:
         for key, value in row.items():
             if key in ("type", "special", "kappa"):

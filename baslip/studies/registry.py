@@ -29,6 +29,7 @@ from baslip.errors import InputError, ProblemKindError
 from baslip.files.atomic import json_text, write_files_atomically
 from baslip.files.lock import hold
 from baslip.files.provenance import changed_entries, provenance
+from baslip.files.rows import regular_text
 from baslip.files.runs import clear_run
 from baslip.problem.reader import Problem
 from baslip.problem.study import Adaptive, Basin, Controllers, Optimal, RandomSample, Sweep
@@ -161,7 +162,7 @@ def _claim(problem: Problem, out_dir: Path, fresh: bool, lanes: int | None = Non
 
 def _recorded_provenance(out_dir: Path) -> dict | None:
     try:
-        record = json.loads((out_dir / "result.json").read_text())
+        record = json.loads(regular_text(out_dir / "result.json"))
     except (OSError, ValueError):
         return None
     return record.get("provenance") if isinstance(record, dict) else None

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from baslip.errors import InputError
 from baslip.files.lock import busy
-from baslip.files.rows import read_points
+from baslip.files.rows import read_points, regular_text
 from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import CONTROL
 from baslip.problem.study import RandomSample
@@ -37,7 +37,7 @@ def source_points(sources: Path, name: str, key: str) -> tuple[list[dict], tuple
         raise StudyInputError(key, f"the study {name!r} is still being run by {holder}; wait for it to finish")
     record = {}
     with contextlib.suppress(OSError, ValueError):
-        record = json.loads((folder / "result.json").read_text())
+        record = json.loads(regular_text(folder / "result.json"))
     if not isinstance(record, dict) or record.get("complete") is not True:
         raise StudyInputError(key, f"the study {name!r} has not run to the end (its result.json does not say complete); rerun it first")
     try:
@@ -100,7 +100,7 @@ def _curve_parameters(folder: Path) -> tuple[str, str] | None:
     """The two parameters a continuation's curves were traced in, from its result.json
     (None if it records none: the columns are then checked alone)."""
     with contextlib.suppress(OSError, ValueError, AttributeError, TypeError):
-        record = json.loads((folder / "result.json").read_text())
+        record = json.loads(regular_text(folder / "result.json"))
         first, second = record["parameter"], record["curves"]["second"]
         if isinstance(first, str) and isinstance(second, str):
             return first, second
