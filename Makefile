@@ -10,14 +10,19 @@ BRANCHES = continuation_slip_attack continuation_downward_speed continuation_dow
 # Studies that read the curves' results.
 AFTER_CURVES = stable_region_traced
 GAITS = downward upward downward_period2
+# Atlases of the gait families (long: minutes per cell).
+ATLASES = atlas_upright_cell atlas_upright atlas_downward
 
-.PHONY: studies clean-studies
+.PHONY: studies clean-studies atlases
 
 studies:
 	@for s in $(STUDIES) $(BRANCHES) $(AFTER_CURVES); do $(PY) -m baslip.solve problems/$$s.yaml || exit 1; done
 	@for g in $(GAITS); do $(PY) -m baslip.solve problems/$$g.yaml || exit 1; done
 	$(PY) -m baslip.animate problems/downward.yaml problems/upward.yaml --out results/animation
 	$(PY) -m baslip.report
+
+atlases:
+	@for s in $(ATLASES); do $(PY) -m baslip.solve problems/$$s.yaml || exit 1; done
 
 clean-studies:
 	rm -rf $(addprefix results/,$(STUDIES) $(BRANCHES) $(AFTER_CURVES)) results/animation results/REPORT.md

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from baslip.engine.returnmap import ReturnMap, RunnerFell
-from baslip.model.dynamics import APEX, Params, build_model
+from baslip.model.dynamics import APEX, STANCE, Params, body_angle, build_model
 from baslip.model.hiplaw import CONTROL
 
 
@@ -94,12 +94,37 @@ def _flight_samples(model, xf, ts, t0, y0, theta_td, params: Params):
     return ts + t0, y, z, th, foot_y, foot_z, np.zeros(len(ts), dtype=bool)
 
 
+class TrunkRange:
+    """Least and greatest trunk angle theta_h [rad] over one stride, with the model built
+    once: for the many strides of an atlas or a study.
+
+    In flight the trunk turns at a constant rate, so its extremes there are the ends of
+    the flight phases (the apexes, touchdown and liftoff), exactly; stance is sampled at
+    ``samples`` instants (the last is liftoff), as :func:`stride_trajectory` samples it.
+    """
+
+    def __init__(self, rmap: ReturnMap, samples: int = 100):
+        self.rmap, self.samples = rmap, samples
+        self.model = build_model()
+
+    def __call__(self, X, u, params: Params) -> tuple[float, float]:
+        """(least, greatest) theta_h [rad] over the stride from apex ``X`` under ``u``;
+        raises :class:`RunnerFell` if the stride falls."""
+        stride, flight = _stride_from(self.rmap, X, u, params, 0.0)
+        d = stride.durations
+        theta_td = float(CONTROL.get(np.asarray(u), "theta_td"))
+        x_touchdown = _ballistic(flight, d["descent"], params.g)
+        x_stance = np.asarray(self.model.touchdown_map(x_touchdown, theta_td, params.vector())).ravel()
+        states = self.rmap.stance_samples(x_stance, u, params, d["compression"] + d["decompression"], self.samples)
+        stance = body_angle(states[STANCE.index("theta1")], states[STANCE.index("theta2")])
+        angles = np.concatenate([[flight[2], x_touchdown[2], APEX.get(stride.apex, "theta_h")], stance])
+        return float(np.min(angles)), float(np.max(angles))
+
+
 def trunk_angle_range(rmap: ReturnMap, X, u, params: Params, samples: int = 100) -> tuple[float, float]:
-    """Least and greatest trunk angle theta_h [rad] over one stride from apex ``X``, from
-    ``samples`` points in each of flight down, stance and flight up (flight is linear in
-    time, so its ends are exact; stance is sampled)."""
-    theta_h = stride_trajectory(rmap, X, u, params, strides=1, samples=samples).theta_h
-    return float(np.min(theta_h)), float(np.max(theta_h))
+    """Least and greatest trunk angle theta_h [rad] over one stride from apex ``X`` (see
+    :class:`TrunkRange`, which builds the model once for many strides)."""
+    return TrunkRange(rmap, samples)(X, u, params)
 
 
 # --- the continuous motion, with velocities and forces ------------------------------------

@@ -20,7 +20,7 @@ from baslip.problem.reader import Problem
 
 #: Every data file a run of any kind writes (figures aside); a fresh run removes them.
 RUN_FILES = ("result.json", "multipliers.csv", "branch.csv", "curve.csv", "points.csv", "basin.csv",
-             "trajectories.csv", "strides.csv", "controllers.csv")
+             "trajectories.csv", "strides.csv", "controllers.csv", "cells.csv", "atlas.csv", "atlas_boundary.csv")
 
 
 class FolderHoldsAnotherRun(InputError):
@@ -67,5 +67,6 @@ def clear_run(folder: Path) -> None:
     for name in RUN_FILES:
         with contextlib.suppress(FileNotFoundError):
             (folder / name).unlink()
-        with contextlib.suppress(FileNotFoundError):
-            (folder / f".{name}.states").unlink()
+        for log in ("states", "charts"):  # saved solver states, an atlas's charts
+            with contextlib.suppress(FileNotFoundError):
+                (folder / f".{name}.{log}").unlink()

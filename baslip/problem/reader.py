@@ -28,7 +28,7 @@ from types import MappingProxyType
 from typing import Any
 
 from baslip.errors import ProblemError
-from baslip.model.dynamics import PARAMS, Params
+from baslip.model.dynamics import APEX, PARAMS, Params
 from baslip.model.quantities import (
     DEFAULT_BOUNDS,
     DESIGN,
@@ -37,7 +37,7 @@ from baslip.model.quantities import (
     start_value,
 )
 from baslip.problem.continuation import ContinuationSpec, check_continuation, parse_continuation
-from baslip.problem.study import STUDY_KINDS, Basin, Optimal, Study, Sweep, parse_study
+from baslip.problem.study import STUDY_KINDS, Atlas, Basin, Optimal, Study, Sweep, parse_study
 from baslip.problem.text import UnreadableText, clip, excerpt, read_yaml
 from baslip.problem.values import mapping, physical
 from baslip.problem.values import number as _number
@@ -163,6 +163,7 @@ def _checked(problem: Problem) -> Problem:
         raise ProblemError("strides", "studies solve one-stride gaits; remove strides or the study")
     _check_consistency(problem)
     _check_sweep(problem)
+    _check_atlas(problem)
     _check_basin(problem)
     _check_continuation(problem)
     return problem
@@ -325,7 +326,7 @@ def check_point(problem: Problem, values: Mapping[str, float]) -> None:
 def _check_sweep(problem: Problem) -> None:
     """Every point of a sweep (or an optimal-gait search) must be a problem that would be
     accepted written out."""
-    if not isinstance(problem.study, (Sweep, Optimal)):
+    if not isinstance(problem.study, (Sweep, Optimal, Atlas)):
         return
     axes = problem.study.axes
     points = math.prod(len(a.values) for a in axes) * getattr(problem.study, "starts", 1)
@@ -340,6 +341,24 @@ def _check_sweep(problem: Problem) -> None:
             where = ", ".join(f"{n} = {v:g}" for n, v in values.items())
             key = f"study.vary.{name}" if name in values else "study.vary"
             raise ProblemError(key, f"at {where}: {err.message}") from None
+
+
+def _check_atlas(problem: Problem) -> None:
+    """An atlas charts a manifold of dimension 1 to 3, and plots two of its free quantities."""
+    study = problem.study
+    if not isinstance(study, Atlas):
+        return
+    held = set(problem.fix) | {a.name for a in study.axes}
+    free = [name for name in DESIGN if name not in held]
+    dimension = len(free) - APEX.size - ("energy" in held)
+    if not 1 <= dimension <= 3:
+        hint = "fix more quantities (theta2_dot_des, say)" if dimension > 3 else "fix fewer quantities"
+        raise ProblemError("study", f"with {', '.join(sorted(held))} held, the fixed points form a set of dimension "
+                           f"{dimension}; an atlas covers dimensions 1 to 3: {hint}")
+    for name in study.plot:
+        if name not in free:
+            raise ProblemError("study.plot", f"{name} is held (fixed or swept); plot two of the free quantities: "
+                               f"{', '.join(free)}")
 
 
 def _check_basin(problem: Problem) -> None:

@@ -16,7 +16,12 @@ Kinds:
 * ``optimal``: at every point of a grid of one or two quantities (``vary``, as a sweep),
   ``starts`` fixed points with gains drawn over their whole bounds, each followed by a
   descent of at most ``iterations`` steps to the least spectral radius nearby
-  (:mod:`baslip.analysis.descent`); ``seed`` makes the draws repeatable.
+  (:mod:`baslip.analysis.descent`); ``seed`` makes the draws repeatable;
+* ``atlas``: at every point of a grid of one or two quantities (``vary``), the manifold of
+  fixed points covered by charts (:mod:`baslip.analysis.atlas`), grown from ``seeds``
+  independent solves with gains drawn over their whole bounds; ``radius`` and
+  ``max_radius`` size the charts (atlas units), ``max_charts`` caps each cell, and
+  ``plot`` names the two quantities of its figure.
 """
 
 from __future__ import annotations
@@ -101,6 +106,18 @@ class Optimal:
 
 
 @dataclass(frozen=True)
+class Atlas:
+    axes: tuple[Axis, ...]  # the cells: one atlas at each grid point
+    seeds: int = 24  # solves per cell (the guess's, then drawn gains), each seeding a piece unless on a covered one
+    seed: int = 0
+    radius: float = 0.3  # of a piece's first chart, in atlas units (baslip.analysis.gaitatlas)
+    max_radius: float = 1.5
+    max_charts: int = 3000  # per cell
+    plot: tuple[str, str] = ("Kp", "Kd")
+    kind: str = "atlas"
+
+
+@dataclass(frozen=True)
 class Controllers:
     perturbation: tuple[tuple[str, float], ...]  # half-width of the box in each apex quantity
     samples: int = 200
@@ -112,10 +129,10 @@ class Controllers:
     kind: str = "controllers"
 
 
-Study = Sweep | RandomSample | Basin | Adaptive | Optimal | Controllers
+Study = Sweep | RandomSample | Basin | Adaptive | Optimal | Controllers | Atlas
 #: The study classes, for ``isinstance``.
-STUDY_KINDS = (Sweep, RandomSample, Basin, Adaptive, Optimal, Controllers)
-KINDS = ("sweep", "random", "basin", "adaptive", "optimal", "controllers")
+STUDY_KINDS = (Sweep, RandomSample, Basin, Adaptive, Optimal, Controllers, Atlas)
+KINDS = ("sweep", "random", "basin", "adaptive", "optimal", "controllers", "atlas")
 
 
 def parse_study(data) -> Study:
@@ -132,18 +149,21 @@ def parse_study(data) -> Study:
         "adaptive": ("kind", "strides", "frozen_strides", "perturbation", "criterion", "probe_strides"),
         "optimal": ("kind", "vary", "starts", "seed", "iterations"),
         "controllers": ("kind", "perturbation", "samples", "seed", "strides", "tolerance", "criterion", "lqr_scale"),
+        "atlas": ("kind", "vary", "seeds", "seed", "radius", "max_radius", "max_charts", "plot"),
     }[kind]
     for key in data:
         if isinstance(key, NonScalarKey):
             raise StudyError(f"study.{key}", f"a key must be a plain name, not a {key.kind}")
         if key not in allowed:
             raise StudyError(f"study.{clip(str(key))}", f"unknown key for a {kind} study (expected one of {', '.join(allowed)})")
-    if kind in ("sweep", "optimal"):
+    if kind in ("sweep", "optimal", "atlas"):
         axes = _axes(data.get("vary"), "study.vary", DESIGN)
         if not 1 <= len(axes) <= 2:
             raise StudyError("study.vary", f"expected one or two quantities, got {len(axes)}")
         if kind == "sweep":
             return Sweep(axes)
+        if kind == "atlas":
+            return _atlas(data, axes)
         for axis in axes:
             if axis.name in DRAWN_GAINS:
                 raise StudyError(f"study.vary.{axis.name}", f"an optimal study draws {axis.name} at random for every "
@@ -195,6 +215,34 @@ def parse_study(data) -> Study:
         criterion=_criterion(data.get("criterion", "thesis")),
         probe_strides=_integer(data.get("probe_strides", 200), "study.probe_strides", 1, 100000),
     )
+
+
+def _atlas(data, axes: tuple[Axis, ...]) -> Atlas:
+    radius = _size(data.get("radius", 0.3), "study.radius", 1e-3, 10.0)
+    max_radius = _size(data.get("max_radius", max(1.5, radius)), "study.max_radius", radius, 10.0)
+    plot = data.get("plot", ["Kp", "Kd"])
+    if (not isinstance(plot, (list, tuple)) or len(plot) != 2 or not all(isinstance(n, str) for n in plot)
+            or len(set(plot)) != 2):
+        raise StudyError("study.plot", f"expected two different quantities, got {excerpt(plot)}")
+    for name in plot:
+        if name not in DESIGN:
+            raise StudyError("study.plot", f"unknown quantity {clip(name)!r} (expected two of {', '.join(DESIGN)})")
+    return Atlas(
+        axes,
+        seeds=_integer(data.get("seeds", 24), "study.seeds", 1, 10000),
+        seed=_integer(data.get("seed", 0), "study.seed", 0, 2**31 - 1),
+        radius=radius,
+        max_radius=max_radius,
+        max_charts=_integer(data.get("max_charts", 3000), "study.max_charts", 1, 100000),
+        plot=(plot[0], plot[1]),
+    )
+
+
+def _size(value, key, lo: float, hi: float) -> float:
+    value = number(value, key)
+    if not lo <= value <= hi:
+        raise StudyError(key, f"expected a size in [{lo:g}, {hi:g}], got {value:g}")
+    return value
 
 
 def _axes(data, key, allowed) -> tuple[Axis, ...]:

@@ -22,7 +22,7 @@ from baslip.files.rows import read_points
 from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import CONTROL
 from baslip.problem.reader import Problem
-from baslip.problem.study import Optimal
+from baslip.problem.study import Atlas, Optimal
 from baslip.status import Status
 from baslip.studies.common import run_info, status_counts, study_table
 from baslip.studies.runner import Workers, run_tasks, split_lanes
@@ -45,7 +45,7 @@ def optimal_tasks(study: Optimal) -> list[dict]:
     return [{**point, "start": start} for point in sweep_tasks(study) for start in range(study.starts)]
 
 
-def task_rng(study: Optimal, task: dict) -> np.random.Generator:
+def task_rng(study: Optimal | Atlas, task: dict) -> np.random.Generator:
     """The task's own random stream: from the seed, its grid values and its start."""
     values = [int(round(v * 1e9)) % 2**32 for k, v in sorted(task.items()) if k.startswith("sweep_")]
     return np.random.default_rng([study.seed, task["start"], *values])

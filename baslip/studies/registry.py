@@ -32,8 +32,9 @@ from baslip.files.provenance import changed_entries, provenance
 from baslip.files.rows import regular_text
 from baslip.files.runs import clear_run
 from baslip.problem.reader import Problem
-from baslip.problem.study import Adaptive, Basin, Controllers, Optimal, RandomSample, Sweep
+from baslip.problem.study import Adaptive, Atlas, Basin, Controllers, Optimal, RandomSample, Sweep
 from baslip.studies.adaptive import run_adaptive_study
+from baslip.studies.atlas import run_atlas
 from baslip.studies.basin import check_basin, run_basin
 from baslip.studies.common import StudyFailed
 from baslip.studies.controllers import run_controllers
@@ -73,6 +74,7 @@ KINDS: dict[type, StudyKind] = {
     Adaptive: StudyKind(run_adaptive_study, ("strides.csv",)),
     Optimal: StudyKind(run_optimal, ("points.csv",)),
     Controllers: StudyKind(run_controllers, ("controllers.csv",)),
+    Atlas: StudyKind(run_atlas, ("cells.csv", "atlas.csv", "atlas_boundary.csv")),
 }
 #: Files any study writes besides its figures; ``--fresh`` removes them before starting.
 DATA_FILES = tuple(sorted({name for kind in KINDS.values() for name in kind.data_files}))

@@ -178,8 +178,8 @@ class StateLog:
             handle.flush()
             os.fsync(handle.fileno())
 
-    def read(self) -> dict[tuple[str, ...], list]:
-        states: dict[tuple[str, ...], list] = {}
+    def read(self) -> dict[tuple[str, ...], Any]:
+        states: dict[tuple[str, ...], Any] = {}
         if not self.path.exists():
             return states
         for line in self.path.read_text(errors="replace").splitlines():

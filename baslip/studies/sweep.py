@@ -24,7 +24,7 @@ from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import CONTROL
 from baslip.model.quantities import DESIGN
 from baslip.problem.reader import Problem, check_point
-from baslip.problem.study import Optimal, RandomSample, Sweep
+from baslip.problem.study import Atlas, Optimal, RandomSample, Sweep
 from baslip.status import Status
 from baslip.studies.boundary import inside
 from baslip.studies.common import run_info, status_counts, study_table
@@ -59,7 +59,7 @@ def sweep_lanes(study: Sweep, start: dict, lanes: int = LANES) -> list[list[dict
     return split_lanes(sweep_tasks(study), lanes)
 
 
-def sweep_tasks(study: Sweep | Optimal) -> list[dict]:
+def sweep_tasks(study: Sweep | Optimal | Atlas) -> list[dict]:
     """Grid points in snake order: consecutive points are neighbours."""
     if len(study.axes) == 1:
         (axis,) = study.axes

@@ -70,11 +70,13 @@ def _in(out_dir: Path | None, name: str) -> Path | None:
     return None if out_dir is None else out_dir / name
 
 
-def _save(fig, path) -> Path | None:
+def _save(fig, path, tight: bool = True) -> Path | None:
     """Save to ``path`` (a file name, whose suffix becomes the current format, or a
     binary file object) and close the figure; return where it went. With ``path`` None
-    only lay the figure out (it is returned to the caller)."""
-    fig.tight_layout()
+    only lay the figure out (it is returned to the caller). ``tight`` False keeps a
+    layout of the caller's own (constrained layout, which places shared colour bars)."""
+    if tight:
+        fig.tight_layout()
     if path is None:
         return None
     fmt = figure_format()

@@ -1,0 +1,527 @@
+"""An atlas of a k-dimensional solution manifold F(w) = 0: charts that cover it, piece by piece.
+
+This is Henderson's multiple-parameter continuation in the form Dankowicz and Schilder
+describe for COCO's ``atlas_kd``, simplified where baslip's dimensions (k = 1 to 3) allow:
+
+* A **chart** is a point w0 with F(w0) = 0, an orthonormal basis T of the null space of
+  dF/dw there (the tangent space, from the SVD of the Jacobian) and a radius R. Its ball
+  is the set of points within R of w0.
+* A chart's **boundary** is kept as a fixed set of unit directions d in its tangent
+  space (2 for k = 1, :data:`DIRECTIONS_2D` for k = 2, :data:`DIRECTIONS_3D` for k = 3),
+  each standing for the boundary point w0 + R T d. Henderson keeps an exact polyhedron
+  per chart instead; with directions this dense and neighbours at most R apart, the
+  balls overlap so much that the sampled boundary leaves no holes on the test manifolds
+  (the tests check it on a sphere, a torus and the 3-sphere).
+* A direction is **covered** when its boundary point lies inside another chart's ball.
+  The atlas grows from the charts with uncovered directions, oldest first: a new centre
+  is predicted at w0 + h T d (h = R) and corrected by Newton's method on
+  [F(w) = 0, T^T (w - w_pred) = 0], a square system, starting from the chart's own
+  Jacobian (a chord method) and refreshing it where convergence is slow. Where Newton fails, the step turns
+  the tangent by more than :attr:`AtlasSettings.max_turn` or lands outside the domain,
+  h is halved, down to the least radius.
+* The covering **stops** where no step is left: every direction covered, or recorded as
+  a boundary with its reason (outside the domain, an evaluation that fails, such as a
+  fall, Newton not converging, a singular chart, where the projection onto the tangent
+  space folds). A chart limit, if reached, is recorded too, so that an atlas never looks
+  complete when it is not.
+* **Pieces.** Seeds that lie in a covered ball belong to that chart's piece; any other
+  seed starts a new piece. Pieces whose charts come to overlap are merged.
+* **Area.** Each chart's share of the manifold's k-volume is estimated by a partition of
+  unity: its ball's volume times the mean, over a fixed pattern of points in the ball,
+  of 1 / (the number of balls holding the point). The shares add up to the covered
+  volume (tested against a sphere's area).
+
+Distances are taken in the coordinates w that the system chooses; the system scales its
+quantities so that a unit means the same everywhere.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+#: Boundary directions of a chart of a 2-dimensional manifold (every 30 deg).
+DIRECTIONS_2D = 12
+#: ... of a 3-dimensional manifold (a Fibonacci lattice on the sphere).
+DIRECTIONS_3D = 32
+#: Points of the fixed pattern in a chart's ball for its area share.
+AREA_SAMPLES = {1: 32, 2: 96, 3: 192}
+#: Largest condition number of the corrector's square Jacobian: beyond it the chart is
+#: singular (the projection of the manifold onto the tangent space folds).
+SINGULAR_CONDITION = 1e10
+#: Charts between two progress reports.
+PROGRESS_CHARTS = 100
+#: A corrector step that leaves more than this fraction of the residual takes a fresh Jacobian.
+CHORD_RATE = 0.25
+#: Corrector iterations (chord steps included) of a step that counts as easy, so that the
+#: next chart may be larger.
+EASY_ITERATIONS = 8
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """F at a point, or why it could not be evaluated there."""
+
+    residual: np.ndarray | None = None
+    failure: str = ""
+
+
+class ManifoldSystem(Protocol):
+    """What the atlas needs of a system of equations F(w) = 0 on a domain."""
+
+    def evaluate(self, w: np.ndarray) -> Evaluation:
+        """F(w), or the reason it cannot be evaluated at ``w``."""
+        ...
+
+    def jacobian(self, w: np.ndarray) -> np.ndarray | str:
+        """dF/dw at ``w`` (rows: equations), or the reason it cannot be evaluated."""
+        ...
+
+    def outside(self, w: np.ndarray) -> str:
+        """Why ``w`` is outside the domain ("" if it is inside)."""
+        ...
+
+    def solved(self, w: np.ndarray, residual: np.ndarray) -> bool:
+        """Whether ``residual`` = F(w) is small enough for ``w`` to be a solution."""
+        ...
+
+
+@dataclass(frozen=True)
+class AtlasSettings:
+    """How the atlas grows.
+
+    Parameters
+    ----------
+    radius : float
+        Radius of a piece's first chart, in the system's coordinates.
+    min_radius, max_radius : float
+        The least radius a step may shrink to before a boundary is recorded, and the
+        largest a chart may grow to.
+    max_charts : int
+        Charts at most; directions still open when it is reached are recorded as
+        boundaries with the reason "chart limit reached".
+    newton_iterations : int
+        Corrector iterations at most.
+    max_turn : float
+        Largest angle [rad] between the tangent spaces of a chart and the chart it grew
+        from; a step that turns more is halved.
+    grow : float
+        Factor by which the radius grows after an easy step (the corrector done in
+        :data:`EASY_ITERATIONS` iterations, the tangent turned by less than a quarter of
+        ``max_turn``).
+    """
+
+    radius: float = 0.2
+    min_radius: float = 0.01
+    max_radius: float = 1.0
+    max_charts: int = 2000
+    newton_iterations: int = 12
+    max_turn: float = math.radians(30)
+    grow: float = 1.3
+
+
+@dataclass(frozen=True)
+class Chart:
+    """One chart: centre ``center``, tangent basis ``tangent`` (columns, orthonormal),
+    ``radius``; ``parent`` is the chart it grew from (None for a piece's first), and
+    ``iterations`` the corrector iterations it took."""
+
+    index: int
+    center: np.ndarray
+    tangent: np.ndarray
+    radius: float
+    jacobian: np.ndarray
+    parent: int | None
+    iterations: int
+
+
+@dataclass(frozen=True)
+class Boundary:
+    """Where the covering stopped: the direction ``direction`` (tangent coordinates) of
+    chart ``chart``, the point it aimed at, and why."""
+
+    chart: int
+    direction: np.ndarray
+    point: np.ndarray
+    reason: str
+
+
+@dataclass(frozen=True)
+class SeedOutcome:
+    """What became of a seed: the chart or piece it gave (None if it failed) and how."""
+
+    seed: int
+    outcome: str  # "new piece", "on a covered piece", "failed", "not taken" (the chart limit was reached)
+    chart: int | None
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class Atlas:
+    """A finished covering."""
+
+    charts: tuple[Chart, ...]
+    neighbours: tuple[tuple[int, ...], ...]
+    pieces: tuple[int, ...]  # piece of each chart, numbered 0, 1, ... by first chart
+    areas: tuple[float, ...]  # each chart's share of the covered k-volume
+    boundaries: tuple[Boundary, ...]
+    seeds: tuple[SeedOutcome, ...]
+    dimension: int
+    complete: bool  # False if the chart limit stopped the covering
+
+    @property
+    def piece_count(self) -> int:
+        return len(set(self.pieces))
+
+    def piece_area(self, piece: int, where: Callable[[int], bool] | None = None) -> float:
+        """Covered k-volume of ``piece``, or of its charts for which ``where(index)``."""
+        return float(sum(a for i, (p, a) in enumerate(zip(self.pieces, self.areas))
+                         if p == piece and (where is None or where(i))))
+
+
+def unit_directions(k: int) -> np.ndarray:
+    """The boundary directions of a chart of a k-dimensional manifold (rows, unit)."""
+    if k == 1:
+        return np.array([[1.0], [-1.0]])
+    if k == 2:
+        angles = 2 * np.pi * np.arange(DIRECTIONS_2D) / DIRECTIONS_2D
+        return np.column_stack([np.cos(angles), np.sin(angles)])
+    if k == 3:
+        return _fibonacci_sphere(DIRECTIONS_3D)
+    raise ValueError(f"the atlas covers manifolds of dimension 1 to 3, not {k}")
+
+
+def _fibonacci_sphere(count: int) -> np.ndarray:
+    i = np.arange(count) + 0.5
+    polar = np.arccos(1 - 2 * i / count)
+    azimuth = np.pi * (1 + 5**0.5) * i
+    return np.column_stack([np.cos(azimuth) * np.sin(polar), np.sin(azimuth) * np.sin(polar), np.cos(polar)])
+
+
+def ball_pattern(k: int) -> np.ndarray:
+    """A fixed, evenly spread set of points in the unit k-ball (rows)."""
+    count = AREA_SAMPLES[k]
+    i = np.arange(count) + 0.5
+    if k == 1:
+        return (2 * i / count - 1)[:, None]
+    if k == 2:  # a sunflower: equal area per point
+        angle = np.pi * (3 - 5**0.5) * i
+        return np.column_stack([np.cos(angle), np.sin(angle)]) * np.sqrt(i / count)[:, None]
+    return _fibonacci_sphere(count) * np.cbrt(i / count)[:, None]
+
+
+def ball_volume(k: int, radius: float) -> float:
+    """Volume of a k-ball of ``radius``."""
+    return math.pi ** (k / 2) / math.gamma(k / 2 + 1) * radius**k
+
+
+def tangent_basis(jacobian: np.ndarray, k: int) -> np.ndarray | None:
+    """An orthonormal basis (columns) of the null space of ``jacobian``, whose rank must
+    be its row count; None if it is less (a singular point)."""
+    _, s, vt = np.linalg.svd(jacobian)
+    rows = jacobian.shape[0]
+    if s.size < rows or s[rows - 1] <= 1e-10 * max(s[0], 1e-300):
+        return None
+    return vt[rows : rows + k].T
+
+
+def oriented(tangent: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """``tangent`` rotated within its span to lie as close as possible to ``reference``
+    (orthogonal Procrustes), so that neighbouring charts' directions line up."""
+    u, _, vt = np.linalg.svd(tangent.T @ reference)
+    return tangent @ (u @ vt)
+
+
+def turn_angle(a: np.ndarray, b: np.ndarray) -> float:
+    """Largest principal angle [rad] between the spans of the orthonormal bases a and b."""
+    s = np.linalg.svd(a.T @ b, compute_uv=False)
+    return float(np.arccos(np.clip(s.min(), -1.0, 1.0)))
+
+
+class _Growth:
+    """The atlas while it grows: the one mutable object here, private to :func:`cover`."""
+
+    def __init__(self, system: ManifoldSystem, settings: AtlasSettings, k: int,
+                 progress: Callable[[int, int], None] | None = None):
+        self.system, self.settings, self.k, self.progress = system, settings, k, progress
+        self.directions = unit_directions(k)
+        self.charts: list[Chart] = []
+        self.centers: list[np.ndarray] = []
+        self.open: list[np.ndarray] = []  # per chart: which directions are still open
+        self.neighbours: list[set[int]] = []
+        self.parent_piece: list[int] = []  # union-find over pieces
+        self.piece_of: list[int] = []
+        self.boundaries: list[Boundary] = []
+        self.seeds_taken = 0
+
+    # -- pieces ----------------------------------------------------------------------------
+
+    def root(self, piece: int) -> int:
+        while self.parent_piece[piece] != piece:
+            self.parent_piece[piece] = self.parent_piece[self.parent_piece[piece]]
+            piece = self.parent_piece[piece]
+        return piece
+
+    def merge(self, a: int, b: int) -> None:
+        a, b = self.root(a), self.root(b)
+        if a != b:
+            self.parent_piece[max(a, b)] = min(a, b)
+
+    # -- covering --------------------------------------------------------------------------
+
+    def covering_chart(self, point: np.ndarray, skip: int | None = None) -> int | None:
+        """A chart whose ball holds ``point`` (the first), or None."""
+        if not self.centers:
+            return None
+        distance = np.linalg.norm(np.asarray(self.centers) - point, axis=1)
+        radii = np.array([c.radius for c in self.charts])
+        if skip is not None:
+            distance[skip] = np.inf
+        inside = np.nonzero(distance < radii)[0]
+        return int(inside[0]) if inside.size else None
+
+    def boundary_point(self, chart: Chart, d) -> np.ndarray:
+        return chart.center + chart.radius * chart.tangent @ self.directions[d]
+
+    def add(self, center: np.ndarray, tangent: np.ndarray, jacobian: np.ndarray, radius: float,
+            parent: int | None, iterations: int, piece: int) -> Chart:
+        chart = Chart(len(self.charts), center, tangent, radius, jacobian, parent, iterations)
+        self.charts.append(chart)
+        self.centers.append(center)
+        self.open.append(np.ones(len(self.directions), dtype=bool))
+        self.piece_of.append(piece)
+        distance = np.linalg.norm(np.asarray(self.centers[:-1]) - center, axis=1) if chart.index else np.zeros(0)
+        radii = np.array([c.radius for c in self.charts[:-1]])
+        near = {int(j) for j in np.nonzero(distance < radii + radius)[0]}
+        self.neighbours.append(near)
+        for j in near:
+            self.neighbours[j].add(chart.index)
+            self.merge(self.piece_of[j], piece)
+        for j in (chart.index, *near):
+            self.close_covered(j)
+        return chart
+
+    def close_covered(self, j: int) -> None:
+        """Close the open directions of chart ``j`` whose boundary points its neighbours cover."""
+        chart = self.charts[j]
+        for d in np.nonzero(self.open[j])[0]:
+            point = self.boundary_point(chart, d)
+            for n in self.neighbours[j]:
+                if np.linalg.norm(point - self.centers[n]) < self.charts[n].radius:
+                    self.open[j][d] = False
+                    break
+
+    def grow(self, first: int) -> None:
+        """Grow the piece of chart ``first`` until no direction is open (or the limit)."""
+        queue = [first]
+        position = 0
+        while position < len(queue):
+            c = queue[position]
+            for d in range(len(self.directions)):
+                if not self.open[c][d]:
+                    continue
+                if len(self.charts) >= self.settings.max_charts:
+                    return
+                made = self.step(self.charts[c], d)
+                self.open[c][d] = False
+                if made is not None:
+                    queue.append(made.index)
+                    if self.progress is not None and len(self.charts) % PROGRESS_CHARTS == 0:
+                        self.progress(len(self.charts), self.seeds_taken)
+            position += 1
+
+    def step(self, chart: Chart, d: int) -> Chart | None:
+        """One step from ``chart`` along its direction ``d``: the new chart, or None with
+        a boundary recorded."""
+        s = self.settings
+        h, reason, target = chart.radius, "", chart.center
+        direction = chart.tangent @ self.directions[d]
+        while h >= s.min_radius * (1 - 1e-12):
+            target = chart.center + h * direction
+            reason = self.system.outside(target)
+            if not reason:
+                found = correct(self.system, target, chart.tangent, chart.jacobian, s.newton_iterations)
+                if isinstance(found, str):
+                    reason = found
+                else:
+                    w, jacobian, iterations = found
+                    reason = self.system.outside(w)
+                    tangent = tangent_basis(jacobian, self.k)
+                    if tangent is None:
+                        reason = "singular chart (the equations lose rank)"
+                    elif not reason:
+                        tangent = oriented(tangent, chart.tangent)
+                        turn = turn_angle(tangent, chart.tangent)
+                        if turn <= s.max_turn:
+                            easy = iterations <= EASY_ITERATIONS and turn <= s.max_turn / 4
+                            radius = min(s.max_radius, h * s.grow) if easy else h
+                            return self.add(w, tangent, jacobian, radius, chart.index, iterations,
+                                            self.piece_of[chart.index])
+                        reason = f"the tangent turns by {math.degrees(turn):.0f} deg within the least step"
+            h /= 2
+        self.boundaries.append(Boundary(chart.index, self.directions[d].copy(), target, reason))
+        return None
+
+    def close_at_limit(self) -> bool:
+        """Record every still-open direction as stopped by the chart limit; whether any was."""
+        stopped = False
+        for chart, still in zip(self.charts, self.open):
+            for d in np.nonzero(still)[0]:
+                self.boundaries.append(Boundary(chart.index, self.directions[d].copy(),
+                                                self.boundary_point(chart, d), "chart limit reached"))
+                stopped = True
+            still[:] = False
+        return stopped
+
+
+def correct(system: ManifoldSystem, target: np.ndarray, tangent: np.ndarray, jacobian: np.ndarray,
+            iterations: int) -> tuple[np.ndarray, np.ndarray, int] | str:
+    """Newton on [F(w) = 0, tangent^T (w - target) = 0] from ``target``: (w, dF/dw at w,
+    iterations) or the reason it failed.
+
+    The iterations start with ``jacobian`` (the chart's own, a chord method: a residual
+    costs a fraction of a Jacobian) and take a fresh Jacobian at the iterate whenever the
+    residual falls by less than :data:`CHORD_RATE` in a step; a residual that grows after
+    a fresh Jacobian ends the attempt (Newton diverges). dF/dw is evaluated at the
+    solution, for its tangent space.
+    """
+    w = np.array(target, dtype=float)
+    previous, refreshed = math.inf, False
+    for iteration in range(iterations + 1):
+        evaluation = system.evaluate(w)
+        if evaluation.residual is None:
+            return evaluation.failure or "the equations cannot be evaluated"
+        if system.solved(w, evaluation.residual):
+            final = system.jacobian(w)
+            return final if isinstance(final, str) else (w, final, iteration)
+        if iteration == iterations:
+            break
+        norm = float(np.linalg.norm(evaluation.residual))
+        if refreshed and norm > previous:
+            return "Newton diverged"
+        refreshed = norm > CHORD_RATE * previous
+        if refreshed:
+            fresh = system.jacobian(w)
+            if isinstance(fresh, str):
+                return fresh
+            jacobian = fresh
+        previous = norm
+        square = np.vstack([jacobian, tangent.T])
+        if np.linalg.cond(square) > SINGULAR_CONDITION:
+            return "singular chart (the projection onto the tangent space folds)"
+        w = w - np.linalg.solve(square, np.concatenate([evaluation.residual, tangent.T @ (w - target)]))
+        reason = system.outside(w)
+        if reason:
+            return reason
+    return f"Newton did not converge in {iterations} iterations"
+
+
+def project_seed(system: ManifoldSystem, w: np.ndarray, iterations: int = 20) -> tuple[np.ndarray, np.ndarray] | str:
+    """Gauss-Newton (least-norm steps) from ``w`` onto F = 0: (point, dF/dw) or why not."""
+    w = np.array(w, dtype=float)
+    for _ in range(iterations + 1):
+        evaluation = system.evaluate(w)
+        if evaluation.residual is None:
+            return evaluation.failure or "the equations cannot be evaluated"
+        jacobian = system.jacobian(w)
+        if isinstance(jacobian, str):
+            return jacobian
+        if system.solved(w, evaluation.residual):
+            return w, jacobian
+        w = w - np.linalg.lstsq(jacobian, evaluation.residual, rcond=None)[0]
+    return f"the seed did not converge in {iterations} iterations"
+
+
+def cover(system: ManifoldSystem, seeds: Iterable[np.ndarray | None], k: int,
+          settings: AtlasSettings = AtlasSettings(), progress: Callable[[int, int], None] | None = None) -> Atlas:
+    """Cover the solution set of ``system`` (of dimension ``k``) from ``seeds``.
+
+    Parameters
+    ----------
+    system : ManifoldSystem
+        The equations and their domain.
+    seeds : iterable of arrays or None
+        Starting points, in turn; each is projected onto F = 0 first. A seed that lies in
+        a chart's ball joins that chart's piece; any other starts a new piece, which is
+        covered before the next seed is taken. None stands for a seed that could not be
+        made (its failure is counted).
+    k : int
+        Dimension of the manifold, 1 to 3.
+    settings : AtlasSettings
+        Radii, limits and tolerances.
+    progress : callable, optional
+        Called as ``progress(charts, seeds taken)`` after each seed and every
+        :data:`PROGRESS_CHARTS` charts.
+
+    Returns
+    -------
+    Atlas
+    """
+    growth = _Growth(system, settings, k, progress=progress)
+    outcomes = []
+    for number, seed in enumerate(seeds):
+        growth.seeds_taken = number
+        outcomes.append(_take_seed(growth, number, seed))
+        if progress is not None:
+            progress(len(growth.charts), number + 1)
+    complete = not growth.close_at_limit()
+    roots = [growth.root(p) for p in growth.piece_of]
+    numbering = {root: n for n, root in enumerate(dict.fromkeys(roots))}
+    return Atlas(
+        charts=tuple(growth.charts),
+        neighbours=tuple(tuple(sorted(n)) for n in growth.neighbours),
+        pieces=tuple(numbering[r] for r in roots),
+        areas=tuple(chart_areas(growth.charts, growth.neighbours, k, system.outside)),
+        boundaries=tuple(growth.boundaries),
+        seeds=tuple(outcomes),
+        dimension=k,
+        complete=complete,
+    )
+
+
+def _take_seed(growth: _Growth, number: int, seed: np.ndarray | None) -> SeedOutcome:
+    if seed is None:
+        return SeedOutcome(number, "failed", None, "no starting solution")
+    projected = project_seed(growth.system, seed)
+    if isinstance(projected, str):
+        return SeedOutcome(number, "failed", None, projected)
+    w, jacobian = projected
+    covering = growth.covering_chart(w)
+    if covering is not None:
+        return SeedOutcome(number, "on a covered piece", covering)
+    if len(growth.charts) >= growth.settings.max_charts:
+        return SeedOutcome(number, "not taken", None, "chart limit reached")
+    reason = growth.system.outside(w)
+    tangent = tangent_basis(jacobian, growth.k)
+    if reason or tangent is None:
+        return SeedOutcome(number, "failed", None, reason or "singular point")
+    piece = len(growth.parent_piece)
+    growth.parent_piece.append(piece)
+    chart = growth.add(w, tangent, jacobian, growth.settings.radius, None, 0, piece)
+    growth.grow(chart.index)
+    return SeedOutcome(number, "new piece", chart.index)
+
+
+def chart_areas(charts: Sequence[Chart], neighbours: Sequence[set[int]], k: int,
+                outside: Callable[[np.ndarray], str] | None = None) -> list[float]:
+    """Each chart's share of the covered k-volume, by a partition of unity over a fixed
+    pattern of points in its ball (see the module docstring); points ``outside`` the
+    domain count for nothing, so that balls reaching past a boundary add no area."""
+    pattern = ball_pattern(k)
+    areas = []
+    for chart in charts:
+        points = chart.center + chart.radius * pattern @ chart.tangent.T
+        count = np.ones(len(points))
+        for n in neighbours[chart.index]:
+            # Measured in the neighbour's tangent coordinates: a point of this chart's
+            # tangent plane lies off the manifold by about R^2 / 2, which a plain distance
+            # would count against it (and so overstate the area by a few per cent).
+            offset = points - charts[n].center
+            count += np.linalg.norm(offset @ charts[n].tangent, axis=1) < charts[n].radius
+        inside = np.ones(len(points)) if outside is None else np.array([not outside(q) for q in points], dtype=float)
+        areas.append(ball_volume(k, chart.radius) * float(np.mean(inside / count)))
+    return areas

@@ -1,0 +1,158 @@
+"""The fixed points of a problem as a manifold for the atlas, and what each chart says.
+
+With the problem's fixed quantities held, the fixed points solve F(v) = r(X, u) - X = 0
+(and apex energy = its fixed value, if it is held) in the free design quantities v. The
+atlas (:mod:`baslip.analysis.atlas`) covers that set; this module gives it
+
+* **coordinates** w in which a unit means about the same everywhere: v / nominal for most
+  quantities, and asinh(v / nominal) for the gains Kp and Kd, whose meaningful values
+  span four decades (0.01 to 100 N m/rad); a uniform metric in the gains would spend
+  nearly every chart on large gains;
+* **the equations** on the compiled return map (error estimate <= 1e-12), with their AD
+  Jacobian, and a point solved when eps <= 1e-12;
+* **the domain**: the problem's bounds (inside the physical ones), and apexes from which
+  the runner can take a stride at all;
+* **what a chart says** (:func:`chart_report`): its multipliers and spectral radius, the
+  trunk's angle range over the stride, and the independent re-simulation's eps.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from baslip.analysis.atlas import Evaluation
+from baslip.engine.outcome import precheck
+from baslip.engine.returnmap import ReturnMap, RunnerFell, param_vector
+from baslip.engine.trajectory import TrunkRange
+from baslip.gait.polish import POLISH_EPS, Polish, eps
+from baslip.gait.shooting import FixedPointSpec
+from baslip.gait.stability import classify
+from baslip.model.dynamics import APEX
+from baslip.model.quantities import DESIGN, NOMINAL
+
+#: Quantities charted in asinh(value / nominal) rather than value / nominal.
+LOGARITHMIC = ("Kp", "Kd")
+
+
+class GaitManifold:
+    """The fixed points of ``spec`` (one-stride gaits) in atlas coordinates.
+
+    Parameters
+    ----------
+    spec : FixedPointSpec
+        The problem: its fixed quantities are held, its bounds are the domain.
+    residual_map, jacobian_map : ReturnMap
+        The maps of the equations and of their Jacobian (the solver's compiled maps).
+    """
+
+    def __init__(self, spec: FixedPointSpec, residual_map: ReturnMap, jacobian_map: ReturnMap):
+        if spec.strides != 1:
+            raise ValueError("the atlas covers one-stride gaits")
+        self.spec = spec
+        self.polish = Polish(residual_map, jacobian_map)
+        self.residual_map, self.jacobian_map = residual_map, jacobian_map
+        self.free = np.array([i for i, name in enumerate(DESIGN) if name not in spec.fixed], dtype=int)
+        self.names = tuple(DESIGN[i] for i in self.free)
+        self.nominal = np.array([NOMINAL[name] for name in self.names])
+        self.logarithmic = np.array([name in LOGARITHMIC for name in self.names])
+        self.template = np.array([spec.fixed.get(name, 0.0) for name in DESIGN], dtype=float)
+        self.energy = spec.fixed.get("energy")
+        bounds = np.array([spec.bounds_of(name) for name in self.names]).T / self.nominal
+        self.atlas_bounds = np.where(self.logarithmic, np.arcsinh(bounds), bounds)
+        self.p = param_vector(spec.params)
+
+    @property
+    def dimension(self) -> int:
+        """Dimension of the fixed-point set where the equations have full rank."""
+        return len(self.free) - APEX.size - (self.energy is not None)
+
+    # -- coordinates -----------------------------------------------------------------------
+
+    def to_design(self, w: np.ndarray) -> np.ndarray:
+        """The nine design quantities (X, u) [SI, rad] at atlas point ``w``."""
+        scaled = np.where(self.logarithmic, np.sinh(w), w)
+        design = self.template.copy()
+        design[self.free] = scaled * self.nominal
+        return design
+
+    def to_atlas(self, design: np.ndarray) -> np.ndarray:
+        """The atlas point of the design quantities ``design``."""
+        scaled = np.asarray(design, dtype=float)[self.free] / self.nominal
+        return np.where(self.logarithmic, np.arcsinh(scaled), scaled)
+
+    def _design_per_atlas(self, w: np.ndarray) -> np.ndarray:
+        """d(free design quantities) / dw, a diagonal, as a vector."""
+        return self.nominal * np.where(self.logarithmic, np.cosh(w), 1.0)
+
+    # -- the ManifoldSystem interface ----------------------------------------------------
+
+    def evaluate(self, w: np.ndarray) -> Evaluation:
+        """F(w) = r(X, u) - X (and the energy row), or why not (a fall)."""
+        design = self.to_design(w)
+        X, u = design[: APEX.size], design[APEX.size :]
+        stride = self.residual_map.stride(X, u, self.spec.params)
+        if not stride.ok:
+            return Evaluation(failure=f"a fall: {stride.fall.value if stride.fall else 'no next apex'}")
+        rows = [stride.apex - X]
+        if self.energy is not None:
+            rows.append([self.polish.energy(X, self.spec.params) - self.energy])
+        return Evaluation(np.concatenate(rows))
+
+    def jacobian(self, w: np.ndarray) -> np.ndarray | str:
+        """dF/dw from the AD Jacobian of the compiled stride, or why not (a fall)."""
+        design = self.to_design(w)
+        try:
+            jacobian = self.polish.equations_jacobian(self.spec, design[: APEX.size], design[APEX.size :], self.energy)
+        except RunnerFell as err:
+            return f"a fall: {err}"
+        return jacobian[:, self.free] * self._design_per_atlas(w)
+
+    def outside(self, w: np.ndarray) -> str:
+        """Which bound ``w`` leaves, or which stride it cannot start ("" if neither)."""
+        # In atlas coordinates (a monotonic map of each quantity), so that a wild Newton
+        # iterate is refused before sinh of it could overflow.
+        for name, value, lo, hi in zip(self.names, w, *self.atlas_bounds):
+            if not lo <= value <= hi:
+                return f"leaves the bounds of {name}"
+        design = self.to_design(w)
+        fallen, _ = precheck(design[: APEX.size], design[APEX.size :], self.p)
+        return f"a fall: {fallen.fall.value}" if fallen is not None and fallen.fall is not None else ""
+
+    def solved(self, w: np.ndarray, residual: np.ndarray) -> bool:
+        """eps <= 1e-12 on the compiled map (and the energy row as small)."""
+        X = self.to_design(w)[: APEX.size]
+        return eps(X + residual[: APEX.size], X) <= POLISH_EPS and bool(np.all(np.abs(residual[APEX.size :]) <= POLISH_EPS))
+
+
+@dataclass(frozen=True)
+class ChartReport:
+    """What one chart's centre is: the gait (X, u), its multipliers and spectral radius,
+    the trunk's range over the stride [rad], and eps of the independent re-simulation."""
+
+    X: np.ndarray
+    u: np.ndarray
+    multipliers: tuple[complex, ...]
+    spectral_radius: float
+    stable: bool
+    theta_h_min: float
+    theta_h_max: float
+    residual: float
+
+
+def chart_report(manifold: GaitManifold, w: np.ndarray, jacobian_map: ReturnMap, verify_map: ReturnMap,
+                 trunk_range: TrunkRange) -> ChartReport:
+    """The report of the chart centred at ``w``: multipliers from the AD Jacobian of the
+    compiled map, the trunk's range from a sampled stride, and eps from ``verify_map``
+    (the independent, tight-tolerance re-simulation)."""
+    design = manifold.to_design(w)
+    X, u = design[: APEX.size], design[APEX.size :]
+    dr_dX, _ = jacobian_map.jacobians(X, u, manifold.spec.params)
+    stability = classify(dr_dX, manifold.spec.params, u)
+    low, high = trunk_range(X, u, manifold.spec.params)
+    check = verify_map.stride(X, u, manifold.spec.params)
+    residual = eps(check.apex, X) if check.ok else math.inf
+    return ChartReport(X, u, tuple(m.value for m in stability.multipliers), stability.spectral_radius,
+                       bool(stability.stable), low, high, residual)

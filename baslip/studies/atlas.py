@@ -1,0 +1,166 @@
+"""The ``atlas`` study: the whole manifold of fixed points at every cell of a grid, covered.
+
+Each task is one cell (a point of ``vary``, usually a speed and a height). Its worker
+
+1. solves ``seeds`` independent gaits with the gains drawn over their whole bounds (as the
+   optimal search draws them), each verified;
+2. covers the fixed-point manifold from them (:func:`baslip.analysis.atlas.cover` on
+   :class:`baslip.analysis.gaitatlas.GaitManifold`): a seed on a covered piece joins it,
+   any other starts a new piece;
+3. reports every chart (:func:`baslip.analysis.gaitatlas.chart_report`): multipliers,
+   spectral radius, the trunk's range over the stride, and the independent re-simulation's
+   eps (charts it does not confirm to eps <= 1e-10 are marked ``not_verified`` and take no
+   part in the answers);
+4. polishes the least-radius chart (over all charts, and over those upright throughout the
+   stride) with the stability descent, and verifies where it ends.
+
+Files: ``cells.csv`` (one row per cell: pieces, seeds, charts, least radii, stable share),
+``atlas.csv`` (one row per chart), ``atlas_boundary.csv`` (where the covering stopped, and
+why) and ``atlas.png``. The charts of a finished cell are kept, until the study is
+complete, in ``.cells.csv.charts`` (one JSON line per cell, synced before the cell's row),
+so that a resumed study rebuilds the same ``atlas.csv``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import time
+from pathlib import Path
+
+from baslip.files.atomic import write_files_atomically
+from baslip.files.rows import read_points
+from baslip.model.quantities import DESIGN
+from baslip.problem.reader import Problem
+from baslip.problem.study import Atlas
+from baslip.studies.common import run_info
+from baslip.studies.optimal import UPRIGHT_AT_APEX, UPRIGHT_THROUGHOUT
+from baslip.studies.runner import ResumableCsv, StateLog, Workers, format_value, run_tasks, split_lanes
+from baslip.studies.sweep import key_column, sweep_tasks
+from baslip.viz.atlasmap import atlas_figure
+
+#: Columns of atlas.csv after the cell's own (one row per chart).
+CHART_COLUMNS = [
+    "chart", "piece", *DESIGN, "spectral_radius", "stable", "status", "residual", "theta_h_min", "theta_h_max",
+    "upright_apex", "upright_throughout", "radius", "area", "neighbours",
+]
+#: Columns of atlas_boundary.csv after the cell's own.
+BOUNDARY_COLUMNS = ["chart", "piece", "reason", *DESIGN]
+#: Columns of cells.csv after the cell's own.
+CELL_COLUMNS = [
+    "seeds", "seeds_failed", "seeds_on_covered_pieces", "seeds_not_taken", "pieces", "charts", "not_verified", "complete", "boundaries",
+    "least_radius", "least_radius_upright_apex", "least_radius_upright_throughout", "stable_share",
+    "polished_radius", "polished_upright_throughout_radius", "time_s",
+]
+
+
+def atlas_worker(chunk: list[dict], context: tuple[Problem, bool], queue) -> None:
+    """Worker process: cover the manifold of each cell not yet done and put its row, with
+    its charts and boundaries (``chart_rows``, ``boundary_rows``), on the queue.
+    ``context`` is the problem and whether to be quiet (else a cell's progress is printed
+    on stderr every :data:`~baslip.studies.atlascell.PROGRESS_EVERY_S` seconds)."""
+    from baslip.studies.atlascell import CellAtlas
+
+    problem, quiet = context
+    study = problem.study
+    assert isinstance(study, Atlas)
+    try:
+        cells = CellAtlas(problem, study, quiet)
+        for task in chunk:
+            if task.get("done"):
+                continue
+            started = time.perf_counter()
+            row = cells.run(task)
+            queue.put({**row, "time_s": time.perf_counter() - started})
+    finally:
+        queue.put(None)
+
+
+class AtlasTable(ResumableCsv):
+    """``cells.csv``, whose rows bring their cell's charts and boundaries along: those are
+    kept in a synced log beside it until the study is complete, then written out as
+    ``atlas.csv`` and ``atlas_boundary.csv`` in task order."""
+
+    def __init__(self, path: Path, columns: list[str], key_columns: list[str]):
+        super().__init__(path, columns, key_columns)
+        self.charts = StateLog(self.path.with_name(f".{self.path.name}.charts"))
+        self.cell_columns = key_columns
+
+    def append(self, row: dict) -> None:
+        self.charts.append(self.key(row), {"charts": row["chart_rows"], "boundaries": row["boundary_rows"]})
+        super().append(row)
+
+    def finish(self, order) -> None:
+        super().finish(order)
+        logged = self.charts.read()
+        keys = [self.key(task) for task in order]
+        if not all(key in logged for key in keys):
+            return  # a rerun of a finished study: atlas.csv is already written
+        cells = {key: dict(zip(self.cell_columns, key)) for key in keys}
+        write_files_atomically({
+            self.path.with_name("atlas.csv"): _table(self.cell_columns + CHART_COLUMNS,
+                                                     [{**cells[k], **c} for k in keys for c in logged[k]["charts"]]),
+            self.path.with_name("atlas_boundary.csv"): _table(
+                self.cell_columns + BOUNDARY_COLUMNS, [{**cells[k], **b} for k in keys for b in logged[k]["boundaries"]]),
+        })
+        self.charts.clear()
+
+
+def _table(columns: list[str], rows: list[dict]) -> str:
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(columns)
+    writer.writerows([[format_value(row.get(c, "")) for c in columns] for row in rows])
+    return buffer.getvalue()
+
+
+def run_atlas(problem: Problem, study: Atlas, out_dir: Path, sources: Path, quiet: bool, lanes: int,
+              workers: Workers) -> dict:
+    """Cover the gait manifold at every cell; the answers of each, and over all cells."""
+    names = [a.name for a in study.axes]
+    keys = [key_column(n) for n in names]
+    table = AtlasTable(out_dir / "cells.csv", keys + CELL_COLUMNS, keys)
+    report = run_tasks(split_lanes(sweep_tasks(study), lanes), atlas_worker, (problem, quiet), table, problem.name,
+                       quiet=quiet, workers=workers)
+    cells = read_points(out_dir / "cells.csv")
+    summary = {**run_info(report), "swept": names, "cells": _cell_summaries(cells, names)}
+    if report.complete:
+        charts = read_points(out_dir / "atlas.csv")
+        atlas_figure(charts, names, study.plot, out_dir, problem.name)
+        summary.update(_totals(cells, charts))
+    return summary
+
+
+def _cell_summaries(cells: list[dict], names: list[str]) -> list[dict]:
+    fields = ("pieces", "seeds", "seeds_failed", "charts", "complete", "least_radius", "least_radius_upright_apex",
+              "least_radius_upright_throughout", "stable_share", "polished_radius", "polished_upright_throughout_radius",
+              "time_s")
+    return [{**{n: c[key_column(n)] for n in names}, **{f: _plain(c[f]) for f in fields}} for c in cells]
+
+
+def _plain(value):
+    """A CSV cell as JSON: whole numbers as ints, empty cells as None."""
+    if value == "":
+        return None
+    if isinstance(value, float) and value.is_integer() and abs(value) < 2**53:
+        return int(value)
+    return value
+
+
+def _totals(cells: list[dict], charts: list[dict]) -> dict:
+    verified = [c for c in charts if c["status"] == "converged"]
+    best = min(verified, key=lambda c: c["spectral_radius"], default=None)
+    upright = [c for c in verified if c["upright_throughout"] is True]
+    best_upright = min(upright, key=lambda c: c["spectral_radius"], default=None)
+    return {
+        "charts": len(charts),
+        "not_verified": len(charts) - len(verified),
+        "pieces": int(sum(c["pieces"] for c in cells)),
+        "all_cells_complete": all(c["complete"] is True for c in cells),
+        "least_radius": None if best is None else best["spectral_radius"],
+        "least_radius_upright_throughout": None if best_upright is None else best_upright["spectral_radius"],
+        "max_residual": max((c["residual"] for c in verified), default=None),
+        "upright_at_apex_deg": math.degrees(UPRIGHT_AT_APEX),
+        "upright_throughout_deg": math.degrees(UPRIGHT_THROUGHOUT),
+    }

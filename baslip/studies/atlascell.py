@@ -1,0 +1,155 @@
+"""One cell of an atlas study, in a worker: seeds, the covering, the chart reports and the
+polished best gaits (see :mod:`baslip.studies.atlas`)."""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from baslip.analysis.atlas import AtlasSettings, cover
+from baslip.analysis.descent import StabilityDescent, random_start
+from baslip.analysis.gaitatlas import GaitManifold, chart_report
+from baslip.engine.returnmap import ReturnMap, RunnerFell, Tolerances
+from baslip.engine.trajectory import TrunkRange
+from baslip.gait.from_problem import fixed_point_spec, solver_for
+from baslip.model.dynamics import APEX
+from baslip.model.hiplaw import CONTROL
+from baslip.model.quantities import DESIGN
+from baslip.problem.reader import Problem
+from baslip.problem.study import Atlas
+from baslip.status import VERIFY_EPS
+from baslip.studies.optimal import UPRIGHT_AT_APEX, UPRIGHT_THROUGHOUT, task_rng
+from baslip.studies.sweep import key_column
+
+#: Tolerance of the map whose AD Jacobian gives the charts' tangents and multipliers (the
+#: equations themselves are solved on the 1e-12 map): a Jacobian at 1e-10 costs a third
+#: less and moves the multipliers by less than 1e-8.
+JACOBIAN_TOLERANCE = 1e-10
+#: Seconds between two progress lines of a cell.
+PROGRESS_EVERY_S = 15.0
+#: Least chart radius, as a fraction of the study's radius.
+LEAST_RADIUS_FRACTION = 1 / 16
+
+
+class CellAtlas:
+    """The solvers and maps of a worker, built once, and the atlas of one cell at a time."""
+
+    def __init__(self, problem: Problem, study: Atlas, quiet: bool = True):
+        self.problem, self.study, self.quiet = problem, study, quiet
+        self.solver = solver_for(problem)
+        self.jacobian_map = ReturnMap(Tolerances(JACOBIAN_TOLERANCE, JACOBIAN_TOLERANCE))
+        self.trunk_range = TrunkRange(self.jacobian_map)
+        self.descent = StabilityDescent(self.solver.residual_map)
+        self.base = fixed_point_spec(problem)
+        self.settings = AtlasSettings(radius=study.radius, max_radius=study.max_radius,
+                                      min_radius=study.radius * LEAST_RADIUS_FRACTION, max_charts=study.max_charts)
+
+    def run(self, task: dict) -> dict:
+        """The cells.csv row of ``task``, with ``charts`` and ``boundaries`` (row lists)."""
+        held = {a.name: task[key_column(a.name)] for a in self.study.axes}
+        spec = replace(self.base, fixed={**self.base.fixed, **held})
+        manifold = GaitManifold(spec, self.solver.residual_map, self.jacobian_map)
+        rng = task_rng(self.study, {**task, "start": 0})
+        seeds = [self._seed(spec, manifold, rng if number else None) for number in range(self.study.seeds)]
+        atlas = cover(manifold, seeds, manifold.dimension, self.settings, self._progress(held))
+        reports = [chart_report(manifold, c.center, self.jacobian_map, self.solver.verify_map, self.trunk_range)
+                   for c in atlas.charts]
+        charts = chart_rows(atlas, reports)
+        row = {k: v for k, v in task.items() if k.startswith("sweep_")}
+        row.update(_cell_counts(atlas, charts))
+        row["polished_radius"] = self._polished(spec, charts, lambda c: True)
+        row["polished_upright_throughout_radius"] = self._polished(spec, charts, lambda c: c["upright_throughout"])
+        return {**row, "chart_rows": charts, "boundary_rows": boundary_rows(atlas, manifold)}
+
+    def _progress(self, held: dict):
+        """A progress callback for :func:`cover` that prints at most every
+        :data:`PROGRESS_EVERY_S` seconds (None if quiet)."""
+        if self.quiet:
+            return None
+        cell = ", ".join(f"{n} = {v:g}" for n, v in held.items())
+        last = [time.monotonic()]
+
+        def show(charts: int, seeds: int) -> None:
+            if time.monotonic() - last[0] >= PROGRESS_EVERY_S:
+                last[0] = time.monotonic()
+                print(f"{self.problem.name}: cell {cell}: {charts} charts, seed {seeds + 1} of {self.study.seeds}",
+                      file=sys.stderr, flush=True)
+
+        return show
+
+    def _seed(self, spec, manifold: GaitManifold, rng) -> np.ndarray | None:
+        """An independent, verified gait in atlas coordinates (None if the solve failed):
+        the problem's own from its guess (without ``rng``), or one with the gains drawn
+        over their bounds and held while it is solved."""
+        held = {} if rng is None else random_start(spec, rng)
+        result = self.solver.solve(replace(spec, fixed={**spec.fixed, **held}))
+        if not result.converged:
+            return None
+        return manifold.to_atlas(np.concatenate([result.X, result.u]))
+
+    def _polished(self, spec, charts: list[dict], where) -> float | None:
+        """The radius where the descent from the least-radius chart (of those ``where``
+        accepts) ends, verified; None if there is no such chart or no verified end."""
+        candidates = [c for c in charts if c["status"] == "converged" and where(c)]
+        if not candidates:
+            return None
+        best = min(candidates, key=lambda c: c["spectral_radius"])
+        X = np.array([best[n] for n in APEX.names])
+        u = np.array([best[n] for n in CONTROL.names])
+        try:
+            found = self.descent.run(spec, X, u)
+        except RunnerFell:
+            return None
+        end = self.solver.verify_point(spec, found.best.X, found.best.u, self.problem.name)
+        return end.spectral_radius if end.converged else None
+
+
+def _cell_counts(atlas, charts: list[dict]) -> dict:
+    verified = [c for c in charts if c["status"] == "converged"]
+    total = sum(c["area"] for c in verified)
+    stable = sum(c["area"] for c in verified if c["stable"])
+
+    def least(where=lambda c: True):
+        radii = [c["spectral_radius"] for c in verified if where(c)]
+        return min(radii) if radii else None
+
+    return {
+        "seeds": len(atlas.seeds),
+        "seeds_failed": sum(s.outcome == "failed" for s in atlas.seeds),
+        "seeds_on_covered_pieces": sum(s.outcome == "on a covered piece" for s in atlas.seeds),
+        "seeds_not_taken": sum(s.outcome == "not taken" for s in atlas.seeds),
+        "pieces": atlas.piece_count, "charts": len(charts), "not_verified": len(charts) - len(verified),
+        "complete": atlas.complete, "boundaries": len(atlas.boundaries),
+        "least_radius": least(), "least_radius_upright_apex": least(lambda c: c["upright_apex"]),
+        "least_radius_upright_throughout": least(lambda c: c["upright_throughout"]),
+        "stable_share": stable / total if total > 0 else None,
+    }
+
+
+def chart_rows(atlas, reports) -> list[dict]:
+    """The atlas.csv rows of a cell's charts (without the cell's columns)."""
+    upright = math.pi / 2
+    rows = []
+    for chart, report, piece, area, near in zip(atlas.charts, reports, atlas.pieces, atlas.areas, atlas.neighbours):
+        rows.append({
+            "chart": chart.index, "piece": piece,
+            **dict(zip(APEX.names, map(float, report.X))), **dict(zip(CONTROL.names, map(float, report.u))),
+            "spectral_radius": report.spectral_radius, "stable": report.stable,
+            "status": "converged" if report.residual <= VERIFY_EPS else "not_verified",
+            "residual": report.residual, "theta_h_min": report.theta_h_min, "theta_h_max": report.theta_h_max,
+            "upright_apex": bool(abs(report.X[APEX.index("theta_h")] - upright) <= UPRIGHT_AT_APEX),
+            "upright_throughout": bool(max(abs(report.theta_h_min - upright), abs(report.theta_h_max - upright))
+                                       <= UPRIGHT_THROUGHOUT),
+            "radius": chart.radius, "area": area, "neighbours": ";".join(map(str, near)),
+        })
+    return rows
+
+
+def boundary_rows(atlas, manifold: GaitManifold) -> list[dict]:
+    """The atlas_boundary.csv rows of a cell (without the cell's columns)."""
+    return [{"chart": b.chart, "piece": atlas.pieces[b.chart], "reason": b.reason,
+             **dict(zip(DESIGN, map(float, manifold.to_design(b.point))))} for b in atlas.boundaries]

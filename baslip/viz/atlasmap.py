@@ -1,0 +1,75 @@
+"""The figure of an atlas study: its charts in two chosen quantities, coloured by the
+spectral radius on a log scale, with the stability boundary (radius 1), the stable part
+shaded and the most stable chart marked; one panel per cell."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from matplotlib.colors import LogNorm
+from matplotlib.tri import Triangulation
+
+from baslip.viz.figures import LABELS, _in, _save, plt, shown
+
+
+def atlas_figure(charts: list[dict], names: list[str], plot: tuple[str, str], out_dir: Path | None,
+                 title: str) -> Path | None:
+    """``atlas.png``: a panel per cell (the values of ``names``) of its verified charts.
+
+    Parameters
+    ----------
+    charts : list of dict
+        atlas.csv rows (numbers as floats).
+    names : list of str
+        The swept quantities that name a cell.
+    plot : (str, str)
+        The two quantities on the axes (angles shown in degrees).
+    out_dir : Path or None
+        Where to write the figure (None: lay it out and leave it open).
+    title : str
+        The problem's name, for the figure's title.
+    """
+    cells = sorted({tuple(c[f"sweep_{n}"] for n in names) for c in charts})
+    columns = min(3, max(len(cells), 1))
+    rows_count = max(1, math.ceil(len(cells) / columns))
+    fig, axes = plt.subplots(rows_count, columns, figsize=(4.6 * columns + 1.2, 3.9 * rows_count + 0.6),
+                             squeeze=False, layout="constrained")
+    radii = np.array([c["spectral_radius"] for c in charts if c["status"] == "converged"], dtype=float)
+    span = max(float(np.abs(np.log10(radii)).max()), math.log10(2.0)) if radii.size else 1.0
+    norm = LogNorm(vmin=10**-span, vmax=10**span)  # symmetric about 1: white is the stability boundary
+    image = None
+    for ax, cell in zip(axes.flat, cells):
+        mine = [c for c in charts if tuple(c[f"sweep_{n}"] for n in names) == cell and c["status"] == "converged"]
+        image = _panel(ax, mine, plot, norm) or image
+        ax.set_title(", ".join(f"{n} = {v:g}" for n, v in zip(names, cell)) + f": {len(mine)} charts", fontsize=9)
+    for ax in list(axes.flat)[len(cells):]:
+        ax.set_visible(False)
+    if image is not None:
+        fig.colorbar(image, ax=axes, label=LABELS["spectral_radius"] + " (log scale)")
+    fig.suptitle(f"{title}: atlas of the fixed points, coloured by spectral radius; stable part shaded, "
+                 "radius 1 drawn, star = most stable", fontsize=10)
+    return _save(fig, _in(out_dir, "atlas.png"), tight=False)
+
+
+def _panel(ax, charts: list[dict], plot: tuple[str, str], norm):
+    if not charts:
+        ax.text(0.5, 0.5, "no verified chart", ha="center", va="center", transform=ax.transAxes)
+        return None
+    x = shown(plot[0], [c[plot[0]] for c in charts])
+    y = shown(plot[1], [c[plot[1]] for c in charts])
+    radius = np.array([c["spectral_radius"] for c in charts], dtype=float)
+    if len(charts) >= 3 and np.ptp(x) > 0 and np.ptp(y) > 0:
+        mesh = Triangulation(x, y)
+        level = np.log10(radius)
+        if level.min() < 0 < level.max():
+            ax.tricontourf(mesh, level, levels=[level.min() - 1, 0.0], colors=["#9ecae1"], alpha=0.5)
+            ax.tricontour(mesh, level, levels=[0.0], colors="k", linewidths=0.8)
+    image = ax.scatter(x, y, c=radius, s=6, cmap="coolwarm", norm=norm, linewidths=0)
+    best = int(np.argmin(radius))
+    ax.plot(x[best], y[best], "*", ms=13, mfc="gold", mec="k", label=f"least radius {radius[best]:.3g}")
+    ax.legend(fontsize=7, loc="best")
+    ax.set_xlabel(LABELS.get(plot[0], plot[0]))
+    ax.set_ylabel(LABELS.get(plot[1], plot[1]))
+    return image

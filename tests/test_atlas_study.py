@@ -1,0 +1,167 @@
+"""Specification of the ``atlas`` study (:mod:`baslip.studies.atlas`) and of the gait
+manifold it covers (:mod:`baslip.analysis.gaitatlas`):
+
+* the atlas coordinates map back and forth exactly, and the equations' Jacobian in them
+  agrees with central differences of the residual;
+* every chart in atlas.csv is a fixed point: the compiled map gives eps <= 1e-12 and the
+  independent re-simulation the eps in its ``residual`` column (<= 1e-10 for a verified one);
+* neighbours are mutual, every boundary has a reason, and cells.csv counts what atlas.csv
+  and atlas_boundary.csv hold;
+* a study killed after its first cell and run again writes the same atlas.csv.
+"""
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from baslip.analysis.gaitatlas import GaitManifold
+from baslip.engine.returnmap import ReturnMap, Tolerances
+from baslip.errors import ProblemError
+from baslip.gait.from_problem import fixed_point_spec, solve_problem, solver_for
+from baslip.gait.polish import eps
+from baslip.model.dynamics import APEX
+from baslip.model.quantities import DESIGN
+from baslip.problem.reader import load_problem, parse_problem
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def small_atlas(tmp_path: Path) -> Path:
+    """Two hanging-trunk cells, two seeds each, at most 25 charts a cell."""
+    data = yaml.safe_load((ROOT / "problems" / "atlas_downward.yaml").read_text())
+    data["name"] = "atlas_small"
+    data["study"].update(vary={"ydot": [0.5, 0.5, 0.1], "z": [0.4, 0.45, 0.05]}, seeds=2, max_charts=25)
+    path = tmp_path / "atlas_small.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def run(problem: Path, out: Path) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "baslip.solve", str(problem), "--out", str(out), "--quiet",
+                             "--jobs", "1"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("atlas")
+    problem = small_atlas(folder)
+    process = run(problem, folder / "out")
+    _, err = process.communicate(timeout=1800)
+    assert process.returncode == 0, err
+    return problem, folder / "out"
+
+
+def table(path: Path) -> list[dict]:
+    with open(path, newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def test_atlas_coordinates_round_trip_and_the_jacobian_matches_differences():
+    problem = load_problem(ROOT / "problems" / "downward.yaml")
+    gait = solve_problem(problem)
+    spec = replace(fixed_point_spec(problem), fixed={"ydot": 0.5, "z": 0.4, "theta2_dot_des": 0.0})
+    rmap = ReturnMap(Tolerances(1e-12, 1e-12))
+    manifold = GaitManifold(spec, rmap, rmap)
+    design = np.concatenate([gait.X, gait.u])
+    design[DESIGN.index("theta2_dot_des")] = 0.0
+    w = manifold.to_atlas(design)
+    assert manifold.dimension == 2 and len(w) == 6
+    assert np.allclose(manifold.to_design(w), design, rtol=1e-15, atol=1e-15)
+    jacobian = manifold.jacobian(w)
+    h = 1e-6
+    for i in range(len(w)):
+        step = np.eye(len(w))[i] * h
+        difference = (manifold.evaluate(w + step).residual - manifold.evaluate(w - step).residual) / (2 * h)
+        assert np.allclose(jacobian[:, i], difference, rtol=1e-4, atol=1e-6)
+
+
+def test_every_chart_is_a_fixed_point_verified_independently(finished):
+    problem_path, out = finished
+    problem = load_problem(problem_path)
+    charts = table(out / "atlas.csv")
+    assert len(charts) >= 30
+    compiled = ReturnMap(Tolerances(1e-12, 1e-12))
+    independent = solver_for(problem).verify_map
+    for row in charts[::5]:
+        X = np.array([float(row[n]) for n in APEX.names])
+        u = np.array([float(row[n]) for n in DESIGN[APEX.size:]])
+        assert eps(compiled.stride(X, u, problem.params).apex, X) <= 1e-12
+        check = eps(independent.stride(X, u, problem.params).apex, X)
+        assert check == pytest.approx(float(row["residual"]), rel=1e-6, abs=1e-15)
+        assert (row["status"] == "converged") == (check <= 1e-10)
+        assert float(row["theta_h_min"]) <= X[APEX.index("theta_h")] <= float(row["theta_h_max"])
+
+
+def test_neighbours_are_mutual_boundaries_have_reasons_and_the_counts_agree(finished):
+    _, out = finished
+    charts, boundaries, cells = table(out / "atlas.csv"), table(out / "atlas_boundary.csv"), table(out / "cells.csv")
+    assert len(cells) == 2
+    for cell in cells:
+        mine = [c for c in charts if c["sweep_z"] == cell["sweep_z"]]
+        edges = [b for b in boundaries if b["sweep_z"] == cell["sweep_z"]]
+        assert int(float(cell["charts"])) == len(mine) <= 25
+        assert int(float(cell["boundaries"])) == len(edges) and all(b["reason"] for b in edges)
+        assert int(float(cell["pieces"])) == len({c["piece"] for c in mine})
+        near = {c["chart"]: set(filter(None, c["neighbours"].split(";"))) for c in mine}
+        assert all(c in near[n] for c, ns in near.items() for n in ns)
+        radii = [float(c["spectral_radius"]) for c in mine if c["status"] == "converged"]
+        assert float(cell["least_radius"]) == min(radii)
+        if cell["polished_radius"]:  # the descent from the best chart never ends above it
+            assert float(cell["polished_radius"]) <= float(cell["least_radius"]) * (1 + 1e-9)
+    record = json.loads((out / "result.json").read_text())
+    assert record["complete"] and record["charts"] == len(charts) and (out / "atlas.png").exists()
+    assert not (out / ".cells.csv.charts").exists()  # the charts log is gone once atlas.csv is written
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc"), reason="kills a run")
+def test_a_run_killed_after_its_first_cell_resumes_to_the_same_atlas(finished, tmp_path):
+    problem, reference = finished
+    out = tmp_path / "killed"
+    process = run(problem, out)
+    deadline = time.monotonic() + 1200
+    while time.monotonic() < deadline and process.poll() is None:
+        if (out / "cells.csv").exists() and len((out / "cells.csv").read_text().splitlines()) >= 2:
+            break
+        time.sleep(0.05)
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    assert not (out / "atlas.csv").exists()  # killed between the cells
+    again = run(problem, out)
+    _, err = again.communicate(timeout=1800)
+    assert again.returncode == 0, err
+    strip = lambda rows: [{k: v for k, v in r.items() if k != "time_s"} for r in rows]  # noqa: E731
+    assert table(out / "atlas.csv") == table(reference / "atlas.csv")
+    assert strip(table(out / "cells.csv")) == strip(table(reference / "cells.csv"))
+
+
+@pytest.mark.parametrize("change, key", [
+    ({"seeds": 0}, "study.seeds"), ({"radius": 0.0}, "study.radius"), ({"radius": 20.0}, "study.radius"),
+    ({"max_radius": 0.1}, "study.max_radius"), ({"max_charts": 0}, "study.max_charts"),
+    ({"plot": ["Kp"]}, "study.plot"), ({"plot": ["Kp", "speed"]}, "study.plot"), ({"plot": ["Kp", "Kp"]}, "study.plot"),
+    ({"plot": ["Kp", "theta2_dot_des"]}, "study.plot"), ({"plot": ["Kp", "z"]}, "study.plot"),
+])
+def test_bad_atlas_keys_are_refused_naming_the_key(change, key):
+    data = yaml.safe_load((ROOT / "problems" / "atlas_upright.yaml").read_text())
+    data["study"].update(change)
+    with pytest.raises(ProblemError) as error:
+        parse_problem(data)
+    assert getattr(error.value, "key", None) == key
+
+
+def test_an_atlas_of_a_manifold_above_three_dimensions_is_refused():
+    data = yaml.safe_load((ROOT / "problems" / "atlas_upright.yaml").read_text())
+    data["fix"] = {}
+    data["study"]["vary"] = {"z": [0.4, 0.4, 0.1]}
+    with pytest.raises(ProblemError) as error:
+        parse_problem(data)
+    assert error.value.key == "study" and "dimension 4" in error.value.message
