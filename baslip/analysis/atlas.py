@@ -13,7 +13,8 @@ describe for COCO's ``atlas_kd``, simplified where baslip's dimensions (k = 1 to
   balls overlap so much that the sampled boundary leaves no holes on the test manifolds
   (the tests check it on a sphere, a torus and the 3-sphere).
 * A direction is **covered** when its boundary point lies inside another chart's ball.
-  The atlas grows from the charts with uncovered directions, oldest first: a new centre
+  The atlas grows from the charts with uncovered directions, oldest first (or, if the
+  system ranks its points, most interesting first): a new centre
   is predicted at w0 + h T d (h = R) and corrected by Newton's method on
   [F(w) = 0, T^T (w - w_pred) = 0], a square system, starting from the chart's own
   Jacobian (a chord method) and refreshing it where convergence is slow. Where Newton fails, the step turns
@@ -37,6 +38,7 @@ quantities so that a unit means the same everywhere.
 
 from __future__ import annotations
 
+import heapq
 import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
@@ -316,11 +318,13 @@ class _Growth:
                     break
 
     def grow(self, first: int) -> None:
-        """Grow the piece of chart ``first`` until no direction is open (or the limit)."""
-        queue = [first]
-        position = 0
-        while position < len(queue):
-            c = queue[position]
+        """Grow the piece of chart ``first`` until no direction is open (or the limit):
+        from the chart of least priority first, if the system ranks its points (see
+        :func:`cover`), else oldest first."""
+        rank = getattr(self.system, "priority", None)
+        queue = [(rank(self.centers[first]) if rank else 0.0, first)]
+        while queue:
+            _, c = heapq.heappop(queue)
             for d in range(len(self.directions)):
                 if not self.open[c][d]:
                     continue
@@ -329,10 +333,9 @@ class _Growth:
                 made = self.step(self.charts[c], d)
                 self.open[c][d] = False
                 if made is not None:
-                    queue.append(made.index)
+                    heapq.heappush(queue, (rank(made.center) if rank else float(made.index), made.index))
                     if self.progress is not None and len(self.charts) % PROGRESS_CHARTS == 0:
                         self.progress(len(self.charts), self.seeds_taken)
-            position += 1
 
     def step(self, chart: Chart, d: int) -> Chart | None:
         """One step from ``chart`` along its direction ``d``: the new chart, or None with
@@ -443,7 +446,9 @@ def cover(system: ManifoldSystem, seeds: Iterable[np.ndarray | None], k: int,
     Parameters
     ----------
     system : ManifoldSystem
-        The equations and their domain.
+        The equations and their domain. If it has a method ``priority(w)``, each piece
+        grows from its chart of least priority first (best-first), so that a chart limit
+        leaves the most interesting part covered; else oldest first (breadth-first).
     seeds : iterable of arrays or None
         Starting points, in turn; each is projected onto F = 0 first. A seed that lies in
         a chart's ball joins that chart's piece; any other starts a new piece, which is

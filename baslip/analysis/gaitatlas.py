@@ -12,6 +12,8 @@ atlas (:mod:`baslip.analysis.atlas`) covers that set; this module gives it
   Jacobian, and a point solved when eps <= 1e-12;
 * **the domain**: the problem's bounds (inside the physical ones), and apexes from which
   the runner can take a stride at all;
+* **a priority**: the spectral radius, so that the atlas grows from its most stable
+  charts first and a chart limit leaves the most stable part of the family covered;
 * **what a chart says** (:func:`chart_report`): its multipliers and spectral radius, the
   trunk's angle range over the stride, and the independent re-simulation's eps.
 """
@@ -63,6 +65,7 @@ class GaitManifold:
         bounds = np.array([spec.bounds_of(name) for name in self.names]).T / self.nominal
         self.atlas_bounds = np.where(self.logarithmic, np.arcsinh(bounds), bounds)
         self.p = param_vector(spec.params)
+        self._last_jacobian: tuple[bytes, np.ndarray] = (b"", np.zeros((0, 0)))
 
     @property
     def dimension(self) -> int:
@@ -108,7 +111,20 @@ class GaitManifold:
             jacobian = self.polish.equations_jacobian(self.spec, design[: APEX.size], design[APEX.size :], self.energy)
         except RunnerFell as err:
             return f"a fall: {err}"
+        self._last_jacobian = (w.tobytes(), jacobian)
         return jacobian[:, self.free] * self._design_per_atlas(w)
+
+    def priority(self, w: np.ndarray) -> float:
+        """The spectral radius at ``w`` (its non-trivial multipliers): the atlas grows
+        from its most stable charts first. Uses the Jacobian just evaluated at ``w`` (the
+        corrector's last), else evaluates it."""
+        key, jacobian = self._last_jacobian
+        if key != w.tobytes():
+            self.jacobian(w)
+            key, jacobian = self._last_jacobian
+        design = self.to_design(w)
+        dr_dX = jacobian[: APEX.size, : APEX.size] + np.eye(APEX.size)
+        return float(classify(dr_dX, self.spec.params, design[APEX.size :]).spectral_radius)
 
     def outside(self, w: np.ndarray) -> str:
         """Which bound ``w`` leaves, or which stride it cannot start ("" if neither)."""

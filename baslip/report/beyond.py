@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from baslip.report.atlas import atlas_claims
 from baslip.report.evidence import DEG, Evidence, _shown, claim, largest_gain
 from baslip.status import Status
 from baslip.viz.labels import SPECIAL_NAMES
@@ -38,15 +39,17 @@ def upright_section(ev: Evidence) -> list[str]:
             f"upright throughout (within 45 deg of vertical at every instant): {through_text}. Per cell: "
             + ", ".join(f"({p['ydot']:g}, {p['z']:g}): {p['spectral_radius']:.3g}" for p in upright["least_per_point"])
             + "." + hanging_text,
-            "agreed (within the search's limits)" if least["spectral_radius"] >= 1 else "differs: a stable upright gait exists",
+            "agreed, by this local search only" if least["spectral_radius"] >= 1 else "differs: a stable upright gait exists",
             "The search minimises a smooth bound of the spectral radius on the manifold of fixed points (gradient from "
             "AD second derivatives of the stride), from many starts, then polishes the radius itself by a compass "
-            "search. It is local: a narrow valley between starts can be missed, and gains beyond the bounds were not "
-            "searched. Within them, the least radius stays above 1 in every cell, while the hanging trunk reaches "
-            "0.5-0.9.",
+            "search. It is local: a valley between starts can be missed, and gains beyond the bounds were not "
+            "searched. Among the gaits it reached the least radius stays above 1 in every cell, while the hanging "
+            "trunk reaches 0.5-0.9; that says nothing of the gaits it did not reach (see the atlas below, which "
+            "covers the whole family).",
             ["optimal_upright/spectral_radius_map.png", "optimal_upright/best_gaits_trunk.png",
              "optimal_downward/spectral_radius_map.png"],
         ))
+    out += atlas_claims(ev)
     found = {name: ev.summary(name) for name in ("controllers_upright", "controllers_downward")}
     controllers = {name: summary for name, summary in found.items() if summary is not None}
     if len(controllers) == len(found):

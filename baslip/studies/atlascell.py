@@ -11,7 +11,7 @@ from dataclasses import replace
 import numpy as np
 
 from baslip.analysis.atlas import AtlasSettings, cover
-from baslip.analysis.descent import StabilityDescent, random_start
+from baslip.analysis.descent import NoSecondDerivatives, StabilityDescent, random_start
 from baslip.analysis.gaitatlas import GaitManifold, chart_report
 from baslip.engine.returnmap import ReturnMap, RunnerFell, Tolerances
 from baslip.engine.trajectory import TrunkRange
@@ -102,7 +102,7 @@ class CellAtlas:
         u = np.array([best[n] for n in CONTROL.names])
         try:
             found = self.descent.run(spec, X, u)
-        except RunnerFell:
+        except (RunnerFell, NoSecondDerivatives):  # where the engine cannot vouch for a stride, no descent
             return None
         end = self.solver.verify_point(spec, found.best.X, found.best.u, self.problem.name)
         return end.spectral_radius if end.converged else None
