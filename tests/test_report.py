@@ -20,3 +20,31 @@ def test_body_angle_scan_counts_its_points_and_does_not_claim_absence():
     verified, scanned, others = map(int, found.groups())
     assert (verified, scanned) == (len(converged(rows)), len(rows))
     assert verified + others == scanned
+
+
+def atlas_summary(least_apex, complete=True, polished=None):
+    cell = {"ydot": 0.5, "z": 0.4, "pieces": 2, "seeds": 24, "seeds_failed": 10, "charts": 3000, "complete": complete,
+            "least_radius": least_apex, "least_radius_upright_apex": least_apex,
+            "least_radius_upright_throughout": None, "stable_share": 0.0, "polished_radius": polished,
+            "polished_upright_throughout_radius": None, "time_s": 1.0}
+    problem = {"bounds": {"theta_h": [1.047, 2.094], "Kp": [-100, 100], "Kd": [-10, 10]}, "study": {"seeds": 24}}
+    return {"complete": True, "cells": [cell], "provenance": {"problem": problem}}
+
+
+def test_the_atlas_claim_is_as_wide_as_its_covering(tmp_path):
+    """A stable chart (or polished end) makes the verdict "differs"; otherwise it agrees only
+    within the covering, and a cell that hit its chart limit says it was not covered whole."""
+    import json
+
+    from baslip.report.atlas import atlas_claims
+
+    for least, polished, complete, verdict in ((2.7, 1.4, False, "agreed within the covering"),
+                                               (1.2, 0.7, True, "differs: a stable upright gait exists"),
+                                               (0.6, None, True, "differs: a stable upright gait exists")):
+        folder = tmp_path / f"r{least}" / "atlas_upright_cell"
+        folder.mkdir(parents=True)
+        (folder / "result.json").write_text(json.dumps(atlas_summary(least, complete, polished)))
+        [text] = atlas_claims(Evidence(folder.parent))
+        assert f"**Verdict:** {verdict}" in text
+        assert ("not covered whole" in text) == (not complete)
+        assert "24 seeds (10 failed)" in text and "3000 charts" in text
