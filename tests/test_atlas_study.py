@@ -165,3 +165,15 @@ def test_an_atlas_of_a_manifold_above_three_dimensions_is_refused():
     with pytest.raises(ProblemError) as error:
         parse_problem(data)
     assert error.value.key == "study" and "dimension 4" in error.value.message
+
+
+def test_the_committed_atlas_never_does_worse_than_the_multistart_search_at_its_cells():
+    """At every cell of a committed atlas, its least radius is at most the optimal search's
+    (the atlas's seeds and charts include the kind of gait that search starts from)."""
+    searched = json.loads((ROOT / "results" / "optimal_upright" / "result.json").read_text())["least_per_point"]
+    least = {(p["ydot"], p["z"]): p["spectral_radius"] for p in searched}
+    cells = table(ROOT / "results" / "atlas_upright_cell" / "cells.csv")
+    assert cells
+    for cell in cells:
+        key = (float(cell["sweep_ydot"]), float(cell["sweep_z"]))
+        assert float(cell["least_radius_upright_apex"]) <= least[key]

@@ -38,10 +38,11 @@ def test_the_atlas_claim_is_as_wide_as_its_covering(tmp_path):
 
     from baslip.report.atlas import atlas_claims
 
-    for least, polished, complete, verdict in ((2.7, 1.4, False, "agreed within the covering"),
+    for least, polished, complete, verdict in ((2.7, 1.4, False, "open: not covered whole"),
+                                               (2.7, 1.4, True, "agreed within the covering"),
                                                (1.2, 0.7, True, "differs: a stable upright gait exists"),
                                                (0.6, None, True, "differs: a stable upright gait exists")):
-        folder = tmp_path / f"r{least}" / "atlas_upright_cell"
+        folder = tmp_path / f"r{least}{complete}" / "atlas_upright_cell"
         folder.mkdir(parents=True)
         (folder / "result.json").write_text(json.dumps(atlas_summary(least, complete, polished)))
         [text] = atlas_claims(Evidence(folder.parent))

@@ -30,7 +30,7 @@ def _claim(name: str, summary: dict) -> str:
         f"({c['ydot']:g} m/s, {c['z']:g} m): {c['pieces']} piece(s) from {c['seeds']} seeds ({c['seeds_failed']} failed), "
         f"{c['charts']} charts{'' if c['complete'] else ' (chart limit reached: not covered whole)'}, least radius "
         f"{_value(c['least_radius_upright_apex'])} upright at the apex, {_value(c['least_radius_upright_throughout'])} "
-        f"upright throughout, {_value(c['polished_radius'])} after the descent, stable share {_share(c['stable_share'])}"
+        f"upright throughout, {_descended(c['polished_radius'])}, stable share {_share(c['stable_share'])}"
         for c in cells)
     stable = best_apex is not None and (min(polished + [best_apex]) < 1)
     return claim(
@@ -41,12 +41,24 @@ def _claim(name: str, summary: dict) -> str:
         f"[{math.degrees(bounds['theta_h'][0]):.0f}, {math.degrees(bounds['theta_h'][1]):.0f}] deg, "
         f"Kp in [{bounds['Kp'][0]:g}, {bounds['Kp'][1]:g}] N m/rad, Kd in [{bounds['Kd'][0]:g}, {bounds['Kd'][1]:g}] "
         f"N m s/rad; every chart verified by the independent re-simulation. Per cell: {per_cell}.",
-        "differs: a stable upright gait exists" if stable else "agreed within the covering",
+        _verdict(stable, all(c["complete"] for c in cells)),
         "The answer is only as wide as the covering: within the bounds, for the pieces the seeds reached, and for "
         "cells covered whole (a cell that reached its chart limit says so above). Upright at the apex: "
         "|theta_h - 90 deg| <= 30 deg; upright throughout: within 45 deg of vertical at every instant.",
         [f"{name}/atlas.png"],
     )
+
+
+def _verdict(stable: bool, complete: bool) -> str:
+    if stable:
+        return "differs: a stable upright gait exists"
+    if not complete:
+        return "open: not covered whole; no stable upright gait in the part covered"
+    return "agreed within the covering"
+
+
+def _descended(radius) -> str:
+    return "no verified end of the descent from the best chart" if radius is None else f"{radius:.3g} after the descent"
 
 
 def _value(radius) -> str:

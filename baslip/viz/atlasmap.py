@@ -48,8 +48,8 @@ def atlas_figure(charts: list[dict], names: list[str], plot: tuple[str, str], ou
         ax.set_visible(False)
     if image is not None:
         fig.colorbar(image, ax=axes, label=LABELS["spectral_radius"] + " (log scale)")
-    fig.suptitle(f"{title}: atlas of the fixed points, coloured by spectral radius; stable part shaded, "
-                 "radius 1 drawn, star = most stable", fontsize=10)
+    fig.suptitle(f"{title}: atlas of the fixed points, coloured by spectral radius\n"
+                 "stable part shaded, radius 1 drawn, star = most stable chart", fontsize=10)
     return _save(fig, _in(out_dir, "atlas.png"), tight=False)
 
 
