@@ -1,6 +1,6 @@
 """Run a study of a problem file: claim its folder, dispatch to its kind, record the result.
 
-Each kind of study (sweep, random, basin, adaptive, optimal, controllers) lives in its own
+Each kind of study (sweep, random, basin, adaptive, optimal, controllers, atlas) lives in its own
 module, with its tasks, its worker and its run together; :data:`KINDS` maps the class of
 a ``study:`` section to it. A study writes into its folder ``results/<name>/``:
 
@@ -181,6 +181,8 @@ def outcome(summary: dict) -> str | None:
         return f"the source study {summary['source']!r} has no stable fixed point to simulate"
     if summary["kind"] == "controllers" and summary["done_before_this_run"] + summary["done_in_this_run"] == 0:
         return "no controller run was made"
+    if summary["kind"] == "atlas" and summary.get("charts", 0) == 0:
+        return "no chart was made: no seed of any cell solved"
     if summary["kind"] == "adaptive" and summary["adaptive_strides"] == 0:
         return f"no adaptive stride was taken: {summary['adaptive_failure']}"
     return None
