@@ -104,7 +104,7 @@ def test_the_three_sphere_is_covered_with_its_volume():
 def test_a_domain_boundary_stops_the_covering_and_says_why():
     atlas = cover(Sphere(3, cap=0.5), [np.array([1.0, 0.0, 0.0])], 2, SETTINGS)
     assert atlas.complete and atlas.boundaries
-    assert {b.reason for b in atlas.boundaries} == {"above the cap"}
+    assert {b.reason for b in atlas.boundaries} == {"above the cap"} and {b.kind for b in atlas.boundaries} == {"domain"}
     assert all(b.point[-1] > 0.5 for b in atlas.boundaries)  # each aimed past the cap
     # The area below the cap at height 0.5 is 2 pi (1 + 0.5); balls reaching past the cap add nothing.
     assert abs(sum(atlas.areas) / (2 * math.pi * 1.5) - 1) < 0.03
@@ -136,6 +136,21 @@ def test_a_chart_limit_leaves_the_atlas_incomplete_and_says_so():
     atlas = cover(Sphere(3), [np.array([1.0, 0.0, 0.0])], 2, AtlasSettings(radius=0.2, max_radius=0.3, max_charts=40))
     assert not atlas.complete and len(atlas.charts) == 40
     assert "chart limit reached" in {b.reason for b in atlas.boundaries}
+    assert "limit" in {b.kind for b in atlas.boundaries}
+
+
+def test_where_the_corrector_gives_up_the_atlas_is_not_complete():
+    """A region where Newton can never meet the tolerance is not an edge of the manifold:
+    it is recorded as a corrector stop, and the atlas does not call itself complete."""
+
+    class Stubborn(Sphere):
+        def solved(self, w, residual):
+            return w[2] <= 0.8 and abs(residual[0]) <= 1e-13
+
+    atlas = cover(Stubborn(3), [np.array([1.0, 0.0, 0.0])], 2, SETTINGS)
+    kinds = {b.kind for b in atlas.boundaries}
+    assert kinds == {"corrector"} and not atlas.complete
+    assert all(b.reason.startswith("Newton") for b in atlas.boundaries)
 
 
 @pytest.mark.parametrize("k", [1, 2, 3])

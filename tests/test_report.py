@@ -24,10 +24,11 @@ def test_body_angle_scan_counts_its_points_and_does_not_claim_absence():
 
 def atlas_summary(least_apex, complete=True, polished=None):
     cell = {"ydot": 0.5, "z": 0.4, "pieces": 2, "seeds": 24, "seeds_failed": 10, "charts": 3000, "complete": complete,
+            "boundaries": 500, "corrector_stops": 0 if complete else 120,
             "least_radius": least_apex, "least_radius_upright_apex": least_apex,
             "least_radius_upright_throughout": None, "stable_share": 0.0, "polished_radius": polished,
             "polished_upright_throughout_radius": None, "time_s": 1.0}
-    problem = {"bounds": {"theta_h": [1.047, 2.094], "Kp": [-100, 100], "Kd": [-10, 10]}, "study": {"seeds": 24}}
+    problem = {"bounds": {"theta_h": [1.047, 2.094], "Kp": [-100, 100], "Kd": [-10, 10]}, "study": {"seeds": 24, "max_charts": 5000}}
     return {"complete": True, "cells": [cell], "provenance": {"problem": problem}}
 
 
@@ -47,5 +48,6 @@ def test_the_atlas_claim_is_as_wide_as_its_covering(tmp_path):
         (folder / "result.json").write_text(json.dumps(atlas_summary(least, complete, polished)))
         [text] = atlas_claims(Evidence(folder.parent))
         assert f"**Verdict:** {verdict}" in text
-        assert ("not covered whole" in text) == (not complete)
+        assert ("not covered whole: the corrector gave up at 120 of 500 edges" in text) == (not complete)
+        assert ("covered whole: every edge" in text) == complete
         assert "24 seeds (10 failed)" in text and "3000 charts" in text

@@ -21,10 +21,12 @@ describe for COCO's ``atlas_kd``, simplified where baslip's dimensions (k = 1 to
   the tangent by more than :attr:`AtlasSettings.max_turn` or lands outside the domain,
   h is halved, down to the least radius.
 * The covering **stops** where no step is left: every direction covered, or recorded as
-  a boundary with its reason (outside the domain, an evaluation that fails, such as a
-  fall, Newton not converging, a singular chart, where the projection onto the tangent
-  space folds). A chart limit, if reached, is recorded too, so that an atlas never looks
-  complete when it is not.
+  a boundary with its reason and its kind (:data:`EDGE_KINDS`): the domain's edge (a
+  bound, or an evaluation that fails, such as a fall), a singular chart (the equations
+  lose rank, or the projection onto the tangent space folds), the corrector (Newton
+  diverging or not converging, the tangent turning too fast at the least step) or the
+  chart limit. Only the first two are edges of the manifold: an atlas with a boundary of
+  the other two kinds is not complete, and says so.
 * **Pieces.** Seeds that lie in a covered ball belong to that chart's piece; any other
   seed starts a new piece. Pieces whose charts come to overlap are merged.
 * **Area.** Each chart's share of the manifold's k-volume is estimated by a partition of
@@ -141,15 +143,21 @@ class Chart:
     iterations: int
 
 
+#: Kinds of boundary: where the manifold ends (``domain``, ``singular``), and where the
+#: covering gave up without knowing (``corrector``, ``limit``).
+EDGE_KINDS = ("domain", "singular", "corrector", "limit")
+
+
 @dataclass(frozen=True)
 class Boundary:
     """Where the covering stopped: the direction ``direction`` (tangent coordinates) of
-    chart ``chart``, the point it aimed at, and why."""
+    chart ``chart``, the point it aimed at, why, and the kind of edge (:data:`EDGE_KINDS`)."""
 
     chart: int
     direction: np.ndarray
     point: np.ndarray
     reason: str
+    kind: str = "domain"
 
 
 @dataclass(frozen=True)
@@ -173,7 +181,7 @@ class Atlas:
     boundaries: tuple[Boundary, ...]
     seeds: tuple[SeedOutcome, ...]
     dimension: int
-    complete: bool  # False if the chart limit stopped the covering
+    complete: bool  # False if the chart limit or the corrector stopped the covering somewhere
 
     @property
     def piece_count(self) -> int:
@@ -341,21 +349,21 @@ class _Growth:
         """One step from ``chart`` along its direction ``d``: the new chart, or None with
         a boundary recorded."""
         s = self.settings
-        h, reason, target = chart.radius, "", chart.center
+        h, reason, kind, target = chart.radius, "", "domain", chart.center
         direction = chart.tangent @ self.directions[d]
         while h >= s.min_radius * (1 - 1e-12):
             target = chart.center + h * direction
-            reason = self.system.outside(target)
+            reason, kind = self.system.outside(target), "domain"
             if not reason:
                 found = correct(self.system, target, chart.tangent, chart.jacobian, s.newton_iterations)
                 if isinstance(found, str):
-                    reason = found
+                    reason, kind = found, _kind_of(found)
                 else:
                     w, jacobian, iterations = found
                     reason = self.system.outside(w)
                     tangent = tangent_basis(jacobian, self.k)
                     if tangent is None:
-                        reason = "singular chart (the equations lose rank)"
+                        reason, kind = SINGULAR_RANK, "singular"
                     elif not reason:
                         tangent = oriented(tangent, chart.tangent)
                         turn = turn_angle(tangent, chart.tangent)
@@ -365,8 +373,9 @@ class _Growth:
                             return self.add(w, tangent, jacobian, radius, chart.index, iterations,
                                             self.piece_of[chart.index])
                         reason = f"the tangent turns by {math.degrees(turn):.0f} deg within the least step"
+                        kind = "corrector"
             h /= 2
-        self.boundaries.append(Boundary(chart.index, self.directions[d].copy(), target, reason))
+        self.boundaries.append(Boundary(chart.index, self.directions[d].copy(), target, reason, kind))
         return None
 
     def close_at_limit(self) -> bool:
@@ -375,10 +384,25 @@ class _Growth:
         for chart, still in zip(self.charts, self.open):
             for d in np.nonzero(still)[0]:
                 self.boundaries.append(Boundary(chart.index, self.directions[d].copy(),
-                                                self.boundary_point(chart, d), "chart limit reached"))
+                                                self.boundary_point(chart, d), "chart limit reached", "limit"))
                 stopped = True
             still[:] = False
         return stopped
+
+
+#: The corrector's reasons for giving up, and the singular ones (see :data:`EDGE_KINDS`).
+DIVERGED = "Newton diverged"
+SINGULAR_FOLD = "singular chart (the projection onto the tangent space folds)"
+SINGULAR_RANK = "singular chart (the equations lose rank)"
+
+
+def _kind_of(reason: str) -> str:
+    """The kind of edge a corrector's failure ``reason`` stands for."""
+    if reason.startswith("singular"):
+        return "singular"
+    if reason.startswith("Newton"):
+        return "corrector"
+    return "domain"  # outside the domain, or an evaluation that fails there (a fall)
 
 
 def correct(system: ManifoldSystem, target: np.ndarray, tangent: np.ndarray, jacobian: np.ndarray,
@@ -405,7 +429,7 @@ def correct(system: ManifoldSystem, target: np.ndarray, tangent: np.ndarray, jac
             break
         norm = float(np.linalg.norm(evaluation.residual))
         if refreshed and norm > previous:
-            return "Newton diverged"
+            return DIVERGED
         refreshed = norm > CHORD_RATE * previous
         if refreshed:
             fresh = system.jacobian(w)
@@ -415,7 +439,7 @@ def correct(system: ManifoldSystem, target: np.ndarray, tangent: np.ndarray, jac
         previous = norm
         square = np.vstack([jacobian, tangent.T])
         if np.linalg.cond(square) > SINGULAR_CONDITION:
-            return "singular chart (the projection onto the tangent space folds)"
+            return SINGULAR_FOLD
         w = w - np.linalg.solve(square, np.concatenate([evaluation.residual, tangent.T @ (w - target)]))
         reason = system.outside(w)
         if reason:
@@ -473,7 +497,8 @@ def cover(system: ManifoldSystem, seeds: Iterable[np.ndarray | None], k: int,
         outcomes.append(_take_seed(growth, number, seed))
         if progress is not None:
             progress(len(growth.charts), number + 1)
-    complete = not growth.close_at_limit()
+    growth.close_at_limit()
+    complete = not any(b.kind in ("corrector", "limit") for b in growth.boundaries)
     roots = [growth.root(p) for p in growth.piece_of]
     numbering = {root: n for n, root in enumerate(dict.fromkeys(roots))}
     return Atlas(

@@ -28,7 +28,7 @@ def _claim(name: str, summary: dict) -> str:
     best_apex = min(apex) if apex else None
     per_cell = "; ".join(
         f"({c['ydot']:g} m/s, {c['z']:g} m): {c['pieces']} piece(s) from {c['seeds']} seeds ({c['seeds_failed']} failed), "
-        f"{c['charts']} charts{'' if c['complete'] else ' (chart limit reached: not covered whole)'}, least radius "
+        f"{c['charts']} charts{_whole(c, study)}, least radius "
         f"{_value(c['least_radius_upright_apex'])} upright at the apex, {_value(c['least_radius_upright_throughout'])} "
         f"upright throughout, {_descended(c['polished_radius'])}, stable share {_share(c['stable_share'])}"
         for c in cells)
@@ -47,6 +47,18 @@ def _claim(name: str, summary: dict) -> str:
         "|theta_h - 90 deg| <= 30 deg; upright throughout: within 45 deg of vertical at every instant.",
         [f"{name}/atlas.png"],
     )
+
+
+def _whole(cell: dict, study: dict) -> str:
+    """Why a cell is not covered whole ("" if it is)."""
+    if cell["complete"]:
+        return " (covered whole: every edge a bound, a fall or a singular chart)"
+    why = []
+    if cell.get("corrector_stops"):
+        why.append(f"the corrector gave up at {cell['corrector_stops']} of {cell['boundaries']} edges")
+    if cell["charts"] >= study.get("max_charts", float("inf")):
+        why.append("the chart limit was reached")
+    return f" (not covered whole: {' and '.join(why) or 'see atlas_boundary.csv'})"
 
 
 def _verdict(stable: bool, complete: bool) -> str:

@@ -46,10 +46,11 @@ CHART_COLUMNS = [
     "upright_apex", "upright_throughout", "radius", "area", "neighbours",
 ]
 #: Columns of atlas_boundary.csv after the cell's own.
-BOUNDARY_COLUMNS = ["chart", "piece", "reason", *DESIGN]
+BOUNDARY_COLUMNS = ["chart", "piece", "kind", "reason", *DESIGN]
 #: Columns of cells.csv after the cell's own.
 CELL_COLUMNS = [
-    "seeds", "seeds_failed", "seeds_on_covered_pieces", "seeds_not_taken", "pieces", "charts", "not_verified", "complete", "boundaries",
+    "seeds", "seeds_failed", "seeds_on_covered_pieces", "seeds_not_taken", "pieces", "charts", "not_verified",
+    "complete", "boundaries", "corrector_stops",
     "least_radius", "least_radius_upright_apex", "least_radius_upright_throughout", "stable_share",
     "polished_radius", "polished_upright_throughout_radius", "time_s",
 ]
@@ -133,7 +134,7 @@ def run_atlas(problem: Problem, study: Atlas, out_dir: Path, sources: Path, quie
 
 
 def _cell_summaries(cells: list[dict], names: list[str]) -> list[dict]:
-    fields = ("pieces", "seeds", "seeds_failed", "charts", "complete", "least_radius", "least_radius_upright_apex",
+    fields = ("pieces", "seeds", "seeds_failed", "charts", "complete", "boundaries", "corrector_stops", "least_radius", "least_radius_upright_apex",
               "least_radius_upright_throughout", "stable_share", "polished_radius", "polished_upright_throughout_radius",
               "time_s")
     return [{**{n: c[key_column(n)] for n in names}, **{f: _plain(c[f]) for f in fields}} for c in cells]

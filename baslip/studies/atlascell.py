@@ -124,6 +124,7 @@ def _cell_counts(atlas, charts: list[dict]) -> dict:
         "seeds_not_taken": sum(s.outcome == "not taken" for s in atlas.seeds),
         "pieces": atlas.piece_count, "charts": len(charts), "not_verified": len(charts) - len(verified),
         "complete": atlas.complete, "boundaries": len(atlas.boundaries),
+        "corrector_stops": sum(b.kind == "corrector" for b in atlas.boundaries),
         "least_radius": least(), "least_radius_upright_apex": least(lambda c: c["upright_apex"]),
         "least_radius_upright_throughout": least(lambda c: c["upright_throughout"]),
         "stable_share": stable / total if total > 0 else None,
@@ -151,5 +152,5 @@ def chart_rows(atlas, reports) -> list[dict]:
 
 def boundary_rows(atlas, manifold: GaitManifold) -> list[dict]:
     """The atlas_boundary.csv rows of a cell (without the cell's columns)."""
-    return [{"chart": b.chart, "piece": atlas.pieces[b.chart], "reason": b.reason,
+    return [{"chart": b.chart, "piece": atlas.pieces[b.chart], "kind": b.kind, "reason": b.reason,
              **dict(zip(DESIGN, map(float, manifold.to_design(b.point))))} for b in atlas.boundaries]
