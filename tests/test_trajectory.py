@@ -84,3 +84,16 @@ def test_the_motion_is_written_as_csv_with_units(hanging_motion):
     assert text[0].startswith("t [s],stride,phase,y [m]") and "torque [N m]" in text[0]
     assert len(text) == len(hanging_motion) + 1
     assert text[1].split(",")[1:3] == ["0", "descent"]
+
+
+@pytest.mark.parametrize("name", ["downward", "upward"])
+def test_the_trunk_range_is_that_of_the_sampled_stride(name):
+    """TrunkRange (flight phases by their ends, stance sampled) gives exactly the extremes of
+    the sampled trajectory, whose flight is sampled too: in flight the trunk turns at a
+    constant rate."""
+    from baslip.engine.trajectory import TrunkRange, stride_trajectory
+
+    gait = solve_problem(load_problem(ROOT / "problems" / f"{name}.yaml"))
+    rmap = ReturnMap(Tolerances(1e-10, 1e-10))
+    theta_h = stride_trajectory(rmap, gait.X, gait.u, gait.params, strides=1, samples=100).theta_h
+    assert TrunkRange(rmap)(gait.X, gait.u, gait.params) == (float(theta_h.min()), float(theta_h.max()))
