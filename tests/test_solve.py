@@ -7,6 +7,7 @@ solver fails; exit 2, one line on stderr naming the key and nothing written for 
 import csv
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -14,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from baslip.cli.solve import main
+from baslip.engine.codegen import cache_dir
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULT_KEYS = [
@@ -207,3 +209,33 @@ def test_a_re_solve_that_dies_leaves_the_earlier_result_whole(tmp_path, monkeypa
     assert main(["problems/downward.yaml", "--out", str(out), "--quiet"]) == 1
     assert "interrupted" in capsys.readouterr().err
     assert {name: (out / name).read_bytes() for name in before} == before
+
+
+@pytest.mark.parametrize("library", ["baslip_stride", "baslip_nlp_1_20x1_rk4_objective", "baslip_events_rosenbrock"])
+def test_each_cached_library_cut_short_is_rebuilt_and_the_solve_succeeds(tmp_path, library):
+    """A library truncated in the cache (a full disk, a killed copy) could map and then kill
+    the process with SIGBUS: its checksum fails, so the next solve rebuilds it, silently,
+    and succeeds with compiled code."""
+    assert main(["problems/downward.yaml", "--out", str(tmp_path / "warm"), "--quiet"]) == 0  # the cache holds all three
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    # Every cached version of the three (the one the warm solve loaded is among them; older
+    # keys may linger), and every version of ``library`` cut in half.
+    for name in ("baslip_stride", "baslip_nlp_1_20x1_rk4_objective", "baslip_events_rosenbrock"):
+        for built in cache_dir().glob(f"{name}-*.so"):
+            if (built.parent / f"{built.name}.sha256").exists():
+                shutil.copy(built, cache / built.name)
+                shutil.copy(built.parent / f"{built.name}.sha256", cache / f"{built.name}.sha256")
+    whole = {path: path.read_bytes() for path in cache.glob(f"{library}-*.so")}
+    for path, content in whole.items():
+        path.write_bytes(content[: len(content) // 2])
+    env = {**os.environ, "BASLIP_CACHE_DIR": str(cache)}
+    env.pop("BASLIP_NO_COMPILE", None)
+    proc = subprocess.run([sys.executable, "-m", "baslip.solve", "problems/downward.yaml", "--out", str(tmp_path / "out")],
+                          cwd=ROOT, capture_output=True, text=True, timeout=900, env=env)
+    assert proc.returncode == 0, proc.stderr[-800:]
+    assert "virtual machine" not in proc.stderr, proc.stderr
+    restored = [path for path, content in whole.items() if path.read_bytes() == content]
+    assert len(restored) == 1  # the one the solve needed was rebuilt, the same bytes again
+    code = json.loads((tmp_path / "out" / "result.json").read_text())["provenance"]["code"]
+    assert all(route.startswith("compiled C") for route in code.values())
