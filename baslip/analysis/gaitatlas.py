@@ -31,7 +31,7 @@ from baslip.engine.returnmap import ReturnMap, RunnerFell, param_vector
 from baslip.engine.trajectory import TrunkRange
 from baslip.gait.polish import POLISH_EPS, Polish, eps
 from baslip.gait.shooting import FixedPointSpec
-from baslip.gait.stability import classify
+from baslip.gait.stability import Stability, classify
 from baslip.model.dynamics import APEX
 from baslip.model.quantities import DESIGN, NOMINAL
 
@@ -66,6 +66,7 @@ class GaitManifold:
         self.atlas_bounds = np.where(self.logarithmic, np.arcsinh(bounds), bounds)
         self.p = param_vector(spec.params)
         self._last_jacobian: tuple[bytes, np.ndarray] = (b"", np.zeros((0, 0)))
+        self._stabilities: dict[bytes, Stability] = {}  # per chart centre: ranked by growth, then reported
 
     @property
     def dimension(self) -> int:
@@ -116,15 +117,23 @@ class GaitManifold:
 
     def priority(self, w: np.ndarray) -> float:
         """The spectral radius at ``w`` (its non-trivial multipliers): the atlas grows
-        from its most stable charts first. Uses the Jacobian just evaluated at ``w`` (the
-        corrector's last), else evaluates it."""
-        key, jacobian = self._last_jacobian
-        if key != w.tobytes():
-            self.jacobian(w)
-            key, jacobian = self._last_jacobian
-        design = self.to_design(w)
-        dr_dX = jacobian[: APEX.size, : APEX.size] + np.eye(APEX.size)
-        return float(classify(dr_dX, self.spec.params, design[APEX.size :]).spectral_radius)
+        from its most stable charts first."""
+        return float(self.stability(w).spectral_radius)
+
+    def stability(self, w: np.ndarray) -> Stability:
+        """The multipliers at ``w`` from the AD Jacobian of the stride, remembered per point
+        (the atlas ranks a chart by them as it is made, and its report gives them). Uses
+        the Jacobian just evaluated at ``w`` (the corrector's last), else evaluates it."""
+        key = w.tobytes()
+        if key not in self._stabilities:
+            design = self.to_design(w)
+            last, jacobian = self._last_jacobian
+            if last != key:
+                jacobian = self.polish.equations_jacobian(self.spec, design[: APEX.size], design[APEX.size :],
+                                                          self.energy)
+            dr_dX = jacobian[: APEX.size, : APEX.size] + np.eye(APEX.size)
+            self._stabilities[key] = classify(dr_dX, self.spec.params, design[APEX.size :])
+        return self._stabilities[key]
 
     def outside(self, w: np.ndarray) -> str:
         """Which bound ``w`` leaves, or which stride it cannot start ("" if neither)."""
@@ -158,15 +167,13 @@ class ChartReport:
     residual: float
 
 
-def chart_report(manifold: GaitManifold, w: np.ndarray, jacobian_map: ReturnMap, verify_map: ReturnMap,
-                 trunk_range: TrunkRange) -> ChartReport:
-    """The report of the chart centred at ``w``: multipliers from the AD Jacobian of the
-    compiled map, the trunk's range from a sampled stride, and eps from ``verify_map``
-    (the independent, tight-tolerance re-simulation)."""
+def chart_report(manifold: GaitManifold, w: np.ndarray, verify_map: ReturnMap, trunk_range: TrunkRange) -> ChartReport:
+    """The report of the chart centred at ``w``: its multipliers (:meth:`GaitManifold.stability`,
+    from the AD Jacobian of the compiled map), the trunk's range from a sampled stride, and
+    eps from ``verify_map`` (the independent, tight-tolerance re-simulation)."""
     design = manifold.to_design(w)
     X, u = design[: APEX.size], design[APEX.size :]
-    dr_dX, _ = jacobian_map.jacobians(X, u, manifold.spec.params)
-    stability = classify(dr_dX, manifold.spec.params, u)
+    stability = manifold.stability(w)
     low, high = trunk_range(X, u, manifold.spec.params)
     check = verify_map.stride(X, u, manifold.spec.params)
     residual = eps(check.apex, X) if check.ok else math.inf

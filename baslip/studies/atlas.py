@@ -23,8 +23,6 @@ so that a resumed study rebuilds the same ``atlas.csv``.
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 import time
 from pathlib import Path
@@ -36,7 +34,7 @@ from baslip.problem.reader import Problem
 from baslip.problem.study import Atlas
 from baslip.studies.common import run_info
 from baslip.studies.optimal import UPRIGHT_AT_APEX, UPRIGHT_THROUGHOUT
-from baslip.studies.runner import ResumableCsv, StateLog, Workers, format_value, run_tasks, split_lanes
+from baslip.studies.runner import ResumableCsv, StateLog, Workers, csv_text, run_tasks, split_lanes
 from baslip.studies.sweep import key_column, sweep_tasks
 from baslip.viz.atlasmap import atlas_figure
 
@@ -100,20 +98,12 @@ class AtlasTable(ResumableCsv):
             return  # a rerun of a finished study: atlas.csv is already written
         cells = {key: dict(zip(self.cell_columns, key)) for key in keys}
         write_files_atomically({
-            self.path.with_name("atlas.csv"): _table(self.cell_columns + CHART_COLUMNS,
+            self.path.with_name("atlas.csv"): csv_text(self.cell_columns + CHART_COLUMNS,
                                                      [{**cells[k], **c} for k in keys for c in logged[k]["charts"]]),
-            self.path.with_name("atlas_boundary.csv"): _table(
+            self.path.with_name("atlas_boundary.csv"): csv_text(
                 self.cell_columns + BOUNDARY_COLUMNS, [{**cells[k], **b} for k in keys for b in logged[k]["boundaries"]]),
         })
         self.charts.clear()
-
-
-def _table(columns: list[str], rows: list[dict]) -> str:
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(columns)
-    writer.writerows([[format_value(row.get(c, "")) for c in columns] for row in rows])
-    return buffer.getvalue()
 
 
 def run_atlas(problem: Problem, study: Atlas, out_dir: Path, sources: Path, quiet: bool, lanes: int,

@@ -56,7 +56,7 @@ class CellAtlas:
         rng = task_rng(self.study, {**task, "start": 0})
         seeds = [self._seed(spec, manifold, rng if number else None) for number in range(self.study.seeds)]
         atlas = cover(manifold, seeds, manifold.dimension, self.settings, self._progress(held))
-        reports = [chart_report(manifold, c.center, self.jacobian_map, self.solver.verify_map, self.trunk_range)
+        reports = [chart_report(manifold, c.center, self.solver.verify_map, self.trunk_range)
                    for c in atlas.charts]
         charts = chart_rows(atlas, reports)
         row = {k: v for k, v in task.items() if k.startswith("sweep_")}

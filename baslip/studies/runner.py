@@ -131,11 +131,7 @@ class ResumableCsv:
 
     def rewrite(self, rows: list[dict]) -> None:
         """Replace the file by ``rows`` (atomically)."""
-        buffer = io.StringIO()
-        writer = csv.writer(buffer, lineterminator="\n")
-        writer.writerow(self.columns)
-        writer.writerows([[format_value(r.get(c, "")) for c in self.columns] for r in rows])
-        write_files_atomically({self.path: buffer.getvalue()})
+        write_files_atomically({self.path: csv_text(self.columns, rows)})
         self.rows = [{c: format_value(r.get(c, "")) for c in self.columns} for r in rows]
 
     def keep_tasks(self, tasks: Sequence[dict]) -> str | None:
@@ -192,6 +188,16 @@ class StateLog:
 
     def clear(self) -> None:
         self.path.unlink(missing_ok=True)
+
+
+def csv_text(columns: Sequence[str], rows: Sequence[dict]) -> str:
+    """``rows`` as CSV text under the header ``columns`` (cells by :func:`format_value`,
+    missing ones empty)."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(columns)
+    writer.writerows([[format_value(row.get(c, "")) for c in columns] for row in rows])
+    return buffer.getvalue()
 
 
 def format_value(value) -> str:
