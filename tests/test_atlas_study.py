@@ -7,6 +7,8 @@ manifold it covers (:mod:`baslip.analysis.gaitatlas`):
   independent re-simulation the eps in its ``residual`` column (<= 1e-10 for a verified one);
 * neighbours are mutual, every boundary has a reason, and cells.csv counts what atlas.csv
   and atlas_boundary.csv hold;
+* the polished gaits of atlas_best.csv are verified fixed points, no less stable than the
+  charts they descended from, with both meanings of upright read off their trunk range;
 * a study killed after its first cell and run again writes the same atlas.csv.
 """
 
@@ -37,10 +39,11 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def small_atlas(tmp_path: Path) -> Path:
-    """Two hanging-trunk cells, two seeds each, at most 25 charts a cell."""
+    """Two hanging-trunk cells, two seeds each, at most 25 charts a cell, the best chart
+    of each meaning polished."""
     data = yaml.safe_load((ROOT / "problems" / "atlas_downward.yaml").read_text())
     data["name"] = "atlas_small"
-    data["study"].update(vary={"ydot": [0.5, 0.5, 0.1], "z": [0.4, 0.45, 0.05]}, seeds=2, max_charts=25)
+    data["study"].update(vary={"ydot": [0.5, 0.5, 0.1], "z": [0.4, 0.45, 0.05]}, seeds=2, max_charts=25, polish=1)
     path = tmp_path / "atlas_small.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
@@ -123,6 +126,27 @@ def test_neighbours_are_mutual_boundaries_have_reasons_and_the_counts_agree(fini
     assert not (out / ".cells.csv.charts").exists()  # the charts log is gone once atlas.csv is written
 
 
+def test_the_polished_gaits_are_verified_and_no_less_stable_than_their_charts(finished):
+    problem_path, out = finished
+    problem = load_problem(problem_path)
+    best, cells, charts = table(out / "atlas_best.csv"), table(out / "cells.csv"), table(out / "atlas.csv")
+    independent = solver_for(problem).verify_map
+    assert best, "no cell polished a gait"
+    for row in best:
+        X = np.array([float(row[n]) for n in APEX.names])
+        u = np.array([float(row[n]) for n in DESIGN[APEX.size:]])
+        assert eps(independent.stride(X, u, problem.params).apex, X) <= 1e-10
+        start = next(c for c in charts if c["sweep_z"] == row["sweep_z"] and c["chart"] == row["from_chart"])
+        assert float(row["start_radius"]) == float(start["spectral_radius"])
+        assert float(row["spectral_radius"]) <= float(start["spectral_radius"]) * (1 + 1e-6)
+        low, high = float(row["theta_h_min"]), float(row["theta_h_max"])
+        assert low <= X[APEX.index("theta_h")] <= high
+        assert (row["upright_throughout"] == "true") == (max(abs(low - np.pi / 2), abs(high - np.pi / 2)) <= np.pi / 4)
+        cell = next(c for c in cells if c["sweep_z"] == row["sweep_z"])
+        column = "polished_radius" if row["meaning"] == "any" else "polished_upright_throughout_radius"
+        assert float(cell[column]) == float(row["spectral_radius"])
+
+
 @pytest.mark.skipif(not os.path.isdir("/proc"), reason="kills a run")
 def test_a_run_killed_after_its_first_cell_resumes_to_the_same_atlas(finished, tmp_path):
     problem, reference = finished
@@ -146,7 +170,7 @@ def test_a_run_killed_after_its_first_cell_resumes_to_the_same_atlas(finished, t
 
 @pytest.mark.parametrize("change, key", [
     ({"seeds": 0}, "study.seeds"), ({"radius": 0.0}, "study.radius"), ({"radius": 20.0}, "study.radius"),
-    ({"max_radius": 0.1}, "study.max_radius"), ({"max_charts": 0}, "study.max_charts"),
+    ({"max_radius": 0.1}, "study.max_radius"), ({"max_charts": 0}, "study.max_charts"), ({"polish": -1}, "study.polish"),
     ({"plot": ["Kp"]}, "study.plot"), ({"plot": ["Kp", "speed"]}, "study.plot"), ({"plot": ["Kp", "Kp"]}, "study.plot"),
     ({"plot": ["Kp", "theta2_dot_des"]}, "study.plot"), ({"plot": ["Kp", "z"]}, "study.plot"),
 ])

@@ -17,7 +17,9 @@ describe for COCO's ``atlas_kd``, simplified where baslip's dimensions (k = 1 to
   system ranks its points, most interesting first): a new centre
   is predicted at w0 + h T d (h = R) and corrected by Newton's method on
   [F(w) = 0, T^T (w - w_pred) = 0], a square system, starting from the chart's own
-  Jacobian (a chord method) and refreshing it where convergence is slow. Where Newton fails, the step turns
+  Jacobian (a chord method), refreshing it where convergence is slow and halving a step
+  with a fresh Jacobian until the residual falls (a damped Newton method: at very
+  unstable gaits the full step overshoots). Where Newton fails, the step turns
   the tangent by more than :attr:`AtlasSettings.max_turn` or lands outside the domain,
   h is halved, down to the least radius.
 * The covering **stops** where no step is left: every direction covered, or recorded as
@@ -61,6 +63,8 @@ SINGULAR_CONDITION = 1e10
 PROGRESS_CHARTS = 100
 #: A corrector step that leaves more than this fraction of the residual takes a fresh Jacobian.
 CHORD_RATE = 0.25
+#: Times a corrector step with a fresh Jacobian is halved, at most, to lower the residual.
+DAMPING_HALVINGS = 6
 #: Corrector iterations (chord steps included) of a step that counts as easy, so that the
 #: next chart may be larger.
 EASY_ITERATIONS = 8
@@ -123,7 +127,7 @@ class AtlasSettings:
     min_radius: float = 0.01
     max_radius: float = 1.0
     max_charts: int = 2000
-    newton_iterations: int = 12
+    newton_iterations: int = 20
     max_turn: float = math.radians(30)
     grow: float = 1.3
 
@@ -407,48 +411,71 @@ def _kind_of(reason: str) -> str:
 
 def correct(system: ManifoldSystem, target: np.ndarray, tangent: np.ndarray, jacobian: np.ndarray,
             iterations: int) -> tuple[np.ndarray, np.ndarray, int] | str:
-    """Newton on [F(w) = 0, tangent^T (w - target) = 0] from ``target``: (w, dF/dw at w,
-    iterations) or the reason it failed.
+    """Newton on G(w) = [F(w), tangent^T (w - target)] = 0 from ``target``: (w, dF/dw at w,
+    steps) or the reason it failed.
 
-    The iterations start with ``jacobian`` (the chart's own, a chord method: a residual
-    costs a fraction of a Jacobian) and take a fresh Jacobian at the iterate whenever the
-    residual falls by less than :data:`CHORD_RATE` in a step; a residual that grows after
-    a fresh Jacobian ends the attempt (Newton diverges). dF/dw is evaluated at the
-    solution, for its tangent space.
+    The steps start with ``jacobian`` (the chart's own, a chord method: a residual costs
+    a fraction of a Jacobian). A chord step that leaves more than :data:`CHORD_RATE` of
+    |G| is not taken: the Jacobian is refreshed at the iterate and the step taken again.
+    A step with a fresh Jacobian is damped (halved, up to :data:`DAMPING_HALVINGS` times)
+    until |G| falls; if no damped step lowers it, Newton diverges. dF/dw is evaluated at
+    the solution, for its tangent space.
     """
     w = np.array(target, dtype=float)
-    previous, refreshed = math.inf, False
-    for iteration in range(iterations + 1):
-        evaluation = system.evaluate(w)
+    evaluation = system.evaluate(w)
+    fresh = False
+    for step in range(iterations + 1):
         if evaluation.residual is None:
             return evaluation.failure or "the equations cannot be evaluated"
         if system.solved(w, evaluation.residual):
             final = system.jacobian(w)
-            return final if isinstance(final, str) else (w, final, iteration)
-        if iteration == iterations:
+            return final if isinstance(final, str) else (w, final, step)
+        if step == iterations:
             break
-        norm = float(np.linalg.norm(evaluation.residual))
-        if refreshed and norm > previous:
-            return DIVERGED
-        refreshed = norm > CHORD_RATE * previous
-        if refreshed:
-            fresh = system.jacobian(w)
-            if isinstance(fresh, str):
-                return fresh
-            jacobian = fresh
-        previous = norm
-        square = np.vstack([jacobian, tangent.T])
-        if np.linalg.cond(square) > SINGULAR_CONDITION:
-            return SINGULAR_FOLD
-        w = w - np.linalg.solve(square, np.concatenate([evaluation.residual, tangent.T @ (w - target)]))
-        reason = system.outside(w)
-        if reason:
-            return reason
+        taken = _newton_step(system, w, evaluation, target, tangent, jacobian, fresh)
+        if isinstance(taken, str) and not fresh and taken not in (SINGULAR_FOLD,):
+            # The chord step failed: take it again with a Jacobian at the iterate.
+            refreshed = system.jacobian(w)
+            if isinstance(refreshed, str):
+                return refreshed
+            jacobian, fresh = refreshed, True
+            taken = _newton_step(system, w, evaluation, target, tangent, jacobian, fresh)
+        if isinstance(taken, str):
+            return taken
+        w, evaluation, fresh = taken[0], taken[1], False
     return f"Newton did not converge in {iterations} iterations"
 
 
+def _newton_step(system: ManifoldSystem, w: np.ndarray, evaluation: Evaluation, target: np.ndarray,
+                 tangent: np.ndarray, jacobian: np.ndarray, fresh: bool) -> tuple[np.ndarray, Evaluation] | str:
+    """One step of :func:`correct` from ``w``: the new iterate and F there, or why none was
+    taken. A chord step (``fresh`` False) must cut |G| to :data:`CHORD_RATE` of what it
+    was; a fresh one is halved until |G| falls at all."""
+    square = np.vstack([jacobian, tangent.T])
+    if np.linalg.cond(square) > SINGULAR_CONDITION:
+        return SINGULAR_FOLD
+    norm = float(np.linalg.norm(np.concatenate([evaluation.residual, tangent.T @ (w - target)])))
+    full = np.linalg.solve(square, np.concatenate([evaluation.residual, tangent.T @ (w - target)]))
+    reason = DIVERGED
+    for halving in range(DAMPING_HALVINGS + 1 if fresh else 1):
+        trial = w - full / 2**halving
+        reason = system.outside(trial)
+        if reason:  # a wild iterate: refused before the system is evaluated there
+            continue
+        at_trial = system.evaluate(trial)
+        if at_trial.residual is None:
+            reason = at_trial.failure or "the equations cannot be evaluated"
+            continue
+        trial_norm = float(np.linalg.norm(np.concatenate([at_trial.residual, tangent.T @ (trial - target)])))
+        if trial_norm <= (CHORD_RATE if not fresh else 1.0) * norm:
+            return trial, at_trial
+        reason = DIVERGED
+    return reason
+
+
 def project_seed(system: ManifoldSystem, w: np.ndarray, iterations: int = 20) -> tuple[np.ndarray, np.ndarray] | str:
-    """Gauss-Newton (least-norm steps) from ``w`` onto F = 0: (point, dF/dw) or why not."""
+    """Gauss-Newton (least-norm steps) from ``w`` onto F = 0: (point, dF/dw) or why not
+    (an evaluation that fails, an iterate outside the domain, or no convergence)."""
     w = np.array(w, dtype=float)
     for _ in range(iterations + 1):
         evaluation = system.evaluate(w)
@@ -460,6 +487,9 @@ def project_seed(system: ManifoldSystem, w: np.ndarray, iterations: int = 20) ->
         if system.solved(w, evaluation.residual):
             return w, jacobian
         w = w - np.linalg.lstsq(jacobian, evaluation.residual, rcond=None)[0]
+        reason = system.outside(w)
+        if reason:  # a wild iterate: refused before the system is evaluated there
+            return reason
     return f"the seed did not converge in {iterations} iterations"
 
 

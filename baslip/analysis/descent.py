@@ -174,7 +174,10 @@ class StabilityDescent:
         if spec.strides != 1:
             raise ValueError("the stability descent handles one-stride gaits")
         design = np.concatenate([X, u]).astype(float)
-        radius, phi, grad = self.evaluate(spec, design[:4], design[4:])
+        try:
+            radius, phi, grad = self.evaluate(spec, design[:4], design[4:])
+        except NoSecondDerivatives:
+            return self._compass_only(spec, design)
         steps = [DescentStep(design[:4].copy(), design[4:].copy(), radius, phi)]
         evaluations, chart, norm = 1, None, float("nan")
         for _ in range(self.max_iterations):
@@ -224,6 +227,19 @@ class StabilityDescent:
         found, searched = self._pattern_search(spec, design, radius)
         steps += found
         return Descent(tuple(steps), "compass search on the spectral radius converged", norm, evaluations + searched)
+
+    def _compass_only(self, spec: FixedPointSpec, design) -> Descent:
+        """The descent where the start has no second derivatives (the compiled engine
+        cannot vouch for its stride, so the surrogate has no gradient): the compass search
+        on the spectral radius alone, which needs first derivatives only."""
+        dr_dX, _ = self.rmap.jacobians(design[:4], design[4:], spec.params)
+        stability = classify(dr_dX, spec.params, design[4:])
+        trivial = np.array([m.trivial for m in stability.multipliers])
+        start = DescentStep(design[:4].copy(), design[4:].copy(), stability.spectral_radius,
+                            surrogate(dr_dX, trivial)[0])
+        found, searched = self._pattern_search(spec, design, stability.spectral_radius)
+        return Descent((start, *found), "compass search on the spectral radius converged "
+                       "(no second derivatives at the start)", float("nan"), 1 + searched)
 
     def _line_search(self, spec, design, chart, direction, reduced, phi):
         """(point, radius, phi, gradient, evaluations) of the first step along ``direction``

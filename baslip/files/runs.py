@@ -20,7 +20,8 @@ from baslip.problem.reader import Problem
 
 #: Every data file a run of any kind writes (figures aside); a fresh run removes them.
 RUN_FILES = ("result.json", "multipliers.csv", "branch.csv", "curve.csv", "points.csv", "basin.csv",
-             "trajectories.csv", "strides.csv", "controllers.csv", "cells.csv", "atlas.csv", "atlas_boundary.csv")
+             "trajectories.csv", "strides.csv", "controllers.csv", "cells.csv", "atlas.csv", "atlas_boundary.csv",
+             "atlas_best.csv")
 
 
 class FolderHoldsAnotherRun(InputError):

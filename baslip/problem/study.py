@@ -114,6 +114,7 @@ class Atlas:
     max_radius: float = 1.5
     max_charts: int = 3000  # per cell
     plot: tuple[str, str] = ("Kp", "Kd")
+    polish: int = 3  # least-radius charts per cell the stability descent polishes (0: none)
     kind: str = "atlas"
 
 
@@ -149,7 +150,7 @@ def parse_study(data) -> Study:
         "adaptive": ("kind", "strides", "frozen_strides", "perturbation", "criterion", "probe_strides"),
         "optimal": ("kind", "vary", "starts", "seed", "iterations"),
         "controllers": ("kind", "perturbation", "samples", "seed", "strides", "tolerance", "criterion", "lqr_scale"),
-        "atlas": ("kind", "vary", "seeds", "seed", "radius", "max_radius", "max_charts", "plot"),
+        "atlas": ("kind", "vary", "seeds", "seed", "radius", "max_radius", "max_charts", "plot", "polish"),
     }[kind]
     for key in data:
         if isinstance(key, NonScalarKey):
@@ -235,6 +236,7 @@ def _atlas(data, axes: tuple[Axis, ...]) -> Atlas:
         max_radius=max_radius,
         max_charts=_integer(data.get("max_charts", 3000), "study.max_charts", 1, 100000),
         plot=(plot[0], plot[1]),
+        polish=_integer(data.get("polish", 3), "study.polish", 0, 100),
     )
 
 

@@ -11,12 +11,15 @@ Each task is one cell (a point of ``vary``, usually a speed and a height). Its w
    spectral radius, the trunk's range over the stride, and the independent re-simulation's
    eps (charts it does not confirm to eps <= 1e-10 are marked ``not_verified`` and take no
    part in the answers);
-4. polishes the least-radius chart (over all charts, and over those upright throughout the
-   stride) with the stability descent, and verifies where it ends.
+4. polishes the ``polish`` least-radius charts (over all charts, and over those upright
+   throughout the stride) with the stability descent, verifies where each ends, and keeps
+   the best verified end (for the second meaning, the best that is still upright
+   throughout).
 
 Files: ``cells.csv`` (one row per cell: pieces, seeds, charts, least radii, stable share),
 ``atlas.csv`` (one row per chart), ``atlas_boundary.csv`` (where the covering stopped, and
-why) and ``atlas.png``. The charts of a finished cell are kept, until the study is
+why), ``atlas_best.csv`` (the polished gaits), ``atlas.png`` and ``best_gaits_trunk.png``
+(the trunk's angle over a stride of each polished gait). The charts of a finished cell are kept, until the study is
 complete, in ``.cells.csv.charts`` (one JSON line per cell, synced before the cell's row),
 so that a resumed study rebuilds the same ``atlas.csv``.
 """
@@ -33,10 +36,11 @@ from baslip.model.quantities import DESIGN
 from baslip.problem.reader import Problem
 from baslip.problem.study import Atlas
 from baslip.studies.common import run_info
-from baslip.studies.optimal import UPRIGHT_AT_APEX, UPRIGHT_THROUGHOUT
+from baslip.studies.optimal import UPRIGHT_AT_APEX, UPRIGHT_THROUGHOUT, best_gait_motions
 from baslip.studies.runner import ResumableCsv, StateLog, Workers, csv_text, run_tasks, split_lanes
 from baslip.studies.sweep import key_column, sweep_tasks
 from baslip.viz.atlasmap import atlas_figure
+from baslip.viz.figures import trunk_motion_figure
 
 #: Columns of atlas.csv after the cell's own (one row per chart).
 CHART_COLUMNS = [
@@ -45,6 +49,11 @@ CHART_COLUMNS = [
 ]
 #: Columns of atlas_boundary.csv after the cell's own.
 BOUNDARY_COLUMNS = ["chart", "piece", "kind", "reason", *DESIGN]
+#: Columns of atlas_best.csv after the cell's own (one row per cell and meaning of "best").
+BEST_COLUMNS = [
+    "meaning", "from_chart", "start_radius", *DESIGN, "spectral_radius", "stable", "residual", "theta_h_min",
+    "theta_h_max", "upright_apex", "upright_throughout", "descent_stop",
+]
 #: Columns of cells.csv after the cell's own.
 CELL_COLUMNS = [
     "seeds", "seeds_failed", "seeds_on_covered_pieces", "seeds_not_taken", "pieces", "charts", "not_verified",
@@ -79,7 +88,7 @@ def atlas_worker(chunk: list[dict], context: tuple[Problem, bool], queue) -> Non
 class AtlasTable(ResumableCsv):
     """``cells.csv``, whose rows bring their cell's charts and boundaries along: those are
     kept in a synced log beside it until the study is complete, then written out as
-    ``atlas.csv`` and ``atlas_boundary.csv`` in task order."""
+    ``atlas.csv``, ``atlas_boundary.csv`` and ``atlas_best.csv`` in task order."""
 
     def __init__(self, path: Path, columns: list[str], key_columns: list[str]):
         super().__init__(path, columns, key_columns)
@@ -87,7 +96,8 @@ class AtlasTable(ResumableCsv):
         self.cell_columns = key_columns
 
     def append(self, row: dict) -> None:
-        self.charts.append(self.key(row), {"charts": row["chart_rows"], "boundaries": row["boundary_rows"]})
+        self.charts.append(self.key(row), {"charts": row["chart_rows"], "boundaries": row["boundary_rows"],
+                                           "best": row["best_rows"]})
         super().append(row)
 
     def finish(self, order) -> None:
@@ -102,6 +112,8 @@ class AtlasTable(ResumableCsv):
                                                      [{**cells[k], **c} for k in keys for c in logged[k]["charts"]]),
             self.path.with_name("atlas_boundary.csv"): csv_text(
                 self.cell_columns + BOUNDARY_COLUMNS, [{**cells[k], **b} for k in keys for b in logged[k]["boundaries"]]),
+            self.path.with_name("atlas_best.csv"): csv_text(
+                self.cell_columns + BEST_COLUMNS, [{**cells[k], **b} for k in keys for b in logged[k]["best"]]),
         })
         self.charts.clear()
 
@@ -119,8 +131,25 @@ def run_atlas(problem: Problem, study: Atlas, out_dir: Path, sources: Path, quie
     if report.complete:
         charts = read_points(out_dir / "atlas.csv")
         atlas_figure(charts, names, study.plot, out_dir, problem.name)
-        summary.update(_totals(cells, charts))
+        best = read_points(out_dir / "atlas_best.csv")
+        trunk_motion_figure(best_gait_motions(best, names, problem.params, count=2 * len(cells), note=_meaning),
+                            out_dir)
+        summary.update(_totals(cells, charts), best=[_best_summary(b, names) for b in best])
     return summary
+
+
+def _meaning(row: dict) -> str:
+    """A polished gait's label: which best it is."""
+    return ", upright throughout" if row["meaning"] == "upright_throughout" else ""
+
+
+def _best_summary(row: dict, names: list[str]) -> dict:
+    """A polished gait for result.json: its cell, meaning, gait and trunk range [deg]."""
+    return {**{n: row[key_column(n)] for n in names}, "meaning": row["meaning"],
+            "spectral_radius": row["spectral_radius"], "start_radius": row["start_radius"],
+            "residual": row["residual"], **{n: row[n] for n in DESIGN},
+            "trunk_min_deg": math.degrees(row["theta_h_min"]), "trunk_max_deg": math.degrees(row["theta_h_max"]),
+            "upright_apex": row["upright_apex"], "upright_throughout": row["upright_throughout"]}
 
 
 def _cell_summaries(cells: list[dict], names: list[str]) -> list[dict]:

@@ -11,7 +11,7 @@ from dataclasses import replace
 import numpy as np
 
 from baslip.analysis.atlas import AtlasSettings, cover
-from baslip.analysis.descent import NoSecondDerivatives, StabilityDescent, random_start
+from baslip.analysis.descent import StabilityDescent, random_start
 from baslip.analysis.gaitatlas import GaitManifold, chart_report
 from baslip.engine.returnmap import ReturnMap, RunnerFell, Tolerances
 from baslip.engine.trajectory import TrunkRange
@@ -31,6 +31,9 @@ from baslip.studies.sweep import key_column
 JACOBIAN_TOLERANCE = 1e-10
 #: Seconds between two progress lines of a cell.
 PROGRESS_EVERY_S = 15.0
+#: The gaits a cell polishes: the least radius of all (the bounds make it upright at the
+#: apex, for an upright problem), and the least of those upright throughout the stride.
+MEANINGS = ("any", "upright_throughout")
 #: Least chart radius, as a fraction of the study's radius.
 LEAST_RADIUS_FRACTION = 1 / 16
 
@@ -61,9 +64,11 @@ class CellAtlas:
         charts = chart_rows(atlas, reports)
         row = {k: v for k, v in task.items() if k.startswith("sweep_")}
         row.update(_cell_counts(atlas, charts))
-        row["polished_radius"] = self._polished(spec, charts, lambda c: True)
-        row["polished_upright_throughout_radius"] = self._polished(spec, charts, lambda c: c["upright_throughout"])
-        return {**row, "chart_rows": charts, "boundary_rows": boundary_rows(atlas, manifold)}
+        best = [self._polished(spec, charts, meaning) for meaning in MEANINGS]
+        row["polished_radius"], row["polished_upright_throughout_radius"] = (
+            None if b is None else b["spectral_radius"] for b in best)
+        return {**row, "chart_rows": charts, "boundary_rows": boundary_rows(atlas, manifold),
+                "best_rows": [b for b in best if b is not None]}
 
     def _progress(self, held: dict):
         """A progress callback for :func:`cover` that prints at most every
@@ -91,21 +96,36 @@ class CellAtlas:
             return None
         return manifold.to_atlas(np.concatenate([result.X, result.u]))
 
-    def _polished(self, spec, charts: list[dict], where) -> float | None:
-        """The radius where the descent from the least-radius chart (of those ``where``
-        accepts) ends, verified; None if there is no such chart or no verified end."""
-        candidates = [c for c in charts if c["status"] == "converged" and where(c)]
-        if not candidates:
-            return None
-        best = min(candidates, key=lambda c: c["spectral_radius"])
-        X = np.array([best[n] for n in APEX.names])
-        u = np.array([best[n] for n in CONTROL.names])
+    def _polished(self, spec, charts: list[dict], meaning: str) -> dict | None:
+        """The atlas_best.csv row of a cell for ``meaning`` (see :data:`MEANINGS`): the
+        stability descent from each of the ``study.polish`` least-radius verified charts of
+        that meaning, its end verified independently; the verified end of least radius that
+        still has that meaning (None if there is none)."""
+        upright = meaning == "upright_throughout"
+        candidates = sorted((c for c in charts if c["status"] == "converged" and (not upright or c[meaning])),
+                            key=lambda c: c["spectral_radius"])[: self.study.polish]
+        ends = [end for end in (self._descend(spec, c, meaning) for c in candidates)
+                if end is not None and (not upright or end[meaning])]
+        return min(ends, key=lambda end: end["spectral_radius"], default=None)
+
+    def _descend(self, spec, chart: dict, meaning: str) -> dict | None:
+        """Where the descent from ``chart`` ends, verified, as a row; None if it cannot
+        start (the engine cannot vouch for the stride) or its end is not verified."""
+        X = np.array([chart[n] for n in APEX.names])
+        u = np.array([chart[n] for n in CONTROL.names])
         try:
             found = self.descent.run(spec, X, u)
-        except (RunnerFell, NoSecondDerivatives):  # where the engine cannot vouch for a stride, no descent
+        except RunnerFell:
             return None
         end = self.solver.verify_point(spec, found.best.X, found.best.u, self.problem.name)
-        return end.spectral_radius if end.converged else None
+        if not end.converged:
+            return None
+        low, high = self.trunk_range(end.X, end.u, spec.params)
+        return {"meaning": meaning, "from_chart": chart["chart"], "start_radius": chart["spectral_radius"],
+                **dict(zip(APEX.names, map(float, end.X))), **dict(zip(CONTROL.names, map(float, end.u))),
+                "spectral_radius": end.spectral_radius, "stable": bool(end.stable),
+                "residual": end.residual, "theta_h_min": low, "theta_h_max": high,
+                **_upright(end.X, low, high), "descent_stop": found.stop_reason}
 
 
 def _cell_counts(atlas, charts: list[dict]) -> dict:
@@ -133,7 +153,6 @@ def _cell_counts(atlas, charts: list[dict]) -> dict:
 
 def chart_rows(atlas, reports) -> list[dict]:
     """The atlas.csv rows of a cell's charts (without the cell's columns)."""
-    upright = math.pi / 2
     rows = []
     for chart, report, piece, area, near in zip(atlas.charts, reports, atlas.pieces, atlas.areas, atlas.neighbours):
         rows.append({
@@ -142,12 +161,18 @@ def chart_rows(atlas, reports) -> list[dict]:
             "spectral_radius": report.spectral_radius, "stable": report.stable,
             "status": "converged" if report.residual <= VERIFY_EPS else "not_verified",
             "residual": report.residual, "theta_h_min": report.theta_h_min, "theta_h_max": report.theta_h_max,
-            "upright_apex": bool(abs(report.X[APEX.index("theta_h")] - upright) <= UPRIGHT_AT_APEX),
-            "upright_throughout": bool(max(abs(report.theta_h_min - upright), abs(report.theta_h_max - upright))
-                                       <= UPRIGHT_THROUGHOUT),
+            **_upright(report.X, report.theta_h_min, report.theta_h_max),
             "radius": chart.radius, "area": area, "neighbours": ";".join(map(str, near)),
         })
     return rows
+
+
+def _upright(X: np.ndarray, low: float, high: float) -> dict:
+    """Both meanings of upright for the gait of apex ``X`` whose trunk ranges over
+    [``low``, ``high``] [rad] in its stride."""
+    upright = math.pi / 2
+    return {"upright_apex": bool(abs(X[APEX.index("theta_h")] - upright) <= UPRIGHT_AT_APEX),
+            "upright_throughout": bool(max(abs(low - upright), abs(high - upright)) <= UPRIGHT_THROUGHOUT)}
 
 
 def boundary_rows(atlas, manifold: GaitManifold) -> list[dict]:

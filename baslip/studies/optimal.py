@@ -101,9 +101,11 @@ def optimal_worker(chunk: list[dict], problem: Problem, queue) -> None:
         queue.put(None)
 
 
-def best_gait_motions(best: list[dict], names: list[str], params, count: int = 6) -> list[tuple[str, np.ndarray, np.ndarray]]:
+def best_gait_motions(best: list[dict], names: list[str], params, count: int = 6,
+                      note=lambda row: "") -> list[tuple[str, np.ndarray, np.ndarray]]:
     """(label, t [s], theta_h [rad]) over one stride of the ``count`` most stable of the
-    ``best`` rows, simulated at rtol = atol = 1e-12: the trunk motion figure's lines."""
+    ``best`` rows, simulated at rtol = atol = 1e-12: the trunk motion figure's lines.
+    ``note(row)`` is added to a line's label."""
     from baslip.engine.returnmap import ReturnMap, Tolerances
     from baslip.engine.trajectory import stride_trajectory
     from baslip.model.dynamics import APEX
@@ -115,7 +117,7 @@ def best_gait_motions(best: list[dict], names: list[str], params, count: int = 6
         X, u = np.array([row[n] for n in APEX.names]), np.array([row[n] for n in CONTROL.names])
         motion = stride_trajectory(rmap, X, u, params, strides=1, samples=100)
         where = ", ".join(f"{n} = {row[key_column(n)]:g}" for n in names)
-        motions.append((f"{where}: radius {row['spectral_radius']:.3g}", motion.t, motion.theta_h))
+        motions.append((f"{where}{note(row)}: radius {row['spectral_radius']:.3g}", motion.t, motion.theta_h))
     return motions
 
 

@@ -74,7 +74,7 @@ KINDS: dict[type, StudyKind] = {
     Adaptive: StudyKind(run_adaptive_study, ("strides.csv",)),
     Optimal: StudyKind(run_optimal, ("points.csv",)),
     Controllers: StudyKind(run_controllers, ("controllers.csv",)),
-    Atlas: StudyKind(run_atlas, ("cells.csv", "atlas.csv", "atlas_boundary.csv")),
+    Atlas: StudyKind(run_atlas, ("cells.csv", "atlas.csv", "atlas_boundary.csv", "atlas_best.csv")),
 }
 #: Files any study writes besides its figures; ``--fresh`` removes them before starting.
 DATA_FILES = tuple(sorted({name for kind in KINDS.values() for name in kind.data_files}))
