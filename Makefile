@@ -10,8 +10,9 @@ BRANCHES = continuation_slip_attack continuation_downward_speed continuation_dow
 # Studies that read the curves' results.
 AFTER_CURVES = stable_region_traced
 GAITS = downward upward downward_period2
-# Atlases of the gait families (long: minutes per cell).
-ATLASES = atlas_upright_cell atlas_upright atlas_downward
+# Atlases of the gait families (long: minutes per cell), and the controllers compared on
+# the most stable upright gait the upright atlas found (its gait copied into the problem).
+ATLASES = atlas_upright atlas_downward controllers_upright_best
 
 .PHONY: studies clean-studies atlases
 

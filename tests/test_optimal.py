@@ -6,6 +6,8 @@
   stride, match finite differences of the AD Jacobian's eigenvalues.
 * A descent never ends above where it started, every point it accepts is a fixed point,
   and its end point passes the solver's independent verification.
+* Where the start has no second derivatives, a compass search on the radius alone still
+  lowers it, on fixed points.
 * Starts draw gains over their whole range, repeatably.
 """
 
@@ -17,7 +19,8 @@ import numpy as np
 import pytest
 
 from baslip import Params
-from baslip.analysis.descent import SURROGATE_POWER, StabilityDescent, optimise_from, random_start, surrogate
+from baslip.analysis.descent import (SURROGATE_POWER, NoSecondDerivatives, StabilityDescent, optimise_from, random_start,
+                                     surrogate)
 from baslip.gait.from_problem import fixed_point_spec, shooting_options
 from baslip.gait.polish import eps
 from baslip.problem.reader import load_problem
@@ -102,6 +105,25 @@ def test_a_descent_lowers_the_radius_and_ends_on_a_verified_fixed_point(downward
     verified = solver.verify_point(spec, found.best.X, found.best.u)
     assert verified.converged and verified.residual <= 1e-10
     assert verified.spectral_radius == pytest.approx(radii[-1], rel=1e-6)
+
+
+def test_without_second_derivatives_the_descent_is_a_compass_search_on_the_radius(downward, monkeypatch):
+    """Where the compiled engine cannot vouch for the start's stride (no second
+    derivatives), the descent still lowers the radius, by the compass search alone, on
+    fixed points."""
+    problem, solver, spec, X, u = downward
+    descent = StabilityDescent(solver.residual_map, compile=False)
+
+    def no_second_derivatives(*args):
+        raise NoSecondDerivatives("the compiled engine cannot vouch for this stride")
+
+    monkeypatch.setattr(descent, "gradient", no_second_derivatives)
+    found = descent.run(spec, X, u)
+    assert "no second derivatives at the start" in found.stop_reason
+    radii = [s.spectral_radius for s in found.steps]
+    assert radii == sorted(radii, reverse=True) and radii[-1] < radii[0] - 0.05
+    for step in found.steps:
+        assert eps(solver.residual_map(step.X, step.u, Params()), step.X) <= 1e-12
 
 
 def test_random_starts_span_the_gain_range_repeatably():

@@ -33,16 +33,18 @@ def atlas_summary(least_apex, complete=True, polished=None):
 
 
 def test_the_atlas_claim_is_as_wide_as_its_covering(tmp_path):
-    """A stable chart (or polished end) makes the verdict "differs"; otherwise it agrees only
-    within the covering, and a cell that hit its chart limit says it was not covered whole."""
+    """A stable chart (or polished end) makes the verdict "differs", covered whole or not (a
+    stable gait found is a fact); otherwise it agrees only within the covering, and a cell
+    that was not covered whole says why."""
     import json
 
     from baslip.report.atlas import atlas_claims
 
     for least, polished, complete, verdict in ((2.7, 1.4, False, "open: not covered whole"),
                                                (2.7, 1.4, True, "agreed within the covering"),
-                                               (1.2, 0.7, True, "differs: a stable upright gait exists"),
-                                               (0.6, None, True, "differs: a stable upright gait exists")):
+                                               (1.2, 0.7, True, "differs: a stable gait upright at the apex exists; "
+                                                                "none was found upright throughout the stride"),
+                                               (0.6, None, False, "differs: a stable gait upright at the apex exists")):
         folder = tmp_path / f"r{least}{complete}" / "atlas_upright_cell"
         folder.mkdir(parents=True)
         (folder / "result.json").write_text(json.dumps(atlas_summary(least, complete, polished)))
@@ -51,3 +53,29 @@ def test_the_atlas_claim_is_as_wide_as_its_covering(tmp_path):
         assert ("not covered whole: the corrector gave up at 120 of 500 edges" in text) == (not complete)
         assert ("covered whole: every edge" in text) == complete
         assert "24 seeds (10 failed)" in text and "3000 charts" in text
+
+
+def test_the_atlas_claim_names_the_polished_gaits_and_maps_the_hanging_family(tmp_path):
+    """The best polished gait of each meaning is described (radius, gait, trunk range), and
+    a finished hanging-family atlas adds its least radius and stable share per cell."""
+    import json
+
+    from baslip.report.atlas import atlas_claims
+
+    summary = atlas_summary(1.05, False, 0.74)
+    gait = {"ydot": 0.5, "z": 0.4, "theta_h": 1.105, "theta_h_dot": -7.6, "Kp": 31.0, "Kd": 0.358, "theta2_des": 4.5,
+            "theta_td": 0.384, "residual": 3e-13, "trunk_min_deg": -34.0, "trunk_max_deg": 155.0}
+    summary["best"] = [{**gait, "meaning": "any", "spectral_radius": 0.74},
+                       {**gait, "meaning": "any", "spectral_radius": 0.9},
+                       {**gait, "meaning": "upright_throughout", "spectral_radius": 1.9}]
+    hanging = atlas_summary(0.43, True, 0.4)
+    hanging["cells"][0]["stable_share"] = 0.25
+    for name, record in (("atlas_upright_cell", summary), ("atlas_downward", hanging)):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "result.json").write_text(json.dumps(record))
+    [text] = atlas_claims(Evidence(tmp_path))
+    assert "The polished gait of least radius of all: radius 0.740" in text and "radius 0.900" not in text
+    assert "The polished gait of upright throughout: radius 1.900" in text
+    assert "between -34 and 155 deg" in text
+    assert "the hanging family" in text and "(0.5, 0.4): least radius 0.4, stable share 25.0%" in text
+    assert "**Verdict:** differs: a stable gait upright at the apex exists; none was found upright throughout" in text

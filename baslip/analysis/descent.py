@@ -169,7 +169,9 @@ class StabilityDescent:
         follow from the fixed-point equations (the polish with the chart held). On the
         chart, phi is an ordinary function whose gradient comes by the implicit-function
         theorem, and BFGS with a backtracking (Armijo) line search minimises it. When no
-        step lowers phi, a compass search on the spectral radius itself goes on.
+        step lowers phi, a compass search on the spectral radius itself goes on. Where the
+        start has no second derivatives (the compiled engine cannot vouch for its stride,
+        as at gaits whose trunk swings far and fast), the compass search is all there is.
         """
         if spec.strides != 1:
             raise ValueError("the stability descent handles one-stride gaits")

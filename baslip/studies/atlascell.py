@@ -109,8 +109,8 @@ class CellAtlas:
         return min(ends, key=lambda end: end["spectral_radius"], default=None)
 
     def _descend(self, spec, chart: dict, meaning: str) -> dict | None:
-        """Where the descent from ``chart`` ends, verified, as a row; None if it cannot
-        start (the engine cannot vouch for the stride) or its end is not verified."""
+        """Where the descent from ``chart`` ends, verified, as a row of atlas_best.csv;
+        None if a stride of the descent falls or its end is not verified."""
         X = np.array([chart[n] for n in APEX.names])
         u = np.array([chart[n] for n in CONTROL.names])
         try:
