@@ -69,7 +69,7 @@ def _least(cells: list[dict], *columns: str) -> float | None:
 
 def _best_gaits(best: list[dict]) -> list[dict]:
     """The most stable polished gait of each meaning."""
-    chosen = {}
+    chosen: dict[str, dict] = {}
     for row in sorted(best, key=lambda b: b["spectral_radius"]):
         chosen.setdefault(row["meaning"], row)
     return list(chosen.values())
@@ -125,4 +125,6 @@ def _value(radius) -> str:
 
 
 def _share(share) -> str:
-    return "n/a" if share is None else f"{share:.1%}"
+    if share is None:
+        return "n/a"
+    return "below 0.1%" if 0 < share < 0.001 else f"{share:.1%}"

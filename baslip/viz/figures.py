@@ -469,6 +469,7 @@ def trunk_motion_figure(motions: list[tuple[str, np.ndarray, np.ndarray]], out_d
         ax.plot(t, shown("theta_h", theta_h), lw=1.2, label=label)
     ax.set_xlabel("time from apex t [s]")
     ax.set_ylabel(LABELS["theta_h"])
+    ax.set_title("Trunk angle over one stride of the most stable gaits")
     ax.legend(fontsize=7, loc="best")
     path = _in(out_dir, "best_gaits_trunk.png")
     return _save(fig, path)
