@@ -433,7 +433,7 @@ def correct(system: ManifoldSystem, target: np.ndarray, tangent: np.ndarray, jac
         if step == iterations:
             break
         taken = _newton_step(system, w, evaluation, target, tangent, jacobian, fresh)
-        if isinstance(taken, str) and not fresh and taken not in (SINGULAR_FOLD,):
+        if isinstance(taken, str) and not fresh and taken != SINGULAR_FOLD:
             # The chord step failed: take it again with a Jacobian at the iterate.
             refreshed = system.jacobian(w)
             if isinstance(refreshed, str):
@@ -454,8 +454,8 @@ def _newton_step(system: ManifoldSystem, w: np.ndarray, evaluation: Evaluation, 
     square = np.vstack([jacobian, tangent.T])
     if np.linalg.cond(square) > SINGULAR_CONDITION:
         return SINGULAR_FOLD
-    norm = float(np.linalg.norm(np.concatenate([evaluation.residual, tangent.T @ (w - target)])))
-    full = np.linalg.solve(square, np.concatenate([evaluation.residual, tangent.T @ (w - target)]))
+    g = np.concatenate([evaluation.residual, tangent.T @ (w - target)])
+    norm, full = float(np.linalg.norm(g)), np.linalg.solve(square, g)
     reason = DIVERGED
     for halving in range(DAMPING_HALVINGS + 1 if fresh else 1):
         trial = w - full / 2**halving
