@@ -235,11 +235,8 @@ class StabilityDescent:
         cannot vouch for its stride, so the surrogate has no gradient): the compass search
         on the spectral radius alone, which needs first derivatives only."""
         dr_dX, _ = self.rmap.jacobians(design[:4], design[4:], spec.params)
-        stability = classify(dr_dX, spec.params, design[4:])
-        trivial = np.array([m.trivial for m in stability.multipliers])
-        start = DescentStep(design[:4].copy(), design[4:].copy(), stability.spectral_radius,
-                            surrogate(dr_dX, trivial)[0])
-        found, searched = self._pattern_search(spec, design, stability.spectral_radius)
+        start = _step_at(design, dr_dX, spec)
+        found, searched = self._pattern_search(spec, design, start.spectral_radius)
         return Descent((start, *found), "compass search on the spectral radius converged "
                        "(no second derivatives at the start)", float("nan"), 1 + searched)
 
@@ -326,11 +323,10 @@ class StabilityDescent:
                         dr_dX, _ = self.rmap.jacobians(trial[:4], trial[4:], spec.params)
                     except RunnerFell:
                         continue
-                    stability = classify(dr_dX, spec.params, trial[4:])
-                    if stability.spectral_radius < radius:
-                        design, radius, improved = trial, stability.spectral_radius, True
-                        trivial = np.array([m.trivial for m in stability.multipliers])
-                        found.append(DescentStep(trial[:4].copy(), trial[4:].copy(), radius, surrogate(dr_dX, trivial)[0]))
+                    step_here = _step_at(trial, dr_dX, spec)
+                    if step_here.spectral_radius < radius:
+                        design, radius, improved = trial, step_here.spectral_radius, True
+                        found.append(step_here)
                         break
                 if improved:
                     break
@@ -361,6 +357,14 @@ class StabilityDescent:
         if not stride.ok or eps(stride.apex, X) > 1e-12:
             return None
         return point
+
+
+def _step_at(design: np.ndarray, dr_dX: np.ndarray, spec: FixedPointSpec) -> DescentStep:
+    """The descent's record of the fixed point ``design`` whose return-map Jacobian is
+    ``dr_dX``: its spectral radius and surrogate (structural multipliers left out)."""
+    stability = classify(dr_dX, spec.params, design[4:])
+    trivial = np.array([m.trivial for m in stability.multipliers])
+    return DescentStep(design[:4].copy(), design[4:].copy(), stability.spectral_radius, surrogate(dr_dX, trivial)[0])
 
 
 def _bfgs(H: np.ndarray, s: np.ndarray, y: np.ndarray) -> np.ndarray:

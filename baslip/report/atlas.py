@@ -15,13 +15,17 @@ HANGING = "atlas_downward"
 def atlas_claims(ev: Evidence) -> list[str]:
     """The claim of the first atlas of upright gaits that has finished (with the hanging
     family's atlas for comparison, if it has finished), or nothing."""
-    hanging = ev.summary(HANGING)
-    hanging = hanging if hanging and hanging.get("complete") and hanging.get("cells") else None
+    hanging = _finished(ev.summary(HANGING))
     for name in ATLASES:
-        summary = ev.summary(name)
-        if summary and summary.get("complete") and summary.get("cells"):
+        summary = _finished(ev.summary(name))
+        if summary is not None:
             return [_claim(name, summary, hanging)]
     return []
+
+
+def _finished(summary: dict | None) -> dict | None:
+    """``summary`` if it is of a finished atlas with cells, else None."""
+    return summary if summary and summary.get("complete") and summary.get("cells") else None
 
 
 def _claim(name: str, summary: dict, hanging: dict | None) -> str:

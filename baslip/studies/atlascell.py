@@ -101,11 +101,13 @@ class CellAtlas:
         stability descent from each of the ``study.polish`` least-radius verified charts of
         that meaning, its end verified independently; the verified end of least radius that
         still has that meaning (None if there is none)."""
-        upright = meaning == "upright_throughout"
-        candidates = sorted((c for c in charts if c["status"] == "converged" and (not upright or c[meaning])),
+        def has_meaning(row: dict) -> bool:
+            return meaning == "any" or bool(row[meaning])
+
+        candidates = sorted((c for c in charts if c["status"] == "converged" and has_meaning(c)),
                             key=lambda c: c["spectral_radius"])[: self.study.polish]
         ends = [end for end in (self._descend(spec, c, meaning) for c in candidates)
-                if end is not None and (not upright or end[meaning])]
+                if end is not None and has_meaning(end)]
         return min(ends, key=lambda end: end["spectral_radius"], default=None)
 
     def _descend(self, spec, chart: dict, meaning: str) -> dict | None:
