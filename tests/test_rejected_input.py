@@ -215,6 +215,12 @@ for key, value, names in [
     ("vary", {"Kp": [-1, 1, 0.5]}, "study.vary.Kp"), ("vary", {"z": [0.4, 0.5, 0.1], "Kd": [0.1, 0.2, 0.1]}, "study.vary.Kd"),
 ]:
     CASES.append((f"optimal study.{key}={value!r}", dump(put(base(OPTIMAL), f"study.{key}", value)), names))
+CASES.append(("optimal study.method=newton", dump(put(base(OPTIMAL), "study.method", "newton")), "study.method"))
+CASES.append(("optimal schur_nlp study with iterations",
+              dump(put(put(base("optimal_upright_schur"), "study.method", "schur_nlp"), "study.iterations", 50)),
+              "study.iterations"))
+CASES.append(("objective least_spectral_radius with strides 2",
+              dump({**base("downward"), "objective": "least_spectral_radius", "strides": 2}), "objective"))
 CONTROLS = "controllers_upright"
 for key, value, names in [
     ("perturbation", {}, "study.perturbation"), ("perturbation", {"z": 0}, "study.perturbation.z"),

@@ -43,6 +43,8 @@ from baslip.engine.codegen import compile_library, module_files
 from baslip.engine.kernels import StanceFlow, stance_clearances
 from baslip.engine.kernels import sources as kernel_sources
 from baslip.engine.returnmap import PHASES, ReturnMap, Stride
+from baslip.gait import monodromy as _monodromy
+from baslip.gait.monodromy import SCHUR, ShotStrideJacobian, accuracy_constraints, schur_constraints, schur_start
 from baslip.model import quantities as _quantities
 from baslip.model.dynamics import (
     APEX,
@@ -72,6 +74,9 @@ from baslip.problem.reader import SolverSettings
 #: README's table measures them; ``objective`` is the default, with ``exact`` as the
 #: second try after a failure (see :class:`baslip.gait.fixedpoint.FixedPointSolver`).
 HESSIANS = ("exact", "objective", "limited-memory")
+#: gcc's level for the stability NLP: its constraint Jacobian holds the second derivatives
+#: of every interval, 6.5 MB of C at 20 nodes, which took gcc 212 s at -O3 and 83 s at -O1.
+STABLE_OPTIMISATION = "-O1"
 
 
 @dataclass(frozen=True)
@@ -83,6 +88,9 @@ class ShootingOptions:
     hessian: str = "objective"  # see HESSIANS
     scheme: str = "rk4"  # the interval's steps: "rk4" or "dop853" (see the README's measurements)
     margin: float = 1e-3  # transversality margin on guard rates [SI]
+    # Bound the multipliers inside the NLP by a Schur form of the shot stride's dr/dX and
+    # minimise the bound (:mod:`baslip.gait.monodromy`); one-stride orbits only.
+    spectral_bound: bool = False
     min_duration: float = 1e-3  # [s]
     max_duration: float = 5.0  # [s]
     ipopt: Mapping[str, object] = field(default_factory=lambda: ipopt_options(SolverSettings()))
@@ -128,6 +136,7 @@ class NlpSolution:
     iterations: int
     time_s: float
     w: np.ndarray | None = None  # every NLP variable, to warm-start a neighbouring solve
+    spectral_bound: float | None = None  # the stability NLP's bound on the multipliers' moduli
 
 
 def _rk4_interval(substeps: int) -> ca.Function:
@@ -174,6 +183,8 @@ class ShootingNLP:
             raise ValueError(f"strides must be at least 1, got {strides}")
         if options.hessian not in HESSIANS:
             raise ValueError(f"hessian must be one of {HESSIANS}, got {options.hessian!r}")
+        if options.spectral_bound and strides != 1:
+            raise ValueError(f"the multipliers are bounded for one-stride orbits only, not {strides}")
         self.options = options
         self.strides = strides
         self.interval = _rk4_interval(1)  # for torque_effort, a reporting quadrature
@@ -200,7 +211,7 @@ class ShootingNLP:
         def constrain(expr, lo, hi):
             constraints.append((ca.vec(expr), lo, hi))
 
-        apexes, blocks, effort, apex_next = [], [], [], None
+        apexes, blocks, effort, apex_next, shot = [], [], [], None, []
         for k in range(self.strides):
             X = APEX.sym(f"X{k}", ca.MX)
             T = ca.MX.sym(f"T{k}", len(PHASES))
@@ -212,6 +223,7 @@ class ShootingNLP:
                                                      comp_nodes, decomp_nodes, constrain)
             effort.append(stride_effort)
             apexes.append(X)
+            shot.append((T, comp_nodes, decomp_nodes))
             # X_0 and u lead the vector so that the design is w[:len(DESIGN)] for any N.
             blocks += ([] if k == 0 else [X]) + [T, ca.vec(comp_nodes), ca.vec(decomp_nodes)]
         X0 = apexes[0]
@@ -224,6 +236,24 @@ class ShootingNLP:
         scale = ca.DM([NOMINAL[name] for name in DESIGN])
         distance = ca.sumsqr((design - guess) / scale)
         w = ca.vertcat(X0, u, *blocks)
+        self._n_orbit = w.numel()  # the orbit's variables; the Schur variables follow
+        bound = ca.MX(0)
+        if self.options.spectral_bound:
+            self._sensitivity = ShotStrideJacobian(self._interval, self.options.nodes)
+            sensitivities = ca.MX.sym("sensitivities", self._sensitivity.size)
+            schur = ca.MX.sym("schur", SCHUR.size)
+            first_row = sum(c[0].numel() for c in constraints)
+            A = self._sensitivity.jacobian(X0, u, p, *shot[0], sensitivities, constrain)
+            self._sensitivity_rows = slice(first_row, sum(c[0].numel() for c in constraints))
+            T0 = shot[0][0]
+            for phase in (1, 2):  # compression and decompression
+                for expr, lo, hi in accuracy_constraints(u, p, T0[phase] / (self.options.nodes * self.options.substeps)):
+                    constrain(expr, lo, hi)
+            for expr, lo, hi in schur_constraints(A, schur):
+                constrain(expr, lo, hi)
+            bound = SCHUR.unpack(schur)[-1]
+            self._shot_jacobian = ca.Function("shot_stride_jacobian", [w, sensitivities, p], [A])
+            w = ca.vertcat(w, sensitivities, schur)
         self._n_w = w.numel()
         params = ca.vertcat(p, guess, weights)
         g = ca.vertcat(*(c[0] for c in constraints))
@@ -231,10 +261,10 @@ class ShootingNLP:
         self._ubg = np.concatenate([np.full(c[0].numel(), c[2], dtype=float) for c in constraints])
         self.functions = compile_library(  # objective, constraints and derivatives
             f"baslip_nlp_{self.strides}_{self.options.nodes}x{self.options.substeps}_{self.options.scheme}_"
-            f"{self.options.hessian.replace('-', '_')}",
+            f"{self.options.hessian.replace('-', '_')}{'_stable' if self.options.spectral_bound else ''}",
             [f"nlp_{n}" for n in ("fg", "grad_f", "jac_g", "hess_l")],
-            lambda: _nlp_functions(w, params, weights, distance, ca.vertcat(*effort), g, self.options.hessian),
-            _nlp_sources(), enabled=compile,
+            lambda: _nlp_functions(w, params, weights, distance, ca.vertcat(*effort), bound, g, self.options.hessian),
+            _nlp_sources(), enabled=compile, optimisation=STABLE_OPTIMISATION if self.options.spectral_bound else "-O3",
         )
         self._solver = self._nlpsol(self.functions)
 
@@ -255,6 +285,11 @@ class ShootingNLP:
 
     # -- solving -----------------------------------------------------------------------
 
+    @property
+    def _bound_index(self) -> int:
+        """Position of the stability NLP's bound s: the last variable."""
+        return self._n_w - 1
+
     def _durations_index(self, k: int) -> int:
         """Position of stride k's first phase duration in the NLP vector, laid out as
         (X_0, u, T_0, nodes_0, X_1, T_1, nodes_1, ...)."""
@@ -273,6 +308,8 @@ class ShootingNLP:
             t0 = self._durations_index(k)
             lbx[t0 : t0 + len(PHASES)] = self.options.min_duration
             ubx[t0 : t0 + len(PHASES)] = self.options.max_duration
+        if self.options.spectral_bound:
+            lbx[self._bound_index] = 0.0
         return lbx, ubx
 
     def initial_guess(self, spec: FixedPointSpec, rmap: ReturnMap | None = None) -> np.ndarray:
@@ -289,7 +326,23 @@ class ShootingNLP:
             comp, decomp = (np.asarray(v) for v in self._guess_nodes()(X, u, p, durations[:3]))
             parts += ([X] if k else []) + [durations, comp.T.ravel(), decomp.T.ravel()]
             X = stride.apex if stride is not None and stride.apex is not None else X
-        return np.concatenate(parts)
+        return self._with_schur(np.concatenate(parts), spec)
+
+    def _with_schur(self, w: np.ndarray, spec: FixedPointSpec) -> np.ndarray:
+        """``w`` with the stability variables appended, if this NLP has them and ``w`` has
+        not: the sensitivity nodes that join at ``w``'s orbit, and the Schur form of the
+        shot stride's dr/dX there."""
+        if not self.options.spectral_bound or len(w) == self._n_w:
+            return w
+        orbit, p = np.asarray(w, dtype=float)[: self._n_orbit], spec.params.vector()
+        n_design, n = len(DESIGN), STANCE.size * self.options.nodes
+        T = orbit[n_design : n_design + len(PHASES)]
+        comp = orbit[n_design + len(PHASES) :][:n].reshape(-1, STANCE.size).T
+        decomp = orbit[n_design + len(PHASES) + n :][:n].reshape(-1, STANCE.size).T
+        X, u = orbit[: APEX.size], orbit[APEX.size : n_design]
+        sensitivities = self._sensitivity.start_values(X, u, p, T, comp, decomp)
+        A = np.asarray(self._shot_jacobian(orbit, sensitivities, p))
+        return np.concatenate([orbit, sensitivities, schur_start(A)])
 
     def _guess_nodes(self) -> ca.Function:
         """(X, u, p, (t_descent, t_compression, t_decompression)) -> the nodes of both
@@ -310,8 +363,7 @@ class ShootingNLP:
         """Solve the NLP from ``w0`` (default: :meth:`initial_guess`)."""
         if spec.strides != self.strides:
             raise ValueError(f"this NLP is built for {self.strides}-stride orbits, not {spec.strides}")
-        if w0 is None:
-            w0 = self.initial_guess(spec, rmap)
+        w0 = self.initial_guess(spec, rmap) if w0 is None else self._with_schur(np.asarray(w0, dtype=float), spec)
         lbx, ubx = self._bounds(spec)
         w0 = np.clip(w0, lbx, ubx)
         guess = spec.start_design()
@@ -342,6 +394,7 @@ class ShootingNLP:
             iterations=int(stats["iter_count"]),
             time_s=elapsed,
             w=w,
+            spectral_bound=float(w[self._bound_index]) if self.options.spectral_bound else None,
         )
 
 
@@ -449,10 +502,12 @@ def _effort_residuals(states, u, h):
     return ca.vec(tau * ca.sqrt(h * weights))
 
 
-def _nlp_functions(w, params, weights, distance, effort, g, kind: str) -> list[ca.Function]:
+def _nlp_functions(w, params, weights, distance, effort, bound, g, kind: str) -> list[ca.Function]:
     """The NLP's objective and constraints, their first derivatives, and the Hessian that
-    :data:`HESSIANS` names by ``kind`` (for ``limited-memory`` it is built but unused)."""
-    f = weights[0] * distance + weights[1] * ca.sumsqr(effort)
+    :data:`HESSIANS` names by ``kind`` (for ``limited-memory`` it is built but unused).
+    ``bound`` is the stability NLP's bound on the multipliers (0 elsewhere), minimised
+    with weight 1."""
+    f = weights[0] * distance + weights[1] * ca.sumsqr(effort) + bound
     lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", g.numel())
     if kind == "exact":
         hessian = ca.hessian(lam_f * f + ca.dot(lam_g, g), w)[0]
@@ -471,4 +526,4 @@ def _nlp_functions(w, params, weights, distance, effort, g, kind: str) -> list[c
 
 def _nlp_sources() -> list[pathlib.Path]:
     """The modules the NLP is derived from: the compiled library's key."""
-    return [*kernel_sources(), *module_files(_quantities, sys.modules[__name__])]
+    return [*kernel_sources(), *module_files(_quantities, _monodromy, sys.modules[__name__])]

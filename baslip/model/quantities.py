@@ -88,12 +88,17 @@ DEFAULT_GUESS = {
 #: ``nearest_guess``, ``min_torque`` (with a 1e-6 nearest-guess term to make the minimiser
 #: unique) and ``feasibility`` (the constraints, with only that 1e-6 nearest-guess term:
 #: with none at all IPOPT's answer followed round-off in its path, and a start changed
-#: at 1e-14 moved it from Kp = 2.6 to Kp = 881 N m/rad).
+#: at 1e-14 moved it from Kp = 2.6 to Kp = 881 N m/rad). ``least_spectral_radius`` adds
+#: the NLP's bound on the multipliers' moduli to that 1e-6 term (the stability NLP of
+#: :mod:`baslip.gait.monodromy`).
 OBJECTIVES = {
     "nearest_guess": (1.0, 0.0),
     "min_torque": (1e-6, 1.0),
     "feasibility": (1e-6, 0.0),
+    "least_spectral_radius": (1e-6, 0.0),
 }
+#: The objectives that bound the multipliers inside the NLP.
+STABILITY_OBJECTIVES = ("least_spectral_radius",)
 
 
 def start_value(name: str, fixed, guess, bounds) -> float:

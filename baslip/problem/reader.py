@@ -34,6 +34,7 @@ from baslip.model.quantities import (
     DESIGN,
     OBJECTIVES,
     QUANTITIES,
+    STABILITY_OBJECTIVES,
     start_value,
 )
 from baslip.problem.continuation import ContinuationSpec, check_continuation, parse_continuation
@@ -161,6 +162,9 @@ def _checked(problem: Problem) -> Problem:
         raise ProblemError("continuation", "a problem has either a study or a continuation, not both")
     if problem.study is not None and problem.strides != 1:
         raise ProblemError("strides", "studies solve one-stride gaits; remove strides or the study")
+    if problem.objective in STABILITY_OBJECTIVES and (problem.strides != 1 or problem.continuation is not None):
+        raise ProblemError("objective", f"{problem.objective} bounds the multipliers of one one-stride gait; it takes "
+                           "neither strides nor a continuation")
     _check_consistency(problem)
     _check_sweep(problem)
     _check_atlas(problem)

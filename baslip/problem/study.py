@@ -16,7 +16,9 @@ Kinds:
 * ``optimal``: at every point of a grid of one or two quantities (``vary``, as a sweep),
   ``starts`` fixed points with gains drawn over their whole bounds, each followed by a
   descent of at most ``iterations`` steps to the least spectral radius nearby
-  (:mod:`baslip.analysis.descent`); ``seed`` makes the draws repeatable;
+  (:mod:`baslip.analysis.descent`), or with ``method: schur_nlp`` by the stability NLP
+  (:mod:`baslip.gait.monodromy`, at most the problem's ``solver.max_iter`` IPOPT
+  iterations); ``seed`` makes the draws repeatable;
 * ``atlas``: at every point of a grid of one or two quantities (``vary``), the manifold of
   fixed points covered by charts (:mod:`baslip.analysis.atlas`), grown from ``seeds``
   independent solves with gains drawn over their whole bounds; ``radius`` and
@@ -102,6 +104,7 @@ class Optimal:
     starts: int = 16
     seed: int = 0
     iterations: int = 60  # most quasi-Newton iterations of each descent
+    method: str = "descent"  # or "schur_nlp": the stability NLP from each start (OPTIMAL_METHODS)
     kind: str = "optimal"
 
 
@@ -148,7 +151,7 @@ def parse_study(data) -> Study:
         "random": ("kind", "region", "count", "seed", "boundary"),
         "basin": ("kind", "source", "grid", "stable_at", "unstable_at", "strides", "tolerance"),
         "adaptive": ("kind", "strides", "frozen_strides", "perturbation", "criterion", "probe_strides"),
-        "optimal": ("kind", "vary", "starts", "seed", "iterations"),
+        "optimal": ("kind", "vary", "starts", "seed", "iterations", "method"),
         "controllers": ("kind", "perturbation", "samples", "seed", "strides", "tolerance", "criterion", "lqr_scale"),
         "atlas": ("kind", "vary", "seeds", "seed", "radius", "max_radius", "max_charts", "plot", "polish"),
     }[kind]
@@ -169,11 +172,15 @@ def parse_study(data) -> Study:
             if axis.name in DRAWN_GAINS:
                 raise StudyError(f"study.vary.{axis.name}", f"an optimal study draws {axis.name} at random for every "
                                  f"start ({', '.join(DRAWN_GAINS)}), so it cannot sweep it; fix it or sweep another quantity")
+        if data.get("method") == "schur_nlp" and "iterations" in data:
+            raise StudyError("study.iterations", "counts descent steps; with method schur_nlp the problem's "
+                             "solver.max_iter bounds IPOPT's iterations")
         return Optimal(
             axes,
             starts=_integer(data.get("starts", 16), "study.starts", 1, 10000),
             seed=_integer(data.get("seed", 0), "study.seed", 0, 2**31 - 1),
             iterations=_integer(data.get("iterations", 60), "study.iterations", 1, 10000),
+            method=_method(data.get("method", "descent")),
         )
     if kind == "random":
         return RandomSample(
@@ -272,6 +279,19 @@ def _axes(data, key, allowed) -> tuple[Axis, ...]:
                              "swept values are rounded; take a step of at least that")
         axes.append(Axis(name, values))
     return tuple(axes)
+
+
+#: How an optimal study goes from each start to the most stable gait near it: the descent
+#: on the fixed-point manifold (:mod:`baslip.analysis.descent`), or the stability NLP,
+#: which bounds the multipliers by a Schur form inside the stride NLP
+#: (:mod:`baslip.gait.monodromy`).
+OPTIMAL_METHODS = ("descent", "schur_nlp")
+
+
+def _method(value) -> str:
+    if value not in OPTIMAL_METHODS:
+        raise StudyError("study.method", f"expected one of {', '.join(OPTIMAL_METHODS)}, got {excerpt(value)}")
+    return value
 
 
 def _criterion(value) -> str:

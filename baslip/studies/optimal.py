@@ -3,8 +3,9 @@
 Each task is one start at one grid point: gains drawn over their whole bounds (seeded by
 the study's seed, the grid point and the start number, so a task draws the same gains in
 any lane and on any resume), the fixed point solved with them held, the
-descent to the least spectral radius nearby, and the independent verification of where it
-ended (:mod:`baslip.analysis.descent`). Each row also gives the trunk's angle range over the stride,
+descent to the least spectral radius nearby (:mod:`baslip.analysis.descent`), or with
+``method: schur_nlp`` the stability NLP from there (:mod:`baslip.analysis.stablenlp`),
+and the independent verification of where it ended. Each row also gives the trunk's angle range over the stride,
 and whether the gait is upright at the apex (|theta_h - 90 deg| <= 30 deg) and upright
 throughout (within 45 deg of vertical at every sampled instant of the stride).
 """
@@ -61,7 +62,7 @@ def optimal_row(task: dict, gait, rmap, params) -> dict:
         drawn_Kp=gait.held.get("Kp"), drawn_Kd=gait.held.get("Kd"),
         start_status=gait.start.status,
         start_radius=gait.start.spectral_radius,
-        descent_steps=None if gait.descent is None else len(gait.descent.steps) - 1,
+        descent_steps=_steps(gait),
         descent_stop=gait.note,
     )
     if final.converged:
@@ -75,10 +76,21 @@ def optimal_row(task: dict, gait, rmap, params) -> dict:
     return row
 
 
+def _steps(gait) -> int | None:
+    """Steps from the start to the end: the descent's accepted points, or the stability
+    NLP's IPOPT iterations (None where neither ran)."""
+    if gait.descent is not None:
+        return len(gait.descent.steps) - 1
+    if gait.end is not None and gait.end is not gait.start:
+        return gait.end.solver.iterations
+    return None
+
+
 def optimal_worker(chunk: list[dict], problem: Problem, queue) -> None:
     """Worker process: for each task not yet done, draw its start, solve, descend,
     verify, and put its row on the queue."""
     from baslip.analysis.descent import StabilityDescent, optimise_from, random_start
+    from baslip.analysis.stablenlp import stable_nlp_from
     from baslip.gait.from_problem import fixed_point_spec, solver_for
 
     study = problem.study
@@ -92,9 +104,11 @@ def optimal_worker(chunk: list[dict], problem: Problem, queue) -> None:
                 continue
             swept = {k[len("sweep_"):]: v for k, v in task.items() if k.startswith("sweep_")}
             spec = replace(base, fixed={**base.fixed, **swept})
-            held = random_start(spec, task_rng(study, task))
             started = time.perf_counter()
-            gait = optimise_from(solver, descent, spec, held, problem.name)
+            if study.method == "schur_nlp":
+                gait = stable_nlp_from(solver, spec, task_rng(study, task), problem.name)
+            else:
+                gait = optimise_from(solver, descent, spec, random_start(spec, task_rng(study, task)), problem.name)
             row = optimal_row(task, gait, solver.residual_map, problem.params)
             queue.put({**row, "time_s": time.perf_counter() - started})
     finally:
@@ -160,7 +174,7 @@ def run_optimal(problem: Problem, study: Optimal, out_dir: Path, sources: Path, 
     not_solved = [{**{k: r[k] for k in keys}, "start": r["start"], "status": r["status"], "reason": r["reason"]}
                   for r in rows if r["status"] != Status.CONVERGED]
     return {
-        **status_counts(rows), **run_info(report), "swept": names, "starts": study.starts,
+        **status_counts(rows), **run_info(report), "swept": names, "starts": study.starts, "method": study.method,
         "descended": sum(1 for r in rows if r["descent_steps"] != "" and r["status"] == Status.CONVERGED),
         "least_per_point": [{**{n: r[key_column(n)] for n in names}, "spectral_radius": r["spectral_radius"],
                              "stable": r["stable"], "trunk_range_deg": [r["trunk_min_deg"], r["trunk_max_deg"]]}
