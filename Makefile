@@ -11,8 +11,10 @@ BRANCHES = continuation_slip_attack continuation_downward_speed continuation_dow
 AFTER_CURVES = stable_region_traced
 GAITS = downward upward downward_period2
 # Atlases of the gait families (long: minutes per cell), and the controllers compared on
-# the most stable upright gait the upright atlas found (its gait copied into the problem).
-ATLASES = atlas_upright atlas_downward controllers_upright_best
+# the most stable upright gait the upright atlas found (its gait copied into the problem),
+# and the stability NLP's cross-check of the upright atlas: from drawn starts, then from
+# the atlas's polished gaits.
+ATLASES = atlas_upright atlas_downward controllers_upright_best optimal_upright_schur
 
 .PHONY: studies clean-studies atlases
 
@@ -24,6 +26,7 @@ studies:
 
 atlases:
 	@for s in $(ATLASES); do $(PY) -m baslip.solve problems/$$s.yaml || exit 1; done
+	$(PY) examples/schur_from_atlas.py results/atlas_upright problems/atlas_upright.yaml results/schur_from_atlas
 
 clean-studies:
 	rm -rf $(addprefix results/,$(STUDIES) $(BRANCHES) $(AFTER_CURVES)) results/animation results/REPORT.md

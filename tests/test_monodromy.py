@@ -70,13 +70,12 @@ def test_the_shot_stride_jacobian_is_the_compiled_maps_at_a_verified_gait(uprigh
     assert gait.converged
     w = nlp.initial_guess(replace(spec, fixed={**dict(zip(APEX.names, gait.X)), **gait.control}, guess={}),
                           solver.residual_map)
-    orbit, sensitivities = w[: nlp._n_orbit], w[nlp._n_orbit : -SCHUR.size]
-    A = np.asarray(nlp._shot_jacobian(orbit, sensitivities, spec.params.vector()))
+    A = nlp.shot_jacobian(w, spec.params)
     engine = solver.residual_map.jacobians(gait.X, gait.u, spec.params)[0]
     assert np.linalg.norm(A - engine) <= 1e-5 * np.linalg.norm(engine)
     # The sensitivity nodes of the start join exactly: the NLP's rows for them are zero.
     f, g = nlp.functions["nlp_fg"](w, np.concatenate([spec.params.vector(), spec.start_design(), [1e-6, 0.0]]))
-    rows = np.asarray(g).ravel()[nlp._sensitivity_rows]
+    rows = np.asarray(g).ravel()[nlp.sensitivity_rows]
     assert np.abs(rows).max() < 1e-9
 
 

@@ -55,6 +55,59 @@ def test_the_atlas_claim_is_as_wide_as_its_covering(tmp_path):
         assert "24 seeds (10 failed)" in text and "3000 charts" in text
 
 
+def write_points(path, rows):
+    import csv
+
+    with open(path, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def test_the_cross_check_compares_the_stability_nlp_with_the_atlas_cell_by_cell(tmp_path):
+    """The stability NLP's least verified radius per cell stands beside the atlas's; the
+    verdict says "differs" only where the NLP found a gait more stable (by over 1 %) than
+    the atlas, and the runs from the atlas's gaits are counted and listed."""
+    import json
+
+    from baslip.report.atlas import crosscheck_claims
+
+    for nlp_radius, verdict in ((2.09, "agrees with the atlas"), (0.5, "differs from the atlas")):
+        root = tmp_path / str(nlp_radius)
+        for name in ("atlas_upright", "optimal_upright_schur", "schur_from_atlas"):
+            (root / name).mkdir(parents=True)
+        (root / "atlas_upright" / "result.json").write_text(json.dumps(atlas_summary(1.2, False, 0.932)))
+        problem = {"bounds": {"Kp": [-100, 100], "Kd": [-10, 10]}}
+        study = {"complete": True, "starts": 2, "least_per_point": [{"ydot": 0.5, "z": 0.4, "spectral_radius": nlp_radius}],
+                 "provenance": {"problem": problem}}
+        (root / "optimal_upright_schur" / "result.json").write_text(json.dumps(study))
+        ended = {"sweep_ydot": 0.5, "sweep_z": 0.4, "start_status": "converged", "status": "converged",
+                 "spectral_radius": nlp_radius, "theta_h_dot": -0.2,
+                 "descent_stop": f"stability NLP: Solve_Succeeded after 44 iterations, its bound {nlp_radius * 0.99:.4g}"}
+        no_start = {**ended, "start_status": "failed", "status": "failed", "spectral_radius": "",
+                    "descent_stop": "no starting fixed point: IPOPT: Infeasible_Problem_Detected"}
+        write_points(root / "optimal_upright_schur" / "points.csv", [ended, no_start])
+        back = {"ydot": 0.5, "z": 0.4, "meaning": "any", "atlas_radius": 0.932, "nlp_status": "Solve_Succeeded",
+                "verified": True, "verified_radius": 0.9319}
+        stalled = {**back, "meaning": "upright_throughout", "nlp_status": "Maximum_Iterations_Exceeded",
+                   "verified": False, "verified_radius": None}
+        (root / "schur_from_atlas" / "result.json").write_text(json.dumps(
+            {"complete": True, "source": "atlas_upright", "rows": [back, stalled]}))
+        [text] = crosscheck_claims(Evidence(root))
+        assert f"**Verdict:** {verdict}" in text
+        assert f"(0.5, 0.4): {nlp_radius:.3g} against 0.932" in text
+        assert "2 starts, 1 starting fixed points, 1 NLP runs converged, 1 ends verified" in text
+        assert "within 1.0% of the verified radius" in text
+        assert "end was verified for 1: 1 at the atlas's radius" in text and "0.932 -> Maximum_Iterations_Exceeded" in text
+        assert "0 lower, 0 higher" in text and "polish missed" not in text
+    sharper = {**back, "atlas_radius": 1.012, "verified_radius": 0.9915}
+    (root / "schur_from_atlas" / "result.json").write_text(json.dumps(
+        {"complete": True, "source": "atlas_upright", "rows": [sharper]}))
+    [text] = crosscheck_claims(Evidence(root))
+    assert "1 lower, 0 higher" in text
+    assert "a stable gait the atlas's polish missed at (0.5 m/s, 0.4 m): radius 0.9915 against 1.012" in text
+
+
 def test_the_atlas_claim_names_the_polished_gaits_and_maps_the_hanging_family(tmp_path):
     """The best polished gait of each meaning is described (radius, gait, trunk range), and
     a finished hanging-family atlas adds its least radius and stable share per cell."""

@@ -297,9 +297,8 @@ def _discard(path: pathlib.Path | str) -> None:
         os.unlink(path)
 
 
-def _build(name: str, c_text: str, compiler: list[str], library: pathlib.Path, extra: Sequence[str] = ()) -> None:
-    """Compile ``c_text`` into ``library``, atomically, with ``extra`` flags after
-    :data:`CFLAGS`; raises _NoCompiler on failure.
+def _build(name: str, c_text: str, compiler: list[str], library: pathlib.Path) -> None:
+    """Compile ``c_text`` into ``library``, atomically; raises _NoCompiler on failure.
 
     The source goes to a private temporary directory and the library to a unique
     temporary file, both in the cache directory and named ``.<library stem>.*``; the
@@ -320,7 +319,7 @@ def _build(name: str, c_text: str, compiler: list[str], library: pathlib.Path, e
             source = pathlib.Path(scratch) / f"{name}.c"
             source.write_text(c_text, encoding="utf-8")
             try:
-                _run([*compiler, *CFLAGS, *extra, str(source), "-o", partial, *LDLIBS])
+                _run([*compiler, *CFLAGS, str(source), "-o", partial, *LDLIBS])
             except _NoCompiler as reason:
                 raise _NoCompiler(f"compiling {name} failed ({reason})") from None
         digest = _sha256(pathlib.Path(partial))
@@ -362,18 +361,13 @@ def compile_library(
     sources: Sequence[pathlib.Path],
     *,
     enabled: bool | None = None,
-    optimisation: str = "-O3",
 ) -> dict[str, ca.Function]:
     """As :func:`compile_kernels`, but as CasADi Functions (``casadi.external``), for
-    use inside other CasADi objects such as an NLP solver, which call them from C++.
-    ``optimisation`` is gcc's level for this library (part of its cache key): a large
-    generated file can cost more at -O3 than it saves."""
-    return _cached(name, names, build, _read(sources), enabled, _load, lambda functions: {f.name(): f for f in functions},
-                   optimisation=optimisation)
+    use inside other CasADi objects such as an NLP solver, which call them from C++."""
+    return _cached(name, names, build, _read(sources), enabled, _load, lambda functions: {f.name(): f for f in functions})
 
 
-def _cached(name, names, build, fingerprint: Sequence[bytes], enabled, load, fallback, generated: str | None = None,
-            optimisation: str = "-O3"):
+def _cached(name, names, build, fingerprint: Sequence[bytes], enabled, load, fallback, generated: str | None = None):
     """The library of ``names``, keyed by ``fingerprint`` (the generated C, or the sources
     it is derived from) with the CasADi version and the compiler: loaded, or else built
     under a lock, compiled and loaded; ``fallback(build())`` without a compiler or with
@@ -384,7 +378,7 @@ def _cached(name, names, build, fingerprint: Sequence[bytes], enabled, load, fal
         _note_switched_off(name, enabled)
         return fallback(build())
     try:
-        loaded, version = _load_or_build(name, names, build, fingerprint, load, generated, optimisation)
+        loaded, version = _load_or_build(name, names, build, fingerprint, load, generated)
     except _NoCompiler as reason:
         _note(name, f"{VIRTUAL_MACHINE} ({reason})")
         return fallback(build())
@@ -392,25 +386,22 @@ def _cached(name, names, build, fingerprint: Sequence[bytes], enabled, load, fal
     return loaded
 
 
-def _load_or_build(name, names, build, fingerprint, load, generated, optimisation: str = "-O3"):
+def _load_or_build(name, names, build, fingerprint, load, generated):
     """(the loaded library, the compiler's version): from the cache if it holds an intact
     copy, else built under a lock first; raises _NoCompiler if neither works."""
     compiler = _compiler()
     version = _compiler_version(compiler)
-    # gcc's last -O wins; the default adds nothing, so that the libraries compiled
-    # before the option existed keep their keys.
-    extra = () if optimisation == "-O3" else (optimisation,)
     folder = cache_dir()
     if folder is None:
         raise _NoCompiler("there is no folder for compiled code (HOME is empty or unset; set BASLIP_CACHE_DIR)")
-    library = folder / f"{name}-{_key(fingerprint, names, [*compiler, *extra], version)[:20]}.so"
+    library = folder / f"{name}-{_key(fingerprint, names, compiler, version)[:20]}.so"
     loaded = load(library, names) if _intact(library) else None
     if loaded is None:
-        loaded = _build_and_load(name, names, build, load, generated, compiler, library, extra)
+        loaded = _build_and_load(name, names, build, load, generated, compiler, library)
     return loaded, version
 
 
-def _build_and_load(name, names, build, load, generated, compiler, library: pathlib.Path, extra: Sequence[str] = ()):
+def _build_and_load(name, names, build, load, generated, compiler, library: pathlib.Path):
     """Build ``library`` under its lock (unless another process did while this one
     waited) and load it; raises _NoCompiler if it cannot be built or does not load."""
     with _build_lock(library) as locked:
@@ -420,7 +411,7 @@ def _build_and_load(name, names, build, load, generated, compiler, library: path
         _clear_stale(library, locked)
         _discard(library)  # corrupt, truncated or stale: rebuild once
         _discard(_checksum_path(library))
-        _build(name, generated if generated is not None else _generate(name, build()), compiler, library, extra)
+        _build(name, generated if generated is not None else _generate(name, build()), compiler, library)
     loaded = load(library, names)
     if loaded is None:
         raise _NoCompiler(f"the freshly compiled {library.name} does not load")

@@ -74,9 +74,6 @@ from baslip.problem.reader import SolverSettings
 #: README's table measures them; ``objective`` is the default, with ``exact`` as the
 #: second try after a failure (see :class:`baslip.gait.fixedpoint.FixedPointSolver`).
 HESSIANS = ("exact", "objective", "limited-memory")
-#: gcc's level for the stability NLP: its constraint Jacobian holds the second derivatives
-#: of every interval, 6.5 MB of C at 20 nodes, which took gcc 212 s at -O3 and 83 s at -O1.
-STABLE_OPTIMISATION = "-O1"
 
 
 @dataclass(frozen=True)
@@ -236,24 +233,11 @@ class ShootingNLP:
         scale = ca.DM([NOMINAL[name] for name in DESIGN])
         distance = ca.sumsqr((design - guess) / scale)
         w = ca.vertcat(X0, u, *blocks)
-        self._n_orbit = w.numel()  # the orbit's variables; the Schur variables follow
+        self._n_orbit = w.numel()  # the orbit's variables; the stability NLP's follow
         bound = ca.MX(0)
         if self.options.spectral_bound:
-            self._sensitivity = ShotStrideJacobian(self._interval, self.options.nodes)
-            sensitivities = ca.MX.sym("sensitivities", self._sensitivity.size)
-            schur = ca.MX.sym("schur", SCHUR.size)
-            first_row = sum(c[0].numel() for c in constraints)
-            A = self._sensitivity.jacobian(X0, u, p, *shot[0], sensitivities, constrain)
-            self._sensitivity_rows = slice(first_row, sum(c[0].numel() for c in constraints))
-            T0 = shot[0][0]
-            for phase in (1, 2):  # compression and decompression
-                for expr, lo, hi in accuracy_constraints(u, p, T0[phase] / (self.options.nodes * self.options.substeps)):
-                    constrain(expr, lo, hi)
-            for expr, lo, hi in schur_constraints(A, schur):
-                constrain(expr, lo, hi)
-            bound = SCHUR.unpack(schur)[-1]
-            self._shot_jacobian = ca.Function("shot_stride_jacobian", [w, sensitivities, p], [A])
-            w = ca.vertcat(w, sensitivities, schur)
+            bound, stability = self._stability(w, X0, u, p, shot[0], constraints, constrain)
+            w = ca.vertcat(w, stability)
         self._n_w = w.numel()
         params = ca.vertcat(p, guess, weights)
         g = ca.vertcat(*(c[0] for c in constraints))
@@ -264,9 +248,38 @@ class ShootingNLP:
             f"{self.options.hessian.replace('-', '_')}{'_stable' if self.options.spectral_bound else ''}",
             [f"nlp_{n}" for n in ("fg", "grad_f", "jac_g", "hess_l")],
             lambda: _nlp_functions(w, params, weights, distance, ca.vertcat(*effort), bound, g, self.options.hessian),
-            _nlp_sources(), enabled=compile, optimisation=STABLE_OPTIMISATION if self.options.spectral_bound else "-O3",
+            _nlp_sources(), enabled=compile,
         )
         self._solver = self._nlpsol(self.functions)
+
+    def _stability(self, w, X0, u, p, shot, constraints, constrain):
+        """The stability NLP's part (:mod:`baslip.gait.monodromy`): the sensitivity nodes
+        and their joins, every interval's h * rate within the limit, and the Schur form
+        with its bound; returns (the bound s, the new variables)."""
+        self._sensitivity = ShotStrideJacobian(self._interval, self.options.nodes)
+        sensitivities = ca.MX.sym("sensitivities", self._sensitivity.size)
+        schur = ca.MX.sym("schur", SCHUR.size)
+        first_row = sum(c[0].numel() for c in constraints)
+        A = self._sensitivity.jacobian(X0, u, p, *shot, sensitivities, constrain)
+        self.sensitivity_rows = slice(first_row, sum(c[0].numel() for c in constraints))
+        durations = shot[0]
+        for phase in (1, 2):  # compression and decompression
+            step = durations[phase] / (self.options.nodes * self.options.substeps)
+            for expr, lo, hi in accuracy_constraints(u, p, step):
+                constrain(expr, lo, hi)
+        for expr, lo, hi in schur_constraints(A, schur):
+            constrain(expr, lo, hi)
+        self._shot_jacobian = ca.Function("shot_stride_jacobian", [w, sensitivities, p], [A])
+        return SCHUR.unpack(schur)[-1], ca.vertcat(sensitivities, schur)
+
+    def shot_jacobian(self, w: np.ndarray, params: Params) -> np.ndarray:
+        """dr/dX of the shot stride at the stability NLP's point ``w`` (its orbit and
+        sensitivity nodes; the Schur variables, if present, are ignored)."""
+        if not self.options.spectral_bound:
+            raise ValueError("only the stability NLP (spectral_bound) carries the shot stride's dr/dX")
+        w = np.asarray(w, dtype=float)
+        sensitivities = w[self._n_orbit : self._n_orbit + self._sensitivity.size]
+        return np.asarray(self._shot_jacobian(w[: self._n_orbit], sensitivities, params.vector()))
 
     def _nlpsol(self, functions: dict[str, ca.Function]) -> ca.Function:
         """IPOPT over the (compiled) NLP functions; CasADi differentiates nothing itself."""
@@ -326,9 +339,9 @@ class ShootingNLP:
             comp, decomp = (np.asarray(v) for v in self._guess_nodes()(X, u, p, durations[:3]))
             parts += ([X] if k else []) + [durations, comp.T.ravel(), decomp.T.ravel()]
             X = stride.apex if stride is not None and stride.apex is not None else X
-        return self._with_schur(np.concatenate(parts), spec)
+        return self._with_stability_start(np.concatenate(parts), spec)
 
-    def _with_schur(self, w: np.ndarray, spec: FixedPointSpec) -> np.ndarray:
+    def _with_stability_start(self, w: np.ndarray, spec: FixedPointSpec) -> np.ndarray:
         """``w`` with the stability variables appended, if this NLP has them and ``w`` has
         not: the sensitivity nodes that join at ``w``'s orbit, and the Schur form of the
         shot stride's dr/dX there."""
@@ -363,7 +376,7 @@ class ShootingNLP:
         """Solve the NLP from ``w0`` (default: :meth:`initial_guess`)."""
         if spec.strides != self.strides:
             raise ValueError(f"this NLP is built for {self.strides}-stride orbits, not {spec.strides}")
-        w0 = self.initial_guess(spec, rmap) if w0 is None else self._with_schur(np.asarray(w0, dtype=float), spec)
+        w0 = self.initial_guess(spec, rmap) if w0 is None else self._with_stability_start(np.asarray(w0, dtype=float), spec)
         lbx, ubx = self._bounds(spec)
         w0 = np.clip(w0, lbx, ubx)
         guess = spec.start_design()
