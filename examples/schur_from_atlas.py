@@ -27,14 +27,15 @@ COLUMNS = ["ydot", "z", "meaning", "atlas_radius", "nlp_status", "nlp_iterations
            "verified_radius", "reason", "time_s"]
 
 
-def crosscheck(atlas: Path, problem_file: Path) -> tuple[list[dict], dict]:
-    """One row per polished gait of the atlas, and the run's provenance."""
+def crosscheck(atlas: Path, problem_file: Path, solver=None) -> tuple[list[dict], dict]:
+    """One row per polished gait of the atlas, and the run's provenance; ``solver``
+    (default: the problem's, with :data:`MAX_ITER` iterations) runs the NLPs."""
     problem = load_problem(problem_file)
     problem = replace_problem(problem, solver=replace(problem.solver, max_iter=MAX_ITER))
     base = fixed_point_spec(problem)
     rows = []
     with recording_code() as code:
-        solver = solver_for(problem)
+        solver = solver or solver_for(problem)
         with open(atlas / "atlas_best.csv", newline="") as handle:
             for best in csv.DictReader(handle):
                 cell = {name: float(best[f"sweep_{name}"]) for name in ("ydot", "z")}

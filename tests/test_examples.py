@@ -14,3 +14,36 @@ def test_the_tour_runs_and_writes_only_into_its_folder(tmp_path):
     assert "fold at theta_td = 23.6945 deg" in done.stdout
     written = {p.name for p in tmp_path.iterdir()}
     assert written == {"downward_gait.png", "downward_trajectory.csv", "tour_sweep", "band_diagram.png"}
+
+
+def test_the_atlas_cross_check_runs_the_stability_nlp_from_each_polished_gait(tmp_path):
+    """examples/schur_from_atlas.py on one polished gait of the committed upright atlas (the
+    shipped cell's most stable): the NLP's end is verified at the atlas's radius, and the
+    row says so (the stability NLP in the virtual machine: no compile in the tests)."""
+    import csv
+    import importlib.util
+
+    import pytest
+
+    from baslip.gait.fixedpoint import FixedPointSolver
+
+    spec = importlib.util.spec_from_file_location("schur_from_atlas", ROOT / "examples" / "schur_from_atlas.py")
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    with open(ROOT / "results" / "atlas_upright" / "atlas_best.csv", newline="") as handle:
+        rows = [r for r in csv.DictReader(handle) if (r["sweep_ydot"], r["sweep_z"], r["meaning"]) == ("0.5", "0.4", "any")]
+    atlas = tmp_path / "atlas"
+    atlas.mkdir()
+    with open(atlas / "atlas_best.csv", "w", newline="") as handle:
+        writer = csv.DictWriter(handle, list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    solver = FixedPointSolver()
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("BASLIP_NO_COMPILE", "1")
+        solver.stable_nlp()
+    [row], record = example.crosscheck(atlas, ROOT / "problems" / "atlas_upright.yaml", solver)
+    assert row["verified"], row["reason"]
+    assert row["verified_radius"] == pytest.approx(float(rows[0]["spectral_radius"]), rel=1e-2)
+    assert row["nlp_bound"] == pytest.approx(row["verified_radius"], rel=1e-2)
+    assert record["problem"]["name"] == "atlas_upright"
