@@ -263,7 +263,7 @@ class FixedPointSolver:
         key = (1, "stable")
         if key not in self._nlps:
             ipopt: dict[str, object] = dict(self.options.ipopt)
-            tol, acceptable = (float(str(ipopt.get(key, 0.0))) for key in ("tol", "acceptable_tol"))
+            tol, acceptable = (float(str(ipopt.get(option, 0.0))) for option in ("tol", "acceptable_tol"))
             ipopt["tol"] = max(tol, STABLE_NLP_TOLERANCE)
             ipopt["acceptable_tol"] = max(acceptable, 100 * STABLE_NLP_TOLERANCE)
             options = replace(self.options, hessian="limited-memory", spectral_bound=True, ipopt=ipopt)

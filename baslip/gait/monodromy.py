@@ -221,6 +221,13 @@ def _descent_function() -> ca.Function:
     return ca.Function("descent_sensitivity", [X, u, p, t], [phase_sensitivity(out, guard, X, t)])
 
 
+def _touchdown_function() -> ca.Function:
+    """(X, u, p, t_descent) -> the stance state at touchdown."""
+    X, u, p, t = APEX.sym("X", ca.MX), CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX), ca.MX.sym("t")
+    at_touchdown = touchdown_map(ballistic_flight(apex_to_flight(X), t, p), touchdown_angle(u), p)
+    return ca.Function("touchdown_state", [X, u, p, t], [at_touchdown])
+
+
 def _ascent_function() -> ca.Function:
     """(x_liftoff, p, t_ascent) -> d X_next / d x_liftoff, the apex time following zdot = 0."""
     x, p, t = STANCE.sym("x", ca.MX), PARAMS.sym("p", ca.MX), ca.MX.sym("t")
@@ -274,6 +281,7 @@ class ShotStrideJacobian:
         self.nodes = nodes
         self._step = _variational_step(interval)
         self._descent = _descent_function()
+        self._touchdown = _touchdown_function()
         self._ascent = _ascent_function()
         self._bottom = _guard_gradient(lambda x, p: bottom_guard(x))
         self._liftoff = _guard_gradient(liftoff_guard)
@@ -289,7 +297,7 @@ class ShotStrideJacobian:
         hi)``. ``T`` are the four phase durations [s]; the nodes are ``STANCE.size x n``."""
         comp_sens, decomp_sens = self._split(sensitivities)
         theta = ca.repmat(ca.vertcat(u, p), 1, self.nodes)
-        x_td = touchdown_map(ballistic_flight(apex_to_flight(X), T[0], p), touchdown_angle(u), p)
+        x_td = self._touchdown(X, u, p, T[0])
         bottom, x_lo = comp_nodes[:, -1], decomp_nodes[:, -1]
         at_bottom = self._phase(self._descent(X, u, p, T[0]), ca.horzcat(x_td, comp_nodes[:, :-1]), T[1], theta,
                                 comp_sens, self._bottom(bottom, p), constrain)
@@ -319,8 +327,7 @@ class ShotStrideJacobian:
         """The sensitivity nodes that join exactly at the given (numeric) orbit nodes, by
         stepping the intervals in turn: a start for the NLP."""
         theta = np.concatenate([u, p])
-        x_td = np.asarray(ca.evalf(touchdown_map(ballistic_flight(apex_to_flight(ca.DM(X)), T[0], ca.DM(p)),
-                                                 touchdown_angle(ca.DM(u)), ca.DM(p)))).ravel()
+        x_td = np.asarray(self._touchdown(X, u, p, T[0])).ravel()
         n = self.nodes
         parts, entering = [], np.asarray(self._descent(X, u, p, T[0]))
         phases = ((x_td, comp_nodes, T[1], self._bottom), (comp_nodes[:, -1], decomp_nodes, T[2], self._liftoff))
