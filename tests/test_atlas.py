@@ -3,14 +3,24 @@ answers are known: a circle, a sphere, a torus and the 3-sphere are covered whol
 their length, area or volume, and no holes; a domain boundary stops the covering with its
 reason; separate pieces are found as pieces, and a seed on a covered piece joins it; a
 chart limit leaves the atlas marked incomplete; the corrector damps a step that plain Newton
-would overshoot."""
+would overshoot; the chart graph's local minima of a function are one chart in each of its
+valleys."""
 
 import math
 
 import numpy as np
 import pytest
 
-from baslip.analysis.atlas import AtlasSettings, Evaluation, ball_pattern, ball_volume, correct, cover, unit_directions
+from baslip.analysis.atlas import (
+    AtlasSettings,
+    Evaluation,
+    ball_pattern,
+    ball_volume,
+    correct,
+    cover,
+    local_minima,
+    unit_directions,
+)
 
 
 class Sphere:
@@ -91,6 +101,23 @@ def test_a_torus_is_covered_with_its_area_and_no_holes():
     u, v = np.random.default_rng(1).uniform(0, 2 * np.pi, (2, 3000))
     points = np.column_stack([(1 + 0.4 * np.cos(v)) * np.cos(u), (1 + 0.4 * np.cos(v)) * np.sin(u), 0.4 * np.sin(v)])
     assert holes(atlas, points) == 0
+
+
+def test_the_local_minima_on_the_chart_graph_are_one_chart_in_each_valley():
+    """On the unit circle, cos(3 phi) has three valleys, at phi = pi/3, pi and 5 pi/3: the
+    chart graph has exactly one local minimum in each, within a chart's radius of it, and
+    a chart whose value is unknown neither counts nor blocks its neighbours."""
+    atlas = cover(Sphere(2), [np.eye(2)[0]], 1, SETTINGS)
+    phi = [math.atan2(c.center[1], c.center[0]) % (2 * math.pi) for c in atlas.charts]
+    values = [math.cos(3 * p) for p in phi]
+    minima = local_minima(values, atlas.neighbours)
+    assert len(minima) == 3 and [values[i] for i in minima] == sorted(values[i] for i in minima)
+    found = sorted(phi[i] for i in minima)
+    assert np.allclose(found, [math.pi / 3, math.pi, 5 * math.pi / 3], atol=SETTINGS.max_radius)
+    hidden = list(values)
+    hidden[minima[0]] = None
+    assert minima[0] not in local_minima(hidden, atlas.neighbours)
+    assert len(local_minima(hidden, atlas.neighbours)) >= 3
 
 
 def test_the_three_sphere_is_covered_with_its_volume():

@@ -585,3 +585,13 @@ def chart_areas(charts: Sequence[Chart], neighbours: Sequence[set[int]], k: int,
         inside = np.ones(len(points)) if outside is None else np.array([not outside(q) for q in points], dtype=float)
         areas.append(ball_volume(k, chart.radius) * float(np.mean(inside / count)))
     return areas
+
+
+def local_minima(values: Sequence[float | None], neighbours: Sequence[Sequence[int]]) -> list[int]:
+    """The charts where ``values`` is least among their neighbours on the chart graph, in
+    increasing order of value: one chart in each valley of the value over the manifold
+    (ties count each chart). A chart whose value is None (not known) is neither a minimum
+    nor compared against."""
+    known = {i: value for i, value in enumerate(values) if value is not None}
+    minima = [i for i, value in known.items() if all(known.get(n, value) >= value for n in neighbours[i])]
+    return sorted(minima, key=known.__getitem__)

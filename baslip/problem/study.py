@@ -117,7 +117,7 @@ class Atlas:
     max_radius: float = 1.5
     max_charts: int = 3000  # per cell
     plot: tuple[str, str] = ("Kp", "Kd")
-    polish: int = 3  # least-radius charts per cell the stability descent polishes (0: none)
+    polish: int = 3  # stability descents per cell, from the least local minima of the radius (0: none)
     kind: str = "atlas"
 
 

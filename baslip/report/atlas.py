@@ -134,8 +134,9 @@ def _claim(name: str, summary: dict, hanging: dict | None) -> str:
         f"grown from {study['seeds']} independent solves per cell, within the bounds theta_h in "
         f"[{math.degrees(bounds['theta_h'][0]):.0f}, {math.degrees(bounds['theta_h'][1]):.0f}] deg, "
         f"Kp in [{bounds['Kp'][0]:g}, {bounds['Kp'][1]:g}] N m/rad, Kd in [{bounds['Kd'][0]:g}, {bounds['Kd'][1]:g}] "
-        f"N m s/rad; every chart verified by the independent re-simulation, and the least-radius charts of each cell "
-        f"polished by the stability descent (its end verified too). Least radius, upright at the apex: "
+        f"N m s/rad; every chart verified by the independent re-simulation, and the {study.get('polish', 3)} least local "
+        f"minima of the radius on each cell's chart graph polished by the stability descent (each end verified too). "
+        f"Least radius, upright at the apex: "
         f"{_value(apex)}; upright throughout: {_value(throughout)}. {gaits} Per cell: {per_cell}."
         + _hanging_map(hanging),
         _verdict(apex, throughout, all(c["complete"] for c in cells)),

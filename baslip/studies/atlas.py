@@ -11,10 +11,10 @@ Each task is one cell (a point of ``vary``, usually a speed and a height). Its w
    spectral radius, the trunk's range over the stride, and the independent re-simulation's
    eps (charts it does not confirm to eps <= 1e-10 are marked ``not_verified`` and take no
    part in the answers);
-4. polishes the ``polish`` least-radius charts (over all charts, and over those upright
-   throughout the stride) with the stability descent, verifies where each ends, and keeps
-   the best verified end (for the second meaning, the best that is still upright
-   throughout).
+4. polishes, with the stability descent, the ``polish`` least local minima of the radius
+   on the chart graph (over all charts, and over those upright throughout the stride),
+   verifies where each descent ends, and keeps the best verified end (for the second
+   meaning, the best that is still upright throughout).
 
 Files: ``cells.csv`` (one row per cell: pieces, seeds, charts, least radii, stable share),
 ``atlas.csv`` (one row per chart), ``atlas_boundary.csv`` (where the covering stopped, and

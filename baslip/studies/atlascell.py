@@ -10,7 +10,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from baslip.analysis.atlas import AtlasSettings, cover
+from baslip.analysis.atlas import AtlasSettings, cover, local_minima
 from baslip.analysis.descent import StabilityDescent, random_start
 from baslip.analysis.gaitatlas import GaitManifold, chart_report
 from baslip.engine.returnmap import ReturnMap, RunnerFell, Tolerances
@@ -64,7 +64,7 @@ class CellAtlas:
         charts = chart_rows(atlas, reports)
         row = {k: v for k, v in task.items() if k.startswith("sweep_")}
         row.update(_cell_counts(atlas, charts))
-        best = [self._polished(spec, charts, meaning) for meaning in MEANINGS]
+        best = [self._polished(spec, charts, atlas.neighbours, meaning) for meaning in MEANINGS]
         row["polished_radius"], row["polished_upright_throughout_radius"] = (
             None if b is None else b["spectral_radius"] for b in best)
         return {**row, "chart_rows": charts, "boundary_rows": boundary_rows(atlas, manifold),
@@ -96,16 +96,18 @@ class CellAtlas:
             return None
         return manifold.to_atlas(np.concatenate([result.X, result.u]))
 
-    def _polished(self, spec, charts: list[dict], meaning: str) -> dict | None:
+    def _polished(self, spec, charts: list[dict], neighbours, meaning: str) -> dict | None:
         """The atlas_best.csv row of a cell for ``meaning`` (see :data:`MEANINGS`): the
-        stability descent from each of the ``study.polish`` least-radius verified charts of
-        that meaning, its end verified independently; the verified end of least radius that
-        still has that meaning (None if there is none)."""
+        stability descent from each of the ``study.polish`` least local minima of the radius
+        over the verified charts of that meaning (on the chart graph, ``neighbours``), its
+        end verified independently; the verified end of least radius that still has that
+        meaning (None if there is none). Local minima, not the least charts: the least
+        charts crowd one valley, and their descents end at its one bottom."""
         def has_meaning(row: dict) -> bool:
             return meaning == "any" or bool(row[meaning])
 
-        candidates = sorted((c for c in charts if c["status"] == "converged" and has_meaning(c)),
-                            key=lambda c: c["spectral_radius"])[: self.study.polish]
+        radii = [c["spectral_radius"] if c["status"] == "converged" and has_meaning(c) else None for c in charts]
+        candidates = [charts[i] for i in local_minima(radii, neighbours)[: self.study.polish]]
         ends = [end for end in (self._descend(spec, c, meaning) for c in candidates)
                 if end is not None and has_meaning(end)]
         return min(ends, key=lambda end: end["spectral_radius"], default=None)
