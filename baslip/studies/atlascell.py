@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -96,7 +97,7 @@ class CellAtlas:
             return None
         return manifold.to_atlas(np.concatenate([result.X, result.u]))
 
-    def _polished(self, spec, charts: list[dict], neighbours, meaning: str) -> dict | None:
+    def _polished(self, spec, charts: list[dict], neighbours: Sequence[Sequence[int]], meaning: str) -> dict | None:
         """The atlas_best.csv row of a cell for ``meaning`` (see :data:`MEANINGS`): the
         stability descent from each of the ``study.polish`` least local minima of the radius
         over the verified charts of that meaning (on the chart graph, ``neighbours``), its
