@@ -23,7 +23,6 @@ import numpy as np
 from baslip import load_problem
 from baslip.analysis.atlas import cover
 from baslip.analysis.gaitatlas import GaitManifold, chart_report
-from baslip.gait.from_problem import fixed_point_spec, solver_for
 from baslip.problem.study import Atlas
 from baslip.studies.atlascell import CellAtlas
 from baslip.studies.sweep import key_column, sweep_tasks
@@ -69,8 +68,8 @@ def main() -> None:
     cells = CellAtlas(problem, study)
     task = sweep_tasks(study)[0]
     held = {a.name: task[key_column(a.name)] for a in study.axes}
-    spec = replace(fixed_point_spec(problem), fixed={**fixed_point_spec(problem).fixed, **held})
-    solver = solver_for(problem)
+    spec = replace(cells.base, fixed={**cells.base.fixed, **held})
+    solver = cells.solver
     manifold = GaitManifold(spec, solver.residual_map, cells.jacobian_map)
     seed = solver.solve(spec)
     if not seed.converged:
