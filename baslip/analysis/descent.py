@@ -63,10 +63,13 @@ HALVINGS = 10
 MAX_CHART_CONDITION = 1e8
 GRADIENT_TOLERANCE = 1e-7
 STEP_TOLERANCE = 1e-9
-#: Pattern search: first and last step (scaled units) and the most trial points.
+#: Compass search: first, largest and last step (scaled units), and the most trial points.
+#: A step that lowers the radius doubles the next (up to the largest), one that does not
+#: halves it: along a long, flat valley a fixed step would spend the budget creeping.
 PATTERN_FIRST_STEP = 0.05
+PATTERN_LARGEST_STEP = 0.4
 PATTERN_LAST_STEP = 1e-6
-PATTERN_EVALUATIONS = 300
+PATTERN_EVALUATIONS = 600
 
 
 class NoSecondDerivatives(RunError):
@@ -169,7 +172,8 @@ class StabilityDescent:
         follow from the fixed-point equations (the polish with the chart held). On the
         chart, phi is an ordinary function whose gradient comes by the implicit-function
         theorem, and BFGS with a backtracking (Armijo) line search minimises it. When no
-        step lowers phi, a compass search on the spectral radius itself goes on. Where the
+        step lowers phi, or after ``max_iterations``, a compass search on the spectral
+        radius itself goes on (:meth:`_pattern_search`). Where the
         start has no second derivatives (the compiled engine cannot vouch for its stride,
         as at gaits whose trunk swings far and fast), the compass search is all there is.
         """
@@ -222,13 +226,14 @@ class StabilityDescent:
             if np.max(np.abs(s)) < STEP_TOLERANCE:
                 break
         else:
-            return Descent(tuple(steps), f"reached {self.max_iterations} iterations", norm, evaluations)
+            found, searched, compass = self._pattern_search(spec, design, radius)
+            return Descent(tuple(steps + found), f"reached {self.max_iterations} iterations; {compass}", norm,
+                           evaluations + searched)
         # The surrogate stopped falling: typically where two multipliers of nearly equal
         # modulus coalesce, a kink of rho that a gradient cannot cross. A compass search on
         # rho itself goes on from there.
-        found, searched = self._pattern_search(spec, design, radius)
-        steps += found
-        return Descent(tuple(steps), "compass search on the spectral radius converged", norm, evaluations + searched)
+        found, searched, compass = self._pattern_search(spec, design, radius)
+        return Descent(tuple(steps + found), compass, norm, evaluations + searched)
 
     def _compass_only(self, spec: FixedPointSpec, design) -> Descent:
         """The descent where the start has no second derivatives (the compiled engine
@@ -236,9 +241,8 @@ class StabilityDescent:
         on the spectral radius alone, which needs first derivatives only."""
         dr_dX, _ = self.rmap.jacobians(design[:4], design[4:], spec.params)
         start = _step_at(design, dr_dX, spec)
-        found, searched = self._pattern_search(spec, design, start.spectral_radius)
-        return Descent((start, *found), "compass search on the spectral radius converged "
-                       "(no second derivatives at the start)", float("nan"), 1 + searched)
+        found, searched, compass = self._pattern_search(spec, design, start.spectral_radius)
+        return Descent((start, *found), f"{compass} (no second derivatives at the start)", float("nan"), 1 + searched)
 
     def _line_search(self, spec, design, chart, direction, reduced, phi):
         """(point, radius, phi, gradient, evaluations) of the first step along ``direction``
@@ -304,35 +308,49 @@ class StabilityDescent:
         follow = -np.linalg.lstsq(C_rest, C[:, chart], rcond=None)[0]  # d rest / d chart
         return g[chart] + follow.T @ g[rest]
 
-    def _pattern_search(self, spec: FixedPointSpec, design, radius) -> tuple[list[DescentStep], int]:
+    def _pattern_search(self, spec: FixedPointSpec, design, radius) -> tuple[list[DescentStep], int, str]:
         """Compass search on the spectral radius along each chart quantity, each trial
-        pulled back onto the manifold; the step halves when no move improves."""
-        found, evaluations, step = [], 0, PATTERN_FIRST_STEP
+        pulled back onto the manifold: the first move that lowers the radius is taken and
+        tried first next time, with the step doubled; when none does, the step halves.
+        Returns the accepted points, the trial count and why it stopped."""
+        found: list[DescentStep] = []
+        evaluations, step = 0, PATTERN_FIRST_STEP
         chart = self._chart(spec, design)
-        while step >= PATTERN_LAST_STEP and evaluations < PATTERN_EVALUATIONS:
-            improved = False
-            for i in chart:
-                for sign in (1.0, -1.0):
-                    values = design[chart].copy()
-                    values[list(chart).index(i)] += sign * step * self.scale[i]
-                    trial = self._retract(spec, design, chart, values)
-                    if trial is None:
-                        continue
-                    evaluations += 1
-                    try:
-                        dr_dX, _ = self.rmap.jacobians(trial[:4], trial[4:], spec.params)
-                    except RunnerFell:
-                        continue
-                    step_here = _step_at(trial, dr_dX, spec)
-                    if step_here.spectral_radius < radius:
-                        design, radius, improved = trial, step_here.spectral_radius, True
-                        found.append(step_here)
-                        break
-                if improved:
-                    break
-            if not improved:
+        moves = compass_directions(chart.size)
+        while step >= PATTERN_LAST_STEP:
+            if evaluations >= PATTERN_EVALUATIONS:
+                return found, evaluations, f"compass search on the spectral radius reached {PATTERN_EVALUATIONS} trials"
+            taken = self._compass_move(spec, design, radius, chart, moves, step)
+            evaluations += taken[-1]
+            if taken[0] is None:
                 step /= 2
-        return found, evaluations
+                continue
+            design, here, move = taken[:3]
+            radius = here.spectral_radius
+            found.append(here)
+            moves.insert(0, moves.pop(move))
+            step = min(2 * step, PATTERN_LARGEST_STEP)
+        return found, evaluations, "compass search on the spectral radius converged"
+
+    def _compass_move(self, spec, design, radius, chart, moves, step):
+        """(point, its DescentStep, index in ``moves``, trials) of the first of ``moves``
+        (directions in the scaled chart quantities) by ``step`` that lowers the radius
+        below ``radius``; (None, None, None, trials) if none does."""
+        trials = 0
+        for m, direction in enumerate(moves):
+            values = design[chart] + step * direction * self.scale[chart]
+            trial = self._retract(spec, design, chart, values)
+            if trial is None:
+                continue
+            trials += 1
+            try:
+                dr_dX, _ = self.rmap.jacobians(trial[:4], trial[4:], spec.params)
+            except RunnerFell:
+                continue
+            here = _step_at(trial, dr_dX, spec)
+            if here.spectral_radius < radius:
+                return trial, here, m, trials
+        return None, None, None, trials
 
     def _retract(self, spec: FixedPointSpec, design, chart, values) -> np.ndarray | None:
         """The fixed point with the chart quantities at ``values`` (clipped into their
@@ -359,6 +377,20 @@ class StabilityDescent:
         return point
 
 
+def compass_directions(n: int) -> list[np.ndarray]:
+    """The compass search's directions in n chart quantities: each axis both ways, then
+    each pair of axes summed and differenced, both ways (2 n^2 in all). The diagonals
+    matter at a kink of the radius, where two multipliers of equal modulus cross: its
+    valley runs obliquely, and no axis step descends along it."""
+    axes = np.eye(n)
+    directions = [sign * axes[k] for k in range(n) for sign in (1.0, -1.0)]
+    for i in range(n):
+        for j in range(i + 1, n):
+            for diagonal in (axes[i] + axes[j], axes[i] - axes[j]):
+                directions += [diagonal, -diagonal]
+    return directions
+
+
 def _step_at(design: np.ndarray, dr_dX: np.ndarray, spec: FixedPointSpec) -> DescentStep:
     """The descent's record of the fixed point ``design`` whose return-map Jacobian is
     ``dr_dX``: its spectral radius and surrogate (structural multipliers left out)."""
@@ -372,9 +404,6 @@ def _bfgs(H: np.ndarray, s: np.ndarray, y: np.ndarray) -> np.ndarray:
     rho = 1.0 / float(s @ y)
     V = np.eye(len(s)) - rho * np.outer(s, y)
     return V @ H @ V.T + rho * np.outer(s, s)
-
-
-#: Quantities drawn at random for a start (held while the starting gait is solved).
 
 
 def random_start(spec: FixedPointSpec, rng: np.random.Generator) -> dict[str, float]:

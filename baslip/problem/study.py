@@ -23,7 +23,8 @@ Kinds:
   fixed points covered by charts (:mod:`baslip.analysis.atlas`), grown from ``seeds``
   independent solves with gains drawn over their whole bounds; ``radius`` and
   ``max_radius`` size the charts (atlas units), ``max_charts`` caps each cell, and
-  ``plot`` names the two quantities of its figure.
+  ``plot`` names the two quantities of its figure; ``polish`` descents of at most
+  ``iterations`` steps each start from the least local minima of the radius.
 """
 
 from __future__ import annotations
@@ -118,6 +119,7 @@ class Atlas:
     max_charts: int = 3000  # per cell
     plot: tuple[str, str] = ("Kp", "Kd")
     polish: int = 3  # stability descents per cell, from the least local minima of the radius (0: none)
+    iterations: int = 60  # most quasi-Newton iterations of each polishing descent
     kind: str = "atlas"
 
 
@@ -153,7 +155,8 @@ def parse_study(data) -> Study:
         "adaptive": ("kind", "strides", "frozen_strides", "perturbation", "criterion", "probe_strides"),
         "optimal": ("kind", "vary", "starts", "seed", "iterations", "method"),
         "controllers": ("kind", "perturbation", "samples", "seed", "strides", "tolerance", "criterion", "lqr_scale"),
-        "atlas": ("kind", "vary", "seeds", "seed", "radius", "max_radius", "max_charts", "plot", "polish"),
+        "atlas": ("kind", "vary", "seeds", "seed", "radius", "max_radius", "max_charts", "plot", "polish",
+                  "iterations"),
     }[kind]
     for key in data:
         if isinstance(key, NonScalarKey):
@@ -244,6 +247,7 @@ def _atlas(data, axes: tuple[Axis, ...]) -> Atlas:
         max_charts=_integer(data.get("max_charts", 3000), "study.max_charts", 1, 100000),
         plot=(plot[0], plot[1]),
         polish=_integer(data.get("polish", 3), "study.polish", 0, 100),
+        iterations=_integer(data.get("iterations", 60), "study.iterations", 1, 10000),
     )
 
 

@@ -47,7 +47,7 @@ class CellAtlas:
         self.solver = solver_for(problem)
         self.jacobian_map = ReturnMap(Tolerances(JACOBIAN_TOLERANCE, JACOBIAN_TOLERANCE))
         self.trunk_range = TrunkRange(self.jacobian_map)
-        self.descent = StabilityDescent(self.solver.residual_map)
+        self.descent = StabilityDescent(self.solver.residual_map, max_iterations=study.iterations)
         self.base = fixed_point_spec(problem)
         self.settings = AtlasSettings(radius=study.radius, max_radius=study.max_radius,
                                       min_radius=study.radius * LEAST_RADIUS_FRACTION, max_charts=study.max_charts)
