@@ -41,10 +41,11 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def small_atlas(tmp_path: Path) -> Path:
     """Two hanging-trunk cells, two seeds each, at most 25 charts a cell, the best chart
-    of each meaning polished."""
+    of each meaning polished by a descent of at most 60 iterations."""
     data = yaml.safe_load((ROOT / "problems" / "atlas_downward.yaml").read_text())
     data["name"] = "atlas_small"
-    data["study"].update(vary={"ydot": [0.5, 0.5, 0.1], "z": [0.4, 0.45, 0.05]}, seeds=2, max_charts=25, polish=1)
+    data["study"].update(vary={"ydot": [0.5, 0.5, 0.1], "z": [0.4, 0.45, 0.05]}, seeds=2, max_charts=25, polish=1,
+                         iterations=60)
     path = tmp_path / "atlas_small.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
@@ -177,6 +178,7 @@ def test_a_run_killed_after_its_first_cell_resumes_to_the_same_atlas(finished, t
 @pytest.mark.parametrize("change, key", [
     ({"seeds": 0}, "study.seeds"), ({"radius": 0.0}, "study.radius"), ({"radius": 20.0}, "study.radius"),
     ({"max_radius": 0.1}, "study.max_radius"), ({"max_charts": 0}, "study.max_charts"), ({"polish": -1}, "study.polish"),
+    ({"iterations": 0}, "study.iterations"), ({"iterations": "many"}, "study.iterations"),
     ({"plot": ["Kp"]}, "study.plot"), ({"plot": ["Kp", "speed"]}, "study.plot"), ({"plot": ["Kp", "Kp"]}, "study.plot"),
     ({"plot": ["Kp", "theta2_dot_des"]}, "study.plot"), ({"plot": ["Kp", "z"]}, "study.plot"),
 ])

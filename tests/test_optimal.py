@@ -6,6 +6,8 @@
   stride, match finite differences of the AD Jacobian's eigenvalues.
 * A descent never ends above where it started, every point it accepts is a fixed point,
   and its end point passes the solver's independent verification.
+* After its quasi-Newton iterations, a compass search on the radius goes on, and the
+  stop reason says so.
 * Where the start has no second derivatives, a compass search on the radius alone still
   lowers it, on fixed points.
 * Starts draw gains over their whole range, repeatably.
@@ -111,6 +113,17 @@ def test_a_descent_lowers_the_radius_and_ends_on_a_verified_fixed_point(downward
     verified = solver.verify_point(spec, found.best.X, found.best.u)
     assert verified.converged and verified.residual <= 1e-10
     assert verified.spectral_radius == pytest.approx(radii[-1], rel=1e-6)
+
+
+def test_after_its_iterations_the_descent_goes_on_by_compass_search_and_says_so(downward):
+    """The quasi-Newton budget spent, the compass search on the radius takes over from
+    where it stopped: each of its points lowers the radius, and the stop names both."""
+    problem, solver, spec, X, u = downward
+    found = StabilityDescent(solver.residual_map, max_iterations=3, compile=False).run(spec, X, u)
+    assert found.stop_reason.startswith("reached 3 iterations; compass search on the spectral radius")
+    compass = [s.spectral_radius for s in found.steps[4:]]
+    assert compass and compass == sorted(compass, reverse=True)
+    assert compass[0] < found.steps[3].spectral_radius
 
 
 def test_without_second_derivatives_the_descent_is_a_compass_search_on_the_radius(downward, monkeypatch):

@@ -38,6 +38,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from baslip.analysis.compass import CompassSettings, compass_search
 from baslip.engine.codegen import compile_kernels
 from baslip.engine.kernels import multiplier_gradient_function
 from baslip.engine.kernels import sources as stride_sources
@@ -63,13 +64,8 @@ HALVINGS = 10
 MAX_CHART_CONDITION = 1e8
 GRADIENT_TOLERANCE = 1e-7
 STEP_TOLERANCE = 1e-9
-#: Compass search: first, largest and last step (scaled units), and the most trial points.
-#: A step that lowers the radius doubles the next (up to the largest), one that does not
-#: halves it: along a long, flat valley a fixed step would spend the budget creeping.
-PATTERN_FIRST_STEP = 0.05
-PATTERN_LARGEST_STEP = 0.4
-PATTERN_LAST_STEP = 1e-6
-PATTERN_EVALUATIONS = 600
+#: The compass search's steps (scaled units) and trial budget.
+COMPASS = CompassSettings(first_step=0.05, largest_step=0.4, last_step=1e-6, trials=600)
 
 
 class NoSecondDerivatives(RunError):
@@ -309,48 +305,26 @@ class StabilityDescent:
         return g[chart] + follow.T @ g[rest]
 
     def _pattern_search(self, spec: FixedPointSpec, design, radius) -> tuple[list[DescentStep], int, str]:
-        """Compass search on the spectral radius along each chart quantity, each trial
-        pulled back onto the manifold: the first move that lowers the radius is taken and
-        tried first next time, with the step doubled; when none does, the step halves.
-        Returns the accepted points, the trial count and why it stopped."""
-        found: list[DescentStep] = []
-        evaluations, step = 0, PATTERN_FIRST_STEP
+        """Compass search (:mod:`baslip.analysis.compass`) on the spectral radius in the
+        scaled chart quantities, each trial pulled back onto the manifold. Returns the
+        accepted points, the trial count and why it stopped."""
         chart = self._chart(spec, design)
-        moves = compass_directions(chart.size)
-        while step >= PATTERN_LAST_STEP:
-            if evaluations >= PATTERN_EVALUATIONS:
-                return found, evaluations, f"compass search on the spectral radius reached {PATTERN_EVALUATIONS} trials"
-            taken = self._compass_move(spec, design, radius, chart, moves, step)
-            evaluations += taken[-1]
-            if taken[0] is None:
-                step /= 2
-                continue
-            design, here, move = taken[:3]
-            radius = here.spectral_radius
-            found.append(here)
-            moves.insert(0, moves.pop(move))
-            step = min(2 * step, PATTERN_LARGEST_STEP)
-        return found, evaluations, "compass search on the spectral radius converged"
 
-    def _compass_move(self, spec, design, radius, chart, moves, step):
-        """(point, its DescentStep, index in ``moves``, trials) of the first of ``moves``
-        (directions in the scaled chart quantities) by ``step`` that lowers the radius
-        below ``radius``; (None, None, None, trials) if none does."""
-        trials = 0
-        for m, direction in enumerate(moves):
-            values = design[chart] + step * direction * self.scale[chart]
-            trial = self._retract(spec, design, chart, values)
+        def move(point, displacement):
+            trial = self._retract(spec, point, chart, point[chart] + displacement * self.scale[chart])
             if trial is None:
-                continue
-            trials += 1
+                return None
             try:
                 dr_dX, _ = self.rmap.jacobians(trial[:4], trial[4:], spec.params)
             except RunnerFell:
-                continue
+                return np.inf, trial, None
             here = _step_at(trial, dr_dX, spec)
-            if here.spectral_radius < radius:
-                return trial, here, m, trials
-        return None, None, None, trials
+            return here.spectral_radius, trial, here
+
+        found = compass_search(move, design, radius, chart.size, COMPASS)
+        stop = ("compass search on the spectral radius converged" if found.converged
+                else f"compass search on the spectral radius reached {COMPASS.trials} trials")
+        return list(found.accepted), found.trials, stop
 
     def _retract(self, spec: FixedPointSpec, design, chart, values) -> np.ndarray | None:
         """The fixed point with the chart quantities at ``values`` (clipped into their
@@ -375,20 +349,6 @@ class StabilityDescent:
         if not stride.ok or eps(stride.apex, X) > 1e-12:
             return None
         return point
-
-
-def compass_directions(n: int) -> list[np.ndarray]:
-    """The compass search's directions in n chart quantities: each axis both ways, then
-    each pair of axes summed and differenced, both ways (2 n^2 in all). The diagonals
-    matter at a kink of the radius, where two multipliers of equal modulus cross: its
-    valley runs obliquely, and no axis step descends along it."""
-    axes = np.eye(n)
-    directions = [sign * axes[k] for k in range(n) for sign in (1.0, -1.0)]
-    for i in range(n):
-        for j in range(i + 1, n):
-            for diagonal in (axes[i] + axes[j], axes[i] - axes[j]):
-                directions += [diagonal, -diagonal]
-    return directions
 
 
 def _step_at(design: np.ndarray, dr_dX: np.ndarray, spec: FixedPointSpec) -> DescentStep:
