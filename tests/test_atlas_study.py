@@ -10,7 +10,8 @@ manifold it covers (:mod:`baslip.analysis.gaitatlas`):
 * the polished gaits of atlas_best.csv are verified fixed points, descended from local
   minima of the radius on the chart graph and no less stable than those charts, with both
   meanings of upright read off their trunk range;
-* a study killed after its first cell and run again writes the same atlas.csv.
+* a study killed after its first cell and run again writes the same atlas.csv;
+* a cell says on stderr what it is doing: covering, verifying, polishing.
 """
 
 import csv
@@ -35,6 +36,7 @@ from baslip.gait.polish import eps
 from baslip.model.dynamics import APEX
 from baslip.model.quantities import DESIGN
 from baslip.problem.reader import load_problem, parse_problem
+from baslip.studies.atlascell import CellAtlas
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -173,6 +175,16 @@ def test_a_run_killed_after_its_first_cell_resumes_to_the_same_atlas(finished, t
     strip = lambda rows: [{k: v for k, v in r.items() if k != "time_s"} for r in rows]  # noqa: E731
     assert table(out / "atlas.csv") == table(reference / "atlas.csv")
     assert strip(table(out / "cells.csv")) == strip(table(reference / "cells.csv"))
+
+
+def test_a_cell_says_on_stderr_what_it_is_doing_phase_by_phase(capsys):
+    problem = load_problem(ROOT / "problems" / "atlas_downward.yaml")
+    study = replace(problem.study, seeds=1, max_charts=6, polish=1, iterations=2)
+    row = CellAtlas(problem, study, quiet=False).run({"sweep_ydot": 0.5, "sweep_z": 0.4})
+    lines = capsys.readouterr().err.splitlines()
+    assert lines and all(line.startswith("atlas_downward: cell ydot = 0.5, z = 0.4: ") for line in lines)
+    assert any(line.endswith(f"{row['charts']} charts covered; verifying each independently") for line in lines)
+    assert any(line.endswith("polishing (any): descent 1 of 1") for line in lines)
 
 
 @pytest.mark.parametrize("change, key", [

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -58,34 +58,34 @@ class CellAtlas:
         spec = replace(self.base, fixed={**self.base.fixed, **held})
         manifold = GaitManifold(spec, self.solver.residual_map, self.jacobian_map)
         rng = task_rng(self.study, {**task, "start": 0})
+        say = self._progress(held)
         seeds = [self._seed(spec, manifold, rng if number else None) for number in range(self.study.seeds)]
-        atlas = cover(manifold, seeds, manifold.dimension, self.settings, self._progress(held))
+        atlas = cover(manifold, seeds, manifold.dimension, self.settings,
+                      lambda charts, seeds: say(f"{charts} charts, seed {seeds + 1} of {self.study.seeds}"))
+        say(f"{len(atlas.charts)} charts covered; verifying each independently", always=True)
         reports = [chart_report(manifold, c.center, self.solver.verify_map, self.trunk_range)
                    for c in atlas.charts]
         charts = chart_rows(atlas, reports)
         row = {k: v for k, v in task.items() if k.startswith("sweep_")}
         row.update(_cell_counts(atlas, charts))
-        best = [self._polished(spec, charts, atlas.neighbours, meaning) for meaning in MEANINGS]
+        best = [self._polished(spec, charts, atlas.neighbours, meaning, say) for meaning in MEANINGS]
         row["polished_radius"], row["polished_upright_throughout_radius"] = (
             None if b is None else b["spectral_radius"] for b in best)
         return {**row, "chart_rows": charts, "boundary_rows": boundary_rows(atlas, manifold),
                 "best_rows": [b for b in best if b is not None]}
 
     def _progress(self, held: dict):
-        """A progress callback for :func:`cover` that prints at most every
-        :data:`PROGRESS_EVERY_S` seconds (None if quiet)."""
-        if self.quiet:
-            return None
+        """``say(text, always=False)``: prints a progress line of the cell on stderr, at
+        most every :data:`PROGRESS_EVERY_S` seconds unless ``always`` (nothing if quiet)."""
         cell = ", ".join(f"{n} = {v:g}" for n, v in held.items())
         last = [time.monotonic()]
 
-        def show(charts: int, seeds: int) -> None:
-            if time.monotonic() - last[0] >= PROGRESS_EVERY_S:
+        def say(text: str, always: bool = False) -> None:
+            if not self.quiet and (always or time.monotonic() - last[0] >= PROGRESS_EVERY_S):
                 last[0] = time.monotonic()
-                print(f"{self.problem.name}: cell {cell}: {charts} charts, seed {seeds + 1} of {self.study.seeds}",
-                      file=sys.stderr, flush=True)
+                print(f"{self.problem.name}: cell {cell}: {text}", file=sys.stderr, flush=True)
 
-        return show
+        return say
 
     def _seed(self, spec, manifold: GaitManifold, rng) -> np.ndarray | None:
         """An independent, verified gait in atlas coordinates (None if the solve failed):
@@ -97,7 +97,8 @@ class CellAtlas:
             return None
         return manifold.to_atlas(np.concatenate([result.X, result.u]))
 
-    def _polished(self, spec, charts: list[dict], neighbours: Sequence[Sequence[int]], meaning: str) -> dict | None:
+    def _polished(self, spec, charts: list[dict], neighbours: Sequence[Sequence[int]], meaning: str,
+                  say: Callable[..., None]) -> dict | None:
         """The atlas_best.csv row of a cell for ``meaning`` (see :data:`MEANINGS`): the
         stability descent from each of the ``study.polish`` least local minima of the radius
         over the verified charts of that meaning (on the chart graph, ``neighbours``), its
@@ -109,8 +110,13 @@ class CellAtlas:
 
         radii = [c["spectral_radius"] if c["status"] == "converged" and has_meaning(c) else None for c in charts]
         candidates = [charts[i] for i in local_minima(radii, neighbours)[: self.study.polish]]
-        ends = [end for end in (self._descend(spec, c, meaning) for c in candidates)
-                if end is not None and has_meaning(end)]
+        ends = []
+        for number, chart in enumerate(candidates):
+            say(f"polishing ({meaning.replace('_', ' ')}): descent {number + 1} of {len(candidates)}",
+                always=number == 0)
+            end = self._descend(spec, chart, meaning)
+            if end is not None and has_meaning(end):
+                ends.append(end)
         return min(ends, key=lambda end: end["spectral_radius"], default=None)
 
     def _descend(self, spec, chart: dict, meaning: str) -> dict | None:
