@@ -1,7 +1,8 @@
 """Specification of the atlas algorithm (:mod:`baslip.analysis.atlas`) on manifolds whose
 answers are known: a circle, a sphere, a torus and the 3-sphere are covered whole, with
 their length, area or volume, and no holes; a domain boundary stops the covering with its
-reason; separate pieces are found as pieces, and a seed on a covered piece joins it; a
+reason; separate pieces are found as pieces, and a seed on a covered piece joins it; all
+pieces grow together, best-first, so that a chart limit reaches every seed's piece; a
 chart limit leaves the atlas marked incomplete; the corrector damps a step that plain Newton
 would overshoot; the chart graph's local minima of a function are one chart in each of its
 valleys."""
@@ -141,7 +142,9 @@ def test_a_domain_boundary_stops_the_covering_and_says_why():
 
 
 def test_separate_pieces_are_found_and_a_seed_on_a_covered_piece_joins_it():
-    """Two unit circles 3 apart (one system): three seeds, two on the first circle."""
+    """Two unit circles 3 apart (one system): four seeds, three on the first circle, of
+    which one lies in the first seed's ball. The two charts seeded apart on the first
+    circle grow into each other and merge into one piece."""
 
     class TwoCircles(Sphere):
         def evaluate(self, w):
@@ -152,12 +155,40 @@ def test_separate_pieces_are_found_and_a_seed_on_a_covered_piece_joins_it():
             a, b = w @ w - 1.0, (w - [3.0, 0.0]) @ (w - [3.0, 0.0]) - 1.0
             return (2 * w * b + 2 * (w - [3.0, 0.0]) * a)[None, :]
 
-    seeds = [np.array([1.0, 0.0]), np.array([0.0, -1.0]), np.array([4.0, 0.0]), None]
+    seeds = [np.array([1.0, 0.0]), np.array([0.0, -1.0]), np.array([4.0, 0.0]),
+             np.array([math.cos(0.1), math.sin(0.1)]), None]
     atlas = cover(TwoCircles(2), seeds, 1, SETTINGS)
+    assert [s.outcome for s in atlas.seeds] == ["new piece", "new piece", "new piece", "on a covered piece", "failed"]
+    assert atlas.seeds[3].chart == atlas.seeds[0].chart
     assert atlas.piece_count == 2
-    assert [s.outcome for s in atlas.seeds] == ["new piece", "on a covered piece", "new piece", "failed"]
+    assert atlas.pieces[atlas.seeds[0].chart] == atlas.pieces[atlas.seeds[1].chart] != atlas.pieces[atlas.seeds[2].chart]
     for piece in (0, 1):
         assert abs(atlas.piece_area(piece) / (2 * math.pi) - 1) < 0.01
+
+
+def test_all_pieces_grow_together_best_first_so_a_chart_limit_reaches_every_seed():
+    """Two circles, a limit of 12 charts and a priority (-x) that ranks every point of the
+    second circle before any of the first: the first seed's circle keeps its one chart,
+    and the other 11 grow on the second (one piece after the other, all 12 would have
+    gone to the first circle, which takes 32)."""
+
+    class RankedCircles(Sphere):
+        def evaluate(self, w):
+            a, b = w @ w - 1.0, (w - [3.0, 0.0]) @ (w - [3.0, 0.0]) - 1.0
+            return Evaluation(np.array([a * b]))
+
+        def jacobian(self, w):
+            a, b = w @ w - 1.0, (w - [3.0, 0.0]) @ (w - [3.0, 0.0]) - 1.0
+            return (2 * w * b + 2 * (w - [3.0, 0.0]) * a)[None, :]
+
+        def priority(self, w):
+            return -float(w[0])  # the right-hand side of the right-hand circle first
+
+    seeds = [np.array([-1.0, 0.0]), np.array([2.0, 0.0])]
+    atlas = cover(RankedCircles(2), seeds, 1, AtlasSettings(radius=0.2, max_radius=0.2, max_charts=12))
+    assert len(atlas.charts) == 12 and not atlas.complete
+    assert [c.index for c in atlas.charts if c.center[0] < 1.5] == [atlas.seeds[0].chart]
+    assert atlas.piece_count == 2
 
 
 def test_a_chart_limit_leaves_the_atlas_incomplete_and_says_so():

@@ -29,8 +29,11 @@ describe for COCO's ``atlas_kd``, simplified where baslip's dimensions (k = 1 to
   diverging or not converging, the tangent turning too fast at the least step) or the
   chart limit. Only the first two are edges of the manifold: an atlas with a boundary of
   the other two kinds is not complete, and says so.
-* **Pieces.** Seeds that lie in a covered ball belong to that chart's piece; any other
-  seed starts a new piece. Pieces whose charts come to overlap are merged.
+* **Pieces.** All seeds are projected first: a seed that lies in an earlier seed's ball
+  belongs to that chart's piece; any other starts a new piece. Then all pieces grow
+  together from one best-first queue (so that the most interesting parts near every
+  seed are covered before a chart limit, not only the first seed's piece), and pieces
+  whose charts come to overlap are merged.
 * **Area.** Each chart's share of the manifold's k-volume is estimated by a partition of
   unity: its ball's volume times the mean, over a fixed pattern of points in the ball,
   of 1 / (the number of balls holding the point). The shares add up to the covered
@@ -329,12 +332,13 @@ class _Growth:
                     self.open[j][d] = False
                     break
 
-    def grow(self, first: int) -> None:
-        """Grow the piece of chart ``first`` until no direction is open (or the limit):
-        from the chart of least priority first, if the system ranks its points (see
-        :func:`cover`), else oldest first."""
+    def grow(self, firsts: Sequence[int]) -> None:
+        """Grow the pieces of the charts ``firsts`` together until no direction is open (or
+        the limit): from the chart of least priority of them all first, if the system
+        ranks its points (see :func:`cover`), else oldest first."""
         rank = getattr(self.system, "priority", None)
-        queue = [(rank(self.centers[first]) if rank else 0.0, first)]
+        queue = [(rank(self.centers[c]) if rank else float(c), c) for c in firsts]
+        heapq.heapify(queue)
         while queue:
             _, c = heapq.heappop(queue)
             for d in range(len(self.directions)):
@@ -504,17 +508,18 @@ def cover(system: ManifoldSystem, seeds: Iterable[np.ndarray | None], k: int,
         grows from its chart of least priority first (best-first), so that a chart limit
         leaves the most interesting part covered; else oldest first (breadth-first).
     seeds : iterable of arrays or None
-        Starting points, in turn; each is projected onto F = 0 first. A seed that lies in
-        a chart's ball joins that chart's piece; any other starts a new piece, which is
-        covered before the next seed is taken. None stands for a seed that could not be
-        made (its failure is counted).
+        Starting points; each is projected onto F = 0 first. A seed that lies in an
+        earlier seed's ball joins that chart's piece; any other starts a new piece. Then
+        all pieces grow together, best-first over all of them, so that a chart limit is
+        not spent on the first seed's piece alone; pieces whose charts come to overlap
+        merge. None stands for a seed that could not be made (its failure is counted).
     k : int
         Dimension of the manifold, 1 to 3.
     settings : AtlasSettings
         Radii, limits and tolerances.
     progress : callable, optional
-        Called as ``progress(charts, seeds taken)`` after each seed and every
-        :data:`PROGRESS_CHARTS` charts.
+        Called as ``progress(charts, seeds taken)`` every :data:`PROGRESS_CHARTS` charts
+        and at the end.
 
     Returns
     -------
@@ -523,10 +528,11 @@ def cover(system: ManifoldSystem, seeds: Iterable[np.ndarray | None], k: int,
     growth = _Growth(system, settings, k, progress=progress)
     outcomes = []
     for number, seed in enumerate(seeds):
-        growth.seeds_taken = number
+        growth.seeds_taken = number + 1
         outcomes.append(_take_seed(growth, number, seed))
-        if progress is not None:
-            progress(len(growth.charts), number + 1)
+    growth.grow([o.chart for o in outcomes if o.outcome == "new piece"])
+    if progress is not None:
+        progress(len(growth.charts), growth.seeds_taken)
     growth.close_at_limit()
     complete = not any(b.kind in ("corrector", "limit") for b in growth.boundaries)
     roots = [growth.root(p) for p in growth.piece_of]
@@ -562,7 +568,6 @@ def _take_seed(growth: _Growth, number: int, seed: np.ndarray | None) -> SeedOut
     piece = len(growth.parent_piece)
     growth.parent_piece.append(piece)
     chart = growth.add(w, tangent, jacobian, growth.settings.radius, None, 0, piece)
-    growth.grow(chart.index)
     return SeedOutcome(number, "new piece", chart.index)
 
 

@@ -59,9 +59,12 @@ class CellAtlas:
         manifold = GaitManifold(spec, self.solver.residual_map, self.jacobian_map)
         rng = task_rng(self.study, {**task, "start": 0})
         say = self._progress(held)
-        seeds = [self._seed(spec, manifold, rng if number else None) for number in range(self.study.seeds)]
+        seeds = []
+        for number in range(self.study.seeds):
+            say(f"solving seed {number + 1} of {self.study.seeds}", always=number == 0)
+            seeds.append(self._seed(spec, manifold, rng if number else None))
         atlas = cover(manifold, seeds, manifold.dimension, self.settings,
-                      lambda charts, seeds: say(f"{charts} charts, seed {seeds + 1} of {self.study.seeds}"))
+                      lambda charts, taken: say(f"{charts} charts from {taken} seeds"))
         say(f"{len(atlas.charts)} charts covered; verifying each independently", always=True)
         reports = [chart_report(manifold, c.center, self.solver.verify_map, self.trunk_range)
                    for c in atlas.charts]
