@@ -526,11 +526,8 @@ def cover(system: ManifoldSystem, seeds: Iterable[np.ndarray | None], k: int,
     Atlas
     """
     growth = _Growth(system, settings, k, progress=progress)
-    outcomes = []
-    for number, seed in enumerate(seeds):
-        growth.seeds_taken = number + 1
-        outcomes.append(_take_seed(growth, number, seed))
-    growth.grow([o.chart for o in outcomes if o.outcome == "new piece"])
+    outcomes = [_take_seed(growth, number, seed) for number, seed in enumerate(seeds)]
+    growth.grow([o.chart for o in outcomes if o.outcome == "new piece" and o.chart is not None])
     if progress is not None:
         progress(len(growth.charts), growth.seeds_taken)
     growth.close_at_limit()
@@ -550,6 +547,7 @@ def cover(system: ManifoldSystem, seeds: Iterable[np.ndarray | None], k: int,
 
 
 def _take_seed(growth: _Growth, number: int, seed: np.ndarray | None) -> SeedOutcome:
+    growth.seeds_taken = number + 1
     if seed is None:
         return SeedOutcome(number, "failed", None, "no starting solution")
     projected = project_seed(growth.system, seed)
