@@ -211,36 +211,34 @@ def test_an_atlas_of_a_manifold_above_three_dimensions_is_refused():
     assert error.value.key == "study" and "dimension 4" in error.value.message
 
 
-NOT_YET_NEVER_WORSE = {
-    "atlas_upright": "at (0.7, 0.35) the descents from the two least local minima end at 1.357, the search at "
-                     "1.339; on that kinked valley floor the earlier rule's descent from the second-least chart "
-                     "(a neighbour of the least) ended at 1.329",
-    "atlas_downward": "at (0.5, 0.4) and (0.7, 0.4) the search's gait lies in a valley narrower than the charts or "
-                      "outside the covering (6 % and 4.7 % above), at (0.5, 0.35) a descent stopped at 60 iterations "
-                      "(0.7 %), at two cells 0.01 to 0.02 % on one flat valley floor",
-}
+#: How far above the multi-start search's least radius a cell's atlas answer may end,
+#: relative. Where the least radius lies on the curve where two multipliers coalesce (at
+#: the hanging (0.5, 0.4) and (0.5, 0.45) cells the polished gaits' leading multipliers are
+#: a complex pair 8e-5 and 1.6e-5 off the real axis, about to split into two real ones),
+#: the radius rises like a square root off that curve and is flat along it: two local
+#: descents that end on the curve a few 1e-4 rad apart in a gain differ by about 1e-4 of
+#: the radius, though both found the same valley floor.
+CUSP_MARGIN = 1e-3
 
 
-@pytest.mark.parametrize("atlas, search", [
-    pytest.param("atlas_upright", "optimal_upright",
-                 marks=pytest.mark.xfail(strict=True, reason=NOT_YET_NEVER_WORSE["atlas_upright"])),
-    pytest.param("atlas_downward", "optimal_downward",
-                 marks=pytest.mark.xfail(strict=True, reason=NOT_YET_NEVER_WORSE["atlas_downward"])),
-])
+@pytest.mark.parametrize("atlas, search", [("atlas_upright", "optimal_upright"),
+                                           ("atlas_downward", "optimal_downward")])
 def test_the_committed_atlas_never_does_worse_than_the_multistart_search_at_its_cells(atlas, search):
     """At every cell of a committed atlas, its least radius (a chart's, or a polished
-    gait's) is at most the least the multi-start optimal search found there. Not yet so
-    in either family (strict xfail, so that it is noticed when it holds); README: Atlas,
-    Measured."""
+    gait's) is at most the least the multi-start optimal search found there, within
+    :data:`CUSP_MARGIN`; README: Atlas, Measured."""
     searched = json.loads((ROOT / "results" / search / "result.json").read_text())["least_per_point"]
     least = {(p["ydot"], p["z"]): p["spectral_radius"] for p in searched}
     cells = table(ROOT / "results" / atlas / "cells.csv")
     assert len(cells) == len(least) == 9
+    worse = {}
     for cell in cells:
         key = (float(cell["sweep_ydot"]), float(cell["sweep_z"]))
-        found = [float(cell[c]) for c in ("least_radius", "polished_radius", "polished_upright_throughout_radius")
-                 if cell[c]]
-        assert min(found) <= least[key], key
+        found = min(float(cell[c]) for c in ("least_radius", "polished_radius", "polished_upright_throughout_radius")
+                    if cell[c])
+        if found > least[key] * (1 + CUSP_MARGIN):
+            worse[key] = (found, least[key])
+    assert worse == {}
 
 
 @pytest.mark.parametrize("atlas", ["atlas_upright", "atlas_downward"])

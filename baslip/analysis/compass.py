@@ -20,8 +20,9 @@ import numpy as np
 class CompassSettings:
     """Steps in the caller's scaled units, and the trial budget.
 
-    A step that lowers the value doubles the next (up to ``largest_step``), one that does
-    not halves it: along a long, flat valley a fixed step would spend the budget creeping.
+    A step that lowers the value doubles the next (up to ``largest_step``); a sweep of all
+    directions in which none does halves it: along a long, flat valley a fixed step would
+    spend the budget creeping.
     The search has converged when the step falls below ``last_step``.
     """
 
