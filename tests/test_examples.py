@@ -32,7 +32,8 @@ def test_the_atlas_cross_check_runs_the_stability_nlp_from_each_polished_gait(tm
     example = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(example)
     with open(ROOT / "results" / "atlas_upright" / "atlas_best.csv", newline="") as handle:
-        rows = [r for r in csv.DictReader(handle) if (r["sweep_ydot"], r["sweep_z"], r["meaning"]) == ("0.7", "0.45", "upright_throughout")]
+        rows = [r for r in csv.DictReader(handle)
+                if (r["sweep_ydot"], r["sweep_z"], r["meaning"]) == ("0.7", "0.45", "upright_throughout")]
     atlas = tmp_path / "atlas"
     atlas.mkdir()
     with open(atlas / "atlas_best.csv", "w", newline="") as handle:

@@ -273,7 +273,7 @@ class _Growth:
         self.parent_piece: list[int] = []  # union-find over pieces
         self.piece_of: list[int] = []
         self.boundaries: list[Boundary] = []
-        self.seeds_taken = 0
+        self.seeds_taken = 0  # all of them by the time the pieces grow (see cover)
 
     # -- pieces ----------------------------------------------------------------------------
 
@@ -527,6 +527,7 @@ def cover(system: ManifoldSystem, seeds: Iterable[np.ndarray | None], k: int,
     """
     growth = _Growth(system, settings, k, progress=progress)
     outcomes = [_take_seed(growth, number, seed) for number, seed in enumerate(seeds)]
+    growth.seeds_taken = len(outcomes)
     growth.grow([o.chart for o in outcomes if o.outcome == "new piece" and o.chart is not None])
     if progress is not None:
         progress(len(growth.charts), growth.seeds_taken)
@@ -547,7 +548,6 @@ def cover(system: ManifoldSystem, seeds: Iterable[np.ndarray | None], k: int,
 
 
 def _take_seed(growth: _Growth, number: int, seed: np.ndarray | None) -> SeedOutcome:
-    growth.seeds_taken = number + 1
     if seed is None:
         return SeedOutcome(number, "failed", None, "no starting solution")
     projected = project_seed(growth.system, seed)

@@ -66,9 +66,9 @@ def crosscheck_claims(ev: Evidence) -> list[str]:
         f"atlas's most stable gait spins it at {_spin(_best_gaits(atlas.get('best', []))[:1]):.2g} rad/s, swinging it "
         "through most of a turn over the stride, on a part of the family no drawn start reached; the runs from the "
         "atlas's own gaits test the NLP there. Where the NLP's bound and the verified radius differ by a few per "
-        "cent, the minimum it found is a point where several multipliers coincide (in an earlier cross-check, at two "
-        "upright-throughout ends three of the four, 1.5286 and 1.4395): an error e in the matrix moves a k-fold multiplier by about "
-        "e^(1/k), so the RK4 orbit's error of about 1e-6 (the polish moved those ends by 1.5e-6 and 9e-7) splits "
+        "cent, the minimum it found is a point where several multipliers coincide (in an earlier cross-check, at "
+        "two upright-throughout ends three of the four, 1.5286 and 1.4395): an error e in the matrix moves a k-fold "
+        "multiplier by about e^(1/k), so the RK4 orbit's error of about 1e-6 (the polish moved those ends by 1.5e-6 and 9e-7) splits "
         "them by about 1e-2. The Schur form is degenerate there too, which is where IPOPT's quasi-Newton iterations "
         "stall; such runs count as failures. So every end is polished and verified on the compiled map, and the "
         "verified radius is the one compared.",
