@@ -9,7 +9,10 @@ BRANCHES = continuation_slip_attack continuation_downward_speed continuation_dow
            curve_slip_band curve_downward_boundary curve_downward_neimark_sacker
 # Studies that read the curves' results.
 AFTER_CURVES = stable_region_traced
-GAITS = downward upward downward_period2
+GAITS = downward upward downward_period2 vpp vpp_human
+# Under the virtual-pivot-point hip law: sweeps over the pivot, the speed and the height,
+# at the thesis's scale and at human scale, and the human gait's branch in the pivot.
+VPP_STUDIES = vpp_sweep_thesis vpp_sweep_thesis_low vpp_sweep_human vpp_sweep_human_height continuation_vpp_pivot
 # Atlases of the gait families (long: minutes per cell), and the controllers compared on
 # the most stable upright gait the upright atlas found (its gait copied into the problem),
 # and the stability NLP's cross-check of the upright atlas: from drawn starts, then from
@@ -19,7 +22,7 @@ ATLASES = atlas_upright atlas_downward controllers_upright_best optimal_upright_
 .PHONY: studies clean-studies atlases
 
 studies:
-	@for s in $(STUDIES) $(BRANCHES) $(AFTER_CURVES); do $(PY) -m baslip.solve problems/$$s.yaml || exit 1; done
+	@for s in $(STUDIES) $(BRANCHES) $(AFTER_CURVES) $(VPP_STUDIES); do $(PY) -m baslip.solve problems/$$s.yaml || exit 1; done
 	@for g in $(GAITS); do $(PY) -m baslip.solve problems/$$g.yaml || exit 1; done
 	$(PY) -m baslip.animate problems/downward.yaml problems/upward.yaml --out results/animation
 	$(PY) -m baslip.report
@@ -29,4 +32,4 @@ atlases:
 	$(PY) examples/schur_from_atlas.py results/atlas_upright problems/atlas_upright.yaml results/schur_from_atlas
 
 clean-studies:
-	rm -rf $(addprefix results/,$(STUDIES) $(BRANCHES) $(AFTER_CURVES)) results/animation results/REPORT.md
+	rm -rf $(addprefix results/,$(STUDIES) $(BRANCHES) $(AFTER_CURVES) $(VPP_STUDIES)) results/animation results/REPORT.md

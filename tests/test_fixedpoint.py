@@ -52,7 +52,7 @@ def test_downward_fixed_point_is_verified(downward):
 def test_result_record_has_exactly_the_documented_keys(downward):
     record = downward.to_json_dict()
     assert list(record) == [
-        "name", "status", "solver", "params", "apex", "control", "durations",
+        "name", "status", "solver", "params", "hip_law", "apex", "control", "durations",
         "energy", "residual", "eigenvalues", "spectral_radius", "stable",
     ]
     assert set(record["solver"]) == {"return_status", "iterations", "time_s"}
@@ -147,3 +147,33 @@ def test_a_two_stride_orbit_is_solved_and_verified(solver, tight_map):
     assert np.sort_complex(from_second) == pytest.approx(np.sort_complex(np.array(result.eigenvalues)), abs=1e-6)
     record = result.to_json_dict()
     assert record["strides"] == 2 and record["minimal_period"] == 2 and len(record["orbit"]) == 2
+
+
+# --- under the VPP hip law -----------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def vpp_human():
+    from baslip.gait.from_problem import solve_problem
+
+    return solve_problem(load_problem("problems/vpp_human.yaml"))
+
+
+def test_a_vpp_gait_with_only_height_speed_and_pivot_fixed_is_symmetric_and_verified(vpp_human):
+    result = vpp_human
+    assert result.converged and result.residual <= 1e-10 and result.law.name == "vpp"
+    assert list(result.control) == ["r_vpp", "theta_td"] and result.to_json_dict()["hip_law"] == "vpp"
+    # Symmetric under mirror and time reversal: upright at the apex.
+    assert abs(result.X[1] - math.pi / 2) <= 1e-8
+    recheck_map = ReturnMap(Tolerances(1e-13, 1e-13), law=result.law)
+    assert eps(result.X, recheck_map(result.X, result.u, result.params)) <= 1e-10
+    labels = [m.label for m in result.multipliers]
+    assert labels.count("symmetry") == 1 and labels.count(None) == 3
+
+
+def test_the_symmetry_multiplier_is_one_and_the_others_decide_the_radius(vpp_human):
+    multipliers = vpp_human.multipliers
+    symmetric = [m.value for m in multipliers if m.label == "symmetry"][0]
+    assert abs(symmetric - 1.0) <= 1e-7
+    others = max(abs(m.value) for m in multipliers if m.label is None)
+    assert vpp_human.spectral_radius == pytest.approx(others) and vpp_human.stable == (others < 1 - 1e-6)

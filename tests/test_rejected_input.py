@@ -347,6 +347,24 @@ for broken in BROKEN_SOURCES:
     CASES.append((f"random boundary curve.csv {broken}", dump(put(TRACED, "study.boundary", f"{broken}_curves")),
                   "study.boundary"))
 
+# --- hip laws: the law's name, and the controls, studies and options each law takes ------
+CASES += number_cases("vpp", "fix.r_vpp")
+CASES += [(f"hip_law={label}", dump(put(base("downward"), "hip_law", value)), "hip_law")
+          for label, value in {"unknown": "spring", "number": 1, "list": ["pd"], "null": None}.items()]
+CASES += [
+    ("pd control under vpp", dump(put(base("vpp"), "fix.Kp", 1.0)), "fix.Kp"),
+    ("pd guess under vpp", dump(put(base("vpp"), "guess.theta2_des", 3.0)), "guess.theta2_des"),
+    ("vpp control under pd", dump(put(base("downward"), "guess.r_vpp", 0.02)), "guess.r_vpp"),
+    ("vpp bound under pd", dump(put(base("downward"), "bounds.r_vpp", [0.0, 0.1])), "bounds.r_vpp"),
+    ("pd axis in a vpp sweep", dump(put(base("vpp_sweep_thesis"), "study.vary", {"Kp": [0.0, 1.0, 0.5]})),
+     "study.vary.Kp"),
+    ("optimal study under vpp", dump(put(base("optimal_upright"), "hip_law", "vpp")), "hip_law"),
+    ("stability objective under vpp", dump(put(base("vpp"), "objective", "least_spectral_radius")), "objective"),
+    ("curves under vpp", dump(put(put(put(base("continuation_vpp_pivot"), "continuation.second", "ydot"),
+                                      "continuation.second_range", [4.0, 6.0]), "continuation.follow", "fold")),
+     "continuation.second"),
+]
+
 # --- the file itself ----------------------------------------------------------------------
 DOWNWARD_TEXT = (ROOT / "problems" / "downward.yaml").read_text()
 assert "  z: 0.4 " in DOWNWARD_TEXT

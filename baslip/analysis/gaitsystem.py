@@ -27,8 +27,7 @@ from baslip.gait.fixedpoint import VERIFY_EPS, minimal_period
 from baslip.gait.shooting import FixedPointSpec, implied_periodicity
 from baslip.gait.stability import classify
 from baslip.model.dynamics import APEX, PARAMS, Params, apex_energy
-from baslip.model.hiplaw import CONTROL
-from baslip.model.quantities import DESIGN, NOMINAL
+from baslip.model.quantities import NOMINAL
 from baslip.problem.continuation import BranchError, branch_shape, check_branch, check_parameter
 
 #: A phase lasting less than this fraction of its flight (descent) or stance (compression,
@@ -44,7 +43,7 @@ def branch_system(spec: FixedPointSpec, parameter: str, residual_map: ReturnMap,
     _check(spec, parameter, "continuation.parameter", square=True)
     if second is not None:
         _check(spec, second, "continuation.second", square=True)
-    free, equations = branch_shape(spec.fixed, spec.params)
+    free, equations = branch_shape(spec.fixed, spec.params, spec.law)
     if len(free) == equations:
         return FixedPointSystem(spec, parameter, residual_map, jacobian_map, second)
     return NearestGuessSystem(spec, parameter, residual_map, jacobian_map, second)
@@ -54,9 +53,9 @@ def _check(spec: FixedPointSpec, parameter: str, key: str, square: bool) -> None
     """The problem reader's checks of a branch parameter: that it can vary, and for a
     square system that the equations fix the free quantities."""
     if square:
-        check_branch(spec.fixed, spec.params, spec.objective, parameter, key)
+        check_branch(spec.fixed, spec.params, spec.objective, parameter, key, spec.law)
     else:
-        check_parameter(spec.fixed, parameter, key)
+        check_parameter(spec.fixed, parameter, key, spec.law)
 
 
 class FixedPointSystem:
@@ -77,7 +76,8 @@ class FixedPointSystem:
         self.spec, self.parameter = spec, parameter
         self.parameters = (parameter,) if second is None else (parameter, second)
         self.residual_map, self.jacobian_map = residual_map, jacobian_map
-        self.free = [n for n in DESIGN if n not in spec.fixed and n not in self.parameters]
+        self.design = spec.design
+        self.free = [n for n in self.design if n not in spec.fixed and n not in self.parameters]
         self.rows = [n for n in APEX.names if n not in implied_periodicity(spec)]
         self.energy_row = "energy" in spec.fixed
         self.lam_scales = [self._scale_of(name) for name in self.parameters]
@@ -109,7 +109,7 @@ class FixedPointSystem:
 
     def pack(self, X, u, *lams: float) -> np.ndarray:
         """Scaled unknowns from an apex, a control and the parameters' values."""
-        design = dict(zip(DESIGN, np.concatenate([X, u])))
+        design = dict(zip(self.design, np.concatenate([X, u])))
         return np.array([design[n] for n in self.free] + list(lams)) / self.scale
 
     def values(self, v: np.ndarray) -> dict[str, float]:
@@ -128,7 +128,7 @@ class FixedPointSystem:
                 params = replace(params, **{name: value})
             elif name != "energy":
                 values[name] = value
-        design = np.array([values[n] for n in DESIGN])
+        design = np.array([values[n] for n in self.design])
         return design[: APEX.size], design[APEX.size :], params, self.values(v)[self.parameter]
 
     # -- equations ------------------------------------------------------------------------
@@ -173,7 +173,7 @@ class FixedPointSystem:
         X, u, params, dr_dX, dr_du, dr_dp = self._jacobians(v)
         full = np.hstack([dr_dX - np.eye(APEX.size), dr_du])  # d(r - X)/d(X, u)
         rows = [APEX.index(n) for n in self.rows]
-        columns = [DESIGN.index(n) for n in self.free]
+        columns = [self.design.index(n) for n in self.free]
         jac = full[np.ix_(rows, columns)]
         for name in self.parameters:
             if name in PARAMS.names:
@@ -181,11 +181,11 @@ class FixedPointSystem:
             elif name == "energy":
                 lam_column = np.zeros(len(rows))
             else:
-                lam_column = full[rows, DESIGN.index(name)]
+                lam_column = full[rows, self.design.index(name)]
             jac = np.column_stack([jac, lam_column])
         if self.energy_row:
             by_X, by_p = (np.asarray(g).ravel() for g in self._energy_gradient(X, params.vector()))
-            energy = np.concatenate([by_X, np.zeros(CONTROL.size)])
+            energy = np.concatenate([by_X, np.zeros(len(u))])
             lam_energy = []
             for name in self.parameters:
                 if name == "energy":
@@ -193,7 +193,7 @@ class FixedPointSystem:
                 elif name in PARAMS.names:
                     lam_energy.append(by_p[PARAMS.index(name)])
                 else:
-                    lam_energy.append(energy[DESIGN.index(name)])
+                    lam_energy.append(energy[self.design.index(name)])
             jac = np.vstack([jac, np.concatenate([energy[columns], lam_energy])])
         return jac * self.scale
 
@@ -208,8 +208,8 @@ class FixedPointSystem:
         multiplier at +1, -1 or on the unit circle is a bifurcation of the map, never
         structure (see :mod:`baslip.gait.stability`).
         """
-        control = CONTROL.unpack(np.asarray(u, dtype=float))
-        if not (control["Kp"] == 0.0 and control["Kd"] == 0.0):
+        law = self.spec.law
+        if not law.torque_free(law.control_dict(u)):
             return APEX.names
         return ("ydot", "theta_h", "theta_h_dot") if params.d != 0.0 else ("ydot",)
 
@@ -291,7 +291,7 @@ class FixedPointSystem:
 
     def multipliers(self, v: np.ndarray) -> tuple[np.ndarray, list[bool]]:
         _, u, params, dr_dX, _, _ = self._jacobians(v)
-        stability = classify(dr_dX, params, u)
+        stability = classify(dr_dX, params, u, self.spec.law)
         return np.array([m.value for m in stability.multipliers]), [m.trivial for m in stability.multipliers]
 
 
@@ -327,7 +327,7 @@ class NearestGuessSystem:
         self.spec, self.parameter, self.parameters = spec, parameter, points.parameters
         self.lam_scales, self.lam_scale = points.lam_scales, points.lam_scale
         self.n_free, self.n_equations = len(points.free), len(points.rows) + points.energy_row
-        design = dict(zip(DESIGN, spec.start_design()))
+        design = dict(zip(spec.design, spec.start_design()))
         self.target = np.array([design[n] for n in points.free]) / points.scale[: self.n_free]
         # v holds mu / multiplier_scale, set by pack so that mu moves no faster along the
         # family than the rest: arclength steps then advance the parameters.
@@ -418,7 +418,7 @@ class NearestGuessSystem:
     def verification_failure(self, v: np.ndarray, verify_map: ReturnMap) -> str | None:
         """As :meth:`FixedPointSystem.verification_failure`, and inside the bounds."""
         X, u, _, _ = self.unpack(v)
-        for name, value in zip(DESIGN, np.concatenate([X, u])):
+        for name, value in zip(self.spec.design, np.concatenate([X, u])):
             lo, hi = self.spec.bounds_of(name)
             if not lo <= value <= hi:
                 return f"{name} = {value:.6g} leaves its bounds [{lo:.6g}, {hi:.6g}]"

@@ -47,10 +47,10 @@ class BatchEngine:
 
     def __init__(self, engine: CompiledEngine, threads: int = 2, compile: bool | None = None):
         self.engine = engine
-        self._lanes = [engine.functions] + [StrideFunctions(compile) for _ in range(max(threads, 1) - 1)]
+        self._lanes = [engine.functions] + [StrideFunctions(engine.law, compile) for _ in range(max(threads, 1) - 1)]
 
     def strides(self, X: np.ndarray, U: np.ndarray, p: np.ndarray) -> list[Stride | None]:
-        """One stride from each row of ``X`` (n x 4) under the row of ``U`` (n x 5);
+        """One stride from each row of ``X`` (n x 4) under the row of ``U`` (n x controls);
         None where the compiled engine cannot vouch for the stride (as for one stride)."""
         X, U = np.atleast_2d(np.asarray(X, float)), np.atleast_2d(np.asarray(U, float))
         # Whole batches per lane where possible, contiguous rows so results stay in order.
@@ -108,7 +108,7 @@ class _Batch:
         the strides that one scout call covers cleanly go on to their final passes, and the
         rest stay pending for the careful path."""
         X, U, p = self.X[live], self.U[live], self.p
-        rate = stiffness_rate(X, U, p)
+        rate = stiffness_rate(X, U, p, self.engine.law)
         h = scout_step(p, rate)
         x_td, com_height, clean, bottom, liftoff, error = _call(
             self.functions.batch("stance_plan"), X.T, U.T, _columns(p, len(live)), t_descent[live], h)

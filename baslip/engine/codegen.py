@@ -460,6 +460,12 @@ def _native_kernels(library: pathlib.Path, names: Sequence[str]) -> dict[str, Ke
         return None
 
 
+def library_name(base: str, law) -> str:
+    """The name of a compiled library of hip law ``law`` (a
+    :class:`~baslip.model.hiplaw.HipLaw`): the PD library keeps its bare name."""
+    return base if law.name == "pd" else f"{base}_{law.name}"
+
+
 def module_files(*modules: types.ModuleType) -> list[pathlib.Path]:
     """The source files of ``modules``: the key of a library derived from them.
 

@@ -34,6 +34,7 @@ from baslip.engine.kernels import (
 )
 from baslip.engine.outcome import PHASES, STANCE_HORIZON_HALF_PERIODS, Fall, Stride
 from baslip.model.dynamics import PARAMS, STANCE
+from baslip.model.hiplaw import PD, HipLaw
 
 _CLEARANCE_FALLS = {
     "com": Fall.COM_HITS_GROUND,
@@ -100,9 +101,10 @@ class CompiledEngine:
     ``None``.
     """
 
-    def __init__(self, tolerance: float, compile: bool | None = None):
+    def __init__(self, tolerance: float, compile: bool | None = None, law: HipLaw = PD):
         self.tolerance = tolerance
-        self.functions = StrideFunctions(compile)
+        self.law = law
+        self.functions = StrideFunctions(law, compile)
 
     def stride(self, X, u, p, t_guess) -> Stride | None:
         """The stride from apex ``X`` (which passed the pre-checks), or None."""
@@ -112,7 +114,7 @@ class CompiledEngine:
         return self._final(X, u, p, *plan)[1]
 
     def stride_jacobian(self, X, u, p, t_guess) -> tuple[np.ndarray | None, Stride] | None:
-        """(dr/d(X, u, p) as 4 x 15, the stride), the Jacobian None after a fall; or None.
+        """(dr/d(X, u, p) as 4 x (4 + controls + 6), the stride), the Jacobian None after a fall; or None.
 
         The step count is settled by value passes, which cost a fraction of a Jacobian."""
         plan = self._plan(X, u, p, t_guess)
@@ -164,7 +166,7 @@ class CompiledEngine:
         stable and the first step count, and the final pass's guesses. One compiled call
         covers a stance that one scout call brackets cleanly; the others take
         :meth:`_scout`."""
-        rate = stiffness_rate(X, u, p)
+        rate = stiffness_rate(X, u, p, self.law)
         h = scout_step(p, rate)
         x_td, com_height, clean, bottom, liftoff, error = self.functions.plan(X, u, p, t_guess, h)
         x_td = x_td.ravel()

@@ -32,7 +32,7 @@ import numpy as np
 
 from baslip.engine import codegen as _codegen
 from baslip.engine import outcome as _outcome_module
-from baslip.engine.codegen import compile_kernels, module_files
+from baslip.engine.codegen import compile_kernels, library_name, module_files
 from baslip.engine.outcome import (
     COLLAPSE_FRACTION,
     PHASES,
@@ -63,7 +63,7 @@ from baslip.model.dynamics import (
     touchdown_guard,
     touchdown_map,
 )
-from baslip.model.hiplaw import CONTROL, hip_torque, touchdown_angle
+from baslip.model.hiplaw import PD, HipLaw, touchdown_angle
 from baslip.model.layout import Layout
 
 # Augmented stance state: the mechanical state, a clock, the bottom time and a phase flag.
@@ -81,12 +81,12 @@ _FALL_OF_PHASE = {
 }
 
 
-def _stance_run_dynamics(s, u, p):
+def _stance_run_dynamics(s, u, p, law: HipLaw):
     """Right-hand side of the augmented stance state, with time scaled by the horizon."""
     x = s[: STANCE.size]
     phase = STANCE_RUN.get(s, "phase")
     moving = phase < 1.5
-    xdot = stance_dynamics(x, hip_torque(x, u), p)
+    xdot = stance_dynamics(x, law.torque(x, u, p), p)
     return ca.if_else(moving, ca.vertcat(xdot, 1, 0, 0), ca.DM.zeros(STANCE_RUN.size))
 
 
@@ -108,12 +108,12 @@ def _stance_run_indicators(s, p):
     )
 
 
-def _stance_run_transition():
+def _stance_run_transition(law: HipLaw):
     """Event transition: advance or freeze the phase flag, record the bottom time."""
     index = ca.SX.sym("index")
     t = ca.SX.sym("t")
     s = STANCE_RUN.sym("s")
-    u_and_p = ca.SX.sym("up", CONTROL.size + PARAMS.size + 1)
+    u_and_p = ca.SX.sym("up", law.controls.size + PARAMS.size + 1)
     empty = ca.SX(0, 1)
     clock = STANCE_RUN.get(s, "clock")
     after_bottom = ca.vertcat(s[: STANCE.size], clock, clock, DECOMPRESSION)
@@ -133,16 +133,17 @@ class EventMap:
     cannot guarantee its accuracy. Inputs are numeric vectors that passed
     :func:`~baslip.engine.outcome.precheck`; ``t_guess`` is its touchdown time guess [s].
     ``compile`` forces the C route of the stride's value on or off; None follows the
-    environment (see :func:`baslip.engine.codegen.compile_kernels`).
+    environment (see :func:`baslip.engine.codegen.compile_kernels`). ``law`` is the hip law.
     """
 
-    def __init__(self, tolerances: Tolerances, plugin: str = "erk", compile: bool | None = None):
+    def __init__(self, tolerances: Tolerances, plugin: str = "erk", compile: bool | None = None, law: HipLaw = PD):
         self.tolerances = tolerances
         self.plugin = plugin
+        self.law = law
         self._samplers: dict = {}  # functions needed only by some users, built on first use
         # A warm cache loads the compiled stride without building any CasADi object.
         self._value = compile_kernels(
-            f"baslip_events_{plugin}", ["stride"], lambda: [self._stride_fn], _sources(),
+            library_name(f"baslip_events_{plugin}", law), ["stride"], lambda: [self._stride_fn], _sources(),
             enabled=compile, settings=f"{plugin} rtol={tolerances.rtol!r} atol={tolerances.atol!r}",
         )["stride"]
 
@@ -170,7 +171,7 @@ class EventMap:
 
     def _build_touchdown_rootfinder(self) -> ca.Function:
         t = ca.SX.sym("t")
-        X, u, p = APEX.sym("X"), CONTROL.sym("u"), PARAMS.sym("p")
+        X, u, p = APEX.sym("X"), self.law.controls.sym("u"), PARAMS.sym("p")
         foot_height = touchdown_guard(ballistic_flight(apex_to_flight(X), t, p), touchdown_angle(u), p)
         residual = ca.Function("touchdown_residual", [t, ca.vertcat(X, u, p)], [foot_height])
         # From the bracketed guess Newton converges in a few steps; a guess that does not
@@ -182,15 +183,15 @@ class EventMap:
     def _build_stance_integrator(self, output_times=(1.0,)) -> ca.Function:
         """Stance over the time-scaled horizon [0, 1], with outputs at ``output_times``."""
         s = STANCE_RUN.sym("s")
-        u, p, horizon = CONTROL.sym("u"), PARAMS.sym("p"), ca.SX.sym("horizon")
+        u, p, horizon = self.law.controls.sym("u"), PARAMS.sym("p"), ca.SX.sym("horizon")
         dae = {
             "x": s,
             "p": ca.vertcat(u, p, horizon),
-            "ode": horizon * _stance_run_dynamics(s, u, p),
+            "ode": horizon * _stance_run_dynamics(s, u, p, self.law),
             "zero": _stance_run_indicators(s, p),
         }
         opts = {
-            "transition": _stance_run_transition(),
+            "transition": _stance_run_transition(self.law),
             "reltol": self.tolerances.rtol,
             "abstol": self.tolerances.atol,
             "max_events": 8,
@@ -199,7 +200,7 @@ class EventMap:
         return ca.integrator("stance", self.plugin, dae, 0.0, list(output_times), opts)
 
     def _build_stride_function(self) -> ca.Function:
-        X, u, p = APEX.sym("X", ca.MX), CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
+        X, u, p = APEX.sym("X", ca.MX), self.law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
         t_guess = ca.MX.sym("t_touchdown_guess")
         theta_td = touchdown_angle(u)
         t_descent = self._build_touchdown_rootfinder()(t_guess, ca.vertcat(X, u, p))

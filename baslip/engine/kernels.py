@@ -42,7 +42,7 @@ import numpy as np
 from baslip.engine import codegen as _codegen
 from baslip.engine import dop853 as flow
 from baslip.engine import outcome as _outcome_module
-from baslip.engine.codegen import compile_kernels, module_files
+from baslip.engine.codegen import compile_kernels, library_name, module_files
 from baslip.engine.native import Kernel
 from baslip.engine.outcome import COLLAPSE_FRACTION
 from baslip.model import dynamics as _dynamics
@@ -65,7 +65,7 @@ from baslip.model.dynamics import (
     touchdown_guard,
     touchdown_map,
 )
-from baslip.model.hiplaw import CONTROL, hip_torque, touchdown_angle
+from baslip.model.hiplaw import PD, HipLaw, touchdown_angle
 from baslip.model.layout import Layout
 
 #: Step counts per stance phase of the compiled final pass, 1.5 apart up to 256: the
@@ -83,8 +83,6 @@ TOUCHDOWN_NEWTON = 2
 #: Newton iterations on the cubic Hermite interpolant of an event guard between two nodes.
 HERMITE_NEWTON = 8
 
-#: Parameters of the stance flow: the control, then the model parameters.
-THETA = Layout(CONTROL.names + PARAMS.names)
 #: Watched quantities in stance, a fall when one reaches zero: CoM height, hip height and
 #: the leg's length above the collapse floor [m].
 CLEARANCES = ("com", "hip", "leg")
@@ -101,15 +99,22 @@ DIAGNOSTICS = Layout((
 ))
 
 
+def theta_layout(law: HipLaw) -> Layout:
+    """Parameters of the stance flow under ``law``: its controls, then the model's."""
+    return Layout(law.controls.names + PARAMS.names)
+
+
 def _split_theta(theta):
-    return theta[: CONTROL.size], theta[CONTROL.size :]
+    """(u, p) of a flow parameter vector: the model parameters are its last entries."""
+    n_u = theta.numel() - PARAMS.size
+    return theta[:n_u], theta[n_u:]
 
 
-def stance_rhs() -> ca.Function:
-    """xdot = f(x, theta) of stance under the PD hip law, theta = (u, p)."""
-    x, theta = STANCE.sym("x"), THETA.sym("theta")
+def stance_rhs(law: HipLaw = PD) -> ca.Function:
+    """xdot = f(x, theta) of stance under the hip law ``law``, theta = (u, p)."""
+    x, theta = STANCE.sym("x"), theta_layout(law).sym("theta")
     u, p = _split_theta(theta)
-    xdot = stance_dynamics(x, hip_torque(x, u), p)
+    xdot = stance_dynamics(x, law.torque(x, u, p), p)
     return ca.Function("stance_rhs", [x, theta], [ca.cse(xdot)], ["x", "theta"], ["xdot"])
 
 
@@ -121,10 +126,10 @@ def stance_clearances(x, theta):
     return ca.vertcat(stance_com_position(q, p)[1], stance_hip_position(q)[1], STANCE.get(x, "rho") - floor)
 
 
-def stance_guards() -> tuple[ca.Function, ca.Function]:
+def stance_guards(law: HipLaw = PD) -> tuple[ca.Function, ca.Function]:
     """The bottom guard rhodot [m/s] and the liftoff guard rho - rho0 [m] as Functions of
     (x, theta); each rises through zero at its event."""
-    x, theta = STANCE.sym("x"), THETA.sym("theta")
+    x, theta = STANCE.sym("x"), theta_layout(law).sym("theta")
     _, p = _split_theta(theta)
     return (
         ca.Function("bottom", [x, theta], [bottom_guard(x)]),
@@ -132,21 +137,24 @@ def stance_guards() -> tuple[ca.Function, ca.Function]:
     )
 
 
-def stiffness_rate(X, u, p):
+def stiffness_rate(X, u, p, law: HipLaw = PD):
     """The fastest rate of the stance dynamics [1/s], for the step size: a number for one
     apex ``X`` and control ``u``, an array for rows of many.
 
-    The larger of the spring's sqrt(k/m), the hip damping Kd/(I + m d^2), the hip
-    stiffness sqrt(|Kp|/(I + m d^2)), the trunk spin |theta_h_dot| and the leg's sweep
-    rate |ydot|/rho0 (``I + m d^2`` is the trunk's inertia about the hip).
+    The larger of the spring's sqrt(k/m), the hip damping c/(I + m d^2), the hip
+    stiffness sqrt(kappa/(I + m d^2)) (``kappa`` and ``c`` from the law's
+    :meth:`~baslip.model.hiplaw.HipLaw.step_rates`; |Kp| and |Kd| under PD), the trunk
+    spin |theta_h_dot| and the leg's sweep rate |ydot|/rho0 (``I + m d^2`` is the
+    trunk's inertia about the hip).
     """
     m, inertia, k, rho0, d = (float(p[i]) for i in _RATE_PARAMS)
     inertia_hip = inertia + m * d**2
-    X, u = np.asarray(X, dtype=float).T, np.asarray(u, dtype=float).T  # entries first
+    hip_stiffness, hip_damping = law.step_rates(u, p)
+    X = np.asarray(X, dtype=float).T  # entries first
     rates = (
         math.sqrt(k / m),
-        abs(u[_KD]) / inertia_hip,
-        (abs(u[_KP]) / inertia_hip) ** 0.5,
+        hip_damping / inertia_hip,
+        (hip_stiffness / inertia_hip) ** 0.5,
         abs(X[_SPIN]),
         abs(X[_YDOT]) / rho0,
     )
@@ -155,7 +163,6 @@ def stiffness_rate(X, u, p):
     return functools.reduce(np.maximum, rates)
 
 
-_KP, _KD = CONTROL.index("Kp"), CONTROL.index("Kd")
 _RATE_PARAMS = tuple(PARAMS.index(n) for n in ("m", "I", "k", "rho0", "d"))
 _M, _K = PARAMS.index("m"), PARAMS.index("k")
 _SPIN, _YDOT = APEX.index("theta_h_dot"), APEX.index("ydot")
@@ -167,16 +174,18 @@ def half_period(p) -> float:
 
 
 class StanceFlow:
-    """The symbolic stance flow of the PD-controlled runner, built once: the right-hand
-    side, one DOP853 step, loops of steps, and the steps that end on the bottom and
-    liftoff guards. The compiled stride and the shooting NLP are both built from it."""
+    """The symbolic stance flow of the runner under one hip law, built once: the
+    right-hand side, one DOP853 step, loops of steps, and the steps that end on the bottom
+    and liftoff guards. The compiled stride and the shooting NLP are both built from it."""
 
-    def __init__(self):
-        self.rhs = stance_rhs()
-        x, theta = STANCE.sym("x"), THETA.sym("theta")
+    def __init__(self, law: HipLaw = PD):
+        self.law = law
+        self.theta = theta_layout(law)
+        self.rhs = stance_rhs(law)
+        x, theta = STANCE.sym("x"), self.theta.sym("theta")
         watch = ca.Function("stance_clearances", [x, theta], [stance_clearances(x, theta)])
         self.step = flow.step_function(self.rhs, watch)
-        bottom, liftoff = stance_guards()
+        bottom, liftoff = stance_guards(law)
         self.bottom_step = flow.event_step(self.step, self.rhs, bottom, EVENT_NEWTON)
         self.liftoff_step = flow.event_step(self.step, self.rhs, liftoff, EVENT_NEWTON)
         self._chains: dict[int, ca.Function] = {}
@@ -195,12 +204,15 @@ class StrideFunctions:
     careful path) and, per tier, the final pass and its Jacobian in (X, u, p); the
     planning and the final passes also mapped over :data:`BATCH` strides.
 
+    ``law``: the hip law; each law has its own library, named after it.
     ``compile``: True or False forces the C route on or off; None follows the
     environment (see :func:`baslip.engine.codegen.compile_functions`)."""
 
-    def __init__(self, compile: bool | None = None):
-        self.flow = StanceFlow()
-        self.functions = compile_kernels("baslip_stride", _names(), self._all, sources(), enabled=compile)
+    def __init__(self, law: HipLaw = PD, compile: bool | None = None):
+        self.law = law
+        self.flow = StanceFlow(law)
+        self.functions = compile_kernels(library_name("baslip_stride", law), _names(), self._all, sources(),
+                                         enabled=compile)
         self.scout = self.functions["stance_scout"]
         self.plan = self.functions["stance_plan"]
 
@@ -209,14 +221,14 @@ class StrideFunctions:
         return self.functions[f"stride_{n}"]
 
     def jacobian(self, n: int) -> Kernel:
-        """(X, u, p, guesses) -> (dr/d(X, u, p) 4 x 15, apex, durations, diagnostics)."""
+        """(X, u, p, guesses) -> (dr/d(X, u, p) 4 x (4 + controls + 6), apex, durations, diagnostics)."""
         return self.functions[f"stride_jacobian_{n}"]
 
     def _scout(self) -> ca.Function:
         """(x0, h, theta) -> the M + 1 nodes from x0 (columns), their rates xdot, and each
         step's least clearances and error estimate (M columns); M = :data:`SCOUT_STEPS`."""
         chained = self.flow.chain(SCOUT_STEPS)
-        x0, h, theta = ca.MX.sym("x0", STANCE.size), ca.MX.sym("h"), THETA.sym("theta", ca.MX)
+        x0, h, theta = ca.MX.sym("x0", STANCE.size), ca.MX.sym("h"), self.flow.theta.sym("theta", ca.MX)
         steps, errors, clearances = chained(x0, h, theta)
         nodes = ca.horzcat(x0, steps)
         rates = self.flow.rhs.map(SCOUT_STEPS + 1)(nodes, ca.repmat(theta, 1, SCOUT_STEPS + 1))
@@ -227,9 +239,9 @@ class StrideFunctions:
         """(X, u, p, t_descent, h) -> the stance state at touchdown, the CoM height there [m],
         and the events of one scout call from there with step ``h`` [s] (see
         :func:`scout_events`): the common case of a stride's planning in one call."""
-        X, u, p = APEX.sym("X", ca.MX), CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
+        X, u, p = APEX.sym("X", ca.MX), self.law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
         t_descent, h = ca.MX.sym("t_descent"), ca.MX.sym("h")
-        x_td, com_height, _ = touchdown_state()(X, u, p, t_descent)
+        x_td, com_height, _ = touchdown_state(self.law)(X, u, p, t_descent)
         nodes, rates, clearance, errors = scout(x_td, h, ca.vertcat(u, p))
         events = scout_events()(nodes, rates, clearance, errors, h, PARAMS.get(p, "rho0"))
         return ca.Function("stance_plan", [X, u, p, t_descent, h], [x_td, com_height, *events],
@@ -277,12 +289,12 @@ def _phase(stance: StanceFlow, event: ca.Function, x0, grid_duration, theta, n: 
 
 def _final_pass(stance: StanceFlow, n: int) -> ca.Function:
     """(X, u, p, guesses) -> (next apex, durations, diagnostics) with ``n`` steps a phase."""
-    X, u, p = APEX.sym("X", ca.MX), CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
+    X, u, p = APEX.sym("X", ca.MX), stance.law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
     guesses = GUESSES.sym("guesses", ca.MX)
     theta = ca.vertcat(u, p)
     theta_td = touchdown_angle(u)
 
-    t_descent = _touchdown_time(X, u, p, GUESSES.get(guesses, "descent"))
+    t_descent = _touchdown_time(X, u, p, GUESSES.get(guesses, "descent"), stance.law)
     at_touchdown = ballistic_flight(apex_to_flight(X), t_descent, p)
     x_td = touchdown_map(at_touchdown, theta_td, p)
 
@@ -331,11 +343,11 @@ def multiplier_gradient_function(stance: StanceFlow, n: int) -> ca.Function:
                        ["X", "u", "p", "guesses", "G"], ["gradient"])
 
 
-def _touchdown_time(X, u, p, t_guess):
+def _touchdown_time(X, u, p, t_guess, law: HipLaw):
     """The touchdown time [s]: Newton on the closed-form foot height from a converged guess,
     so that its derivative is the implicit-function-theorem one."""
     t = ca.SX.sym("t")
-    Xs, us, ps = APEX.sym("X"), CONTROL.sym("u"), PARAMS.sym("p")
+    Xs, us, ps = APEX.sym("X"), law.controls.sym("u"), PARAMS.sym("p")
     height = touchdown_guard(ballistic_flight(apex_to_flight(Xs), t, ps), touchdown_angle(us), ps)
     newton = ca.Function("touchdown_newton", [Xs, us, ps, t], [t - height / ca.jacobian(height, t)])
     for _ in range(TOUCHDOWN_NEWTON):
@@ -343,10 +355,10 @@ def _touchdown_time(X, u, p, t_guess):
     return t_guess
 
 
-def touchdown_state() -> ca.Function:
+def touchdown_state(law: HipLaw = PD) -> ca.Function:
     """(X, u, p, t_descent) -> stance state at touchdown, CoM height there [m], foot height
-    there [m] (zero at a located touchdown)."""
-    X, u, p, t = APEX.sym("X"), CONTROL.sym("u"), PARAMS.sym("p"), ca.SX.sym("t_descent")
+    there [m] (zero at a located touchdown), for a control ``u`` of ``law``."""
+    X, u, p, t = APEX.sym("X"), law.controls.sym("u"), PARAMS.sym("p"), ca.SX.sym("t_descent")
     at_touchdown = ballistic_flight(apex_to_flight(X), t, p)
     theta_td = touchdown_angle(u)
     return ca.Function(

@@ -15,10 +15,10 @@ import numpy as np
 
 from baslip.errors import RunError
 from baslip.model.dynamics import APEX, PARAMS, descent_foot_height
-from baslip.model.hiplaw import CONTROL
 
 _RHO0, _D, _G = PARAMS.index("rho0"), PARAMS.index("d"), PARAMS.index("g")
-_THETA_TD = CONTROL.index("theta_td")
+#: theta_td is the last control under every hip law (:mod:`baslip.model.hiplaw`).
+_THETA_TD = -1
 _Z, _THETA_H, _SPIN = APEX.index("z"), APEX.index("theta_h"), APEX.index("theta_h_dot")
 
 PHASES = ("descent", "compression", "decompression", "ascent")
@@ -132,7 +132,7 @@ _GRID_FRACTIONS = np.linspace(0.0, 1.0, TOUCHDOWN_GRID)
 
 def touchdown_guesses(X: np.ndarray, U: np.ndarray, p) -> np.ndarray:
     """:func:`touchdown_guess` from each apex (rows of X, n x 4) under the rows of U
-    (n x 5), the grid search done for all rows at once; NaN where the foot cannot reach
+    (n x controls), the grid search done for all rows at once; NaN where the foot cannot reach
     the ground."""
     X, U, p = np.asarray(X, dtype=float), np.asarray(U, dtype=float), np.asarray(p, dtype=float)
     z, theta_h, spin = X[:, _Z], X[:, _THETA_H], X[:, _SPIN]
@@ -198,7 +198,7 @@ def _foot_height_at_apex(z, theta_h, theta_td, p):
 
 
 def prechecks(X: np.ndarray, U: np.ndarray, p) -> tuple[list[Stride | None], np.ndarray]:
-    """:func:`precheck` of each row of X (n x 4) under the rows of U (n x 5): the falls
+    """:func:`precheck` of each row of X (n x 4) under the rows of U (n x controls): the falls
     found before any integration (None for the rest) and the touchdown time guesses [s]
     (NaN after a fall)."""
     X, U, p = np.asarray(X, dtype=float), np.asarray(U, dtype=float), np.asarray(p, dtype=float)

@@ -35,7 +35,7 @@ from baslip.engine.outcome import (  # noqa: F401  (re-exported: the public name
     vec,
 )
 from baslip.model.dynamics import APEX, PARAMS
-from baslip.model.hiplaw import CONTROL
+from baslip.model.hiplaw import PD, HipLaw
 
 #: The compiled engine's error bound is met down to this tolerance; tighter ones use the
 #: adaptive event map.
@@ -61,8 +61,10 @@ class ReturnMap:
     >>> A2, B2 = rmap.jacobians(X, u, Params(), strides=2)   # of r(r(X, u), u)
     """
 
-    def __init__(self, tolerances: Tolerances = Tolerances(), plugin: str | None = None, compile: bool | None = None):
+    def __init__(self, tolerances: Tolerances = Tolerances(), plugin: str | None = None, compile: bool | None = None,
+                 law: HipLaw = PD):
         self.tolerances = tolerances
+        self.law = law
         tolerance = min(tolerances.rtol, tolerances.atol)
         if plugin is None:
             plugin = COMPILED if tolerance >= COMPILED_TIGHTEST else "erk"
@@ -73,8 +75,8 @@ class ReturnMap:
         if plugin == COMPILED:
             from baslip.engine.driver import CompiledEngine  # the compiled engine is loaded only when used
 
-            self._compiled = CompiledEngine(tolerance, compile)
-        self._events = None if plugin == COMPILED else EventMap(tolerances, plugin, compile)
+            self._compiled = CompiledEngine(tolerance, compile, law)
+        self._events = None if plugin == COMPILED else EventMap(tolerances, plugin, compile, law)
         self._compile = compile
         self._batch: BatchEngine | None = None  # the batched compiled engine, built on first use
         self.fallbacks = 0  # strides the compiled engine handed to the event map
@@ -83,7 +85,7 @@ class ReturnMap:
     def event_map(self) -> EventMap:
         """The adaptive event map at this map's tolerances (built on first use)."""
         if self._events is None:
-            self._events = EventMap(self.tolerances, "erk", self._compile)
+            self._events = EventMap(self.tolerances, "erk", self._compile, self.law)
         return self._events
 
     @property
@@ -140,7 +142,7 @@ class ReturnMap:
         if outcome.fall is not None:
             raise RunnerFell(outcome.fall)
         assert outcome.apex is not None and jac is not None  # a stride that did not fall has both
-        return jac[:, : APEX.size + CONTROL.size + (PARAMS.size if with_parameters else 0)], outcome.apex
+        return jac[:, : APEX.size + self.law.controls.size + (PARAMS.size if with_parameters else 0)], outcome.apex
 
     # -- Jacobians of r^n ------------------------------------------------------------
 
@@ -165,7 +167,7 @@ class ReturnMap:
     def _chained_jacobians(self, X, u, params, strides: int, with_parameters: bool):
         """Jacobians of r^n in (X, u), and in p if asked, accumulated stride by stride."""
         X, u, p = vec(X), vec(u), param_vector(params)
-        nx, nu = APEX.size, CONTROL.size
+        nx, nu = APEX.size, self.law.controls.size
         dX, du = np.eye(nx), np.zeros((nx, nu))
         dp = np.zeros((nx, PARAMS.size))
         for _ in range(strides):
@@ -180,10 +182,10 @@ class ReturnMap:
     # -- many strides ----------------------------------------------------------------
 
     def strides(self, X, U, params) -> list[Stride]:
-        """One stride from each row of ``X`` (n x 4) under the row of ``U`` (n x 5, or
-        one control for all): the compiled engine takes them in batches on both cores."""
+        """One stride from each row of ``X`` (n x 4) under the row of ``U`` (n x controls,
+        or one control for all): the compiled engine takes them in batches on both cores."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
-        U = np.broadcast_to(np.asarray(U, dtype=float), (len(X), CONTROL.size))
+        U = np.broadcast_to(np.asarray(U, dtype=float), (len(X), self.law.controls.size))
         p = param_vector(params)
         if self._compiled is None:
             return [self.stride(x, u, p) for x, u in zip(X, U)]
@@ -203,7 +205,7 @@ class ReturnMap:
         """:meth:`simulate` from each row of ``X0`` (under the rows of ``U``, or one
         control), run in lockstep so that every stride is one batch."""
         X0 = np.atleast_2d(np.asarray(X0, dtype=float))
-        U = np.broadcast_to(np.asarray(U, dtype=float), (len(X0), CONTROL.size))
+        U = np.broadcast_to(np.asarray(U, dtype=float), (len(X0), self.law.controls.size))
         apexes = [[x] for x in X0]
         durations: list[list[dict]] = [[] for _ in X0]
         falls: dict[int, tuple[Fall, int]] = {}

@@ -9,11 +9,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import casadi as ca
 import numpy as np
 
 from baslip.engine.returnmap import ReturnMap, RunnerFell
 from baslip.model.dynamics import APEX, STANCE, Params, body_angle, build_model
-from baslip.model.hiplaw import CONTROL
+from baslip.model.hiplaw import ground_force, touchdown_angle
 
 
 @dataclass(frozen=True)
@@ -39,7 +40,7 @@ def stride_trajectory(rmap: ReturnMap, X, u, params: Params, strides: int = 2, s
     """Sample ``strides`` strides from apex ``X`` under control ``u``."""
     model = build_model()
     p = params.vector()
-    theta_td = float(CONTROL.get(np.asarray(u), "theta_td"))
+    theta_td = float(touchdown_angle(np.asarray(u)))
     parts, t0, y0, X = [], 0.0, 0.0, np.asarray(X, dtype=float)
     for _ in range(strides):
         stride, flight = _stride_from(rmap, X, u, params, 0.0)
@@ -112,7 +113,7 @@ class TrunkRange:
         raises :class:`RunnerFell` if the stride falls."""
         stride, flight = _stride_from(self.rmap, X, u, params, 0.0)
         d = stride.durations
-        theta_td = float(CONTROL.get(np.asarray(u), "theta_td"))
+        theta_td = float(touchdown_angle(np.asarray(u)))
         x_touchdown = _ballistic(flight, d["descent"], params.g)
         x_stance = np.asarray(self.model.touchdown_map(x_touchdown, theta_td, params.vector())).ravel()
         states = self.rmap.stance_samples(x_stance, u, params, d["compression"] + d["decompression"], self.samples)
@@ -213,7 +214,7 @@ def motion(rmap: ReturnMap, X, u, params: Params, strides: int = 1, samples: int
     model = build_model()
     p = params.vector()
     u = np.asarray(u, dtype=float)
-    theta_td = float(CONTROL.get(u, "theta_td"))
+    theta_td = float(touchdown_angle(u))
     rows: list[dict] = []
     t0, y0, X = 0.0, 0.0, np.asarray(X, dtype=float)
     for k in range(strides):
@@ -229,7 +230,7 @@ def motion(rmap: ReturnMap, X, u, params: Params, strides: int = 1, samples: int
         times = np.linspace(0.0, stance_time, 2 * samples + 1)
         for s, x in zip(times, states.T):
             phase = "compression" if s < d["compression"] else "decompression"
-            rows.append(_stance_row(model, x, t_td + s, k, phase, foot_y, u, params, p))
+            rows.append(_stance_row(model, rmap.law, x, t_td + s, k, phase, foot_y, u, params, p))
         x_lo = states[:, -1]
         xf_lo = np.asarray(model.liftoff_map(x_lo, p)).ravel()
         xf_lo[0] += foot_y
@@ -253,23 +254,17 @@ def _flight_row(model, xf, t, stride, phase, theta_td, params: Params, p) -> dic
     }
 
 
-def _stance_row(model, x, t, stride, phase, foot_y, u, params: Params, p) -> dict:
-    from baslip.model.dynamics import STANCE
-    from baslip.model.hiplaw import hip_torque
-
+def _stance_row(model, law, x, t, stride, phase, foot_y, u, params: Params, p) -> dict:
     xf = np.asarray(model.liftoff_map(x, p)).ravel()
     xf[0] += foot_y
     row = _flight_row(model, xf, t, stride, phase, 0.0, params, p)
     s = STANCE.unpack(x)
-    torque = float(hip_torque(x, u))
+    torque = float(law.torque(ca.DM(x), ca.DM(u), ca.DM(p)))
     # The leg is massless, so the ground's force balances it: the spring's push along the
     # leg, foot to hip, and across it the hip torque's reaction, torque / rho.
-    spring = params.k * (params.rho0 - s["rho"])
-    across = torque / s["rho"]
-    along_y, along_z = -np.sin(s["theta1"]), np.cos(s["theta1"])
+    grf_y, grf_z = np.asarray(ground_force(ca.DM(x), torque, ca.DM(p))).ravel()
     row.update(
-        leg_length=s["rho"], leg_angle=s["theta1"], torque=torque,
-        grf_y=spring * along_y + across * along_z, grf_z=spring * along_z - across * along_y,
+        leg_length=s["rho"], leg_angle=s["theta1"], torque=torque, grf_y=grf_y, grf_z=grf_z,
         hip_power=torque * s["theta2_dot"], energy=float(model.stance_energy(x, p)),
     )
     return row

@@ -5,7 +5,9 @@ Every ``result.json`` that baslip writes carries a ``provenance`` record:
 * ``problem``: the problem as baslip understood it (SI units and radians, defaults
   filled in): params, fix, guess, bounds, objective, strides, solver, study, continuation;
 * ``problem_hash``: SHA-256 of that record without ``name`` and ``solver.print_level``,
-  which do not change any number; a resumed study must have the same hash;
+  which do not change any number, and without ``hip_law`` when it is the default ``pd``
+  (so results written before there were hip laws keep their hash); a resumed study must
+  have the same hash;
 * ``versions``: baslip, CasADi, IPOPT, NumPy and Python;
 * ``code``: what each compiled library of the run actually ran on, by library name:
   ``"compiled C (<compiler version>)"`` or ``"CasADi virtual machine (<why>)"``, as
@@ -27,6 +29,7 @@ from importlib import metadata
 import casadi as ca
 import numpy as np
 
+from baslip.model.hiplaw import PD, HipLaw
 from baslip.problem.reader import Problem
 
 
@@ -36,6 +39,8 @@ def resolved_problem(problem: Problem) -> dict:
 
 
 def _plain(value):
+    if isinstance(value, HipLaw):
+        return value.name
     if dataclasses.is_dataclass(value):
         return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
     if hasattr(value, "items"):  # dict or MappingProxyType
@@ -50,6 +55,8 @@ def problem_hash(problem: Problem) -> str:
     record = resolved_problem(problem)
     record.pop("name")
     record["solver"].pop("print_level")
+    if record.get("hip_law") == PD.name:
+        record.pop("hip_law")
     return hashlib.sha256(json.dumps(record, sort_keys=True).encode()).hexdigest()
 
 

@@ -15,9 +15,7 @@ def summary_text(result) -> str:
         f"Newton polish {result.polish_iterations} steps, {result.solver.time_s:.2f} s",
         f"  apex     z = {a['z']:.6f} m, theta_h = {a['theta_h'] * deg:.4f} deg, "
         f"ydot = {a['ydot']:.6f} m/s, theta_h_dot = {a['theta_h_dot']:.6f} rad/s",
-        f"  control  Kp = {c['Kp']:.6g} N m/rad, Kd = {c['Kd']:.6g} N m s/rad, "
-        f"theta2_des = {c['theta2_des'] * deg:.4f} deg, theta2_dot_des = {c['theta2_dot_des']:.6g} rad/s, "
-        f"theta_td = {c['theta_td'] * deg:.4f} deg",
+        f"  control  {_controls_text(c, result.law.units)}" + ("" if result.law.name == "pd" else f" ({result.law.name})"),
         f"  energy   {result.energy:.9g} J",
     ]
     if result.orbit is not None:
@@ -35,3 +33,9 @@ def summary_text(result) -> str:
         lines.append(f"  multipliers{of_map} {', '.join(parts)}")
         lines.append(f"  spectral radius {result.spectral_radius:.6g} -> {verdict}")
     return "\n".join(lines)
+
+
+def _controls_text(control: dict[str, float], units) -> str:
+    """``name = value unit`` of each control, angles [rad] in degrees."""
+    return ", ".join(f"{name} = {value * 180 / math.pi:.4f} deg" if units[name] == "rad" else f"{name} = {value:.6g} {units[name]}"
+                     for name, value in control.items())

@@ -26,8 +26,8 @@ from baslip.gait.polish import eps as _eps
 from baslip.gait.shooting import FixedPointSpec, NlpSolution, ShootingNLP, ShootingOptions, torque_effort
 from baslip.gait.stability import Multiplier, Stability, classify
 from baslip.model.dynamics import APEX, Params
-from baslip.model.hiplaw import CONTROL
-from baslip.model.quantities import DESIGN, NOMINAL, STABILITY_OBJECTIVES
+from baslip.model.hiplaw import PD, HipLaw
+from baslip.model.quantities import NOMINAL, STABILITY_OBJECTIVES
 from baslip.status import VERIFY_EPS, Status
 
 #: Tolerances of the independent verification map.
@@ -72,6 +72,7 @@ class FixedPointResult:
     nlp_w: np.ndarray | None = None  # IPOPT's point, to warm-start a neighbouring solve
     strides: int = 1  # the orbit's period asked for, in strides
     orbit: np.ndarray | None = None  # strides x 4: the apexes of a multi-stride orbit, X first
+    law: HipLaw = PD  # the hip law whose controls ``u`` holds
 
     @property
     def converged(self) -> bool:
@@ -83,7 +84,7 @@ class FixedPointResult:
 
     @property
     def control(self) -> dict[str, float]:
-        return CONTROL.to_dict(self.u)
+        return self.law.control_dict(self.u)
 
     @property
     def eigenvalues(self) -> list[complex] | None:
@@ -150,7 +151,7 @@ class FixedPointResult:
         from baslip.engine.returnmap import ReturnMap, Tolerances
         from baslip.engine.trajectory import motion
 
-        return motion(ReturnMap(Tolerances(1e-10, 1e-10)), self.X, self.u, self.params, strides, samples)
+        return motion(ReturnMap(Tolerances(1e-10, 1e-10), law=self.law), self.X, self.u, self.params, strides, samples)
 
     def plot(self, strides: int = 2):
         """A matplotlib Figure of the gait: CoM path, trunk angle and ground reaction force
@@ -164,7 +165,7 @@ class FixedPointResult:
         FuncAnimation when IPython is not there."""
         from baslip.viz.animation import notebook_animation
 
-        return notebook_animation(self.X, self.u, self.params, self.name, strides)
+        return notebook_animation(self.X, self.u, self.params, self.name, strides, self.law)
 
     def to_json_dict(self) -> dict:
         """The ``result.json`` record: exactly the documented keys, plain JSON types."""
@@ -179,6 +180,7 @@ class FixedPointResult:
                 **({} if self.solver.spectral_bound is None else {"spectral_bound": self.solver.spectral_bound}),
             },
             "params": self.params.to_dict(),
+            "hip_law": self.law.name,
             "apex": self.apex,
             "control": self.control,
             "durations": None if self.durations is None else {k: float(v) for k, v in self.durations.items()},
@@ -205,15 +207,16 @@ class FixedPointResult:
 class FixedPointSolver:
     """Builds the NLP and the return maps once; solves and verifies many problems."""
 
-    def __init__(self, options: ShootingOptions = ShootingOptions()):
+    def __init__(self, options: ShootingOptions = ShootingOptions(), law: HipLaw = PD):
         self.options = options
-        self.nlp = ShootingNLP(options)
+        self.law = law
+        self.nlp = ShootingNLP(options, law=law)
         self._nlps: dict[tuple[int, str], ShootingNLP] = {}
-        self.residual_map = ReturnMap(Tolerances(1e-12, 1e-12))
+        self.residual_map = ReturnMap(Tolerances(1e-12, 1e-12), law=law)
         # The compiled engine's Jacobian at 1e-12 costs a few ms once per solve; a second
         # map at 1e-10 would cost a second build of the engine in every process.
         self.jacobian_map = self.residual_map
-        self.verify_map = ReturnMap(VERIFY_TOLERANCES, plugin="rosenbrock")
+        self.verify_map = ReturnMap(VERIFY_TOLERANCES, plugin="rosenbrock", law=law)
         self._polish = Polish(self.residual_map, self.jacobian_map)
 
     def solve(self, spec: FixedPointSpec, name: str = "problem", w0: np.ndarray | None = None) -> FixedPointResult:
@@ -267,7 +270,7 @@ class FixedPointSolver:
             ipopt["tol"] = max(tol, STABLE_NLP_TOLERANCE)
             ipopt["acceptable_tol"] = max(acceptable, 100 * STABLE_NLP_TOLERANCE)
             options = replace(self.options, hessian="limited-memory", spectral_bound=True, ipopt=ipopt)
-            self._nlps[key] = ShootingNLP(options)
+            self._nlps[key] = ShootingNLP(options, law=self.law)
         return self._nlps[key]
 
     def verify_point(self, spec: FixedPointSpec, X, u, name: str = "problem") -> FixedPointResult:
@@ -288,7 +291,7 @@ class FixedPointSolver:
         if eps > VERIFY_EPS or problem:
             what = f"eps = {eps:.2e} > {VERIFY_EPS:g}" if eps > VERIFY_EPS else problem
             return self._result(spec, name, Status.NOT_VERIFIED, f"re-simulation: {what}{note}", sol, start, X, u, iterations, check)
-        stability = classify(self.jacobian_map.jacobians(X, u, spec.params, spec.strides)[0], spec.params, u)
+        stability = classify(self.jacobian_map.jacobians(X, u, spec.params, spec.strides)[0], spec.params, u, self.law)
         message = "verified fixed point" if spec.strides == 1 else f"verified {spec.strides}-stride orbit"
         period = minimal_period(check.apexes)
         if period < spec.strides:
@@ -301,7 +304,7 @@ class FixedPointSolver:
         options = replace(self.options, hessian="exact") if exact else self.options
         key = (strides, options.hessian)
         if key not in self._nlps:
-            self._nlps[key] = self.nlp if key == (1, self.options.hessian) else ShootingNLP(options, strides)
+            self._nlps[key] = self.nlp if key == (1, self.options.hessian) else ShootingNLP(options, strides, law=self.law)
         return self._nlps[key]
 
     def _run_nlp(self, nlp: ShootingNLP, spec: FixedPointSpec, w0) -> NlpSolution:
@@ -322,7 +325,7 @@ class FixedPointSolver:
         lo, hi = spec.bounds.get("energy", (-np.inf, np.inf))
         if not lo - tolerance <= energy <= hi + tolerance:
             return f"apex energy {energy:.12g} J lies outside bounds [{lo:g}, {hi:g}] J"
-        for name, value in zip(DESIGN, np.concatenate([X, u])):
+        for name, value in zip(spec.design, np.concatenate([X, u])):
             lo, hi = spec.bounds_of(name)
             slack = 1e-9 * NOMINAL[name]
             if not lo - slack <= value <= hi + slack:
@@ -367,6 +370,7 @@ class FixedPointSolver:
             nlp_w=sol.w,
             strides=spec.strides,
             orbit=orbit,
+            law=self.law,
         )
 
 

@@ -28,12 +28,13 @@ def fixed_point_spec(problem: Problem) -> FixedPointSpec:
         bounds=dict(problem.bounds),
         objective=problem.objective,
         strides=problem.strides,
+        law=problem.hip_law,
     )
 
 
 def solver_for(problem: Problem) -> FixedPointSolver:
     """A solver built with the discretisation and IPOPT settings ``problem`` asks for."""
-    return FixedPointSolver(shooting_options(problem))
+    return FixedPointSolver(shooting_options(problem), law=problem.hip_law)
 
 
 def solve_problem(problem: Problem, solver: FixedPointSolver | None = None) -> FixedPointResult:

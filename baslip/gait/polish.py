@@ -16,8 +16,7 @@ import numpy as np
 from baslip.engine.returnmap import ReturnMap
 from baslip.gait.shooting import FixedPointSpec
 from baslip.model.dynamics import APEX, PARAMS, apex_energy
-from baslip.model.hiplaw import CONTROL
-from baslip.model.quantities import DESIGN, NOMINAL
+from baslip.model.quantities import NOMINAL
 
 #: Gauss-Newton stops once eps is below this (well inside the verification's 1e-10).
 POLISH_EPS = 1e-12
@@ -56,12 +55,12 @@ class Polish:
         """
         design = np.concatenate([X, u])
         # IPOPT relaxes bounds by ~1e-8, so fixed quantities come back slightly off: reset them.
-        for i, name in enumerate(DESIGN):
+        for i, name in enumerate(spec.design):
             if name in spec.fixed:
                 design[i] = spec.fixed[name]
         movable = movable_quantities(spec, design)
         energy_target = self.energy_target(spec, design[: APEX.size])
-        scale = np.array([NOMINAL[n] for n in DESIGN])[movable]
+        scale = np.array([NOMINAL[n] for n in spec.design])[movable]
         nx = APEX.size
         rows, fall = self._rows(spec, design, energy_target)
         if fall is not None:
@@ -119,13 +118,13 @@ class Polish:
         if energy_target is None:
             return jac
         gradient = np.asarray(self._energy_gradient(X, spec.params.vector())).ravel()
-        return np.vstack([jac, np.concatenate([gradient, np.zeros(CONTROL.size)])])
+        return np.vstack([jac, np.concatenate([gradient, np.zeros(len(u))])])
 
 
 def movable_quantities(spec: FixedPointSpec, design: np.ndarray) -> np.ndarray:
     """Free design quantities not sitting on one of their bounds."""
-    movable = np.ones(len(DESIGN), dtype=bool)
-    for i, name in enumerate(DESIGN):
+    movable = np.ones(len(spec.design), dtype=bool)
+    for i, name in enumerate(spec.design):
         lo, hi = spec.bounds_of(name)
         on_bound = min(abs(design[i] - lo), abs(design[i] - hi)) <= 1e-7 * NOMINAL[name]
         movable[i] = name not in spec.fixed and not on_bound

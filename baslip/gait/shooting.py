@@ -3,7 +3,8 @@ solved by IPOPT.
 
 Decision variables (all in SI units and radians):
 
-* the apex state ``X`` (4) and the control ``u`` (5); fixed quantities have equal bounds;
+* the apex state ``X`` (4) and the control ``u`` (the hip law's); fixed quantities have
+  equal bounds;
 * the four phase durations ``T = (descent, compression, decompression, ascent)``;
 * shooting-node states in compression and decompression, ``nodes`` intervals each, every
   interval integrated by ``substeps`` DOP853 steps of the stance flow of
@@ -39,7 +40,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from baslip.engine.codegen import compile_library, module_files
+from baslip.engine.codegen import compile_library, library_name, module_files
 from baslip.engine.kernels import StanceFlow, stance_clearances
 from baslip.engine.kernels import sources as kernel_sources
 from baslip.engine.returnmap import PHASES, ReturnMap, Stride
@@ -63,8 +64,8 @@ from baslip.model.dynamics import (
     touchdown_guard_rate,
     touchdown_map,
 )
-from baslip.model.hiplaw import CONTROL, hip_torque, touchdown_angle
-from baslip.model.quantities import DEFAULT_BOUNDS, DESIGN, NOMINAL, OBJECTIVES, start_value
+from baslip.model.hiplaw import PD, HipLaw, touchdown_angle
+from baslip.model.quantities import DEFAULT_BOUNDS, NOMINAL, OBJECTIVES, design_names, start_value
 from baslip.model.quantities import implied_periodicity as structurally_implied
 from baslip.problem.reader import SolverSettings
 
@@ -101,14 +102,20 @@ def ipopt_options(settings: SolverSettings) -> dict[str, object]:
 
 @dataclass(frozen=True)
 class FixedPointSpec:
-    """What to solve: parameters, fixed values, guess, bounds and objective."""
+    """What to solve: parameters, hip law, fixed values, guess, bounds and objective."""
 
     params: Params
-    fixed: Mapping[str, float]  # subset of QUANTITIES
+    fixed: Mapping[str, float]  # subset of the law's quantities (design and energy)
     guess: Mapping[str, float]  # every design quantity that is not fixed
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     objective: str = "nearest_guess"
     strides: int = 1  # the orbit's period in strides; fixed values and guess are its first apex
+    law: HipLaw = PD
+
+    @property
+    def design(self) -> tuple[str, ...]:
+        """The design quantities: the apex state, then the law's controls."""
+        return design_names(self.law)
 
     def bounds_of(self, name: str) -> tuple[float, float]:
         """Bounds of a design quantity: the problem's, inside the physical ones."""
@@ -119,7 +126,7 @@ class FixedPointSpec:
 
     def start_design(self) -> np.ndarray:
         """Starting value of each design quantity (fixed, guessed, or default in bounds)."""
-        return np.array([start_value(n, self.fixed, self.guess, self.bounds) for n in DESIGN])
+        return np.array([start_value(n, self.fixed, self.guess, self.bounds) for n in self.design])
 
 
 @dataclass(frozen=True)
@@ -136,17 +143,17 @@ class NlpSolution:
     spectral_bound: float | None = None  # the stability NLP's bound on the multipliers' moduli
 
 
-def _rk4_interval(substeps: int) -> ca.Function:
+def _rk4_interval(substeps: int, law: HipLaw) -> ca.Function:
     """One shooting interval: ``substeps`` RK4 steps of the closed-loop stance ODE.
 
     Returns the end state and the integral of tau^2 [N^2 m^2 s] over the interval.
     """
-    x, u, p, h = STANCE.sym("x"), CONTROL.sym("u"), PARAMS.sym("p"), ca.SX.sym("h")
+    x, u, p, h = STANCE.sym("x"), law.controls.sym("u"), PARAMS.sym("p"), ca.SX.sym("h")
     aug = ca.vertcat(x, 0)
 
     def rhs(a):
         xs = a[: STANCE.size]
-        tau = hip_torque(xs, u)
+        tau = law.torque(xs, u, p)
         return ca.vertcat(stance_dynamics(xs, tau, p), tau**2)
 
     dt = h / substeps
@@ -175,17 +182,23 @@ class ShootingNLP:
     Hessian, see :data:`HESSIANS`) are generated as C and cached like the stride engine.
     """
 
-    def __init__(self, options: ShootingOptions = ShootingOptions(), strides: int = 1, compile: bool | None = None):
+    def __init__(self, options: ShootingOptions = ShootingOptions(), strides: int = 1, compile: bool | None = None,
+                 law: HipLaw = PD):
         if strides < 1:
             raise ValueError(f"strides must be at least 1, got {strides}")
         if options.hessian not in HESSIANS:
             raise ValueError(f"hessian must be one of {HESSIANS}, got {options.hessian!r}")
         if options.spectral_bound and strides != 1:
             raise ValueError(f"the multipliers are bounded for one-stride orbits only, not {strides}")
+        if options.spectral_bound and law is not PD:
+            # Its accuracy constraints bound the PD gains' rates (:mod:`baslip.gait.monodromy`).
+            raise ValueError(f"the multipliers are bounded inside the NLP under hip_law pd only, not {law.name}")
         self.options = options
         self.strides = strides
-        self.interval = _rk4_interval(1)  # for torque_effort, a reporting quadrature
-        self._stance = StanceFlow()
+        self.law = law
+        self.design = design_names(law)
+        self.interval = _rk4_interval(1, law)  # for torque_effort, a reporting quadrature
+        self._stance = StanceFlow(law)
         self._interval = self._shooting_interval()
         self._build(compile)
 
@@ -193,16 +206,17 @@ class ShootingNLP:
 
     def _shooting_interval(self) -> ca.Function:
         """One shooting interval, ``substeps`` steps of the scheme: (x0, h, theta) -> end state."""
-        x0, h, theta = STANCE.sym("x0", ca.MX), ca.MX.sym("h"), ca.MX.sym("theta", CONTROL.size + PARAMS.size)
+        n_u = self.law.controls.size
+        x0, h, theta = STANCE.sym("x0", ca.MX), ca.MX.sym("h"), ca.MX.sym("theta", n_u + PARAMS.size)
         if self.options.scheme == "rk4":
-            end = _rk4_interval(self.options.substeps)(x0, theta[: CONTROL.size], theta[CONTROL.size :], h)[0]
+            end = _rk4_interval(self.options.substeps, self.law)(x0, theta[:n_u], theta[n_u:], h)[0]
         else:
             end = self._stance.chain(self.options.substeps)(x0, h, theta)[0][:, -1]
         return ca.Function("shooting_interval", [x0, h, theta], [end])
 
     def _build(self, compile: bool | None) -> None:
-        u, p = CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
-        guess, weights = ca.MX.sym("guess", len(DESIGN)), ca.MX.sym("weights", 2)
+        u, p = self.law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
+        guess, weights = ca.MX.sym("guess", len(self.design)), ca.MX.sym("weights", 2)
         constraints: list[tuple[ca.MX, float, float]] = []
 
         def constrain(expr, lo, hi):
@@ -221,7 +235,7 @@ class ShootingNLP:
             effort.append(stride_effort)
             apexes.append(X)
             shot.append((T, comp_nodes, decomp_nodes))
-            # X_0 and u lead the vector so that the design is w[:len(DESIGN)] for any N.
+            # X_0 and u lead the vector so that the design is w[:len(self.design)] for any N.
             blocks += ([] if k == 0 else [X]) + [T, ca.vec(comp_nodes), ca.vec(decomp_nodes)]
         X0 = apexes[0]
         self._periodicity_row = sum(c[0].numel() for c in constraints)
@@ -230,7 +244,7 @@ class ShootingNLP:
         constrain(apex_energy(X0, p), -ca.inf, ca.inf)  # bounded or fixed per problem
 
         design = ca.vertcat(X0, u)
-        scale = ca.DM([NOMINAL[name] for name in DESIGN])
+        scale = ca.DM([NOMINAL[name] for name in self.design])
         distance = ca.sumsqr((design - guess) / scale)
         w = ca.vertcat(X0, u, *blocks)
         self._n_orbit = w.numel()  # the orbit's variables; the stability NLP's follow
@@ -244,7 +258,7 @@ class ShootingNLP:
         self._lbg = np.concatenate([np.full(c[0].numel(), c[1], dtype=float) for c in constraints])
         self._ubg = np.concatenate([np.full(c[0].numel(), c[2], dtype=float) for c in constraints])
         self.functions = compile_library(  # objective, constraints and derivatives
-            f"baslip_nlp_{self.strides}_{self.options.nodes}x{self.options.substeps}_{self.options.scheme}_"
+            library_name("baslip_nlp", self.law) + f"_{self.strides}_{self.options.nodes}x{self.options.substeps}_{self.options.scheme}_"
             f"{self.options.hessian.replace('-', '_')}{'_stable' if self.options.spectral_bound else ''}",
             [f"nlp_{n}" for n in ("fg", "grad_f", "jac_g", "hess_l")],
             lambda: _nlp_functions(w, params, weights, distance, ca.vertcat(*effort), bound, g, self.options.hessian),
@@ -307,12 +321,12 @@ class ShootingNLP:
         """Position of stride k's first phase duration in the NLP vector, laid out as
         (X_0, u, T_0, nodes_0, X_1, T_1, nodes_1, ...)."""
         nodes = 2 * STANCE.size * self.options.nodes
-        return len(DESIGN) + k * (APEX.size + len(PHASES) + nodes)
+        return len(self.design) + k * (APEX.size + len(PHASES) + nodes)
 
     def _bounds(self, spec: FixedPointSpec) -> tuple[np.ndarray, np.ndarray]:
         lbx = np.full(self._n_w, -np.inf)
         ubx = np.full(self._n_w, np.inf)
-        for i, name in enumerate(DESIGN):
+        for i, name in enumerate(self.design):
             lo, hi = spec.bounds_of(name)
             if name in spec.fixed:
                 lo = hi = spec.fixed[name]
@@ -348,7 +362,7 @@ class ShootingNLP:
         if not self.options.spectral_bound or len(w) == self._n_w:
             return w
         orbit, p = np.asarray(w, dtype=float)[: self._n_orbit], spec.params.vector()
-        n_design, n = len(DESIGN), STANCE.size * self.options.nodes
+        n_design, n = len(self.design), STANCE.size * self.options.nodes
         T = orbit[n_design : n_design + len(PHASES)]
         comp = orbit[n_design + len(PHASES) :][:n].reshape(-1, STANCE.size).T
         decomp = orbit[n_design + len(PHASES) + n :][:n].reshape(-1, STANCE.size).T
@@ -362,7 +376,7 @@ class ShootingNLP:
         stance phases (6 x nodes each), propagated without the bottom guard (built on
         first use)."""
         if not hasattr(self, "_guess_nodes_fn"):
-            X, u, p = APEX.sym("X", ca.MX), CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
+            X, u, p = APEX.sym("X", ca.MX), self.law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
             T = ca.MX.sym("T", 3)
             n, steps = self.options.nodes, self.options.substeps
             x_td = touchdown_map(ballistic_flight(apex_to_flight(X), T[0], p), touchdown_angle(u), p)
@@ -376,6 +390,8 @@ class ShootingNLP:
         """Solve the NLP from ``w0`` (default: :meth:`initial_guess`)."""
         if spec.strides != self.strides:
             raise ValueError(f"this NLP is built for {self.strides}-stride orbits, not {spec.strides}")
+        if spec.law is not self.law:
+            raise ValueError(f"this NLP is built for hip law {self.law.name}, not {spec.law.name}")
         w0 = self.initial_guess(spec, rmap) if w0 is None else self._with_stability_start(np.asarray(w0, dtype=float), spec)
         lbx, ubx = self._bounds(spec)
         w0 = np.clip(w0, lbx, ubx)
@@ -398,7 +414,7 @@ class ShootingNLP:
         elapsed = time.perf_counter() - start
         stats = self._solver.stats()
         w = np.asarray(sol["x"]).ravel()
-        n_design = len(DESIGN)
+        n_design = len(self.design)
         return NlpSolution(
             X=w[: APEX.size],
             u=w[APEX.size : n_design],
@@ -459,8 +475,9 @@ def _shoot_stride(stance: StanceFlow, interval: ca.Function, opt: ShootingOption
     at_apex = ballistic_flight(at_liftoff, t_ascent, p)
     constrain(FLIGHT.get(at_apex, "zdot"), 0, 0)  # apex guard
     apex_next = ca.vertcat(*(FLIGHT.get(at_apex, name) for name in APEX.names))
-    effort = ca.vertcat(_effort_residuals(ca.horzcat(x_td, comp_nodes), u, t_compression / n),
-                        _effort_residuals(ca.horzcat(bottom, decomp_nodes), u, t_decompression / n))
+    law = stance.law
+    effort = ca.vertcat(_effort_residuals(law, ca.horzcat(x_td, comp_nodes), u, p, t_compression / n),
+                        _effort_residuals(law, ca.horzcat(bottom, decomp_nodes), u, p, t_decompression / n))
     return apex_next, effort
 
 
@@ -474,7 +491,7 @@ def implied_periodicity(spec: FixedPointSpec) -> tuple[str, ...]:
     multi-stride orbit keep all four, or its intermediate apexes would float); the Newton
     polish and the verification still check all four on the exact map.
     """
-    return structurally_implied(spec.fixed, spec.params)
+    return structurally_implied(spec.fixed, spec.params, spec.law)
 
 
 def torque_effort(interval: ca.Function, X, u, durations, params: Params, n: int = 200) -> float:
@@ -493,7 +510,7 @@ def _touchdown_state(X, u, p, t_descent) -> ca.DM:
     """Stance state at touchdown after ``t_descent`` seconds of descent from apex ``X``."""
     X, u, p = ca.DM(X), ca.DM(u), ca.DM(p)
     xf = ca.evalf(ballistic_flight(apex_to_flight(X), t_descent, p))
-    return touchdown_map(xf, float(CONTROL.get(u, "theta_td")), p)
+    return touchdown_map(xf, touchdown_angle(u), p)
 
 
 def _guess_durations(X, u, params: Params, stride: Stride | None) -> np.ndarray:
@@ -507,9 +524,9 @@ def _guess_durations(X, u, params: Params, stride: Stride | None) -> np.ndarray:
     return np.array([t_down, quarter, quarter, t_down])
 
 
-def _effort_residuals(states, u, h):
+def _effort_residuals(law: HipLaw, states, u, p, h):
     """r with sum(r^2) = the trapezoidal tau^2 integral over states h apart."""
-    tau = hip_torque(states, u)
+    tau = law.torque(states, u, p)
     weights = ca.DM.ones(1, states.size2())
     weights[0], weights[-1] = 0.5, 0.5
     return ca.vec(tau * ca.sqrt(h * weights))

@@ -2,10 +2,15 @@
 
 Some multipliers equal 1 by structure, whatever the gait:
 
-* ``energy``: with no hip torque (Kp = Kd = 0) the total energy is conserved, so the
+* ``energy``: with no hip torque (under PD, Kp = Kd = 0) the total energy is conserved, so the
   energy gradient is a left eigenvector of dr/dX with eigenvalue 1;
-* ``spin`` (two, a Jordan pair): with d = 0 and no torque the trunk decouples and spins
-  freely, so (theta_h, theta_h_dot) map as [[1, T], [0, 1]].
+* ``spin`` (two, a Jordan pair): with d = 0 and no torque (or under VPP with the pivot at
+  the CoM, r_vpp = 0) the trunk decouples and spins freely, so (theta_h, theta_h_dot) map
+  as [[1, T], [0, 1]];
+* ``symmetry``: under a hip law of positions only (VPP) a gait symmetric under mirror and
+  time reversal has one periodicity row that follows from the others, so
+  [dr/dX - I, dr/du] has a left null vector w, and w^T dr/dX = w^T: a multiplier 1
+  (:func:`baslip.model.quantities.implied_periodicity`).
 
 They are labelled, when a multiplier lies within :data:`TRIVIAL_TOLERANCE` of 1, and left
 out of ``spectral_radius`` and ``stable``: stability then means asymptotic stability
@@ -21,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from baslip.model.dynamics import Params
-from baslip.model.hiplaw import CONTROL
+from baslip.model.hiplaw import PD, HipLaw
 
 #: Distance from 1 within which a structurally trivial multiplier is recognised (the spin
 #: Jordan pair splits by about the square root of the Jacobian's error).
@@ -35,7 +40,7 @@ class Multiplier:
     """One eigenvalue of dr/dX, with ``label`` naming it if it is trivial by structure."""
 
     value: complex
-    label: str | None = None  # None, "energy" or "spin"
+    label: str | None = None  # None, "energy", "spin" or "symmetry"
 
     @property
     def trivial(self) -> bool:
@@ -59,23 +64,24 @@ class Stability:
         return repr(self).replace("<", "&lt;").replace(">", "&gt;")
 
 
-def trivial_labels(params: Params, u) -> list[str]:
+def trivial_labels(params: Params, u, law: HipLaw = PD) -> list[str]:
     """Labels of the multipliers that equal 1 by the structure of the problem.
 
     The spin pair comes first: it is 1 at every apex, the energy multiplier only at a
     fixed point, and labels go to the multipliers nearest 1 in this order.
     """
-    control = CONTROL.unpack(np.asarray(u, dtype=float))
-    if not (control["Kp"] == 0.0 and control["Kd"] == 0.0):
-        return []
-    return (["spin", "spin"] if params.d == 0.0 else []) + ["energy"]
+    control = law.control_dict(u)
+    spin = ["spin", "spin"] if law.spin_free(control, params) else []
+    if law.positional:
+        return spin + ["symmetry"]
+    return spin + ["energy"] if law.torque_free(control) else []
 
 
-def classify(jacobian: np.ndarray, params: Params, u) -> Stability:
+def classify(jacobian: np.ndarray, params: Params, u, law: HipLaw = PD) -> Stability:
     """Eigenvalues of ``jacobian``; the trivial ones are those expected by structure that
     lie nearest to 1, and within :data:`TRIVIAL_TOLERANCE` of it."""
     eigenvalues = np.linalg.eigvals(np.asarray(jacobian, dtype=float))
-    labels = trivial_labels(params, u)
+    labels = trivial_labels(params, u, law)
     order = np.argsort(np.abs(eigenvalues - 1.0))
     label_of = {
         int(i): label

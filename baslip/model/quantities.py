@@ -10,18 +10,35 @@ import math
 from collections.abc import Mapping
 
 from baslip.model.dynamics import APEX, Params
-from baslip.model.hiplaw import CONTROL
+from baslip.model.hiplaw import HIP_LAWS, PD, HipLaw
 
-#: Design quantities: the apex state and the control.
-DESIGN = APEX.names + CONTROL.names
-#: Everything a problem can fix or bound: the design quantities and the apex energy [J].
-QUANTITIES = DESIGN + ("energy",)
+
+def design_names(law: HipLaw = PD) -> tuple[str, ...]:
+    """The design quantities under ``law``: the apex state, then the law's controls."""
+    return APEX.names + law.controls.names
+
+
+def quantity_names(law: HipLaw = PD) -> tuple[str, ...]:
+    """Everything a problem under ``law`` can fix or bound: its design quantities and the
+    apex energy [J]."""
+    return design_names(law) + ("energy",)
+
+
+#: Design quantities of the default (PD) law.
+DESIGN = design_names(PD)
+#: What a problem under the default (PD) law can fix or bound.
+QUANTITIES = quantity_names(PD)
+#: The design quantities of some law: what a problem file may name before its law is known.
+ANY_DESIGN = tuple(dict.fromkeys(name for law in HIP_LAWS.values() for name in design_names(law)))
+
+
+def _every_law(table: str) -> dict:
+    """One table (``nominal``, ``bounds``, ...) over the controls of every law."""
+    return {name: value for law in HIP_LAWS.values() for name, value in getattr(law, table).items()}
+
 
 #: Scale of each design quantity for the ``nearest_guess`` distance and the polish step.
-NOMINAL = {
-    "z": 0.1, "theta_h": 0.1, "ydot": 0.1, "theta_h_dot": 1.0,
-    "Kp": 1.0, "Kd": 0.1, "theta2_des": 0.1, "theta2_dot_des": 1.0, "theta_td": 0.1,
-}
+NOMINAL = {"z": 0.1, "theta_h": 0.1, "ydot": 0.1, "theta_h_dot": 1.0, **_every_law("nominal")}
 
 #: Physical bounds of each design quantity; a problem's bounds must lie inside them.
 DEFAULT_BOUNDS = {
@@ -29,11 +46,7 @@ DEFAULT_BOUNDS = {
     "theta_h": (-2 * math.pi, 2 * math.pi),
     "ydot": (-20.0, 20.0),
     "theta_h_dot": (-100.0, 100.0),
-    "Kp": (-1e3, 1e3),
-    "Kd": (-1e2, 1e2),
-    "theta2_des": (-2 * math.pi, 2 * math.pi),
-    "theta2_dot_des": (-100.0, 100.0),
-    "theta_td": (-1.5, 1.5),
+    **_every_law("bounds"),
 }
 
 #: Physical range of each model parameter: (lo, hi, whether lo itself is allowed).
@@ -54,8 +67,7 @@ ENERGY_RANGE = (0.0, 1e8)
 
 #: SI unit of each quantity and parameter, for messages and axis labels.
 UNITS = {
-    "z": "m", "theta_h": "rad", "ydot": "m/s", "theta_h_dot": "rad/s",
-    "Kp": "N m/rad", "Kd": "N m s/rad", "theta2_des": "rad", "theta2_dot_des": "rad/s", "theta_td": "rad",
+    "z": "m", "theta_h": "rad", "ydot": "m/s", "theta_h_dot": "rad/s", **_every_law("units"),
     "energy": "J", "m": "kg", "I": "kg m^2", "k": "N/m", "rho0": "m", "d": "m", "g": "m/s^2",
 }
 
@@ -72,17 +84,7 @@ def physical_range(name: str) -> tuple[float, float]:
 
 #: Starting values of design quantities that a problem neither fixes nor guesses (they are
 #: clipped into the problem's bounds).
-DEFAULT_GUESS = {
-    "z": 0.4,
-    "theta_h": math.pi / 2,
-    "ydot": 0.5,
-    "theta_h_dot": 0.0,
-    "Kp": 0.0,
-    "Kd": 0.0,
-    "theta2_des": math.pi - 0.1,
-    "theta2_dot_des": 0.0,
-    "theta_td": 0.1,
-}
+DEFAULT_GUESS = {"z": 0.4, "theta_h": math.pi / 2, "ydot": 0.5, "theta_h_dot": 0.0, **_every_law("defaults")}
 
 #: Objectives and their weights (nearest-guess distance, integral of tau^2 dt):
 #: ``nearest_guess``, ``min_torque`` (with a 1e-6 nearest-guess term to make the minimiser
@@ -112,18 +114,24 @@ def start_value(name: str, fixed, guess, bounds) -> float:
     return min(max(DEFAULT_GUESS[name], lo), hi)
 
 
-def implied_periodicity(fixed: Mapping[str, float], params: Params) -> tuple[str, ...]:
+def implied_periodicity(fixed: Mapping[str, float], params: Params, law: HipLaw = PD) -> tuple[str, ...]:
     """Apex coordinates whose periodicity follows from the others by structure.
 
-    Without hip torque (Kp = Kd = 0 fixed) energy is conserved, so a periodic ydot and
-    theta_h_dot make z periodic. With d = 0 as well, the trunk spins freely: theta_h_dot is
-    always periodic, and theta_h is too when theta_h_dot is fixed at zero.
+    Without hip torque (under PD, Kp = Kd = 0 fixed) energy is conserved, so a periodic
+    ydot and theta_h_dot make z periodic. With d = 0 as well, the trunk spins freely:
+    theta_h_dot is always periodic, and theta_h is too when theta_h_dot is fixed at zero.
+
+    Under a law of positions only (VPP) the gaits are symmetric under mirror and time
+    reversal (theta_h = +-90 deg at the apex), and at a symmetric gait one periodicity
+    row follows from the others: [dr/dX - I, dr/du] has a left null vector, 0.9987 on z's
+    row and 0.051 on ydot's at the thesis-scale gait (z = 0.4 m, ydot = 0.5 m/s, r_vpp =
+    0.02 m). So z's row is the one left out. With r_vpp = 0 the force points at the CoM
+    and the trunk spins freely, as with d = 0 and no torque.
     """
-    torque_free = fixed.get("Kp") == 0.0 and fixed.get("Kd") == 0.0
-    if not torque_free:
+    if not (law.positional or law.torque_free(fixed)):
         return ()
     implied = ["z"]
-    if params.d == 0.0:
+    if law.spin_free(fixed, params):
         implied.append("theta_h_dot")
         if fixed.get("theta_h_dot") == 0.0:
             implied.append("theta_h")

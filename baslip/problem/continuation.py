@@ -14,7 +14,8 @@ from typing import Any
 
 from baslip.errors import ProblemError
 from baslip.model.dynamics import APEX, PARAMS, Params
-from baslip.model.quantities import DESIGN, QUANTITIES, UNITS, implied_periodicity
+from baslip.model.hiplaw import PD, HipLaw
+from baslip.model.quantities import ANY_DESIGN, UNITS, design_names, implied_periodicity
 from baslip.problem.text import excerpt
 from baslip.problem.values import mapping, physical
 from baslip.problem.values import number as _number
@@ -76,7 +77,7 @@ def parse_continuation(value: Any) -> ContinuationSpec:
     if isinstance(direction, bool) or direction not in (1, -1, "both"):
         raise ProblemError("continuation.direction", f"expected 1, -1 or both, got {excerpt(direction)}")
     plot = raw.get("plot", "z")
-    if plot not in DESIGN:
+    if plot not in ANY_DESIGN:
         raise ProblemError("continuation.plot", f"expected a design quantity, got {excerpt(plot)}")
     switch = raw.get("switch")
     if switch is not None and switch not in SWITCHES:
@@ -88,7 +89,7 @@ def parse_continuation(value: Any) -> ContinuationSpec:
 
 
 def _continued(name: Any, key: str) -> str:
-    if name not in QUANTITIES + PARAMS.names:
+    if name not in ANY_DESIGN + ("energy",) + PARAMS.names:
         raise ProblemError(key, f"expected a quantity or a model parameter, got {excerpt(name)}")
     return name
 
@@ -124,7 +125,8 @@ def _curves(raw: dict, parameter: str) -> dict:
     return {"second": second, "second_lo": second_lo, "second_hi": second_hi, "follow": tuple(follow), "starts": starts}
 
 
-def check_continuation(spec: ContinuationSpec, fix: Mapping[str, float], params: Params, objective: str) -> None:
+def check_continuation(spec: ContinuationSpec, fix: Mapping[str, float], params: Params, objective: str,
+                       law: HipLaw = PD) -> None:
     """A branch starts at the problem's own value of its parameter, inside its range, and
     the problem defines a one-dimensional branch in each parameter."""
     ranges = [(spec.parameter, spec.lo, spec.hi, "continuation.range")]
@@ -143,17 +145,17 @@ def check_continuation(spec: ContinuationSpec, fix: Mapping[str, float], params:
                 f"the branch starts at {name} = {start:g} {UNITS[name]}, "
                 f"outside [{lo:g}, {hi:g}]; widen the range or change the start",
             )
-    check_branch(fix, params, objective, spec.parameter)
+    check_branch(fix, params, objective, spec.parameter, law=law)
     if spec.second is not None:
-        check_branch(fix, params, objective, spec.second, "continuation.second")
+        check_branch(fix, params, objective, spec.second, "continuation.second", law)
 
 
 def check_branch(fix: Mapping[str, float], params: Params, objective: str, parameter: str,
-                 key: str = "continuation.parameter") -> None:
-    """Raise :class:`BranchError` unless fixing ``fix`` (under ``params`` and ``objective``)
-    leaves a one-dimensional branch in ``parameter`` (named by ``key``)."""
-    check_parameter(fix, parameter, key)
-    free, equations = branch_shape(fix, params)
+                 key: str = "continuation.parameter", law: HipLaw = PD) -> None:
+    """Raise :class:`BranchError` unless fixing ``fix`` (under ``params``, ``objective`` and
+    hip law ``law``) leaves a one-dimensional branch in ``parameter`` (named by ``key``)."""
+    check_parameter(fix, parameter, key, law)
+    free, equations = branch_shape(fix, params, law)
     if len(free) < equations or (len(free) > equations and objective != "nearest_guess"):
         raise BranchError(
             "fix",
@@ -162,17 +164,18 @@ def check_branch(fix: Mapping[str, float], params: Params, objective: str, param
         )
 
 
-def check_parameter(fix: Mapping[str, float], parameter: str, key: str) -> None:
+def check_parameter(fix: Mapping[str, float], parameter: str, key: str, law: HipLaw = PD) -> None:
     """Raise :class:`BranchError` unless ``parameter`` can be varied from its fixed value."""
-    if parameter not in DESIGN + ("energy",) + PARAMS.names:
-        raise BranchError(key, f"{parameter!r} cannot be varied")
-    if parameter in DESIGN + ("energy",) and parameter not in fix:
+    design = design_names(law)
+    if parameter not in design + ("energy",) + PARAMS.names:
+        raise BranchError(key, f"{parameter!r} cannot be varied under hip_law {law.name}")
+    if parameter in design + ("energy",) and parameter not in fix:
         raise BranchError(key, f"{parameter} must be fixed (at its starting value)")
 
 
-def branch_shape(fix: Mapping[str, float], params: Params) -> tuple[list[str], int]:
-    """The free design quantities, and the number of fixed-point equations (the apex rows
-    that structure does not already imply, plus one for a fixed energy)."""
-    implied = implied_periodicity(fix, params)
-    free = [n for n in DESIGN if n not in fix]
+def branch_shape(fix: Mapping[str, float], params: Params, law: HipLaw = PD) -> tuple[list[str], int]:
+    """The free design quantities under ``law``, and the number of fixed-point equations
+    (the apex rows that structure does not already imply, plus one for a fixed energy)."""
+    implied = implied_periodicity(fix, params, law)
+    free = [n for n in design_names(law) if n not in fix]
     return free, len([n for n in APEX.names if n not in implied]) + ("energy" in fix)

@@ -4,6 +4,7 @@ A problem file says *what* to solve::
 
     name: downward
     params: {m: 1.0, I: 0.0033, k: 1000, rho0: 0.2, d: 0.04, g: 9.81}
+    hip_law: pd            # or vpp: the controls fix, guess and bounds may name
     fix: {ydot: 0.5, z: 0.4}
     guess: {theta_h: "-90 deg", Kp: 1.0, theta_td: "8 deg"}
     bounds: {theta_h: ["-120 deg", "-60 deg"]}
@@ -29,12 +30,13 @@ from typing import Any
 
 from baslip.errors import ProblemError
 from baslip.model.dynamics import APEX, PARAMS, Params
+from baslip.model.hiplaw import HIP_LAWS, PD, HipLaw
 from baslip.model.quantities import (
     DEFAULT_BOUNDS,
-    DESIGN,
     OBJECTIVES,
-    QUANTITIES,
     STABILITY_OBJECTIVES,
+    design_names,
+    quantity_names,
     start_value,
 )
 from baslip.problem.continuation import ContinuationSpec, check_continuation, parse_continuation
@@ -43,7 +45,13 @@ from baslip.problem.text import UnreadableText, clip, excerpt, read_yaml
 from baslip.problem.values import mapping, physical
 from baslip.problem.values import number as _number
 
-TOP_LEVEL_KEYS = ("name", "params", "fix", "guess", "bounds", "objective", "strides", "solver", "study", "continuation")
+TOP_LEVEL_KEYS = ("name", "params", "hip_law", "fix", "guess", "bounds", "objective", "strides", "solver", "study",
+                  "continuation")
+#: What fix, guess and bounds may name under some hip law; :func:`_check_law` then holds
+#: each problem to its own law's.
+_ANY_QUANTITY = tuple(dict.fromkeys(name for law in HIP_LAWS.values() for name in quantity_names(law)))
+#: Study kinds that run under every hip law; the others read or write the PD gains.
+ANY_LAW_STUDIES = ("sweep",)
 #: Longest orbit, in strides, that a problem may ask for.
 MAX_STRIDES = 16
 #: Most fixed points one sweep may ask for (a day of solving on two cores).
@@ -72,6 +80,7 @@ class Problem:
 
     name: str
     params: Params = Params()
+    hip_law: HipLaw = PD  # the stance hip law, whose controls fix, guess and bounds name
     fix: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
     guess: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=lambda: MappingProxyType({}))
@@ -81,9 +90,14 @@ class Problem:
     study: Study | None = None  # many solves or simulations instead of one fixed point
     continuation: ContinuationSpec | None = None  # trace a branch instead
 
+    @property
+    def design(self) -> tuple[str, ...]:
+        """The design quantities: the apex state, then the hip law's controls."""
+        return design_names(self.hip_law)
+
     def full_guess(self) -> dict[str, float]:
         """Starting value of every design quantity that is not fixed."""
-        return {n: self.start_value(n) for n in DESIGN if n not in self.fix}
+        return {n: self.start_value(n) for n in self.design if n not in self.fix}
 
     def start_value(self, name: str) -> float:
         """The fixed value of ``name`` if fixed, else its starting value."""
@@ -165,6 +179,7 @@ def _checked(problem: Problem) -> Problem:
     if problem.objective in STABILITY_OBJECTIVES and (problem.strides != 1 or problem.continuation is not None):
         raise ProblemError("objective", f"{problem.objective} bounds the multipliers of one one-stride gait; it takes "
                            "neither strides nor a continuation")
+    _check_law(problem)
     _check_consistency(problem)
     _check_sweep(problem)
     _check_atlas(problem)
@@ -177,6 +192,43 @@ def _name(value: Any) -> str:
     if not isinstance(value, str) or not re.fullmatch(r"[A-Za-z0-9_.-]{1,100}", value) or set(value) == {"."}:
         raise ProblemError("name", f"expected up to 100 letters, digits, '_', '-' or '.', got {excerpt(value)}")
     return value
+
+
+def _hip_law(value: Any) -> HipLaw:
+    if isinstance(value, HipLaw):
+        return value
+    if not isinstance(value, str) or value not in HIP_LAWS:
+        raise ProblemError("hip_law", f"expected one of {', '.join(HIP_LAWS)}, got {excerpt(value)}")
+    return HIP_LAWS[value]
+
+
+def _check_law(problem: Problem) -> None:
+    """fix, guess, bounds, a study's axes and plot, and a branch's plot name only
+    quantities of the problem's hip law."""
+    allowed = quantity_names(problem.hip_law) + PARAMS.names
+    named = [(f"{section}.{name}", name) for section in _MAPPINGS for name in getattr(problem, section)]
+    study = problem.study
+    named += [(f"study.vary.{a.name}", a.name) for a in getattr(study, "axes", ())]
+    named += [("study.plot", name) for name in getattr(study, "plot", ()) if isinstance(study, Atlas)]
+    if problem.continuation is not None:
+        named += [("continuation.plot", problem.continuation.plot)]
+    for key, name in named:
+        if name not in allowed:
+            controls = ", ".join(problem.hip_law.controls.names)
+            raise ProblemError(key, f"{name} is not a quantity under hip_law {problem.hip_law.name} "
+                               f"(its controls are {controls})")
+    if problem.hip_law is PD:
+        return
+    if problem.study is not None and problem.study.kind not in ANY_LAW_STUDIES:
+        raise ProblemError("hip_law", f"a {problem.study.kind} study runs under hip_law pd only, so far; under "
+                           f"{problem.hip_law.name}, run single gaits, {', '.join(ANY_LAW_STUDIES)} studies or branches")
+    if problem.objective in STABILITY_OBJECTIVES:
+        raise ProblemError("objective", f"{problem.objective} bounds the multipliers under hip_law pd only, so far")
+    if problem.continuation is not None and problem.continuation.second is not None:
+        # A curve's test functions need apex coordinates free of structural multipliers;
+        # a VPP gait's symmetry multiplier has none to leave out.
+        raise ProblemError("continuation.second", f"bifurcation curves run under hip_law pd only, so far; under "
+                           f"{problem.hip_law.name}, trace a branch (no second parameter)")
 
 
 def _objective(value: Any) -> str:
@@ -204,7 +256,7 @@ def _quantities(value: Any, key: str, allowed: tuple[str, ...]) -> dict[str, flo
 
 
 def _bounds(value: Any) -> dict[str, tuple[float, float]]:
-    raw = mapping(value, "bounds", QUANTITIES)
+    raw = mapping(value, "bounds", _ANY_QUANTITY)
     bounds = {}
     for name, pair in raw.items():
         key = f"bounds.{name}"
@@ -251,8 +303,9 @@ def _solver(value: Any) -> SolverSettings:
 _FIELDS: dict[str, Callable[[Any], Any]] = {
     "name": _name,
     "params": lambda v: _params(dataclasses.asdict(v) if isinstance(v, Params) else v),
-    "fix": lambda v: MappingProxyType(_quantities(v, "fix", QUANTITIES)),
-    "guess": lambda v: MappingProxyType(_quantities(v, "guess", DESIGN)),
+    "hip_law": _hip_law,
+    "fix": lambda v: MappingProxyType(_quantities(v, "fix", _ANY_QUANTITY)),
+    "guess": lambda v: MappingProxyType(_quantities(v, "guess", tuple(n for n in _ANY_QUANTITY if n != "energy"))),
     "bounds": lambda v: MappingProxyType(_bounds(v)),
     "objective": _objective,
     "strides": lambda v: _strides(v),
@@ -353,7 +406,7 @@ def _check_atlas(problem: Problem) -> None:
     if not isinstance(study, Atlas):
         return
     held = set(problem.fix) | {a.name for a in study.axes}
-    free = [name for name in DESIGN if name not in held]
+    free = [name for name in problem.design if name not in held]
     dimension = len(free) - APEX.size - ("energy" in held)
     if not 1 <= dimension <= 3:
         hint = "fix more quantities (theta2_dot_des, say)" if dimension > 3 else "fix fewer quantities"
@@ -380,4 +433,4 @@ def _check_basin(problem: Problem) -> None:
 
 def _check_continuation(problem: Problem) -> None:
     if problem.continuation is not None:
-        check_continuation(problem.continuation, problem.fix, problem.params, problem.objective)
+        check_continuation(problem.continuation, problem.fix, problem.params, problem.objective, problem.hip_law)

@@ -34,7 +34,7 @@ import re
 from dataclasses import dataclass
 
 from baslip.errors import ProblemError
-from baslip.model.quantities import DESIGN
+from baslip.model.quantities import ANY_DESIGN
 from baslip.problem.text import NonScalarKey, clip, excerpt
 from baslip.problem.values import number
 
@@ -164,7 +164,7 @@ def parse_study(data) -> Study:
         if key not in allowed:
             raise StudyError(f"study.{clip(str(key))}", f"unknown key for a {kind} study (expected one of {', '.join(allowed)})")
     if kind in ("sweep", "optimal", "atlas"):
-        axes = _axes(data.get("vary"), "study.vary", DESIGN)
+        axes = _axes(data.get("vary"), "study.vary", ANY_DESIGN)
         if not 1 <= len(axes) <= 2:
             raise StudyError("study.vary", f"expected one or two quantities, got {len(axes)}")
         if kind == "sweep":
@@ -236,8 +236,8 @@ def _atlas(data, axes: tuple[Axis, ...]) -> Atlas:
             or len(set(plot)) != 2):
         raise StudyError("study.plot", f"expected two different quantities, got {excerpt(plot)}")
     for name in plot:
-        if name not in DESIGN:
-            raise StudyError("study.plot", f"unknown quantity {clip(name)!r} (expected two of {', '.join(DESIGN)})")
+        if name not in ANY_DESIGN:
+            raise StudyError("study.plot", f"unknown quantity {clip(name)!r} (expected two of {', '.join(ANY_DESIGN)})")
     return Atlas(
         axes,
         seeds=_integer(data.get("seeds", 24), "study.seeds", 1, 10000),

@@ -8,6 +8,7 @@ import numpy as np
 
 from baslip.report.atlas import atlas_claims, crosscheck_claims
 from baslip.report.evidence import DEG, Evidence, _shown, claim, largest_gain
+from baslip.report.vpp import vpp_claims
 from baslip.status import Status
 from baslip.viz.labels import SPECIAL_NAMES
 
@@ -49,7 +50,7 @@ def upright_section(ev: Evidence) -> list[str]:
             ["optimal_upright/spectral_radius_map.png", "optimal_upright/best_gaits_trunk.png",
              "optimal_downward/spectral_radius_map.png"],
         ))
-    out += atlas_claims(ev) + crosscheck_claims(ev)
+    out += atlas_claims(ev) + crosscheck_claims(ev) + vpp_claims(ev)
     found = {name: ev.summary(name) for name in CONTROLLER_GAITS}
     controllers = {name: summary for name, summary in found.items() if summary is not None}
     if all(name in controllers for name in ("controllers_upright", "controllers_downward")):

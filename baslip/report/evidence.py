@@ -12,7 +12,7 @@ import numpy as np
 from baslip.engine.returnmap import ReturnMap, Tolerances
 from baslip.files.rows import read_points
 from baslip.model.dynamics import APEX, Params
-from baslip.model.hiplaw import CONTROL
+from baslip.model.hiplaw import CONTROL, PD, HipLaw
 from baslip.status import Status
 
 DEG = 180 / math.pi
@@ -23,7 +23,7 @@ class Evidence:
 
     def __init__(self, results: Path):
         self.results = results
-        self._map: ReturnMap | None = None
+        self._maps: dict[str, ReturnMap] = {}
 
     def points(self, name: str) -> list[dict]:
         path = self.results / name / "points.csv"
@@ -51,13 +51,14 @@ class Evidence:
             tally[key] = tally.get(key, 0) + 1
         return tally
 
-    def resimulate(self, row: dict) -> float:
-        """eps of the row's fixed point under an independent map (erk, 1e-13)."""
-        if self._map is None:
-            self._map = ReturnMap(Tolerances(1e-13, 1e-13))
+    def resimulate(self, row: dict, law: HipLaw = PD, params: Params = Params()) -> float:
+        """eps of the row's fixed point under an independent map (erk, 1e-13) of hip law
+        ``law``, with ``params``."""
+        if law.name not in self._maps:
+            self._maps[law.name] = ReturnMap(Tolerances(1e-13, 1e-13), law=law)
         X = np.array([row[n] for n in APEX.names])
-        u = np.array([row[n] for n in CONTROL.names])
-        stride = self._map.stride(X, u, Params())
+        u = np.array([row[n] for n in law.controls.names])
+        stride = self._maps[law.name].stride(X, u, params)
         if stride.apex is None:
             return math.nan
         return float(np.linalg.norm(stride.apex - X) / np.linalg.norm(X))

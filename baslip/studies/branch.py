@@ -30,7 +30,6 @@ from baslip.files.atomic import json_text, write_files_atomically
 from baslip.files.lock import hold
 from baslip.gait.stability import STABILITY_MARGIN
 from baslip.model.dynamics import APEX
-from baslip.model.hiplaw import CONTROL
 from baslip.studies.curve import curve_csv, follow_curves
 from baslip.studies.traced import TracedBranch, named_stop, point_record, points_csv, progress_lines
 
@@ -60,6 +59,7 @@ def _run_continuation(problem, out_dir: Path, quiet: bool, code: dict[str, str])
     from baslip.viz import figures as plots
 
     spec = problem.continuation
+    controls = problem.hip_law.controls.names
     start_time = time.perf_counter()
     solver = solver_for(problem)
     start = solve_start(problem, solver)
@@ -99,7 +99,7 @@ def _run_continuation(problem, out_dir: Path, quiet: bool, code: dict[str, str])
         curve_rows, curves = follow_curves(problem, traced[0], solver, quiet)
         figure = io.BytesIO()
         plots.curve_diagram(curve_rows, spec.parameter, spec.second, figure)
-        files = {out_dir / "curve.csv": curve_csv(curve_rows, spec.parameter, spec.second),
+        files = {out_dir / "curve.csv": curve_csv(curve_rows, spec.parameter, spec.second, controls),
                  out_dir / plots.figure_file("curve"): figure.getvalue()}
     summary = {
         "name": problem.name,
@@ -113,14 +113,14 @@ def _run_continuation(problem, out_dir: Path, quiet: bool, code: dict[str, str])
             for t in traced
         ],
         "failed_switches": failed_switches,
-        "special_points": [_special(r, spec.parameter) for r in rows if r["special"]],
+        "special_points": [_special(r, spec.parameter, controls) for r in rows if r["special"]],
         **({"curves": curves} if curves is not None else {}),
         "wall_time_s": time.perf_counter() - start_time,
         "provenance": provenance(problem, code),
     }
     # All files or none: an error before this point leaves the old ones as they were.
     write_files_atomically({
-        out_dir / "branch.csv": _csv(rows, spec.parameter),
+        out_dir / "branch.csv": _csv(rows, spec.parameter, controls),
         out_dir / "result.json": json_text(summary),
         out_dir / plots.figure_file("diagram"): diagram.getvalue(),
         **files,
@@ -181,7 +181,7 @@ def _row(traced: TracedBranch, point: Point, solver) -> dict:
     system = traced.system
     X, u, params, lam = system.unpack(point.v)
     row = {"branch": traced.number, "strides": traced.strides, system.parameter: lam,
-           **APEX.to_dict(X), **CONTROL.to_dict(u)}
+           **APEX.to_dict(X), **system.spec.law.control_dict(u)}
     row["energy"] = system.energy(X, params)
     for i, m in enumerate(point.multipliers, start=1):
         row[f"mult{i}_re"], row[f"mult{i}_im"] = float(m.real), float(m.imag)
@@ -194,12 +194,12 @@ def _row(traced: TracedBranch, point: Point, solver) -> dict:
     return row
 
 
-def _special(row: dict, parameter: str) -> dict:
+def _special(row: dict, parameter: str, controls: tuple[str, ...]) -> dict:
     return {"type": row["special"], parameter: row[parameter], "branch": row["branch"], "strides": row["strides"],
-            **point_record(row)}
+            **point_record(row, controls)}
 
 
-def _csv(rows: list[dict], parameter: str) -> str:
-    return points_csv(rows, ["branch", "strides", parameter], ["spectral_radius", "stable", "special"])
+def _csv(rows: list[dict], parameter: str, controls: tuple[str, ...]) -> str:
+    return points_csv(rows, ["branch", "strides", parameter], ["spectral_radius", "stable", "special"], controls)
 
 

@@ -23,7 +23,6 @@ import numpy as np
 from baslip.analysis.bifurcation import CurveSystem, stability_boundary, trace_curve
 from baslip.analysis.continuation import Branch, CorrectionFailed, Point, Settings
 from baslip.model.dynamics import APEX
-from baslip.model.hiplaw import CONTROL
 from baslip.studies.traced import TracedBranch, named_stop, point_record, points_csv, progress_lines
 
 #: Largest step along a curve (scaled units): small enough that the drawn polyline, and
@@ -78,7 +77,8 @@ def follow_curves(problem, branch: TracedBranch, solver, quiet: bool) -> tuple[l
                     "stop_reason": points.stop_reason} for number, curve, points, origin in traced],
         "skipped_starts": skipped,
         "failed_curves": failed,
-        "codimension_two_points": [_codim2(r, spec.parameter, spec.second) for r in rows if r["special"]],
+        "codimension_two_points": [_codim2(r, spec.parameter, spec.second, problem.hip_law.controls.names) for r in rows
+                                   if r["special"]],
     }
     return rows, summary
 
@@ -119,7 +119,7 @@ def _row(number: int, curve: CurveSystem, point: Point) -> dict:
     base = curve.base
     X, u, params, _ = base.unpack(point.v)
     A = base.map_jacobian(point.v)
-    row = {"curve": number, "type": curve.on_curve(point.v), **APEX.to_dict(X), **CONTROL.to_dict(u),
+    row = {"curve": number, "type": curve.on_curve(point.v), **APEX.to_dict(X), **base.spec.law.control_dict(u),
            "energy": base.energy(X, params)}
     row.update(base.values(point.v))  # both parameters (the energy, if it is one, as continued)
     for i, m in enumerate(point.multipliers, start=1):
@@ -130,11 +130,12 @@ def _row(number: int, curve: CurveSystem, point: Point) -> dict:
     return row
 
 
-def _codim2(row: dict, first: str, second: str) -> dict:
+def _codim2(row: dict, first: str, second: str, controls: tuple[str, ...]) -> dict:
     return {"type": row["special"], "curve": row["curve"], "on": row["type"], first: row[first], second: row[second],
-            **point_record(row)}
+            **point_record(row, controls)}
 
 
-def curve_csv(rows: list[dict], first: str, second: str) -> str:
-    """curve.csv: both parameters lead, under their own names."""
-    return points_csv(rows, ["curve", "type", first, second], ["stability_boundary", "kappa", "special"])
+def curve_csv(rows: list[dict], first: str, second: str, controls: tuple[str, ...]) -> str:
+    """curve.csv: both parameters lead, under their own names; ``controls`` are the hip
+    law's control columns."""
+    return points_csv(rows, ["curve", "type", first, second], ["stability_boundary", "kappa", "special"], controls)

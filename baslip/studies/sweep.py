@@ -21,8 +21,7 @@ from baslip.errors import ProblemError
 from baslip.files.rows import read_points
 from baslip.gait.fixedpoint import FixedPointResult
 from baslip.model.dynamics import APEX
-from baslip.model.hiplaw import CONTROL
-from baslip.model.quantities import DESIGN
+from baslip.model.hiplaw import PD, HipLaw
 from baslip.problem.reader import Problem, check_point
 from baslip.problem.study import Atlas, Optimal, RandomSample, Sweep
 from baslip.status import Status
@@ -32,10 +31,15 @@ from baslip.studies.runner import LANES, Workers, run_tasks, split_lanes
 from baslip.studies.sources import StudyInputError, source_points, traced_boundary
 from baslip.viz import figures
 
-RESULT_COLUMNS = [
-    *APEX.names, *CONTROL.names, *PHASES,
-    "energy", "residual", "spectral_radius", "stable", "status", "reason", "time_s",
-]
+
+def result_columns(law: HipLaw = PD) -> list[str]:
+    """The columns of a solved point under hip law ``law``, after the swept values."""
+    return [*APEX.names, *law.controls.names, *PHASES,
+            "energy", "residual", "spectral_radius", "stable", "status", "reason", "time_s"]
+
+
+#: The columns of a solved point under the default (PD) law.
+RESULT_COLUMNS = result_columns(PD)
 
 
 def key_column(name: str) -> str:
@@ -134,7 +138,7 @@ def random_tasks(study: RandomSample, region_rows: list[dict], names: tuple[str,
         task: dict[str, Any] = {key_column(names[0]): x, key_column(names[1]): y}
         if segments is None:
             start = nearest(x, y)
-            task["guess"] = {n: start[n] for n in DESIGN if n not in names}
+            task["guess"] = {n: start[n] for n in APEX.names + PD.controls.names if n not in names}
         tasks.append(task)
     return tasks
 
@@ -143,7 +147,7 @@ def result_row(task: dict, result: FixedPointResult) -> dict:
     """One CSV row: the task's swept values, then the solved point."""
     row = {k: v for k, v in task.items() if k.startswith("sweep_")}
     row.update(zip(APEX.names, result.X.tolist()))
-    row.update(zip(CONTROL.names, result.u.tolist()))
+    row.update(zip(result.law.controls.names, result.u.tolist()))
     row.update(result.durations or {})
     row.update(
         energy=result.energy,
@@ -222,7 +226,7 @@ def check_random(problem: Problem, study: RandomSample, sources: Path) -> None:
 def solve_points(problem: Problem, out_dir: Path, lanes: list, names: list[str], quiet: bool, workers: Workers) -> dict:
     """Solve each lane's points into ``points.csv``; the counts of what was solved."""
     keys = [key_column(n) for n in names]
-    table = study_table(out_dir / "points.csv", keys + RESULT_COLUMNS, keys, quiet)
+    table = study_table(out_dir / "points.csv", keys + result_columns(problem.hip_law), keys, quiet)
     report = run_tasks(lanes, solve_worker, problem, table, problem.name, quiet=quiet, workers=workers)
     rows = read_points(out_dir / "points.csv")
     not_solved = [{**{k: r[k] for k in keys}, "status": r["status"], "reason": r["reason"]}

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from baslip.analysis.continuation import Branch
 from baslip.analysis.gaitsystem import FixedPointSystem, NearestGuessSystem
 from baslip.model.dynamics import APEX
-from baslip.model.hiplaw import CONTROL
+from baslip.model.hiplaw import PD
 from baslip.studies.runner import format_value
 
 
@@ -61,18 +61,20 @@ def named_stop(system, branch) -> str:
     return f"{grazing}; then {branch.stop_reason}" if grazing else branch.stop_reason
 
 
-def point_record(row: dict) -> dict:
-    """A row's apex, control and multipliers, as result.json gives them for a point."""
-    return {"apex": {n: row[n] for n in APEX.names}, "control": {n: row[n] for n in CONTROL.names},
+def point_record(row: dict, controls: tuple[str, ...] = PD.controls.names) -> dict:
+    """A row's apex, control (entries ``controls``, the hip law's) and multipliers, as
+    result.json gives them for a point."""
+    return {"apex": {n: row[n] for n in APEX.names}, "control": {n: row[n] for n in controls},
             "multipliers": [[row[f"mult{i}_re"], row[f"mult{i}_im"]] for i in range(1, 5)]}
 
 
-def points_csv(rows: list[dict], leading: list[str], trailing: list[str]) -> str:
-    """CSV of points: the ``leading`` columns, the apex, control and energy (those not
-    already leading, so a parameter that is one of them is not repeated), the four
-    multipliers, then the ``trailing`` columns."""
+def points_csv(rows: list[dict], leading: list[str], trailing: list[str],
+               controls: tuple[str, ...] = PD.controls.names) -> str:
+    """CSV of points: the ``leading`` columns, the apex, control (entries ``controls``, the
+    hip law's) and energy (those not already leading, so a parameter that is one of them
+    is not repeated), the four multipliers, then the ``trailing`` columns."""
     columns = list(leading)
-    columns += [n for n in (*APEX.names, *CONTROL.names, "energy") if n not in leading]
+    columns += [n for n in (*APEX.names, *controls, "energy") if n not in leading]
     columns += [f"mult{i}_{part}" for i in range(1, 5) for part in ("re", "im")]
     columns += trailing
     buffer = io.StringIO()

@@ -18,6 +18,7 @@ from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
 from baslip.engine.returnmap import ReturnMap, Tolerances  # noqa: E402
 from baslip.engine.trajectory import Trajectory, stride_trajectory  # noqa: E402
 from baslip.model.dynamics import Params  # noqa: E402
+from baslip.model.hiplaw import PD, HipLaw  # noqa: E402
 
 SLOW_MOTION = 4.0  # animation seconds per simulated second
 FPS = 20
@@ -44,10 +45,11 @@ def animate(trajectory: Trajectory, params: Params, title: str, path: Path) -> P
     return path
 
 
-def notebook_animation(X, u, params: Params, title: str, strides: int = 2):
-    """The gait from apex ``X`` as an animation for a notebook: IPython HTML (JavaScript
-    player) if IPython is installed, else the matplotlib FuncAnimation."""
-    trajectory = stride_trajectory(ReturnMap(Tolerances(1e-10, 1e-10)), X, u, params, strides=strides)
+def notebook_animation(X, u, params: Params, title: str, strides: int = 2, law: HipLaw = PD):
+    """The gait from apex ``X`` under control ``u`` of hip law ``law`` as an animation for a
+    notebook: IPython HTML (JavaScript player) if IPython is installed, else the
+    matplotlib FuncAnimation."""
+    trajectory = stride_trajectory(ReturnMap(Tolerances(1e-10, 1e-10), law=law), X, u, params, strides=strides)
     fig, animation = _animation(trajectory, params, title)
     plt.close(fig)
     try:

@@ -31,6 +31,7 @@ LABELS = {
     "theta2_des": "theta2_des [deg]",
     "theta2_dot_des": "theta2_dot_des [rad/s]",
     "theta_td": "touchdown angle theta_td [deg]",
+    "r_vpp": "virtual pivot above the CoM r_vpp [m]",
     "spectral_radius": "largest |multiplier| (non-trivial)",
     "residual": "residual eps (eq. 4.1)",
     "eps": "eps between consecutive apexes",
