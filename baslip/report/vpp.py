@@ -37,7 +37,8 @@ def vpp_claims(ev: Evidence) -> list[str]:
     evidence = ""
     if best is not None:
         name, row = best
-        params = Params(**ev.summary(name)["provenance"]["problem"]["params"])
+        summary = ev.summary(name)
+        params = Params(**summary["provenance"]["problem"]["params"]) if summary else Params()
         evidence = (f" The most stable: radius {row['spectral_radius']:.3f} at ydot = {row['ydot']:g} m/s, z = "
                     f"{row['z']:g} m, r_vpp = {row['r_vpp']:g} m, theta_td = {row['theta_td'] * DEG:.2f} deg "
                     f"({VPP_SWEEPS[name]}); independent re-simulation eps = {ev.resimulate(row, VPP, params):.1e} "
