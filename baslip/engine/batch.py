@@ -47,7 +47,10 @@ class BatchEngine:
 
     def __init__(self, engine: CompiledEngine, threads: int = 2, compile: bool | None = None):
         self.engine = engine
-        self._lanes = [engine.functions] + [StrideFunctions(engine.law, compile) for _ in range(max(threads, 1) - 1)]
+        # Each lane owns its engine and kernels, its careful path included: a compiled
+        # kernel's work memory must not be shared by two threads at once.
+        self._lanes = [engine] + [CompiledEngine(engine.tolerance, compile, engine.law, StrideFunctions(engine.law, compile))
+                                  for _ in range(max(threads, 1) - 1)]
 
     def strides(self, X: np.ndarray, U: np.ndarray, p: np.ndarray) -> list[Stride | None]:
         """One stride from each row of ``X`` (n x 4) under the row of ``U`` (n x controls);
@@ -59,7 +62,7 @@ class BatchEngine:
         work = [slice(bounds[k], bounds[k + 1]) for k in range(lanes)]
 
         def lane(k):
-            return _Batch(self._lanes[k], self.engine, X[work[k]], U[work[k]], p).run()
+            return _Batch(self._lanes[k], X[work[k]], U[work[k]], p).run()
 
         if lanes == 1:
             return lane(0)
@@ -72,8 +75,8 @@ class _Batch:
     """The strides of one lane, with their state as arrays; each compiled call takes
     them :data:`~baslip.engine.kernels.BATCH` at a time."""
 
-    def __init__(self, functions: StrideFunctions, engine: CompiledEngine, X, U, p):
-        self.functions, self.engine = functions, engine
+    def __init__(self, engine: CompiledEngine, X, U, p):
+        self.functions, self.engine = engine.functions, engine
         self.X, self.U, self.p = X, U, np.asarray(p, float)
         self.n = len(X)
         self.results: list[Stride | None | str] = ["pending"] * self.n

@@ -101,10 +101,11 @@ class CompiledEngine:
     ``None``.
     """
 
-    def __init__(self, tolerance: float, compile: bool | None = None, law: HipLaw = PD):
+    def __init__(self, tolerance: float, compile: bool | None = None, law: HipLaw = PD,
+                 functions: StrideFunctions | None = None):
         self.tolerance = tolerance
         self.law = law
-        self.functions = StrideFunctions(law, compile)
+        self.functions = StrideFunctions(law, compile) if functions is None else functions
 
     def stride(self, X, u, p, t_guess) -> Stride | None:
         """The stride from apex ``X`` (which passed the pre-checks), or None."""
@@ -142,11 +143,16 @@ class CompiledEngine:
         tolerance, from ``TIERS[start]`` up; the Richardson estimate compares it with the
         last pass at a lower count, or with one at the count below (if not below
         ``TIERS[lowest]``, the least stable one). Returns (step count, verdict)."""
-        i, coarse = start, None
+        i, coarse, regridded = start, None, False
         while i < len(TIERS):
             n = TIERS[i]
             apex, durations, diagnostics = (o.ravel() for o in self.functions.final(n)(X, u, p, guesses))
             verdict = self.judge(apex, durations, diagnostics)
+            if verdict is None and not regridded and missed_grid(durations, diagnostics):
+                # The scout's event estimate was off by more than a grid step (a strong hip
+                # torque bends rho near liftoff): this pass's own durations set the grid.
+                guesses, regridded, coarse = np.asarray(durations[:3], dtype=float), True, None
+                continue
             if not isinstance(verdict, str):  # the one string verdict is "refine"
                 return n, verdict
             result = np.concatenate([apex, durations])
@@ -317,6 +323,17 @@ def verdict_rules(d, durations, apex, tolerance: float):
         (~finite, UNSURE),
         (d["error"] > tolerance, REFINE),
     )
+
+
+def missed_grid(durations, diagnostics) -> bool:
+    """Whether a final pass ended an event step more than :data:`LAST_STEP_RANGE` grid
+    steps from its grid's end, with finite durations and no fall: its grid, not its
+    accuracy, is in doubt."""
+    d = DIAGNOSTICS.to_dict(diagnostics)
+    lo, hi = LAST_STEP_RANGE
+    off = not (lo < d["bottom_last_step"] < hi and lo < d["liftoff_last_step"] < hi)
+    clear = all(d[f"{name}_min"] > 0.0 for name in CLEARANCES) and d["zdot_lo"] > 0.0
+    return bool(off and clear and np.all(np.isfinite(durations)) and np.all(np.asarray(durations[:3]) > 0.0))
 
 
 def stride_of_verdict(code: int, apex, durations, error: float) -> Stride | str | None:

@@ -238,7 +238,8 @@ class EventMap:
         """(dr/d(X, u), or dr/d(X, u, p) if ``with_parameters``, and the stride); the
         Jacobian is None if the stride falls."""
         try:
-            jac, *outputs = self._jacobian_fn(X, u, p, t_guess)
+            with _failure_dump_silenced():
+                jac, *outputs = self._jacobian_fn(X, u, p, t_guess)
         except RuntimeError:
             return None, Stride(None, {}, Fall.INTEGRATION_FAILED)
         outcome = _outcome(*(np.asarray(v).ravel() for v in outputs))
@@ -294,6 +295,16 @@ def _outcome(apex, durations, diagnostics) -> Stride:
     if not np.all(np.isfinite(apex)):
         return Stride(None, reached, Fall.NOT_FINITE)
     return Stride(apex, reached, None)
+
+
+@contextlib.contextmanager
+def _failure_dump_silenced():
+    """Keep CasADi from printing on standard error (through Python's ``sys.stderr``):
+    where the touchdown rootfinder's derivative fails, far outside the design box, it
+    prints the failing inputs before it raises, and the caller reports the stride as
+    failed anyway."""
+    with contextlib.redirect_stderr(io.StringIO()):
+        yield
 
 
 @contextlib.contextmanager

@@ -156,6 +156,12 @@ class ReturnMap:
         dX, du, _ = self._chained_jacobians(X, u, params, strides, with_parameters=False)
         return dX, du
 
+    def linearised_stride(self, X, u, params) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(dr/dX, dr/du, the next apex) of one stride, from one pass; raises
+        :class:`RunnerFell` if it falls."""
+        jac, apex = self._stride_jacobian(vec(X), vec(u), param_vector(params), with_parameters=False)
+        return jac[:, : APEX.size], jac[:, APEX.size :], apex
+
     def parameter_jacobian(self, X, u, params, strides: int = 1) -> np.ndarray:
         """dr^n/dp (4 x 6) with respect to the model parameters (m, I, k, rho0, d, g)."""
         return self.all_jacobians(X, u, params, strides)[2]
