@@ -125,7 +125,12 @@ class RunResults:
         elif self.kind == "adaptive":
             plots.adaptive_figures(self.rows("strides"), None)
         elif self.kind == "controllers":
-            plots.controllers_figure(self.rows("controllers"), self.record["perturbation"], None)
+            rows, boxes = self.rows("controllers"), self.record.get("boxes", [1.0])
+            smallest = [r for r in rows if r.get("box", boxes[0]) == min(boxes)]
+            perturbation = {n: w * min(boxes) for n, w in self.record["perturbation"].items()}
+            plots.controllers_figure(smallest, perturbation, None)
+            if "basins" in self.record:
+                plots.basin_figure(self.record["basins"], self.record["name"], None)
         drawn = [plots.plt.figure(n) for n in sorted(set(plots.plt.get_fignums()) - before)]
         return drawn + self._diagrams()
 

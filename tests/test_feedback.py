@@ -119,3 +119,35 @@ def test_the_per_stride_re_solve_keeps_a_perturbed_upright_runner_hopping(tight_
     assert 0 < np.max(run.residuals) < 1e-2
     if criterion == "tracking":
         assert eps(run.apexes[-1], X) < 2e-3  # brought back near the gait
+
+
+def test_runs_in_lockstep_end_as_the_same_runs_one_by_one(tight_map, linearised):
+    """The batched closed loop (every live run's stride in one call) against the scalar
+    loop, start by start: the same outcome after the same number of strides."""
+    from baslip.analysis.feedback import run_closed_loop_many
+
+    X, u, A, B = linearised["upward"]
+    controller = LinearFeedback(X, u, lqr_gain(A, B, Q, R), *NO_BOUNDS)
+    starts = X + np.random.default_rng(5).uniform(-1, 1, (12, 4)) * np.array([1e-3, 1e-2, 1e-2, 5e-2]) * 0.5
+    together = run_closed_loop_many(tight_map, Params(), controller, starts, X, 60)
+    for start, batched in zip(starts, together):
+        alone = run_closed_loop(tight_map, Params(), controller, start, X, 60)
+        assert (batched.outcome, batched.strides_run) == (alone.outcome, len(alone.controls))
+    assert {r.outcome for r in together} >= {"converged", "fell"}  # the box is large enough to tell
+
+
+def test_a_run_that_repeats_away_from_the_gait_has_settled_on_its_family(linearised):
+    """At a VPP gait a structural multiplier 1 leaves a direction of neighbouring gaits;
+    under the constant law a start on that direction repeats at once."""
+    from baslip import ReturnMap, Tolerances
+    from baslip.analysis.feedback import ConstantControl
+    from baslip.gait.from_problem import solve_problem
+    from baslip.problem.reader import load_problem
+
+    gait = solve_problem(load_problem(ROOT / "problems" / "vpp_human.yaml"))
+    rmap = ReturnMap(Tolerances(1e-12, 1e-12), law=gait.law)
+    values, vectors = np.linalg.eig(rmap.jacobians(gait.X, gait.u, gait.params)[0])
+    family = np.real(vectors[:, np.argmin(np.abs(values - 1.0))])
+    start = gait.X + 1e-5 * family / np.linalg.norm(family)
+    run = run_closed_loop(rmap, gait.params, ConstantControl(gait.u), start, gait.X, 50, 1e-6, settle=True)
+    assert run.outcome == "settled" and eps(run.apexes[-1], gait.X) > 1e-6

@@ -52,7 +52,7 @@ def test_a_folder_without_results_is_a_clear_error(tmp_path):
         open_results(tmp_path)
 
 
-@pytest.mark.parametrize("name, count", [("stable_region_traced", 1), ("adaptive_upright", 2), ("controllers_downward", 1),
+@pytest.mark.parametrize("name, count", [("stable_region_traced", 1), ("adaptive_upright", 2), ("controllers_downward", 2),
                                          ("convergence_regions", 4), ("optimal_downward", 3), ("speed_sweep", 4)])
 def test_other_studies_draw_their_figures_without_writing(name, count):
     folder = RESULTS / name

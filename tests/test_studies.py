@@ -253,13 +253,15 @@ def test_an_optimal_study_descends_from_every_start(tmp_path, monkeypatch):
     assert (out / "best_gaits_trunk.png").stat().st_size > 0
 
 
-def test_a_controllers_study_compares_three_controllers_on_the_same_starts(tmp_path, monkeypatch):
-    """In CasADi's virtual machine, so that nothing is compiled: four perturbed starts of
-    the hanging gait, each run by the three controllers; dr/du has rank 4 there, so the
+def test_a_controllers_study_compares_four_controllers_on_the_same_starts_box_by_box(tmp_path, monkeypatch):
+    """In CasADi's virtual machine, so that nothing is compiled: two boxes of the hanging
+    gait, four perturbed starts each for the batched controllers and two for the
+    re-solves; dr/du has rank 4 there and deadbeat's controls stay in bounds, so the
     feedback is deadbeat with closed-loop multipliers at zero."""
     monkeypatch.setenv("BASLIP_NO_COMPILE", "1")
     text = (Path(__file__).resolve().parents[1] / "problems" / "controllers_downward.yaml").read_text()
-    text = text.replace("samples: 100", "samples: 4").replace("strides: 100", "strides: 6")
+    text = (text.replace("samples: 4000", "samples: 4").replace("solve_samples: 100", "solve_samples: 2")
+            .replace("boxes: [1, 2, 4, 8, 16]", "boxes: [1, 4]").replace("strides: 100", "strides: 6"))
     problem_path = tmp_path / "controllers.yaml"
     problem_path.write_text(text)
     out = tmp_path / "results" / "controllers"
@@ -268,23 +270,44 @@ def test_a_controllers_study_compares_three_controllers_on_the_same_starts(tmp_p
     assert summary["feedback"]["closed_loop_radius"] < 1e-6
     with open(out / "controllers.csv") as handle:
         rows = list(csv.DictReader(handle))
-    assert [r["controller"] for r in rows] == ["constant"] * 4 + ["feedback"] * 4 + ["resolve"] * 4
-    by_sample = {}
-    for r in rows:  # the same perturbed start for every controller
-        by_sample.setdefault(r["sample"], set()).add(tuple(r[f"d_{n}"] for n in ("z", "theta_h", "ydot", "theta_h_dot")))
-    assert all(len(starts) == 1 for starts in by_sample.values())
-    assert set(summary["controllers"]) == {"constant", "feedback", "resolve"}
-    assert (out / "controllers.png").stat().st_size > 0
+    counts = {}
+    for r in rows:
+        counts[(r["controller"], float(r["box"]))] = counts.get((r["controller"], float(r["box"])), 0) + 1
+    assert counts == {(c, b): (4 if c in ("constant", "feedback") else 2) for c in ("constant", "feedback", "horizon", "resolve")
+                      for b in (1.0, 4.0)}
+    starts = {}
+    for r in rows:  # the same perturbed start for every controller, 4 times larger in the larger box
+        starts.setdefault((float(r["box"]), r["sample"]), set()).add(
+            tuple(float(r[f"d_{n}"]) for n in ("z", "theta_h", "ydot", "theta_h_dot")))
+    assert all(len(s) == 1 for s in starts.values())
+    widths = _controllers_section(text)["perturbation"]
+    for (box, _), (start,) in starts.items():
+        assert all(abs(d) <= box * widths[n] for d, n in zip(start, ("z", "theta_h", "ydot", "theta_h_dot")))
+    assert set(summary["controllers"]) == set(summary["basins"]) == {"constant", "feedback", "horizon", "resolve"}
+    for basin in summary["basins"].values():
+        for b in basin["per_box"]:
+            assert b["ci95"][0] <= b["returned_fraction"] <= b["ci95"][1]
+    assert (out / "controllers.png").stat().st_size > 0 and (out / "basins.png").stat().st_size > 0
 
     # Another seed is another problem: refused over these rows, and a fresh run redraws them.
     reseeded = load_problem(problem_path).replace(study={**_controllers_section(text), "seed": 2})
     with pytest.raises(StaleFolder, match="different problem"):
         run_study(reseeded, out, quiet=True)
     again = run_study(reseeded, out, quiet=True, fresh=True)
-    assert again["done_before_this_run"] == 0 and again["done_in_this_run"] == 12
+    assert again["done_before_this_run"] == 0 and again["done_in_this_run"] == len(rows)
     with open(out / "controllers.csv") as handle:
         redrawn = list(csv.DictReader(handle))
-    assert [r["d_z"] for r in redrawn] != [r["d_z"] for r in rows]
+    assert sorted(r["d_z"] for r in redrawn) != sorted(r["d_z"] for r in rows)
+
+
+def test_the_wilson_interval_holds_its_share_and_narrows_with_samples():
+    from baslip.studies.controllers import wilson_interval
+
+    assert wilson_interval(0, 10)[0] == 0.0 and wilson_interval(10, 10)[1] == 1.0
+    lo, hi = wilson_interval(45, 100)
+    assert lo < 0.45 < hi and hi - lo == pytest.approx(0.19, abs=0.01)  # about 2 x 1.96 sqrt(p q / n)
+    narrow, wide = wilson_interval(450, 1000), wilson_interval(45, 100)
+    assert narrow[1] - narrow[0] < (wide[1] - wide[0]) / 3
 
 
 def _controllers_section(text: str) -> dict:

@@ -1,12 +1,16 @@
 """Stride-to-stride controllers: the control u_n chosen at every apex X_n.
 
-Three controllers, all with the same face (``control(X) -> (u, residual)``):
+Controllers with the same face (``control(X) -> (u, residual)``), for any hip law's
+controls (scaled by :func:`control_scale`):
 
-* :class:`ConstantControl`: the constant PD hip law of the thesis, u_n = u*;
+* :class:`ConstantControl`: the constant hip law (the thesis's PD), u_n = u*;
 * :class:`LinearFeedback`: event-based linear feedback u_n = u* + K (X_n - X*), the cheap
   "functional form" that the thesis's chapter 5 asks for. K comes from the AD Jacobians
   A = dr/dX and B = dr/du at the gait: deadbeat (A + B K = 0, :func:`deadbeat_gain`)
   where B has rank 4, discrete LQR (:func:`lqr_gain`) otherwise;
+  :mod:`baslip.analysis.tuning` chooses between them and tunes the LQR weights;
+* :class:`baslip.analysis.horizon.RecedingHorizon`: the controls of the next N strides
+  solved at every apex so that the apex after N strides is the gait's;
 * :class:`ResolvedControl`: the thesis's sec. 4.7, u re-solved at every apex by
   Levenberg-Marquardt on a least-squares problem, either the thesis's criterion (the next
   apex as near as possible to the current one: ``criterion="thesis"``) or tracking (as
@@ -25,48 +29,63 @@ import numpy as np
 from baslip.engine.returnmap import ReturnMap, RunnerFell
 from baslip.gait.polish import eps
 from baslip.model.dynamics import Params
-from baslip.model.hiplaw import CONTROL
+from baslip.model.hiplaw import PD, HipLaw
 from baslip.model.quantities import NOMINAL
 
 #: Relative singular-value cutoff for rank decisions on B (scaled by the nominal sizes).
 #: Measured on the grids: B's fourth singular value is 1e-4 or more of the first where
 #: it counts, and 1e-9 or less where it does not (upright gaits with gains near 1e-4).
 RANK_TOLERANCE = 1e-7
-CONTROL_SCALE = np.array([NOMINAL[n] for n in CONTROL.names])
+
+
+def control_scale(law: HipLaw = PD) -> np.ndarray:
+    """The nominal size of each of ``law``'s controls (:data:`baslip.model.quantities.NOMINAL`)."""
+    return np.array([NOMINAL[n] for n in law.controls.names])
+
+
+#: The PD law's control scale.
+CONTROL_SCALE = control_scale(PD)
 #: A re-solve stops once a step lowers its eps by less than this factor (the residual
 #: has reached the least-squares floor, which is not zero where dr/du has rank 3).
 STALL = 0.99
 
 
-def control_rank(B: np.ndarray) -> int:
-    """Rank of dr/du in scaled controls."""
-    s = np.linalg.svd(B * CONTROL_SCALE, compute_uv=False)
+def control_rank(B: np.ndarray, scale: np.ndarray = CONTROL_SCALE) -> int:
+    """Rank of dr/du in controls scaled by ``scale``."""
+    s = np.linalg.svd(B * scale, compute_uv=False)
     return int(np.sum(s > RANK_TOLERANCE * s[0]))
 
 
-def deadbeat_gain(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """K with A + B K = 0, the least-norm one in scaled controls (needs rank B = 4)."""
-    if control_rank(B) < A.shape[0]:
+def deadbeat_gain(A: np.ndarray, B: np.ndarray, scale: np.ndarray = CONTROL_SCALE) -> np.ndarray:
+    """K with A + B K = 0, the least-norm one in controls scaled by ``scale`` (needs rank B = 4)."""
+    if control_rank(B, scale) < A.shape[0]:
         raise ValueError("deadbeat needs dr/du of rank 4")
-    Bs = B * CONTROL_SCALE
-    return CONTROL_SCALE[:, None] * (-np.linalg.pinv(Bs) @ A)
+    return scale[:, None] * (-np.linalg.pinv(B * scale) @ A)
 
 
-def lqr_gain(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, iterations: int = 10000,
+def lqr_gain(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, iterations: int = 60,
              tolerance: float = 1e-12) -> np.ndarray:
-    """The discrete LQR gain K (u = K x) for x' = A x + B u with costs x'Qx + u'Ru, from
-    the Riccati difference equation iterated to its fixed point; raises ValueError if it
-    does not settle (the unstable modes are not reachable through B)."""
-    P = Q.copy()
+    """The discrete LQR gain K (u = K x) for x' = A x + B u with costs x'Qx + u'Ru.
+
+    The Riccati equation's stabilising solution P comes from the structure-preserving
+    doubling algorithm, which converges quadratically (a few tens of 4 x 4 products, where
+    the Riccati difference equation took thousands of steps near a multiplier at 1);
+    raises ValueError if it does not settle (an unstable mode is not reachable through B).
+    """
+    n = A.shape[0]
+    Ak, Gk, Hk = A.copy(), B @ np.linalg.solve(R, B.T), Q.copy()
     for _ in range(iterations):
-        gain = np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
-        following = Q + A.T @ P @ (A - B @ gain)
+        W = np.linalg.solve(np.eye(n) + Gk @ Hk, np.column_stack([Ak, Gk]))
+        V1, V2 = W[:, :n], W[:, n:]
+        following = Hk + Ak.T @ Hk @ V1
+        Gk, Ak = Gk + Ak @ V2 @ Ak.T, Ak @ V1
         following = (following + following.T) / 2
-        if np.max(np.abs(following - P)) <= tolerance * max(1.0, np.max(np.abs(P))):
-            return -np.linalg.solve(R + B.T @ following @ B, B.T @ following @ A)
         if not np.all(np.isfinite(following)):
             break
-        P = following
+        settled = np.max(np.abs(following - Hk)) <= tolerance * max(1.0, np.max(np.abs(following)))
+        Hk = following
+        if settled:
+            return -np.linalg.solve(R + B.T @ Hk @ B, B.T @ Hk @ A)
     raise ValueError("the Riccati iteration does not settle: an unstable mode is not reachable")
 
 
@@ -77,13 +96,17 @@ def closed_loop_multipliers(A: np.ndarray, B: np.ndarray, K: np.ndarray) -> np.n
 
 @dataclass(frozen=True)
 class ConstantControl:
-    """u_n = u*: the constant PD hip law."""
+    """u_n = u*: the constant hip law (the thesis's, under PD)."""
 
     u_star: np.ndarray
-    name: str = "constant PD"
+    name: str = "constant"
 
     def control(self, X) -> tuple[np.ndarray, float]:
         return np.asarray(self.u_star, dtype=float), 0.0
+
+    def controls(self, Xs: np.ndarray) -> np.ndarray:
+        """The controls for many apexes (rows of ``Xs``) at once."""
+        return np.broadcast_to(np.asarray(self.u_star, dtype=float), (len(Xs), len(self.u_star)))
 
 
 @dataclass(frozen=True)
@@ -98,8 +121,12 @@ class LinearFeedback:
     name: str = "linear feedback"
 
     def control(self, X) -> tuple[np.ndarray, float]:
-        u = self.u_star + self.K @ (np.asarray(X, dtype=float) - self.X_star)
-        return np.clip(u, self.lower, self.upper), 0.0
+        return self.controls(np.asarray(X, dtype=float)[None, :])[0], 0.0
+
+    def controls(self, Xs: np.ndarray) -> np.ndarray:
+        """The controls for many apexes (rows of ``Xs``) at once, saturated at the bounds."""
+        u = self.u_star + (np.asarray(Xs, dtype=float) - self.X_star) @ self.K.T
+        return np.clip(u, self.lower, self.upper)
 
 
 class ResolvedControl:
@@ -119,6 +146,7 @@ class ResolvedControl:
         if criterion not in ("thesis", "tracking"):
             raise ValueError(f"criterion must be 'thesis' or 'tracking', not {criterion!r}")
         self.rmap, self.params, self.criterion = rmap, params, criterion
+        self.scale = control_scale(rmap.law)
         self.X_star, self.u_star = np.asarray(X_star, dtype=float), np.asarray(u_star, dtype=float)
         self.free = np.array([i for i in range(len(self.u_star)) if i not in fixed], dtype=int)
         self.lower = np.full(len(self.u_star), -np.inf) if lower is None else np.asarray(lower, dtype=float)
@@ -137,7 +165,7 @@ class ResolvedControl:
             if value[0] <= self.target_eps:
                 break
             try:
-                B = self.rmap.jacobians(X, u, self.params)[1][:, self.free] * CONTROL_SCALE[self.free]
+                B = self.rmap.jacobians(X, u, self.params)[1][:, self.free] * self.scale[self.free]
             except RunnerFell:
                 break
             residual = value[1]
@@ -145,7 +173,7 @@ class ResolvedControl:
             for _ in range(12):  # Levenberg-Marquardt: raise the damping until a step helps
                 step = np.linalg.solve(B.T @ B + damping * np.eye(len(self.free)), -B.T @ residual)
                 trial = u.copy()
-                trial[self.free] = np.clip(u[self.free] + step * CONTROL_SCALE[self.free],
+                trial[self.free] = np.clip(u[self.free] + step * self.scale[self.free],
                                            self.lower[self.free], self.upper[self.free])
                 trial_value = self._miss(X, trial, target)
                 if trial_value[0] < value[0]:
@@ -167,10 +195,16 @@ class ResolvedControl:
         return eps(stride.apex, target) if self.criterion == "tracking" else eps(stride.apex, X), stride.apex - target
 
 
+#: Outcomes of a closed-loop run: back to the gait, onto a neighbouring gait of its family
+#: (where a structural multiplier 1 leaves a direction no control can correct), neither,
+#: or a fall.
+OUTCOMES = ("converged", "settled", "bounded", "fell")
+
+
 @dataclass(frozen=True)
 class ClosedLoopRun:
     """A run under a controller: the apexes reached, the controls used, the residual each
-    control solve left, and how it ended ('converged', 'fell' or 'bounded')."""
+    control solve left, and how it ended (one of :data:`OUTCOMES`)."""
 
     apexes: np.ndarray
     controls: np.ndarray
@@ -180,9 +214,11 @@ class ClosedLoopRun:
 
 
 def run_closed_loop(rmap: ReturnMap, params: Params, controller, X0, X_star, strides: int,
-                    tolerance: float = 1e-6) -> ClosedLoopRun:
+                    tolerance: float = 1e-6, settle: bool = False) -> ClosedLoopRun:
     """Run ``controller`` from apex ``X0`` for at most ``strides`` strides; it has
-    converged when an apex comes within ``tolerance`` (eq. 4.1) of ``X_star``."""
+    converged when an apex comes within ``tolerance`` (eq. 4.1) of ``X_star``. With
+    ``settle``, a run whose apex repeats to ``tolerance`` elsewhere has settled on a
+    neighbouring gait."""
     apexes, controls, residuals = [np.asarray(X0, dtype=float)], [], []
     X_star = np.asarray(X_star, dtype=float)
     for n in range(strides):
@@ -196,4 +232,43 @@ def run_closed_loop(rmap: ReturnMap, params: Params, controller, X0, X_star, str
         apexes.append(stride.apex)
         if eps(stride.apex, X_star) <= tolerance:
             return ClosedLoopRun(np.array(apexes), np.array(controls), np.array(residuals), "converged", n + 1)
+        if settle and eps(stride.apex, apexes[-2]) <= tolerance:
+            return ClosedLoopRun(np.array(apexes), np.array(controls), np.array(residuals), "settled", None)
     return ClosedLoopRun(np.array(apexes), np.array(controls), np.array(residuals), "bounded", None)
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """How one closed-loop run ended (one of :data:`OUTCOMES`), after how many
+    strides, and its last apex's eps against the gait."""
+
+    outcome: str
+    strides_run: int
+    strides_to_converge: int | None
+    final_eps: float
+
+
+def run_closed_loop_many(rmap: ReturnMap, params: Params, controller, X0s: np.ndarray, X_star, strides: int,
+                         tolerance: float = 1e-6, settle: bool = False) -> list[Outcome]:
+    """:func:`run_closed_loop` from every row of ``X0s`` at once, for a controller whose
+    control depends on the apex alone (``controller.controls(Xs)``): the runs go in
+    lockstep, so that each stride of all live runs is one batched call of the engine."""
+    X_star = np.asarray(X_star, dtype=float)
+    X = np.array(X0s, dtype=float)
+    ended: dict[int, Outcome] = {}
+    alive = np.arange(len(X))
+    for n in range(strides):
+        if not alive.size:
+            break
+        results = rmap.strides(X[alive], controller.controls(X[alive]), params)
+        for i, stride in zip(alive, results):
+            if not stride.ok:
+                ended[int(i)] = Outcome("fell", n + 1, None, eps(X[i], X_star))
+                continue
+            previous, X[i] = X[i].copy(), stride.apex
+            if eps(X[i], X_star) <= tolerance:
+                ended[int(i)] = Outcome("converged", n + 1, n + 1, eps(X[i], X_star))
+            elif settle and eps(X[i], previous) <= tolerance:
+                ended[int(i)] = Outcome("settled", n + 1, None, eps(X[i], X_star))
+        alive = np.array([i for i in alive if int(i) not in ended], dtype=int)
+    return [ended.get(i, Outcome("bounded", strides, None, eps(X[i], X_star))) for i in range(len(X))]

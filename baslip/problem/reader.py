@@ -51,7 +51,7 @@ TOP_LEVEL_KEYS = ("name", "params", "hip_law", "fix", "guess", "bounds", "object
 #: each problem to its own law's.
 _ANY_QUANTITY = tuple(dict.fromkeys(name for law in HIP_LAWS.values() for name in quantity_names(law)))
 #: Study kinds that run under every hip law; the others read or write the PD gains.
-ANY_LAW_STUDIES = ("sweep",)
+ANY_LAW_STUDIES = ("sweep", "controllers")
 #: Longest orbit, in strides, that a problem may ask for.
 MAX_STRIDES = 16
 #: Most fixed points one sweep may ask for (a day of solving on two cores).

@@ -131,7 +131,12 @@ class Controllers:
     strides: int = 100
     tolerance: float = 1e-3
     criterion: str = "tracking"  # of the per-stride re-solve: "thesis" or "tracking"
-    lqr_scale: tuple[tuple[str, float], ...] = ()  # apex deviation costing as much as a nominal control change
+    lqr_scale: tuple[tuple[str, float], ...] = ()  # fixed LQR weights (apex deviation costing as much as a
+    # nominal control change); without them the tool chooses the weights
+    boxes: tuple[float, ...] = (1.0,)  # multiples of the perturbation's half-widths: one basin box each
+    controllers: tuple[str, ...] = ("constant", "feedback", "horizon", "resolve")
+    horizon: int = 2  # strides planned by the receding-horizon re-solve
+    solve_samples: int | None = None  # starts per box for the two re-solving controllers (default: samples)
     kind: str = "controllers"
 
 
@@ -154,7 +159,8 @@ def parse_study(data) -> Study:
         "basin": ("kind", "source", "grid", "stable_at", "unstable_at", "strides", "tolerance"),
         "adaptive": ("kind", "strides", "frozen_strides", "perturbation", "criterion", "probe_strides"),
         "optimal": ("kind", "vary", "starts", "seed", "iterations", "method"),
-        "controllers": ("kind", "perturbation", "samples", "seed", "strides", "tolerance", "criterion", "lqr_scale"),
+        "controllers": ("kind", "perturbation", "samples", "seed", "strides", "tolerance", "criterion", "lqr_scale",
+                        "boxes", "controllers", "horizon", "solve_samples"),
         "atlas": ("kind", "vary", "seeds", "seed", "radius", "max_radius", "max_charts", "plot", "polish",
                   "iterations"),
     }[kind]
@@ -218,6 +224,11 @@ def parse_study(data) -> Study:
             tolerance=_fraction(data.get("tolerance", 1e-3), "study.tolerance"),
             criterion=criterion,
             lqr_scale=_apex_map(data.get("lqr_scale", {}), "study.lqr_scale", positive=True),
+            boxes=_boxes(data.get("boxes", [1.0])),
+            controllers=_controller_names(data.get("controllers", list(CONTROLLER_KINDS))),
+            horizon=_integer(data.get("horizon", 2), "study.horizon", 1, 8),
+            solve_samples=None if data.get("solve_samples") is None else _integer(
+                data.get("solve_samples"), "study.solve_samples", 1, 100000),
         )
     return Adaptive(
         strides=_integer(data.get("strides", 2048), "study.strides", 1, 1000000),
@@ -296,6 +307,27 @@ def _method(value) -> str:
     if value not in OPTIMAL_METHODS:
         raise StudyError("study.method", f"expected one of {', '.join(OPTIMAL_METHODS)}, got {excerpt(value)}")
     return value
+
+
+#: The controllers a ``controllers`` study can compare.
+CONTROLLER_KINDS = ("constant", "feedback", "horizon", "resolve")
+
+
+def _boxes(value) -> tuple[float, ...]:
+    """Box sizes, as multiples of the perturbation's half-widths: 1 to 64, increasing."""
+    if not isinstance(value, list) or not value or len(value) > 12:
+        raise StudyError("study.boxes", f"expected a list of 1 to 12 box sizes, got {excerpt(value)}")
+    sizes = tuple(number(v, "study.boxes") for v in value)
+    if any(not 0 < v <= 64 for v in sizes) or list(sizes) != sorted(set(sizes)):
+        raise StudyError("study.boxes", f"expected increasing sizes in (0, 64], got {excerpt(value)}")
+    return sizes
+
+
+def _controller_names(value) -> tuple[str, ...]:
+    names = value if isinstance(value, list) else [value]
+    if not names or any(n not in CONTROLLER_KINDS for n in names) or len(set(names)) != len(names):
+        raise StudyError("study.controllers", f"expected some of {', '.join(CONTROLLER_KINDS)}, got {excerpt(value)}")
+    return tuple(names)
 
 
 def _criterion(value) -> str:

@@ -7,14 +7,15 @@ import math
 import numpy as np
 
 from baslip.report.atlas import atlas_claims, crosscheck_claims
-from baslip.report.evidence import DEG, Evidence, _shown, claim, largest_gain
+from baslip.report.controllers import controller_claims
+from baslip.report.evidence import DEG, Evidence, _shown, claim
 from baslip.report.vpp import vpp_claims
 from baslip.status import Status
 from baslip.viz.labels import SPECIAL_NAMES
 
 
 def upright_section(ev: Evidence) -> list[str]:
-    """Can an upright BA-SLIP run stably? Under constant PD, per-stride re-solve, feedback."""
+    """Can an upright BA-SLIP run stably? Under constant PD, constant VPP, and controllers."""
     out = []
     upright, hanging = ev.summary("optimal_upright"), ev.summary("optimal_downward")
     if upright and upright.get("least"):
@@ -51,60 +52,8 @@ def upright_section(ev: Evidence) -> list[str]:
              "optimal_downward/spectral_radius_map.png"],
         ))
     out += atlas_claims(ev) + crosscheck_claims(ev) + vpp_claims(ev)
-    found = {name: ev.summary(name) for name in CONTROLLER_GAITS}
-    controllers = {name: summary for name, summary in found.items() if summary is not None}
-    if all(name in controllers for name in ("controllers_upright", "controllers_downward")):
-        rows = ["| gait | controller | converged | kept up, not converged | fell | median strides to converge | median cost a stride |",
-                "|---|---|---|---|---|---|---|"]
-        for name, summary in controllers.items():
-            for controller, tally in summary["controllers"].items():
-                strides = tally["median_strides_to_converge"]
-                rows.append(f"| {CONTROLLER_GAITS[name]} | {controller} | {tally['basin_fraction']:.0%} | {tally['bounded_fraction']:.0%} | "
-                            f"{tally['fell_fraction']:.0%} | {'-' if strides is None else f'{strides:g}'} | "
-                            f"{tally['median_ms_per_stride']:.2f} ms |")
-        up = controllers["controllers_upright"]
-        box = ", ".join(f"{k} +-{v:g}" for k, v in up["perturbation"].items())
-        feedback = up["feedback"]
-        out.append(claim(
-            "Under per-stride re-solve and under event-based feedback: yes, near the gait",
-            "time-varying control kept an upright runner hopping; chapter 5 asks for cheaper functional control laws.",
-            f"{up['controllers']['constant']['samples']} apex states drawn from the box X* {box} (SI units, rad) around each "
-            f"shipped gait, run for at most {up['strides']} strides; converged means within {up['tolerance']:g} (eq. 4.1) of "
-            f"the gait. Upright: dr/du has rank {up['gait']['rank_dr_du']}, so the feedback is {feedback['kind']}; its "
-            f"closed-loop multipliers have largest modulus {feedback['closed_loop_radius']:.3f} (open loop "
-            f"{up['gait']['spectral_radius']:.3g}). Hanging: {controllers['controllers_downward']['feedback']['kind']}, "
-            f"closed-loop radius {controllers['controllers_downward']['feedback']['closed_loop_radius']:.1e}.\n\n"
-            + "\n".join(rows) + "\n",
-            "goes further",
-            "The linear feedback u = u* + K (X - X*) makes the upright gait asymptotically stable: every closed-loop "
-            "multiplier is inside the unit circle, and starts near enough converge. Its basin is limited by the "
-            "nonlinearity: of this box, the share in the table converges, the rest falls. The per-stride re-solve "
-            "(tracking) keeps the starts hopping but mostly does not converge to within the tolerance: with dr/du "
-            "of practical rank 3 one direction cannot be corrected in a single stride, and the re-solve is greedy. "
-            "It costs several times more per stride. The constant PD law lets every start fall at the shipped upright "
-            "gait" + _best_upright_note(controllers.get("controllers_upright_best")) + ". "
-            f"On the hanging gait, which the constant law already stabilises, deadbeat feedback is a poor choice: "
-            f"dr/du is badly conditioned there, so K is large (its largest entry, in nominal units, is "
-            f"{largest_gain(controllers['controllers_downward']['feedback']):.3g}) and most starts of the box fall "
-            f"before the linearisation holds.",
-            ["controllers_upright/controllers.png", "controllers_downward/controllers.png"]
-            + (["controllers_upright_best/controllers.png"] if "controllers_upright_best" in controllers else []),
-        ))
+    out += controller_claims(ev)
     return out or ["Not run.\n"]
-
-
-#: The controller comparisons the report reads, and how its table names their gaits.
-CONTROLLER_GAITS = {"controllers_upright": "upright (shipped)", "controllers_upright_best": "upright (most stable, atlas)",
-                    "controllers_downward": "hanging"}
-
-
-def _best_upright_note(summary: dict | None) -> str:
-    """What the comparison on the atlas's most stable upright gait adds ("" if not run)."""
-    if summary is None:
-        return ""
-    tally = summary["controllers"]["constant"]
-    return (f"; at the most stable upright gait of the atlas (open-loop radius {summary['gait']['spectral_radius']:.3g}) "
-            f"the constant law alone brings {tally['basin_fraction']:.0%} of the same box back")
 
 
 BRANCHES = ("continuation_slip_attack", "continuation_downward_speed", "continuation_downward_height")

@@ -87,12 +87,3 @@ def point_evidence(ev: Evidence, row: dict, what: str) -> str:
 
 def _shown(name: str, value: float) -> str:
     return f"{value * DEG:.6g} deg" if name.startswith("theta") else f"{value:.6g}"
-
-def largest_gain(feedback: dict) -> float:
-    """Largest entry of K in nominal units (control size per apex size)."""
-    from baslip.model.quantities import NOMINAL
-
-    K = np.array(feedback["K"])
-    rows = np.array([NOMINAL[n] for n in feedback["rows"]])
-    columns = np.array([NOMINAL[n] for n in feedback["columns"]])
-    return float(np.max(np.abs(K * columns[None, :] / rows[:, None])))

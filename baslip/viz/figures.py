@@ -16,12 +16,15 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.colors import LogNorm  # noqa: E402
 
+from baslip.model.quantities import UNITS  # noqa: E402
 from baslip.status import Status
 from baslip.viz.labels import SPECIAL_NAMES  # noqa: E402
 
 DEG = 180 / math.pi
 ANGLES = ("theta_h", "theta2_des", "theta_td")
 LABELS = {
+    # Every quantity with its unit, whatever hip law it belongs to; the entries below word them.
+    **{name: f"{name} [{unit}]" for name, unit in UNITS.items()},
     "z": "apex height z [m]",
     "ydot": "forward speed ydot [m/s]",
     "theta_h": "body angle theta_h [deg]",
@@ -478,19 +481,20 @@ def trunk_motion_figure(motions: list[tuple[str, np.ndarray, np.ndarray]], out_d
 
 # --- controllers ----------------------------------------------------------------------------
 
-OUTCOME_STYLE = {"converged": ("o", "tab:blue"), "bounded": ("s", "tab:orange"), "fell": ("x", "tab:red")}
+OUTCOME_STYLE = {"converged": ("o", "tab:blue"), "settled": ("d", "tab:green"), "bounded": ("s", "tab:orange"),
+                 "fell": ("x", "tab:red")}
 
 
 def controllers_figure(rows: list[dict], perturbation: dict, out_dir: Path | None) -> Path | None:
     """Left: the share of perturbed starts each controller brings back to the gait, keeps
     up without converging, or lets fall. Right, per controller: the starts in the plane of
     the two most perturbed apex quantities, marked by outcome."""
-    names = [n for n in ("constant", "feedback", "resolve") if any(r["controller"] == n for r in rows)]
+    names = [n for n in ("constant", "feedback", "horizon", "resolve") if any(r["controller"] == n for r in rows)]
     axes_names = sorted(perturbation, key=lambda n: -perturbation[n] / _NOMINAL_APEX[n])[:2]
     if len(axes_names) < 2:
         axes_names = (axes_names + ["z", "ydot"])[:2]
     fig, axes = plt.subplots(1, 1 + len(names), figsize=(4.0 * (1 + len(names)), 3.8))
-    outcomes = ("converged", "bounded", "fell")
+    outcomes = tuple(OUTCOME_STYLE)
     bottom = np.zeros(len(names))
     for outcome in outcomes:
         share = np.array([np.mean([r["outcome"] == outcome for r in rows if r["controller"] == n]) for n in names])
@@ -517,6 +521,27 @@ def controllers_figure(rows: list[dict], perturbation: dict, out_dir: Path | Non
 
 
 _NOMINAL_APEX = {"z": 0.1, "theta_h": 0.1, "ydot": 0.1, "theta_h_dot": 1.0}
+
+
+def basin_figure(basins: dict, title: str, out_dir: Path | None) -> Path | None:
+    """The share of starts each controller brings back (to the gait, or onto its family)
+    against the box size (a multiple of the perturbation's half-widths), with 95 %
+    intervals; the 90 % line dashed."""
+    fig, ax = plt.subplots(figsize=(6.0, 3.8))
+    for k, (name, basin) in enumerate(basins.items()):
+        boxes = np.array([b["box"] for b in basin["per_box"]]) * (1 + 0.03 * (k - 1.5))  # spread the bars
+        share = np.array([b["returned_fraction"] or 0.0 for b in basin["per_box"]])
+        low, high = (np.array([b["ci95"][i] for b in basin["per_box"]]) for i in (0, 1))
+        spread = [np.maximum(share - low, 0.0), np.maximum(high - share, 0.0)]  # round-off can cross zero
+        ax.errorbar(boxes, share, yerr=spread, marker="o", ms=4, capsize=3, label=name)
+    ax.axhline(0.9, color="0.5", ls="--", lw=0.8)
+    ax.set_xscale("log", base=2)
+    ax.set_ylim(-0.02, 1.02)
+    ax.set_xlabel("box half-widths [multiples of the study's perturbation]")
+    ax.set_ylabel("share of starts that return")
+    ax.set_title(f"{title}: basins (95 % intervals)", fontsize=10)
+    ax.legend(fontsize=8)
+    return _save(fig, _in(out_dir, "basins.png"))
 
 
 # --- a gait's motion ----------------------------------------------------------------------
