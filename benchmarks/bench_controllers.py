@@ -21,7 +21,13 @@ import time
 import numpy as np
 
 from baslip import ReturnMap, Tolerances, load_problem
-from baslip.analysis.feedback import LinearFeedback, control_scale, run_closed_loop, run_closed_loop_many
+from baslip.analysis.feedback import (
+    ConstantControl,
+    LinearFeedback,
+    control_scale,
+    run_closed_loop,
+    run_closed_loop_many,
+)
 from baslip.analysis.horizon import RecedingHorizon
 from baslip.gait.from_problem import fixed_point_spec, solve_start, solver_for
 from baslip.model.dynamics import APEX
@@ -65,7 +71,7 @@ def main() -> None:
         began = time.perf_counter()
         choice = feedback_for(problem.study, context, A, B, control_scale(problem.hip_law), rmap)
         tuning = time.perf_counter() - began
-        constant = _basin(rmap, problem, gait, LinearFeedback(gait.X, gait.u, 0 * choice.K, bounds[:, 0], bounds[:, 1]),
+        constant = _basin(rmap, problem, gait, ConstantControl(gait.u),
                           starts, args.strides)
         feedback = _basin(rmap, problem, gait, LinearFeedback(gait.X, gait.u, choice.K, bounds[:, 0], bounds[:, 1]),
                           starts, args.strides)

@@ -32,6 +32,7 @@ from baslip.errors import ProblemError
 from baslip.model.dynamics import APEX, PARAMS, Params
 from baslip.model.hiplaw import HIP_LAWS, PD, HipLaw
 from baslip.model.quantities import (
+    ANY_DESIGN,
     DEFAULT_BOUNDS,
     OBJECTIVES,
     STABILITY_OBJECTIVES,
@@ -49,7 +50,7 @@ TOP_LEVEL_KEYS = ("name", "params", "hip_law", "fix", "guess", "bounds", "object
                   "continuation")
 #: What fix, guess and bounds may name under some hip law; :func:`_check_law` then holds
 #: each problem to its own law's.
-_ANY_QUANTITY = tuple(dict.fromkeys(name for law in HIP_LAWS.values() for name in quantity_names(law)))
+_ANY_QUANTITY = ANY_DESIGN + ("energy",)
 #: Study kinds that run under every hip law; the others read or write the PD gains.
 ANY_LAW_STUDIES = ("sweep", "controllers")
 #: Longest orbit, in strides, that a problem may ask for.
@@ -305,7 +306,7 @@ _FIELDS: dict[str, Callable[[Any], Any]] = {
     "params": lambda v: _params(dataclasses.asdict(v) if isinstance(v, Params) else v),
     "hip_law": _hip_law,
     "fix": lambda v: MappingProxyType(_quantities(v, "fix", _ANY_QUANTITY)),
-    "guess": lambda v: MappingProxyType(_quantities(v, "guess", tuple(n for n in _ANY_QUANTITY if n != "energy"))),
+    "guess": lambda v: MappingProxyType(_quantities(v, "guess", ANY_DESIGN)),
     "bounds": lambda v: MappingProxyType(_bounds(v)),
     "objective": _objective,
     "strides": lambda v: _strides(v),

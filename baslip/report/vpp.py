@@ -72,7 +72,9 @@ def _branch_text(ev: Evidence) -> str:
     summary = ev.summary("continuation_vpp_pivot")
     if summary is None:
         return ""
-    special = ", ".join(f"{p['type'].replace('_', ' ')} at r_vpp = {p['r_vpp']:.4g} m" for p in summary["special_points"])
+    points = summary["special_points"]
+    special = ", ".join(f"{p['type'].replace('_', ' ')} at r_vpp = {p['r_vpp']:.4g} m" for p in points)
+    at_com = any(p["type"] == "branch_point" and abs(p["r_vpp"]) < 1e-6 for p in points)
     return (f" The branch in r_vpp of the human-scale gait at 5 m/s (continuation_vpp_pivot, {summary['points']} "
-            f"verified points over [{summary['range'][0]:g}, {summary['range'][1]:g}] m): {special}; the branch point "
-            f"at r_vpp = 0 is where the trunk-spin pair becomes 1 by structure.")
+            f"verified points over [{summary['range'][0]:g}, {summary['range'][1]:g}] m): {special}"
+            + ("; the branch point at r_vpp = 0 is where the trunk-spin pair becomes 1 by structure." if at_com else "."))
