@@ -183,7 +183,7 @@ def test_a_cell_says_on_stderr_what_it_is_doing_phase_by_phase(capsys):
     row = CellAtlas(problem, study, quiet=False).run({"sweep_ydot": 0.5, "sweep_z": 0.4})
     lines = capsys.readouterr().err.splitlines()
     assert lines and all(line.startswith("atlas_downward: cell ydot = 0.5, z = 0.4: ") for line in lines)
-    assert any(line.endswith(f"{row['charts']} charts covered; verifying each independently") for line in lines)
+    assert any(line.endswith(f"{row['charts']} charts covered; finishing their independent verification") for line in lines)
     assert any(line.endswith("polishing (any): descent 1 of 1") for line in lines)
 
 

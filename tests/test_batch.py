@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from baslip import Fall, Params, ReturnMap, Tolerances
-from baslip.engine.outcome import precheck, prechecks
+from baslip.engine.outcome import precheck, prechecks, strides_can_start
 
 PARAMS = Params()
 GAIT_X = np.array([0.4, -1.5657, 0.5, 0.164274])
@@ -84,3 +84,5 @@ def test_batched_prechecks_are_the_single_prechecks():
             assert fall.fall is single.fall and np.isnan(guess)
         seen.add(None if single is None else single.fall)
     assert seen == {None, Fall.NOT_FINITE, Fall.FOOT_BELOW_GROUND, Fall.NO_TOUCHDOWN}
+    # The cheap test of many points (no touchdown times refined) says the same as precheck.
+    assert np.array_equal(strides_can_start(X, U, PARAMS.vector()), np.array([f is None for f in falls]))

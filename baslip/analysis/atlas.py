@@ -16,12 +16,11 @@ describe for COCO's ``atlas_kd``, simplified where baslip's dimensions (k = 1 to
   The atlas grows from the charts with uncovered directions, oldest first (or, if the
   system ranks its points, most interesting first): a new centre
   is predicted at w0 + h T d (h = R) and corrected by Newton's method on
-  [F(w) = 0, T^T (w - w_pred) = 0], a square system, starting from the chart's own
-  Jacobian (a chord method), refreshing it where convergence is slow and halving a step
-  with a fresh Jacobian until the residual falls (a damped Newton method: at very
-  unstable gaits the full step overshoots). Where Newton fails, the step turns
-  the tangent by more than :attr:`AtlasSettings.max_turn` or lands outside the domain,
-  h is halved, down to the least radius.
+  [F(w) = 0, T^T (w - w_pred) = 0], a square system (:mod:`baslip.analysis.corrector`:
+  the chart's own Jacobian, updated by Broyden's formula, refreshed where convergence is
+  slow, and a fresh Jacobian's step halved until the residual falls). Where Newton
+  fails, the step turns the tangent by more than :attr:`AtlasSettings.max_turn` or lands
+  outside the domain, h is halved, down to the least radius.
 * The covering **stops** where no step is left: every direction covered, or recorded as
   a boundary with its reason and its kind (:data:`EDGE_KINDS`): the domain's edge (a
   bound, or an evaluation that fails, such as a fall), a singular chart (the equations
@@ -49,9 +48,10 @@ import heapq
 import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from typing import Protocol
 
 import numpy as np
+
+from baslip.analysis.corrector import SINGULAR_RANK, ManifoldSystem, correct, kind_of, project_seed
 
 #: Boundary directions of a chart of a 2-dimensional manifold (every 30 deg).
 DIRECTIONS_2D = 12
@@ -59,46 +59,11 @@ DIRECTIONS_2D = 12
 DIRECTIONS_3D = 32
 #: Points of the fixed pattern in a chart's ball for its area share.
 AREA_SAMPLES = {1: 32, 2: 96, 3: 192}
-#: Largest condition number of the corrector's square Jacobian: beyond it the chart is
-#: singular (the projection of the manifold onto the tangent space folds).
-SINGULAR_CONDITION = 1e10
 #: Charts between two progress reports.
 PROGRESS_CHARTS = 100
-#: A corrector step that leaves more than this fraction of the residual takes a fresh Jacobian.
-CHORD_RATE = 0.25
-#: Times a corrector step with a fresh Jacobian is halved, at most, to lower the residual.
-DAMPING_HALVINGS = 6
 #: Corrector iterations (chord steps included) of a step that counts as easy, so that the
 #: next chart may be larger.
 EASY_ITERATIONS = 8
-
-
-@dataclass(frozen=True)
-class Evaluation:
-    """F at a point, or why it could not be evaluated there."""
-
-    residual: np.ndarray | None = None
-    failure: str = ""
-
-
-class ManifoldSystem(Protocol):
-    """What the atlas needs of a system of equations F(w) = 0 on a domain."""
-
-    def evaluate(self, w: np.ndarray) -> Evaluation:
-        """F(w), or the reason it cannot be evaluated at ``w``."""
-        ...
-
-    def jacobian(self, w: np.ndarray) -> np.ndarray | str:
-        """dF/dw at ``w`` (rows: equations), or the reason it cannot be evaluated."""
-        ...
-
-    def outside(self, w: np.ndarray) -> str:
-        """Why ``w`` is outside the domain ("" if it is inside)."""
-        ...
-
-    def solved(self, w: np.ndarray, residual: np.ndarray) -> bool:
-        """Whether ``residual`` = F(w) is small enough for ``w`` to be a solution."""
-        ...
 
 
 @dataclass(frozen=True)
@@ -263,8 +228,8 @@ class _Growth:
     """The atlas while it grows: the one mutable object here, private to :func:`cover`."""
 
     def __init__(self, system: ManifoldSystem, settings: AtlasSettings, k: int,
-                 progress: Callable[[int, int], None] | None = None):
-        self.system, self.settings, self.k, self.progress = system, settings, k, progress
+                 progress: Callable[[int, int], None] | None = None, on_chart: Callable[[Chart], None] | None = None):
+        self.system, self.settings, self.k, self.progress, self.on_chart = system, settings, k, progress, on_chart
         self.directions = unit_directions(k)
         self.charts: list[Chart] = []
         self.centers: list[np.ndarray] = []
@@ -320,6 +285,8 @@ class _Growth:
             self.merge(self.piece_of[j], piece)
         for j in (chart.index, *near):
             self.close_covered(j)
+        if self.on_chart is not None:
+            self.on_chart(chart)
         return chart
 
     def close_covered(self, j: int) -> None:
@@ -365,7 +332,7 @@ class _Growth:
             if not reason:
                 found = correct(self.system, target, chart.tangent, chart.jacobian, s.newton_iterations)
                 if isinstance(found, str):
-                    reason, kind = found, _kind_of(found)
+                    reason, kind = found, kind_of(found)
                 else:
                     w, jacobian, iterations = found
                     reason = self.system.outside(w)
@@ -398,107 +365,9 @@ class _Growth:
         return stopped
 
 
-#: The corrector's reasons for giving up, and the singular ones (see :data:`EDGE_KINDS`).
-DIVERGED = "Newton diverged"
-SINGULAR_FOLD = "singular chart (the projection onto the tangent space folds)"
-SINGULAR_RANK = "singular chart (the equations lose rank)"
-
-
-def _kind_of(reason: str) -> str:
-    """The kind of edge a corrector's failure ``reason`` stands for."""
-    if reason.startswith("singular"):
-        return "singular"
-    if reason.startswith("Newton"):
-        return "corrector"
-    return "domain"  # outside the domain, or an evaluation that fails there (a fall)
-
-
-def correct(system: ManifoldSystem, target: np.ndarray, tangent: np.ndarray, jacobian: np.ndarray,
-            iterations: int) -> tuple[np.ndarray, np.ndarray, int] | str:
-    """Newton on G(w) = [F(w), tangent^T (w - target)] = 0 from ``target``: (w, dF/dw at w,
-    steps) or the reason it failed.
-
-    The steps start with ``jacobian`` (the chart's own, a chord method: a residual costs
-    a fraction of a Jacobian). A chord step that leaves more than :data:`CHORD_RATE` of
-    |G| is not taken: the Jacobian is refreshed at the iterate and the step taken again.
-    A step with a fresh Jacobian is damped (halved, up to :data:`DAMPING_HALVINGS` times)
-    until |G| falls; if no damped step lowers it, Newton diverges. dF/dw is evaluated at
-    the solution, for its tangent space.
-    """
-    w = np.array(target, dtype=float)
-    evaluation = system.evaluate(w)
-    fresh = False
-    for step in range(iterations + 1):
-        if evaluation.residual is None:
-            return evaluation.failure or "the equations cannot be evaluated"
-        if system.solved(w, evaluation.residual):
-            final = system.jacobian(w)
-            return final if isinstance(final, str) else (w, final, step)
-        if step == iterations:
-            break
-        taken = _newton_step(system, w, evaluation, target, tangent, jacobian, fresh)
-        if isinstance(taken, str) and not fresh and taken != SINGULAR_FOLD:
-            # The chord step failed: take it again with a Jacobian at the iterate.
-            refreshed = system.jacobian(w)
-            if isinstance(refreshed, str):
-                return refreshed
-            jacobian, fresh = refreshed, True
-            taken = _newton_step(system, w, evaluation, target, tangent, jacobian, fresh)
-        if isinstance(taken, str):
-            return taken
-        w, evaluation, fresh = taken[0], taken[1], False
-    return f"Newton did not converge in {iterations} iterations"
-
-
-def _newton_step(system: ManifoldSystem, w: np.ndarray, evaluation: Evaluation, target: np.ndarray,
-                 tangent: np.ndarray, jacobian: np.ndarray, fresh: bool) -> tuple[np.ndarray, Evaluation] | str:
-    """One step of :func:`correct` from ``w``: the new iterate and F there, or why none was
-    taken. A chord step (``fresh`` False) must cut |G| to :data:`CHORD_RATE` of what it
-    was; a fresh one is halved until |G| falls at all."""
-    square = np.vstack([jacobian, tangent.T])
-    if np.linalg.cond(square) > SINGULAR_CONDITION:
-        return SINGULAR_FOLD
-    g = np.concatenate([evaluation.residual, tangent.T @ (w - target)])
-    norm, full = float(np.linalg.norm(g)), np.linalg.solve(square, g)
-    reason = DIVERGED
-    for halving in range(DAMPING_HALVINGS + 1 if fresh else 1):
-        trial = w - full / 2**halving
-        reason = system.outside(trial)
-        if reason:  # a wild iterate: refused before the system is evaluated there
-            continue
-        at_trial = system.evaluate(trial)
-        if at_trial.residual is None:
-            reason = at_trial.failure or "the equations cannot be evaluated"
-            continue
-        trial_norm = float(np.linalg.norm(np.concatenate([at_trial.residual, tangent.T @ (trial - target)])))
-        if trial_norm <= (CHORD_RATE if not fresh else 1.0) * norm:
-            return trial, at_trial
-        reason = DIVERGED
-    return reason
-
-
-def project_seed(system: ManifoldSystem, w: np.ndarray, iterations: int = 20) -> tuple[np.ndarray, np.ndarray] | str:
-    """Gauss-Newton (least-norm steps) from ``w`` onto F = 0: (point, dF/dw) or why not
-    (an evaluation that fails, an iterate outside the domain, or no convergence)."""
-    w = np.array(w, dtype=float)
-    for _ in range(iterations + 1):
-        evaluation = system.evaluate(w)
-        if evaluation.residual is None:
-            return evaluation.failure or "the equations cannot be evaluated"
-        jacobian = system.jacobian(w)
-        if isinstance(jacobian, str):
-            return jacobian
-        if system.solved(w, evaluation.residual):
-            return w, jacobian
-        w = w - np.linalg.lstsq(jacobian, evaluation.residual, rcond=None)[0]
-        reason = system.outside(w)
-        if reason:  # a wild iterate: refused before the system is evaluated there
-            return reason
-    return f"the seed did not converge in {iterations} iterations"
-
-
 def cover(system: ManifoldSystem, seeds: Iterable[np.ndarray | None], k: int,
-          settings: AtlasSettings = AtlasSettings(), progress: Callable[[int, int], None] | None = None) -> Atlas:
+          settings: AtlasSettings = AtlasSettings(), progress: Callable[[int, int], None] | None = None,
+          on_chart: Callable[[Chart], None] | None = None) -> Atlas:
     """Cover the solution set of ``system`` (of dimension ``k``) from ``seeds``.
 
     Parameters
@@ -520,12 +389,15 @@ def cover(system: ManifoldSystem, seeds: Iterable[np.ndarray | None], k: int,
     progress : callable, optional
         Called as ``progress(charts, seeds taken)`` every :data:`PROGRESS_CHARTS` charts
         and at the end.
+    on_chart : callable, optional
+        Called with each chart as it is made (in the order of ``Atlas.charts``), so that
+        the caller can start on its report while the covering goes on.
 
     Returns
     -------
     Atlas
     """
-    growth = _Growth(system, settings, k, progress=progress)
+    growth = _Growth(system, settings, k, progress=progress, on_chart=on_chart)
     outcomes = [_take_seed(growth, number, seed) for number, seed in enumerate(seeds)]
     growth.seeds_taken = len(outcomes)
     growth.grow([o.chart for o in outcomes if o.outcome == "new piece" and o.chart is not None])
@@ -539,12 +411,21 @@ def cover(system: ManifoldSystem, seeds: Iterable[np.ndarray | None], k: int,
         charts=tuple(growth.charts),
         neighbours=tuple(tuple(sorted(n)) for n in growth.neighbours),
         pieces=tuple(numbering[r] for r in roots),
-        areas=tuple(chart_areas(growth.charts, growth.neighbours, k, system.outside)),
+        areas=tuple(chart_areas(growth.charts, growth.neighbours, k, domain_test(system))),
         boundaries=tuple(growth.boundaries),
         seeds=tuple(outcomes),
         dimension=k,
         complete=complete,
     )
+
+
+def domain_test(system: ManifoldSystem) -> Callable[[np.ndarray], np.ndarray]:
+    """The system's test of many points (rows) for lying in its domain: its own
+    ``inside(points)`` if it has one, else :meth:`ManifoldSystem.outside` point by point."""
+    many = getattr(system, "inside", None)
+    if many is not None:
+        return many
+    return lambda points: np.array([not system.outside(q) for q in points], dtype=bool)
 
 
 def _take_seed(growth: _Growth, number: int, seed: np.ndarray | None) -> SeedOutcome:
@@ -570,10 +451,11 @@ def _take_seed(growth: _Growth, number: int, seed: np.ndarray | None) -> SeedOut
 
 
 def chart_areas(charts: Sequence[Chart], neighbours: Sequence[set[int]], k: int,
-                outside: Callable[[np.ndarray], str] | None = None) -> list[float]:
+                inside: Callable[[np.ndarray], np.ndarray] | None = None) -> list[float]:
     """Each chart's share of the covered k-volume, by a partition of unity over a fixed
-    pattern of points in its ball (see the module docstring); points ``outside`` the
-    domain count for nothing, so that balls reaching past a boundary add no area."""
+    pattern of points in its ball (see the module docstring); points not ``inside`` the
+    domain (a test of many points, rows, at once) count for nothing, so that balls
+    reaching past a boundary add no area."""
     pattern = ball_pattern(k)
     areas = []
     for chart in charts:
@@ -585,8 +467,8 @@ def chart_areas(charts: Sequence[Chart], neighbours: Sequence[set[int]], k: int,
             # would count against it (and so overstate the area by a few per cent).
             offset = points - charts[n].center
             count += np.linalg.norm(offset @ charts[n].tangent, axis=1) < charts[n].radius
-        inside = np.ones(len(points)) if outside is None else np.array([not outside(q) for q in points], dtype=float)
-        areas.append(ball_volume(k, chart.radius) * float(np.mean(inside / count)))
+        held = np.ones(len(points)) if inside is None else np.asarray(inside(points), dtype=float)
+        areas.append(ball_volume(k, chart.radius) * float(np.mean(held / count)))
     return areas
 
 

@@ -14,8 +14,10 @@ atlas (:mod:`baslip.analysis.atlas`) covers that set; this module gives it
   the runner can take a stride at all;
 * **a priority**: the spectral radius, so that the atlas grows from its most stable
   charts first and a chart limit leaves the most stable part of the family covered;
-* **what a chart says** (:func:`chart_report`): its multipliers and spectral radius, the
-  trunk's angle range over the stride, and the independent re-simulation's eps.
+* **what a chart says** (:func:`chart_report`): its multipliers and spectral radius, and
+  the checks (:class:`ChartChecker`, on maps of its own, so that they can run in a thread
+  beside the covering): the trunk's angle range over the stride and the independent
+  re-simulation's eps.
 """
 
 from __future__ import annotations
@@ -25,14 +27,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from baslip.analysis.atlas import Evaluation
-from baslip.engine.outcome import precheck
-from baslip.engine.returnmap import ReturnMap, RunnerFell, param_vector
+from baslip.analysis.corrector import Evaluation
+from baslip.engine.outcome import precheck, strides_can_start
+from baslip.engine.returnmap import ReturnMap, RunnerFell, Tolerances, param_vector
 from baslip.engine.trajectory import TrunkRange
+from baslip.gait.fixedpoint import VERIFY_TOLERANCES
 from baslip.gait.polish import POLISH_EPS, Polish, eps
 from baslip.gait.shooting import FixedPointSpec
 from baslip.gait.stability import Stability, classify
-from baslip.model.dynamics import APEX
+from baslip.model.dynamics import APEX, Params
+from baslip.model.hiplaw import HipLaw
 from baslip.model.quantities import DESIGN, NOMINAL
 
 #: Quantities charted in asinh(value / nominal) rather than value / nominal.
@@ -68,6 +72,11 @@ class GaitManifold:
         self._last_jacobian: tuple[bytes, np.ndarray] = (b"", np.zeros((0, 0)))
         self._stabilities: dict[bytes, Stability] = {}  # per chart centre: ranked by growth, then reported
 
+    #: Error of :meth:`evaluate_roughly` in F's norm, with a margin: the 1e-10 map's
+    #: estimate bounds each stride's error relative to max(1, |x|), and the event map it
+    #: hands the rare stride to has been seen 6e-9 off the 1e-12 map.
+    rough_error = 1e-8
+
     @property
     def dimension(self) -> int:
         """Dimension of the fixed-point set where the equations have full rank."""
@@ -94,10 +103,18 @@ class GaitManifold:
     # -- the ManifoldSystem interface ----------------------------------------------------
 
     def evaluate(self, w: np.ndarray) -> Evaluation:
-        """F(w) = r(X, u) - X (and the energy row), or why not (a fall)."""
+        """F(w) = r(X, u) - X (and the energy row) on the 1e-12 map, or why not (a fall)."""
+        return self._equations(w, self.residual_map)
+
+    def evaluate_roughly(self, w: np.ndarray) -> Evaluation:
+        """F(w) on the Jacobian's map (error estimate <= 1e-10, a third cheaper): the
+        corrector's far steps, where |F| is far above :attr:`rough_error`."""
+        return self._equations(w, self.jacobian_map)
+
+    def _equations(self, w: np.ndarray, rmap: ReturnMap) -> Evaluation:
         design = self.to_design(w)
         X, u = design[: APEX.size], design[APEX.size :]
-        stride = self.residual_map.stride(X, u, self.spec.params)
+        stride = rmap.stride(X, u, self.spec.params)
         if not stride.ok:
             return Evaluation(failure=f"a fall: {stride.fall.value if stride.fall else 'no next apex'}")
         rows = [stride.apex - X]
@@ -146,10 +163,60 @@ class GaitManifold:
         fallen, _ = precheck(design[: APEX.size], design[APEX.size :], self.p)
         return f"a fall: {fallen.fall.value}" if fallen is not None and fallen.fall is not None else ""
 
+    def inside(self, points: np.ndarray) -> np.ndarray:
+        """Whether each atlas point (rows of ``points``) lies inside the domain: the test of
+        :meth:`outside` for many points at once (the charts' areas test thousands)."""
+        points = np.atleast_2d(points)
+        lo, hi = self.atlas_bounds
+        held = np.all((lo <= points) & (points <= hi), axis=1)
+        design = np.array([self.to_design(w) for w in points[held]]).reshape(-1, len(DESIGN))
+        held[held] = strides_can_start(design[:, : APEX.size], design[:, APEX.size :], self.p)
+        return held
+
     def solved(self, w: np.ndarray, residual: np.ndarray) -> bool:
         """eps <= 1e-12 on the compiled map (and the energy row as small)."""
         X = self.to_design(w)[: APEX.size]
         return eps(X + residual[: APEX.size], X) <= POLISH_EPS and bool(np.all(np.abs(residual[APEX.size :]) <= POLISH_EPS))
+
+
+@dataclass(frozen=True)
+class ChartCheck:
+    """The independent re-simulation's eps at a chart's centre, and the trunk's range
+    [rad] over its stride."""
+
+    residual: float
+    theta_h_min: float
+    theta_h_max: float
+
+
+class ChartChecker:
+    """The checks of chart centres that do not use the covering's maps: eps from the
+    independent, tight-tolerance re-simulation (Rosenbrock, rtol = atol = 1e-12) and the
+    trunk's range from a sampled stride (compiled map at 1e-10). It owns its maps, so it
+    can run in a thread beside the covering (compiled calls release Python's lock).
+
+    Parameters
+    ----------
+    law : HipLaw
+        The problem's hip law.
+    params : Params
+        The runner's parameters.
+    """
+
+    def __init__(self, law: HipLaw, params: Params):
+        self.params = params
+        self.verify_map = ReturnMap(VERIFY_TOLERANCES, plugin="rosenbrock", law=law)
+        self.trunk_range = TrunkRange(ReturnMap(Tolerances(CHECK_SAMPLE_TOLERANCE, CHECK_SAMPLE_TOLERANCE), law=law))
+
+    def __call__(self, X: np.ndarray, u: np.ndarray) -> ChartCheck:
+        """The checks of the fixed point (X, u) [SI, rad]."""
+        check = self.verify_map.stride(X, u, self.params)
+        low, high = self.trunk_range(X, u, self.params)
+        return ChartCheck(eps(check.apex, X) if check.ok else math.inf, low, high)
+
+
+#: Tolerance of the stride that the trunk's range is sampled from.
+CHECK_SAMPLE_TOLERANCE = 1e-10
 
 
 @dataclass(frozen=True)
@@ -167,15 +234,12 @@ class ChartReport:
     residual: float
 
 
-def chart_report(manifold: GaitManifold, w: np.ndarray, verify_map: ReturnMap, trunk_range: TrunkRange) -> ChartReport:
+def chart_report(manifold: GaitManifold, w: np.ndarray, check: ChartCheck) -> ChartReport:
     """The report of the chart centred at ``w``: its multipliers (:meth:`GaitManifold.stability`,
-    from the AD Jacobian of the compiled map), the trunk's range from a sampled stride, and
-    eps from ``verify_map`` (the independent, tight-tolerance re-simulation)."""
+    from the AD Jacobian of the compiled map) with the chart's independent ``check``
+    (:class:`ChartChecker`)."""
     design = manifold.to_design(w)
-    X, u = design[: APEX.size], design[APEX.size :]
     stability = manifold.stability(w)
-    low, high = trunk_range(X, u, manifold.spec.params)
-    check = verify_map.stride(X, u, manifold.spec.params)
-    residual = eps(check.apex, X) if check.ok else math.inf
-    return ChartReport(X, u, tuple(m.value for m in stability.multipliers), stability.spectral_radius,
-                       bool(stability.stable), low, high, residual)
+    return ChartReport(design[: APEX.size], design[APEX.size :], tuple(m.value for m in stability.multipliers),
+                       stability.spectral_radius, bool(stability.stable), check.theta_h_min, check.theta_h_max,
+                       check.residual)

@@ -135,21 +135,40 @@ def touchdown_guesses(X: np.ndarray, U: np.ndarray, p) -> np.ndarray:
     (n x controls), the grid search done for all rows at once; NaN where the foot cannot reach
     the ground."""
     X, U, p = np.asarray(X, dtype=float), np.asarray(U, dtype=float), np.asarray(p, dtype=float)
+    found, grid, first = _touchdown_brackets(X, U, p)
+    clearance = X[:, _Z] - float(p[_RHO0]) * np.cos(U[:, _THETA_TD])
+    guesses = np.full(len(X), np.nan)
+    for i in np.nonzero(found)[0]:
+        lo, hi = grid[i, first[i]], grid[i, first[i] + 1]
+        guesses[i] = _refine_root(lo, hi, float(X[i, _THETA_H]), float(X[i, _SPIN]), float(clearance[i]),
+                                  float(p[_D]), float(p[_G]))
+    return guesses
+
+
+def _touchdown_brackets(X: np.ndarray, U: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The grid search of :func:`touchdown_guess` for the rows of X under the rows of U:
+    whether the foot reaches the ground, the grids of times [s] and, per row, the grid
+    interval of the first root."""
     z, theta_h, spin = X[:, _Z], X[:, _THETA_H], X[:, _SPIN]
     rho0, d, g = float(p[_RHO0]), float(p[_D]), float(p[_G])
     theta_td = U[:, _THETA_TD]
-    guesses = np.full(len(X), np.nan)
     reaches = np.abs(theta_td) < math.pi / 2
     clearance = z - rho0 * np.cos(theta_td)
     grid = _descent_bound(clearance, d, g)[:, None] * _GRID_FRACTIONS[None, :]
     height = descent_foot_height(grid[:, 1:], z[:, None], theta_h[:, None], spin[:, None], theta_td[:, None], d, rho0, g)
     below = height <= 0.0
-    found = reaches & below.any(axis=1)
-    first = np.argmax(below, axis=1)
-    for i in np.nonzero(found)[0]:
-        lo, hi = grid[i, first[i]], grid[i, first[i] + 1]
-        guesses[i] = _refine_root(lo, hi, float(theta_h[i]), float(spin[i]), float(clearance[i]), d, g)
-    return guesses
+    return reaches & below.any(axis=1), grid, np.argmax(below, axis=1)
+
+
+def strides_can_start(X: np.ndarray, U: np.ndarray, p) -> np.ndarray:
+    """Whether :func:`precheck` finds no fall from each apex (rows of X, n x 4) under the
+    rows of U (n x controls), without refining the touchdown times: the cheap test of many
+    points at once."""
+    X, U, p = np.asarray(X, dtype=float), np.asarray(U, dtype=float), np.asarray(p, dtype=float)
+    finite = np.isfinite(X).all(axis=1) & np.isfinite(U).all(axis=1) & bool(np.isfinite(p).all())
+    X, U = np.where(finite[:, None], X, 0.0), np.where(finite[:, None], U, 0.0)
+    above = _foot_height_at_apex(X[:, _Z], X[:, _THETA_H], U[:, _THETA_TD], p) >= 0.0
+    return finite & above & _touchdown_brackets(X, U, p)[0]
 
 
 def _descent_bound(clearance, d: float, g: float):

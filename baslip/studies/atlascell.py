@@ -7,13 +7,15 @@ import math
 import sys
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import replace
 
 import numpy as np
 
+from baslip.analysis.atlas import Atlas as Covering
 from baslip.analysis.atlas import AtlasSettings, cover, local_minima
 from baslip.analysis.descent import StabilityDescent, random_start
-from baslip.analysis.gaitatlas import GaitManifold, chart_report
+from baslip.analysis.gaitatlas import ChartChecker, ChartReport, GaitManifold, chart_report
 from baslip.engine.returnmap import ReturnMap, RunnerFell, Tolerances
 from baslip.engine.trajectory import TrunkRange
 from baslip.gait.from_problem import fixed_point_spec, solver_for
@@ -47,6 +49,7 @@ class CellAtlas:
         self.solver = solver_for(problem)
         self.jacobian_map = ReturnMap(Tolerances(JACOBIAN_TOLERANCE, JACOBIAN_TOLERANCE))
         self.trunk_range = TrunkRange(self.jacobian_map)
+        self.checker = ChartChecker(problem.hip_law, problem.params)
         self.descent = StabilityDescent(self.solver.residual_map, max_iterations=study.iterations)
         self.base = fixed_point_spec(problem)
         self.settings = AtlasSettings(radius=study.radius, max_radius=study.max_radius,
@@ -63,11 +66,7 @@ class CellAtlas:
         for number in range(self.study.seeds):
             say(f"solving seed {number + 1} of {self.study.seeds}", always=number == 0)
             seeds.append(self._seed(spec, manifold, rng if number else None))
-        atlas = cover(manifold, seeds, manifold.dimension, self.settings,
-                      lambda charts, taken: say(f"{charts} charts from {taken} seeds"))
-        say(f"{len(atlas.charts)} charts covered; verifying each independently", always=True)
-        reports = [chart_report(manifold, c.center, self.solver.verify_map, self.trunk_range)
-                   for c in atlas.charts]
+        atlas, reports = self.cover_and_check(manifold, seeds, say)
         charts = chart_rows(atlas, reports)
         row = {k: v for k, v in task.items() if k.startswith("sweep_")}
         row.update(_cell_counts(atlas, charts))
@@ -76,6 +75,24 @@ class CellAtlas:
             None if b is None else b["spectral_radius"] for b in best)
         return {**row, "chart_rows": charts, "boundary_rows": boundary_rows(atlas, manifold),
                 "best_rows": [b for b in best if b is not None]}
+
+    def cover_and_check(self, manifold: GaitManifold, seeds: Sequence[np.ndarray | None],
+                        say: Callable[..., None] = lambda text, always=False: None) -> tuple[Covering, list[ChartReport]]:
+        """The atlas of ``manifold`` from ``seeds`` and each chart's report. The charts'
+        independent checks (:class:`ChartChecker`) run in a second thread as the charts
+        are made, on the other core; the reports do not depend on it."""
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            checks: list[Future] = []
+
+            def check(chart) -> None:
+                design = manifold.to_design(chart.center)
+                checks.append(pool.submit(self.checker, design[: APEX.size], design[APEX.size :]))
+
+            atlas = cover(manifold, seeds, manifold.dimension, self.settings,
+                          lambda charts, taken: say(f"{charts} charts from {taken} seeds"), on_chart=check)
+            say(f"{len(atlas.charts)} charts covered; finishing their independent verification", always=True)
+            done = [future.result() for future in checks]
+        return atlas, [chart_report(manifold, c.center, d) for c, d in zip(atlas.charts, done)]
 
     def _progress(self, held: dict):
         """``say(text, always=False)``: prints a progress line of the cell on stderr, at
