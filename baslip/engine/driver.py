@@ -148,9 +148,11 @@ class CompiledEngine:
             n = TIERS[i]
             apex, durations, diagnostics = (o.ravel() for o in self.functions.final(n)(X, u, p, guesses))
             verdict = self.judge(apex, durations, diagnostics)
-            if verdict is None and not regridded and missed_grid(durations, diagnostics):
+            if verdict is None and not regridded and events_unsettled(durations, diagnostics):
                 # The scout's event estimate was off by more than a grid step (a strong hip
-                # torque bends rho near liftoff): this pass's own durations set the grid.
+                # torque bends rho near liftoff), or too far for the pass's few Newton
+                # steps on the event to converge (a fast-swinging trunk): this pass's own
+                # durations set the grid and the start of those steps.
                 guesses, regridded, coarse = np.asarray(durations[:3], dtype=float), True, None
                 continue
             if not isinstance(verdict, str):  # the one string verdict is "refine"
@@ -325,15 +327,19 @@ def verdict_rules(d, durations, apex, tolerance: float):
     )
 
 
-def missed_grid(durations, diagnostics) -> bool:
-    """Whether a final pass ended an event step more than :data:`LAST_STEP_RANGE` grid
-    steps from its grid's end, with finite durations and no fall: its grid, not its
-    accuracy, is in doubt."""
+def events_unsettled(durations, diagnostics) -> bool:
+    """Whether a final pass, clear of falls with finite, positive durations, ended a stance
+    event's step more than :data:`LAST_STEP_RANGE` grid steps from its grid's end or left
+    the event's Newton update unconverged: its grid and event start, not its accuracy,
+    are in doubt, and a pass from its own durations settles them."""
     d = DIAGNOSTICS.to_dict(diagnostics)
     lo, hi = LAST_STEP_RANGE
     off = not (lo < d["bottom_last_step"] < hi and lo < d["liftoff_last_step"] < hi)
+    unconverged = not (abs(d["bottom_update"]) <= NEWTON_CONVERGED * durations[_COMPRESSION]
+                       and abs(d["liftoff_update"]) <= NEWTON_CONVERGED * durations[_DECOMPRESSION])
     clear = all(d[f"{name}_min"] > 0.0 for name in CLEARANCES) and d["zdot_lo"] > 0.0
-    return bool(off and clear and np.all(np.isfinite(durations)) and np.all(np.asarray(durations[:3]) > 0.0))
+    positive = bool(np.all(np.isfinite(durations)) and np.all(np.asarray(durations[:3]) > 0.0))
+    return (off or unconverged) and clear and positive
 
 
 def stride_of_verdict(code: int, apex, durations, error: float) -> Stride | str | None:
