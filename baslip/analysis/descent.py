@@ -337,14 +337,10 @@ class StabilityDescent:
         start = design.copy()
         for i in chart:
             start[i] = held[DESIGN[i]]
-        X, u, _, note = self.polish.run(replace(spec, fixed=held), start[:4], start[4:])
+        X, u, _, note = self.polish.run(replace(spec, fixed=held), start[:4], start[4:], within_bounds=True)
         if note:
             return None
         point = np.concatenate([X, u])
-        for i, name in enumerate(DESIGN):
-            lo, hi = spec.bounds_of(name)
-            if not lo <= point[i] <= hi:
-                return None
         stride = self.rmap.stride(X, u, spec.params)
         if not stride.ok or eps(stride.apex, X) > 1e-12:
             return None
