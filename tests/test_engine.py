@@ -144,9 +144,12 @@ def test_a_pass_whose_event_newton_is_unsettled_is_taken_again_from_its_own_dura
     assert first is None  # the first pass alone could not be vouched for
     before = compiled.fallbacks
     ours = compiled.stride(X, u, PARAMS)
-    compiled.jacobians(X, u, PARAMS)
+    jacobians = compiled.all_jacobians(X, u, PARAMS)
     assert compiled.fallbacks == before
     assert relative_gap(ours.apex, reference.stride(X, u, PARAMS).apex) <= 1e-12
+    # The Jacobian is that of the pass taken again (its own event guesses), not of the first.
+    for a, b in zip(jacobians, reference.all_jacobians(X, u, PARAMS)):
+        assert np.max(np.abs(a - b) / np.maximum(1.0, np.abs(b))) <= 1e-8
 
 
 @pytest.mark.parametrize("Kd", [5.0, 30.0, 100.0])

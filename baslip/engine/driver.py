@@ -121,11 +121,12 @@ class CompiledEngine:
         plan = self._plan(X, u, p, t_guess)
         if not isinstance(plan, tuple):
             return None if plan is None else (None, plan)
-        n, verdict = self._final(X, u, p, *plan)
+        n, verdict, guesses = self._final(X, u, p, *plan)
         if verdict is None or not verdict.ok:
             return None if verdict is None else (None, verdict)
         # The verdict of the value pass: a Richardson-accepted pass alone would ask to refine.
-        return self.functions.jacobian(n)(X, u, p, plan[-1])[0], verdict
+        # Its own event guesses: a pass taken again from its durations has new ones.
+        return self.functions.jacobian(n)(X, u, p, guesses)[0], verdict
 
     def settled_pass(self, X, u, p, t_guess) -> tuple[int, np.ndarray] | None:
         """(step count, guesses) of the final pass that :meth:`stride` accepts for a clean
@@ -133,16 +134,18 @@ class CompiledEngine:
         plan = self._plan(X, u, p, t_guess)
         if not isinstance(plan, tuple):
             return None
-        n, verdict = self._final(X, u, p, *plan)
-        return None if verdict is None or not verdict.ok else (n, plan[-1])
+        n, verdict, guesses = self._final(X, u, p, *plan)
+        return None if verdict is None or not verdict.ok else (n, guesses)
 
     # -- pieces ----------------------------------------------------------------------
 
-    def _final(self, X, u, p, lowest: int, start: int, guesses) -> tuple[int, Stride | None]:
+    def _final(self, X, u, p, lowest: int, start: int, guesses) -> tuple[int, Stride | None, np.ndarray]:
         """The final pass at the first step count whose error estimate is within the
         tolerance, from ``TIERS[start]`` up; the Richardson estimate compares it with the
         last pass at a lower count, or with one at the count below (if not below
-        ``TIERS[lowest]``, the least stable one). Returns (step count, verdict)."""
+        ``TIERS[lowest]``, the least stable one). Returns (step count, verdict, the event
+        guesses of that pass), so that other functions of the same pass (its Jacobian)
+        start from the same guesses."""
         i, coarse, regridded = start, None, False
         while i < len(TIERS):
             n = TIERS[i]
@@ -156,7 +159,7 @@ class CompiledEngine:
                 guesses, regridded, coarse = np.asarray(durations[:3], dtype=float), True, None
                 continue
             if not isinstance(verdict, str):  # the one string verdict is "refine"
-                return n, verdict
+                return n, verdict, guesses
             result = np.concatenate([apex, durations])
             if coarse is None and i > lowest:
                 below = TIERS[i - 1]
@@ -165,9 +168,9 @@ class CompiledEngine:
             if error <= self.tolerance:
                 accepted = stride_of_verdict(ACCEPTED, apex, durations, error)
                 assert isinstance(accepted, Stride)
-                return n, accepted
+                return n, accepted, guesses
             i, coarse = next_tier(i, error, self.tolerance), (n, result)
-        return TIERS[-1], None
+        return TIERS[-1], None, guesses
 
     def _plan(self, X, u, p, t_guess):
         """Touchdown checks and the scout: a fall, None, or the indices in TIERS of the least
