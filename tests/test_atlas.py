@@ -3,8 +3,9 @@ answers are known: a circle, a sphere, a torus and the 3-sphere are covered whol
 their length, area or volume, and no holes; a domain boundary stops the covering with its
 reason; separate pieces are found as pieces, and a seed on a covered piece joins it; all
 pieces grow together, best-first, so that a chart limit reaches every seed's piece; a
-chart limit leaves the atlas marked incomplete; the chart graph's local minima of a function are one chart in each of its
-valleys."""
+chart limit leaves the atlas marked incomplete; a ball whose tangent space has turned away
+does not close a chart's directions; the chart graph's local minima of a function are one
+chart in each of its valleys."""
 
 import math
 
@@ -13,6 +14,7 @@ import pytest
 
 from baslip.analysis.atlas import (
     AtlasSettings,
+    _Growth,
     ball_pattern,
     ball_volume,
     cover,
@@ -219,3 +221,26 @@ def test_directions_are_unit_and_the_ball_pattern_fills_the_unit_ball(k):
     assert np.linalg.norm(pattern, axis=1).max() <= 1.0
     assert abs(np.mean(np.linalg.norm(pattern, axis=1) ** 2) - k / (k + 2)) < 0.02  # uniform in the ball
     assert ball_volume(2, 1.0) == pytest.approx(math.pi) and ball_volume(3, 2.0) == pytest.approx(32 * math.pi / 3)
+
+
+def test_a_ball_whose_tangent_has_turned_away_does_not_close_a_charts_directions():
+    """On the unit sphere, a chart at (1, 0, 0) and a large one 60 deg away along the
+    equator whose ball holds some of the first chart's boundary points: those stay open,
+    since the second chart's tangent plane has turned by 60 deg (more than max_turn); a
+    chart 20 deg away, as large, closes them."""
+    sphere, settings = Sphere(3), AtlasSettings(radius=0.3, max_radius=1.5)
+
+    def chart_at(angle, radius, growth):
+        centre = np.array([math.cos(angle), math.sin(angle), 0.0])
+        tangent = np.column_stack([[-math.sin(angle), math.cos(angle), 0.0], [0.0, 0.0, 1.0]])
+        return growth.add(centre, tangent, sphere.jacobian(centre), radius, None, 0, 0)
+
+    for angle, closes in ((math.radians(60), False), (math.radians(20), True)):
+        growth = _Growth(sphere, settings, 2)
+        growth.parent_piece.append(0)
+        first = chart_at(0.0, 0.3, growth)
+        far = chart_at(angle, 1.0, growth)
+        inside = [d for d in range(len(growth.directions))
+                  if np.linalg.norm(growth.boundary_point(first, d) - far.center) < far.radius]
+        assert inside  # the large ball holds some of the first chart's boundary points
+        assert all(not growth.open[first.index][d] for d in inside) == closes

@@ -12,7 +12,10 @@ describe for COCO's ``atlas_kd``, simplified where baslip's dimensions (k = 1 to
   per chart instead; with directions this dense and neighbours at most R apart, the
   balls overlap so much that the sampled boundary leaves no holes on the test manifolds
   (the tests check it on a sphere, a torus and the 3-sphere).
-* A direction is **covered** when its boundary point lies inside another chart's ball.
+* A direction is **covered** when its boundary point lies inside the ball of a
+  neighbour (a chart whose ball overlaps this one's) whose tangent space is within
+  :data:`COVER_TURN` times :attr:`AtlasSettings.max_turn` of this one's: where two sheets
+  of the manifold pass close in the ambient space, their balls overlap too.
   The atlas grows from the charts with uncovered directions, oldest first (or, if the
   system ranks its points, most interesting first): a new centre
   is predicted at w0 + h T d (h = R) and corrected by Newton's method on
@@ -59,6 +62,12 @@ DIRECTIONS_2D = 12
 DIRECTIONS_3D = 32
 #: Points of the fixed pattern in a chart's ball for its area share.
 AREA_SAMPLES = {1: 32, 2: 96, 3: 192}
+#: A neighbour covers a chart's boundary point only if their tangent spaces are within
+#: this many times :attr:`AtlasSettings.max_turn`, the bound a chart and the chart it grew
+#: from meet. At twice that, an upright cell of the gait atlas still closed itself falsely
+#: around a strip of theta_h between 89 and 91 deg (charts of radius 1.5 to 3 whose
+#: tangents differed by 30 to 60 deg).
+COVER_TURN = 1.0
 #: Charts between two progress reports.
 PROGRESS_CHARTS = 100
 #: Corrector iterations (chord steps included) of a step that counts as easy, so that the
@@ -290,11 +299,16 @@ class _Growth:
         return chart
 
     def close_covered(self, j: int) -> None:
-        """Close the open directions of chart ``j`` whose boundary points its neighbours cover."""
+        """Close the open directions of chart ``j`` whose boundary points its neighbours
+        cover: neighbours whose tangent spaces are within :data:`COVER_TURN` times
+        ``max_turn`` of its own. Where two sheets of the manifold pass close in the ambient
+        space, their balls overlap too, and would otherwise close each other's directions."""
         chart = self.charts[j]
+        aligned = [n for n in self.neighbours[j]
+                   if turn_angle(chart.tangent, self.charts[n].tangent) <= COVER_TURN * self.settings.max_turn]
         for d in np.nonzero(self.open[j])[0]:
             point = self.boundary_point(chart, d)
-            for n in self.neighbours[j]:
+            for n in aligned:
                 if np.linalg.norm(point - self.centers[n]) < self.charts[n].radius:
                     self.open[j][d] = False
                     break
