@@ -128,7 +128,7 @@ def correct(system: ManifoldSystem, target: np.ndarray, tangent: np.ndarray, jac
     residuals = _Residuals(system)
     w = np.array(target, dtype=float)
     evaluation, exact = residuals(w, np.inf)
-    fresh = False
+    fresh = updated = False  # a Jacobian at the iterate; one changed by Broyden's updates
     for step in range(iterations + 1):
         if evaluation.residual is not None and not exact and np.linalg.norm(evaluation.residual) <= residuals.rough_limit:
             evaluation, exact = residuals(w, 0.0)  # close to the manifold: from here on, F itself
@@ -140,8 +140,9 @@ def correct(system: ManifoldSystem, target: np.ndarray, tangent: np.ndarray, jac
         if step == iterations:
             break
         taken = _newton_step(residuals, w, evaluation, target, tangent, jacobian, fresh)
-        if isinstance(taken, str) and not fresh and taken != SINGULAR_FOLD:
-            # The updated Jacobian's step failed: take it again with a Jacobian at the iterate.
+        if isinstance(taken, str) and not fresh and (taken != SINGULAR_FOLD or updated):
+            # The step failed: take it again with a Jacobian at the iterate. A fold is the
+            # chart's own (its Jacobian's square system is singular), not an update's.
             refreshed = system.jacobian(w)
             if isinstance(refreshed, str):
                 return refreshed
@@ -151,7 +152,7 @@ def correct(system: ManifoldSystem, target: np.ndarray, tangent: np.ndarray, jac
             return taken
         trial, at_trial, trial_exact = taken
         if trial_exact == exact:  # Broyden's update, from two values of the same accuracy
-            jacobian = broyden_update(jacobian, trial - w, at_trial.residual - evaluation.residual)
+            jacobian, updated = broyden_update(jacobian, trial - w, at_trial.residual - evaluation.residual), True
         w, evaluation, exact, fresh = trial, at_trial, trial_exact, False
     return f"Newton did not converge in {iterations} iterations"
 
