@@ -70,7 +70,7 @@ AREA_SAMPLES = {1: 32, 2: 96, 3: 192}
 COVER_TURN = 1.0
 #: Charts between two progress reports.
 PROGRESS_CHARTS = 100
-#: Corrector iterations (chord steps included) of a step that counts as easy, so that the
+#: Corrector iterations (updated-Jacobian steps included) of a step that counts as easy, so that the
 #: next chart may be larger.
 EASY_ITERATIONS = 8
 
