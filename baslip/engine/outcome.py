@@ -165,10 +165,18 @@ def strides_can_start(X: np.ndarray, U: np.ndarray, p) -> np.ndarray:
     rows of U (n x controls), without refining the touchdown times: the cheap test of many
     points at once."""
     X, U, p = np.asarray(X, dtype=float), np.asarray(U, dtype=float), np.asarray(p, dtype=float)
+    X, U, _, above = _apex_checks(X, U, p)
+    return above & _touchdown_brackets(X, U, p)[0]
+
+
+def _apex_checks(X: np.ndarray, U: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(X, U with non-finite rows zeroed, which rows are finite, which of those have the
+    foot above ground at the apex): the checks before the touchdown search."""
     finite = np.isfinite(X).all(axis=1) & np.isfinite(U).all(axis=1) & bool(np.isfinite(p).all())
-    X, U = np.where(finite[:, None], X, 0.0), np.where(finite[:, None], U, 0.0)
-    above = _foot_height_at_apex(X[:, _Z], X[:, _THETA_H], U[:, _THETA_TD], p) >= 0.0
-    return finite & above & _touchdown_brackets(X, U, p)[0]
+    if not finite.all():  # keep non-finite rows out of the trigonometry (no warnings)
+        X, U = np.where(finite[:, None], X, 0.0), np.where(finite[:, None], U, 0.0)
+    above = finite & (_foot_height_at_apex(X[:, _Z], X[:, _THETA_H], U[:, _THETA_TD], p) >= 0.0)
+    return X, U, finite, above
 
 
 def _descent_bound(clearance, d: float, g: float):
@@ -222,10 +230,7 @@ def prechecks(X: np.ndarray, U: np.ndarray, p) -> tuple[list[Stride | None], np.
     (NaN after a fall)."""
     X, U, p = np.asarray(X, dtype=float), np.asarray(U, dtype=float), np.asarray(p, dtype=float)
     falls: list[Stride | None] = [None] * len(X)
-    finite = np.isfinite(X).all(axis=1) & np.isfinite(U).all(axis=1) & bool(np.isfinite(p).all())
-    if not finite.all():  # keep non-finite rows out of the trigonometry (no warnings)
-        X, U = np.where(finite[:, None], X, 0.0), np.where(finite[:, None], U, 0.0)
-    above = finite & (_foot_height_at_apex(X[:, _Z], X[:, _THETA_H], U[:, _THETA_TD], p) >= 0.0)
+    X, U, finite, above = _apex_checks(X, U, p)
     guesses = np.full(len(X), np.nan)
     guesses[above] = touchdown_guesses(X[above], U[above], p)
     for i in np.nonzero(~finite)[0]:

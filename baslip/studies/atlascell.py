@@ -17,7 +17,6 @@ from baslip.analysis.atlas import AtlasSettings, cover, local_minima
 from baslip.analysis.descent import StabilityDescent, random_start
 from baslip.analysis.gaitatlas import ChartChecker, ChartReport, GaitManifold, chart_report
 from baslip.engine.returnmap import ReturnMap, RunnerFell, Tolerances
-from baslip.engine.trajectory import TrunkRange
 from baslip.gait.from_problem import fixed_point_spec, solver_for
 from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import CONTROL
@@ -48,7 +47,6 @@ class CellAtlas:
         self.problem, self.study, self.quiet = problem, study, quiet
         self.solver = solver_for(problem)
         self.jacobian_map = ReturnMap(Tolerances(JACOBIAN_TOLERANCE, JACOBIAN_TOLERANCE))
-        self.trunk_range = TrunkRange(self.jacobian_map)
         self.checker = ChartChecker(problem.hip_law, problem.params)
         self.descent = StabilityDescent(self.solver.residual_map, max_iterations=study.iterations)
         self.base = fixed_point_spec(problem)
@@ -151,7 +149,7 @@ class CellAtlas:
         end = self.solver.verify_point(spec, found.best.X, found.best.u, self.problem.name)
         if not end.converged:
             return None
-        low, high = self.trunk_range(end.X, end.u, spec.params)
+        low, high = self.checker.trunk_range(end.X, end.u, spec.params)
         return {"meaning": meaning, "from_chart": chart["chart"], "start_radius": chart["spectral_radius"],
                 **dict(zip(APEX.names, map(float, end.X))), **dict(zip(CONTROL.names, map(float, end.u))),
                 "spectral_radius": end.spectral_radius, "stable": bool(end.stable),
