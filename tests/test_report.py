@@ -132,3 +132,21 @@ def test_the_atlas_claim_names_the_polished_gaits_and_maps_the_hanging_family(tm
     assert "between -34 and 155 deg" in text
     assert "the hanging family" in text and "(0.5, 0.4): least radius 0.4, stable share 25.0%" in text
     assert "**Verdict:** differs: a stable gait upright at the apex exists; none was found upright throughout" in text
+
+
+def basins(largest, last_share, cost):
+    return {"largest_90_box": largest, "per_box": [
+        {"box": 1.0, "returned_fraction": 1.0, "ci95": [0.99, 1.0], "median_ms_per_stride": cost},
+        {"box": 16.0, "returned_fraction": last_share, "ci95": [0.0, 1.0], "median_ms_per_stride": cost}]}
+
+
+def test_the_best_controller_has_the_largest_90_percent_box_then_the_most_returned_then_the_least_cost():
+    from baslip.report.controllers import best_controller
+
+    summary = {"basins": {"constant": basins(None, 0.0, 0.1), "feedback": basins(4.0, 0.4, 0.2),
+                          "horizon": basins(8.0, 0.75, 30.0), "resolve": basins(8.0, 0.5, 4.0)}}
+    assert best_controller(summary) == "horizon"
+    summary["basins"]["resolve"] = basins(8.0, 0.75, 4.0)  # as far and as many: the cheaper one
+    assert best_controller(summary) == "resolve"
+    summary["basins"] = {"constant": basins(None, 0.0, 0.1), "feedback": basins(None, 0.01, 0.2)}
+    assert best_controller(summary) == "feedback"  # no 90 % box: the most returned in the largest box

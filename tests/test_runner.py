@@ -3,6 +3,7 @@
 A study's CSV survives anything a kill or a crash can leave: a row cut short, an empty
 file, a torn header, junk, repeated keys. What cannot be repaired is set aside, never
 lost and never an internal error. Workers never outlive the process that started them.
+The time left is estimated from the recent pace, not the pace since the start.
 """
 
 import csv
@@ -16,7 +17,7 @@ import pytest
 from processes import gone
 from runs import ROOT
 
-from baslip.studies.runner import ResumableCsv, StateLog
+from baslip.studies.runner import RATE_WINDOW_S, Progress, ResumableCsv, StateLog
 
 
 def test_an_empty_file_gets_its_header_back(tmp_path):
@@ -137,3 +138,18 @@ def test_rows_that_are_no_task_of_the_study_are_dropped(tmp_path):
     note = again.keep_tasks([{"sweep_z": 0.4}, {"sweep_z": 0.5}])
     assert note == "points.csv: dropped 2 rows that are no task of this study"
     assert (tmp_path / "points.csv").read_text() == "sweep_z,value\n0.4,1.0\n" and again.done() == {("0.4",)}
+
+
+def test_the_rate_is_the_recent_pace_once_slow_tasks_follow_fast_ones():
+    """1,000 fast tasks in 10 s, then one a second for two windows: the rate is then 1/s,
+    where the average since the start (more than 7/s) would promise a seventh of the time
+    left."""
+    progress = Progress("study", 2000, quiet=True)
+    for k in range(1, 1001):
+        progress.rate(k, k / 100)
+    seconds = int(2 * RATE_WINDOW_S)
+    for k in range(1, seconds + 1):
+        rate = progress.rate(1000 + k, 10 + k)
+    assert rate == pytest.approx(1.0)
+    assert (1000 + seconds) / (10 + seconds) > 7
+    assert Progress("study", 10, quiet=True).rate(0, 0.0) == 0.0

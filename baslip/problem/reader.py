@@ -41,7 +41,7 @@ from baslip.model.quantities import (
     start_value,
 )
 from baslip.problem.continuation import ContinuationSpec, check_continuation, parse_continuation
-from baslip.problem.study import STUDY_KINDS, Atlas, Basin, Optimal, Study, Sweep, parse_study
+from baslip.problem.study import ADAPTED_CONTROLS, STUDY_KINDS, Atlas, Basin, Optimal, Study, Sweep, parse_study
 from baslip.problem.text import UnreadableText, clip, excerpt, read_yaml
 from baslip.problem.values import mapping, physical
 from baslip.problem.values import number as _number
@@ -218,6 +218,7 @@ def _check_law(problem: Problem) -> None:
             controls = ", ".join(problem.hip_law.controls.names)
             raise ProblemError(key, f"{name} is not a quantity under hip_law {problem.hip_law.name} "
                                f"(its controls are {controls})")
+    _check_adapted_controls(problem)
     if problem.hip_law is PD:
         return
     if problem.study is not None and problem.study.kind not in ANY_LAW_STUDIES:
@@ -230,6 +231,16 @@ def _check_law(problem: Problem) -> None:
         # a VPP gait's symmetry multiplier has none to leave out.
         raise ProblemError("continuation.second", f"bifurcation curves run under hip_law pd only, so far; under "
                            f"{problem.hip_law.name}, trace a branch (no second parameter)")
+
+
+def _check_adapted_controls(problem: Problem) -> None:
+    """A controller that adapts named controls (``pivot``: r_vpp) needs a law that has them."""
+    for name in getattr(problem.study, "controllers", ()):
+        missing = [c for c in ADAPTED_CONTROLS.get(name, ()) if c not in problem.hip_law.controls.names]
+        if missing:
+            raise ProblemError("study.controllers", f"{name} adapts {', '.join(missing)}, which hip_law "
+                               f"{problem.hip_law.name} does not have (its controls are "
+                               f"{', '.join(problem.hip_law.controls.names)}); use hip_law vpp")
 
 
 def _objective(value: Any) -> str:

@@ -134,7 +134,7 @@ class Controllers:
     lqr_scale: tuple[tuple[str, float], ...] = ()  # fixed LQR weights (apex deviation costing as much as a
     # nominal control change); without them the tool chooses the weights
     boxes: tuple[float, ...] = (1.0,)  # multiples of the perturbation's half-widths: one basin box each
-    controllers: tuple[str, ...] = ("constant", "feedback", "horizon", "resolve")
+    controllers: tuple[str, ...] = ("constant", "feedback", "horizon", "resolve")  # some of CONTROLLER_KINDS
     horizon: int = 2  # strides planned by the receding-horizon re-solve
     solve_samples: int | None = None  # starts per box for the two re-solving controllers (default: samples)
     kind: str = "controllers"
@@ -225,7 +225,7 @@ def parse_study(data) -> Study:
             criterion=criterion,
             lqr_scale=_apex_map(data.get("lqr_scale", {}), "study.lqr_scale", positive=True),
             boxes=_boxes(data.get("boxes", [1.0])),
-            controllers=_controller_names(data.get("controllers", list(CONTROLLER_KINDS))),
+            controllers=_controller_names(data.get("controllers", list(Controllers.controllers))),
             horizon=_integer(data.get("horizon", 2), "study.horizon", 1, 8),
             solve_samples=None if data.get("solve_samples") is None else _integer(
                 data.get("solve_samples"), "study.solve_samples", 1, 100000),
@@ -310,7 +310,10 @@ def _method(value) -> str:
 
 
 #: The controllers a ``controllers`` study can compare.
-CONTROLLER_KINDS = ("constant", "feedback", "horizon", "resolve")
+CONTROLLER_KINDS = ("constant", "feedback", "pivot", "horizon", "resolve")
+#: The controllers that adapt only some controls at every apex, and those controls (the
+#: hip law must have them): ``pivot`` moves the virtual pivot alone (Sharbafi et al. 2013).
+ADAPTED_CONTROLS = {"pivot": ("r_vpp",)}
 
 
 def _boxes(value) -> tuple[float, ...]:

@@ -10,12 +10,14 @@ runs for at most ``strides`` strides (:mod:`baslip.analysis.feedback`):
   dr/du has rank 4 and its controls stay within their bounds over the smallest box;
   otherwise discrete LQR, with the weights ``lqr_scale`` if given, else chosen by the tool
   (:mod:`baslip.analysis.tuning`) for the largest converged share of a pilot sample;
+* ``pivot`` (VPP law): the same, adapting the pivot r_vpp alone at every apex, the touchdown
+  angle held at the gait's (Sharbafi et al. 2013 adapt the pivot by discrete LQR);
 * ``horizon``: the next ``horizon`` strides' controls re-solved at every apex so that the
   apex after them is X* (:mod:`baslip.analysis.horizon`);
 * ``resolve``: u re-solved at every apex for the next stride alone (``criterion``: thesis
   or tracking).
 
-``constant`` and ``feedback`` run ``samples`` starts a box, in lockstep through the batched
+``constant``, ``feedback`` and ``pivot`` run ``samples`` starts a box, in lockstep through the batched
 engine; the two re-solving controllers run ``solve_samples`` (the first of the same draws).
 A run has *converged* once an apex is within ``tolerance`` (eq. 4.1) of X*. At a gait with
 a structural multiplier 1 (the symmetry of a VPP gait, energy without torque), whose
@@ -29,6 +31,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -52,13 +55,15 @@ from baslip.gait.polish import eps
 from baslip.model.dynamics import APEX
 from baslip.model.quantities import NOMINAL
 from baslip.problem.reader import Problem
-from baslip.problem.study import Controllers
+from baslip.problem.study import ADAPTED_CONTROLS, Controllers
 from baslip.studies.common import StudyFailed, run_info, study_table
 from baslip.studies.runner import Workers, run_tasks
 from baslip.viz import figures
 
 #: Controllers whose control depends on the apex alone: their runs go in lockstep batches.
-BATCHED = ("constant", "feedback")
+BATCHED = ("constant", "feedback", "pivot")
+#: The linear feedbacks, each the gain of its own LQR (or deadbeat) choice.
+LINEAR = ("feedback", "pivot")
 CONTROLLER_COLUMNS = [
     "controller", "box", "sample", *(f"d_{n}" for n in APEX.names), "outcome", "strides_run", "strides_to_converge",
     "final_eps", "max_residual", "ms_per_stride",
@@ -104,8 +109,8 @@ def make_controller(name: str, context: dict, rmap: ReturnMap):
     bounds = {"lower": context["lower"], "upper": context["upper"]}
     if name == "constant":
         return ConstantControl(u)
-    if name == "feedback":
-        return LinearFeedback(X, u, context["K"], context["lower"], context["upper"])
+    if name in LINEAR:
+        return LinearFeedback(X, u, context["gains"][name], context["lower"], context["upper"])
     if name == "horizon":
         return RecedingHorizon(rmap, params, X, u, context["horizon"], fixed=context["held"], **bounds)
     return ResolvedControl(rmap, params, X, u, context["criterion"], fixed=context["held"], **bounds)
@@ -166,10 +171,11 @@ def wilson_interval(converged: int, samples: int, z: float = 1.96) -> tuple[floa
     return (max(0.0, centre - half), min(1.0, centre + half))
 
 
-def feedback_for(study: Controllers, context: dict, A, B, scale, rmap: ReturnMap) -> FeedbackChoice:
+def feedback_for(study: Controllers, context: dict, A, B, scale, rmap: ReturnMap,
+                 adapted: np.ndarray | None = None) -> FeedbackChoice:
     """The feedback for the gait: LQR with the study's ``lqr_scale`` weights if given, else
     the tool's choice (:func:`baslip.analysis.tuning.choose_feedback`, with a pilot sample
-    in the box nearest 4x).
+    in the box nearest 4x), moving the ``adapted`` controls only.
 
     Parameters
     ----------
@@ -184,24 +190,42 @@ def feedback_for(study: Controllers, context: dict, A, B, scale, rmap: ReturnMap
         The controls' nominal sizes.
     rmap : ReturnMap
         The map the pilot runs on.
+    adapted : numpy.ndarray, optional
+        Indices of the controls the feedback moves (default: all); the gain's other rows
+        are zero, so those controls keep the gait's values.
     """
+    adapted = np.arange(B.shape[1]) if adapted is None else np.asarray(adapted)
+
+    def full(K_adapted: np.ndarray) -> np.ndarray:
+        K = np.zeros((B.shape[1], APEX.size))
+        K[adapted] = K_adapted
+        return K
+
     widths = np.array([dict(study.perturbation).get(n, 0.0) for n in APEX.names])
+    B_adapted, scale_adapted = B[:, adapted], scale[adapted]
     if study.lqr_scale:
-        K = lqr_gain(A, B, lqr_weights(study), np.diag(1 / scale**2))
+        K = full(lqr_gain(A, B_adapted, lqr_weights(study), np.diag(1 / scale_adapted**2)))
         radius = transverse_radius(A, B, K, context["neutral"])
         return FeedbackChoice("lqr", K, (), radius, None, 1, "LQR weights given by the problem (lqr_scale)")
     pilot_box = min(study.boxes, key=lambda b: abs(math.log(b / 4.0)))  # the box nearest 4x
     starts = context["X"] + np.random.default_rng(study.seed + PILOT_SEED).uniform(
         -1, 1, size=(PILOT_STARTS, APEX.size)) * widths * pilot_box
 
-    def pilot(K: np.ndarray) -> float:
-        controller = LinearFeedback(context["X"], context["u"], K, context["lower"], context["upper"])
+    def pilot(K_adapted: np.ndarray) -> float:
+        controller = LinearFeedback(context["X"], context["u"], full(K_adapted), context["lower"], context["upper"])
         runs = run_closed_loop_many(rmap, context["params"], controller, starts, context["X"],
                                     min(study.strides, PILOT_STRIDES), context["tolerance"], context["settle"])
         return sum(r.outcome in RETURNED for r in runs) / len(runs)
 
-    return choose_feedback(A, B, context["u"], context["lower"], context["upper"], widths * min(study.boxes), scale, pilot,
-                           context["neutral"])
+    choice = choose_feedback(A, B_adapted, context["u"][adapted], context["lower"][adapted], context["upper"][adapted],
+                             widths * min(study.boxes), scale_adapted, pilot, context["neutral"])
+    return replace(choice, K=full(choice.K))
+
+
+def adapted_controls(name: str, law) -> np.ndarray:
+    """Indices of the controls the linear feedback ``name`` moves: those of
+    :data:`~baslip.problem.study.ADAPTED_CONTROLS`, or all of ``law``'s."""
+    return np.array([law.controls.index(n) for n in ADAPTED_CONTROLS.get(name, law.controls.names)])
 
 
 def run_controllers(problem: Problem, study: Controllers, out_dir: Path, sources: Path, quiet: bool, lanes: int, workers: Workers) -> dict:
@@ -225,11 +249,15 @@ def run_controllers(problem: Problem, study: Controllers, out_dir: Path, sources
         "neutral": sum(m.trivial for m in gait.multipliers),
     }
     scale = control_scale(law)
-    try:
-        choice = feedback_for(study, context, A, B, scale, solver.jacobian_map)
-    except ValueError as err:
-        raise StudyFailed(f"no linear feedback for this gait: {err}") from None
-    context["K"] = choice.K
+    choices = {}
+    for name in LINEAR:
+        if name == "feedback" or name in study.controllers:  # feedback's choice is always reported
+            try:
+                choices[name] = feedback_for(study, context, A, B, scale, solver.jacobian_map,
+                                             adapted_controls(name, law))
+            except ValueError as err:
+                raise StudyFailed(f"no linear {name} for this gait: {err}") from None
+    context["gains"] = {name: choice.K for name, choice in choices.items()}
     table = study_table(out_dir / "controllers.csv", CONTROLLER_COLUMNS, ["controller", "box", "sample"], quiet)
     tasks = controller_tasks(study)
     lanes = max(1, min(lanes, len(tasks)))
@@ -240,21 +268,26 @@ def run_controllers(problem: Problem, study: Controllers, out_dir: Path, sources
     smallest = [r for r in rows if r["box"] == min(study.boxes)]
     figures.controllers_figure(smallest, {n: w * min(study.boxes) for n, w in dict(study.perturbation).items()}, out_dir)
     figures.basin_figure(basins, problem.name, out_dir)
-    multipliers = closed_loop_multipliers(A, B, choice.K)
     return {
         "gait": {"hip_law": law.name, "apex": gait.apex, "control": gait.control,
                  "spectral_radius": gait.spectral_radius, "rank_dr_du": control_rank(B, scale)},
-        "feedback": {"kind": choice.kind, "K": choice.K.tolist(), "rows": list(law.controls.names),
-                     "columns": list(APEX.names), "weight_exponents": list(choice.weights),
-                     "pilot_share": choice.pilot_share, "candidates": choice.candidates, "reason": choice.reason,
-                     "closed_loop_multipliers": [[float(m.real), float(m.imag)] for m in multipliers],
-                     "closed_loop_radius": choice.closed_loop_radius},
+        **{name: _choice_summary(choice, law, A, B) for name, choice in choices.items()},
         "perturbation": dict(study.perturbation), "boxes": list(study.boxes), "tolerance": study.tolerance,
         "strides": study.strides, "resolve_criterion": study.criterion, "horizon": study.horizon,
         "controllers": {name: _tally([r for r in smallest if r["controller"] == name]) for name in study.controllers},
         "basins": basins,
         **run_info(report),
     }
+
+
+def _choice_summary(choice: FeedbackChoice, law, A: np.ndarray, B: np.ndarray) -> dict:
+    """A linear feedback's entry of result.json: its kind, gain and closed loop."""
+    multipliers = closed_loop_multipliers(A, B, choice.K)
+    return {"kind": choice.kind, "K": choice.K.tolist(), "rows": list(law.controls.names),
+            "columns": list(APEX.names), "weight_exponents": list(choice.weights),
+            "pilot_share": choice.pilot_share, "candidates": choice.candidates, "reason": choice.reason,
+            "closed_loop_multipliers": [[float(m.real), float(m.imag)] for m in multipliers],
+            "closed_loop_radius": choice.closed_loop_radius}
 
 
 def _tally(mine: list[dict]) -> dict:

@@ -29,6 +29,7 @@ import pickle
 import signal
 import sys
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -498,23 +499,37 @@ def split_lanes(tasks: Sequence[dict], n: int = LANES) -> list[list[dict]]:
 
 #: Characters of the progress bar on a terminal.
 BAR_WIDTH = 30
+#: Seconds of recent progress from which the rate and time left are estimated.
+RATE_WINDOW_S = 60.0
 
 
 class Progress:
     """Progress on stderr: a bar rewritten in place on a terminal, and a plain line at
     most every ``every_s`` seconds otherwise, so that log files stay readable. (A small
     bar of our own rather than tqdm: no dependency, and the counts include the tasks
-    done before a resume.)"""
+    done before a resume.) The rate is that of the last :data:`RATE_WINDOW_S` seconds: a
+    study whose tasks differ in cost (the controllers study's batched runs, then its
+    re-solves) would otherwise promise the fast tasks' pace for the slow ones."""
 
     def __init__(self, label: str, total: int, quiet: bool, every_s: float = 10.0):
         self.label, self.total, self.quiet, self.every_s = label, total, quiet, every_s
         self.terminal = sys.stderr.isatty()
         self._last = -every_s
+        self._history: deque[tuple[float, int]] = deque([(0.0, 0)])
+
+    def rate(self, ran: int, elapsed: float) -> float:
+        """Tasks a second over the last :data:`RATE_WINDOW_S` seconds (since the start
+        while younger), once ``ran`` tasks have run by ``elapsed`` seconds."""
+        while len(self._history) > 1 and elapsed - self._history[1][0] >= RATE_WINDOW_S:
+            self._history.popleft()
+        then, ran_then = self._history[0]
+        self._history.append((elapsed, ran))
+        return (ran - ran_then) / (elapsed - then) if elapsed > then else 0.0
 
     def update(self, done: int, ran: int, elapsed: float) -> None:
         if self.quiet:
             return
-        rate = ran / elapsed if elapsed > 0 else 0.0
+        rate = self.rate(ran, elapsed)
         eta = (self.total - done) / rate if rate > 0 else float("inf")
         text = f"{self.label}: {done}/{self.total} done, {rate:.2f}/s, about {eta:.0f} s left"
         if self.terminal:  # a bar, rewritten in place

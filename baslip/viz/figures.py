@@ -17,6 +17,7 @@ import numpy as np  # noqa: E402
 from matplotlib.colors import LogNorm  # noqa: E402
 
 from baslip.model.quantities import UNITS  # noqa: E402
+from baslip.problem.study import CONTROLLER_KINDS  # noqa: E402
 from baslip.status import Status
 from baslip.viz.labels import SPECIAL_NAMES  # noqa: E402
 
@@ -489,7 +490,7 @@ def controllers_figure(rows: list[dict], perturbation: dict, out_dir: Path | Non
     """Left: the share of perturbed starts each controller brings back to the gait, keeps
     up without converging, or lets fall. Right, per controller: the starts in the plane of
     the two most perturbed apex quantities, marked by outcome."""
-    names = [n for n in ("constant", "feedback", "horizon", "resolve") if any(r["controller"] == n for r in rows)]
+    names = [n for n in CONTROLLER_KINDS if any(r["controller"] == n for r in rows)]
     axes_names = sorted(perturbation, key=lambda n: -perturbation[n] / _NOMINAL_APEX[n])[:2]
     if len(axes_names) < 2:
         axes_names = (axes_names + ["z", "ydot"])[:2]
