@@ -11,7 +11,10 @@ manifold it covers (:mod:`baslip.analysis.gaitatlas`):
   minima of the radius on the chart graph and no less stable than those charts, with both
   meanings of upright read off their trunk range;
 * a study killed after its first cell and run again writes the same atlas.csv;
-* a cell says on stderr what it is doing: covering, verifying, polishing.
+* a cell says on stderr what it is doing: covering, verifying, polishing;
+* under the VPP law, z's periodicity row (implied at its symmetric gaits) is left out, so
+  the equations keep full rank, and every committed chart is a symmetric fixed point of
+  the independent simulation in all four rows.
 """
 
 import csv
@@ -252,3 +255,61 @@ def test_the_committed_polished_gaits_are_fixed_points_of_the_independent_simula
         u = np.array([float(row[n]) for n in DESIGN[APEX.size:]])
         assert eps(independent.stride(X, u, problem.params).apex, X) <= 1e-10
         assert float(row["residual"]) <= 1e-10
+
+
+def test_under_vpp_the_implied_z_row_is_left_out_and_the_rest_keep_full_rank():
+    """At the thesis-scale VPP gait the four periodicity rows have rank 3 in the free
+    quantities (one follows from the others at a symmetric gait); the manifold keeps the
+    other three, of full rank, so at fixed speed and height the family is a curve; its
+    Jacobian agrees with central differences of the residual."""
+    problem = load_problem(ROOT / "problems" / "vpp.yaml")
+    gait = solve_problem(problem)
+    spec = replace(fixed_point_spec(problem), fixed={"ydot": 0.5, "z": 0.4})
+    rmap = ReturnMap(Tolerances(1e-12, 1e-12), law=problem.hip_law)
+    manifold = GaitManifold(spec, rmap, rmap)
+    w = manifold.to_atlas(np.concatenate([gait.X, gait.u]))
+    assert manifold.names == ("theta_h", "theta_h_dot", "r_vpp", "theta_td") and manifold.dimension == 1
+    jacobian = manifold.jacobian(w)
+    assert jacobian.shape == (3, 4) and np.linalg.matrix_rank(jacobian, tol=1e-8) == 3
+    dr_dX, dr_du = rmap.jacobians(gait.X, gait.u, problem.params)
+    full = np.hstack([dr_dX - np.eye(APEX.size), dr_du])[:, manifold.free]
+    singular = np.linalg.svd(full, compute_uv=False)
+    assert singular[-1] <= 1e-8 * singular[0]  # all four rows: rank 3
+    h = 1e-6
+    for i in range(len(w)):
+        step = np.eye(len(w))[i] * h
+        difference = (manifold.evaluate(w + step).residual - manifold.evaluate(w - step).residual) / (2 * h)
+        assert np.allclose(jacobian[:, i], difference, rtol=1e-4, atol=1e-6)
+
+
+@pytest.mark.parametrize("atlas", ["atlas_vpp", "atlas_vpp_human"])
+def test_the_committed_vpp_atlas_charts_are_symmetric_fixed_points_in_all_four_rows(atlas):
+    problem = load_problem(ROOT / "problems" / f"{atlas}.yaml")
+    controls = problem.hip_law.controls.names
+    compiled = ReturnMap(Tolerances(1e-12, 1e-12), law=problem.hip_law)
+    independent = solver_for(problem).verify_map
+    charts = table(ROOT / "results" / atlas / "atlas.csv")
+    assert len(charts) >= 1000 and all(row["status"] == "converged" for row in charts)
+    for row in charts[::40]:
+        X = np.array([float(row[n]) for n in APEX.names])
+        u = np.array([float(row[n]) for n in controls])
+        assert eps(compiled.stride(X, u, problem.params).apex, X) <= 1e-11  # z's row too
+        check = eps(independent.stride(X, u, problem.params).apex, X)
+        assert check <= 1e-10 and check == pytest.approx(float(row["residual"]), rel=1e-6, abs=1e-15)
+        assert abs(X[APEX.index("theta_h")] - np.pi / 2) <= 1e-9  # the symmetric family
+
+
+def test_an_atlas_under_vpp_counts_the_implied_row_and_refuses_a_polish():
+    data = yaml.safe_load((ROOT / "problems" / "atlas_vpp.yaml").read_text())
+    data["fix"] = {"z": data["guess"].pop("z")}
+    data["study"]["plot"] = ["r_vpp", "theta_td"]
+    parse_problem(data)  # a curve at each speed: dimension 1
+    data["fix"]["r_vpp"] = data["guess"].pop("r_vpp")
+    with pytest.raises(ProblemError) as error:
+        parse_problem(data)
+    assert error.value.key == "study" and "dimension 0" in error.value.message
+    data = yaml.safe_load((ROOT / "problems" / "atlas_vpp.yaml").read_text())
+    data["study"]["polish"] = 2
+    with pytest.raises(ProblemError) as error:
+        parse_problem(data)
+    assert error.value.key == "study.polish"

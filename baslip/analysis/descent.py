@@ -50,7 +50,6 @@ from baslip.gait.polish import Polish, eps, movable_quantities
 from baslip.gait.shooting import FixedPointSpec
 from baslip.gait.stability import classify
 from baslip.model.quantities import DESIGN, NOMINAL
-from baslip.problem.study import DRAWN_GAINS
 
 #: q of the surrogate (see the module docstring).
 SURROGATE_POWER = 8
@@ -367,12 +366,13 @@ def random_start(spec: FixedPointSpec, rng: np.random.Generator) -> dict[str, fl
     problem's bounds inside the physical ones): uniform in asinh(value / nominal), so that
     gains of 0.01 and of 100 are both drawn, not only the large ones.
 
-    Only the gains are drawn: the rest of the start comes from the problem's guess. With
-    everything drawn, 1 start in 16 gave a fixed point at the upright (0.5 m/s, 0.4 m)
-    cell; with the gains held, 8 in 16 did, with radii from 3.6 to 1500.
+    Only the gains (the law's ``drawn`` controls: Kp and Kd under PD, r_vpp under VPP)
+    are drawn: the rest of the start comes from the problem's guess. With everything
+    drawn, 1 start in 16 gave a fixed point at the upright (0.5 m/s, 0.4 m) cell; with the
+    gains held, 8 in 16 did, with radii from 3.6 to 1500.
     """
     held = {}
-    for name in DRAWN_GAINS:
+    for name in spec.law.drawn:
         if name in spec.fixed:
             continue
         lo, hi = spec.bounds_of(name)

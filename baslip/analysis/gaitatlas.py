@@ -1,8 +1,12 @@
 """The fixed points of a problem as a manifold for the atlas, and what each chart says.
 
 With the problem's fixed quantities held, the fixed points solve F(v) = r(X, u) - X = 0
-(and apex energy = its fixed value, if it is held) in the free design quantities v. The
-atlas (:mod:`baslip.analysis.atlas`) covers that set; this module gives it
+(and apex energy = its fixed value, if it is held) in the free design quantities v of the
+problem's hip law. Rows that follow from the others by structure are left out (z's under
+a law of positions only, VPP, whose gaits are symmetric:
+:func:`baslip.gait.shooting.implied_periodicity`), so that the equations keep full rank
+along the symmetric family; the independent check re-simulates every row. The atlas
+(:mod:`baslip.analysis.atlas`) covers that set; this module gives it
 
 * **coordinates** w in which a unit means about the same everywhere: v / nominal for most
   quantities, and asinh(v / nominal) for the gains Kp and Kd, whose meaningful values
@@ -33,11 +37,11 @@ from baslip.engine.returnmap import ReturnMap, RunnerFell, Tolerances, param_vec
 from baslip.engine.trajectory import TrunkRange
 from baslip.gait.fixedpoint import VERIFY_TOLERANCES
 from baslip.gait.polish import POLISH_EPS, Polish, eps
-from baslip.gait.shooting import FixedPointSpec
+from baslip.gait.shooting import FixedPointSpec, implied_periodicity
 from baslip.gait.stability import Stability, classify
 from baslip.model.dynamics import APEX, Params
 from baslip.model.hiplaw import HipLaw
-from baslip.model.quantities import DESIGN, NOMINAL
+from baslip.model.quantities import NOMINAL
 
 #: Quantities charted in asinh(value / nominal) rather than value / nominal.
 LOGARITHMIC = ("Kp", "Kd")
@@ -60,11 +64,14 @@ class GaitManifold:
         self.spec = spec
         self.polish = Polish(residual_map, jacobian_map)
         self.residual_map, self.jacobian_map = residual_map, jacobian_map
-        self.free = np.array([i for i, name in enumerate(DESIGN) if name not in spec.fixed], dtype=int)
-        self.names = tuple(DESIGN[i] for i in self.free)
+        self.design = spec.design
+        self.free = np.array([i for i, name in enumerate(self.design) if name not in spec.fixed], dtype=int)
+        self.names = tuple(self.design[i] for i in self.free)
+        implied = implied_periodicity(spec)
+        self.rows = np.array([i for i, name in enumerate(APEX.names) if name not in implied], dtype=int)
         self.nominal = np.array([NOMINAL[name] for name in self.names])
         self.logarithmic = np.array([name in LOGARITHMIC for name in self.names])
-        self.template = np.array([spec.fixed.get(name, 0.0) for name in DESIGN], dtype=float)
+        self.template = np.array([spec.fixed.get(name, 0.0) for name in self.design], dtype=float)
         self.energy = spec.fixed.get("energy")
         bounds = np.array([spec.bounds_of(name) for name in self.names]).T / self.nominal
         self.atlas_bounds = np.where(self.logarithmic, np.arcsinh(bounds), bounds)
@@ -80,12 +87,12 @@ class GaitManifold:
     @property
     def dimension(self) -> int:
         """Dimension of the fixed-point set where the equations have full rank."""
-        return len(self.free) - APEX.size - (self.energy is not None)
+        return len(self.free) - len(self.rows) - (self.energy is not None)
 
     # -- coordinates -----------------------------------------------------------------------
 
     def to_design(self, w: np.ndarray) -> np.ndarray:
-        """The nine design quantities (X, u) [SI, rad] at atlas point ``w``."""
+        """The design quantities (X, u) [SI, rad] at atlas point ``w``."""
         scaled = np.where(self.logarithmic, np.sinh(w), w)
         design = self.template.copy()
         design[self.free] = scaled * self.nominal
@@ -117,7 +124,7 @@ class GaitManifold:
         stride = rmap.stride(X, u, self.spec.params)
         if not stride.ok:
             return Evaluation(failure=f"a fall: {stride.fall.value if stride.fall else 'no next apex'}")
-        rows = [stride.apex - X]
+        rows = [(stride.apex - X)[self.rows]]
         if self.energy is not None:
             rows.append([self.polish.energy(X, self.spec.params) - self.energy])
         return Evaluation(np.concatenate(rows))
@@ -130,7 +137,8 @@ class GaitManifold:
         except RunnerFell as err:
             return f"a fall: {err}"
         self._last_jacobian = (w.tobytes(), jacobian)
-        return jacobian[:, self.free] * self._design_per_atlas(w)
+        kept = np.concatenate([self.rows, np.arange(APEX.size, len(jacobian))])  # and the energy row
+        return jacobian[np.ix_(kept, self.free)] * self._design_per_atlas(w)
 
     def priority(self, w: np.ndarray) -> float:
         """The spectral radius at ``w`` (its non-trivial multipliers): the atlas grows
@@ -149,7 +157,7 @@ class GaitManifold:
                 jacobian = self.polish.equations_jacobian(self.spec, design[: APEX.size], design[APEX.size :],
                                                           self.energy)
             dr_dX = jacobian[: APEX.size, : APEX.size] + np.eye(APEX.size)
-            self._stabilities[key] = classify(dr_dX, self.spec.params, design[APEX.size :])
+            self._stabilities[key] = classify(dr_dX, self.spec.params, design[APEX.size :], self.spec.law)
         return self._stabilities[key]
 
     def outside(self, w: np.ndarray) -> str:
@@ -169,14 +177,17 @@ class GaitManifold:
         points = np.atleast_2d(points)
         lo, hi = self.atlas_bounds
         held = np.all((lo <= points) & (points <= hi), axis=1)
-        design = np.array([self.to_design(w) for w in points[held]]).reshape(-1, len(DESIGN))
+        design = np.array([self.to_design(w) for w in points[held]]).reshape(-1, len(self.design))
         held[held] = strides_can_start(design[:, : APEX.size], design[:, APEX.size :], self.p)
         return held
 
     def solved(self, w: np.ndarray, residual: np.ndarray) -> bool:
-        """eps <= 1e-12 on the compiled map (and the energy row as small)."""
+        """eps <= 1e-12 on the compiled map over the rows kept (and the energy row as small)."""
         X = self.to_design(w)[: APEX.size]
-        return eps(X + residual[: APEX.size], X) <= POLISH_EPS and bool(np.all(np.abs(residual[APEX.size :]) <= POLISH_EPS))
+        periodic = len(self.rows)
+        apex_residual = np.zeros(APEX.size)
+        apex_residual[self.rows] = residual[:periodic]
+        return eps(X + apex_residual, X) <= POLISH_EPS and bool(np.all(np.abs(residual[periodic:]) <= POLISH_EPS))
 
 
 @dataclass(frozen=True)

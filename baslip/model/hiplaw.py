@@ -44,6 +44,9 @@ class HipLaw:
     units, nominal, bounds, defaults : Mapping
         Per control: its SI unit, its scale (for distances and steps), its physical
         bounds and its default start value.
+    drawn : tuple of str
+        The controls a search draws over their whole bounds for each independent start
+        (the optimal search's starts, the atlas's seeds): the law's gains.
     """
 
     name: str
@@ -52,6 +55,7 @@ class HipLaw:
     nominal: Mapping[str, float] = field(default_factory=dict)
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     defaults: Mapping[str, float] = field(default_factory=dict)
+    drawn: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.controls.names[-1] != "theta_td":
@@ -59,6 +63,8 @@ class HipLaw:
         for table in (self.units, self.nominal, self.bounds, self.defaults):
             if set(table) != set(self.controls.names):
                 raise ValueError(f"hip law {self.name!r}: a table names {sorted(table)}, not its controls")
+        if not set(self.drawn) <= set(self.controls.names):
+            raise ValueError(f"hip law {self.name!r}: it draws {list(self.drawn)}, not all of them its controls")
 
     def __reduce__(self):
         # One object per law, in worker processes too: a law travels as its name.
@@ -194,6 +200,7 @@ PD = PDLaw(
     bounds={"Kp": (-1e3, 1e3), "Kd": (-1e2, 1e2), "theta2_des": (-2 * math.pi, 2 * math.pi),
             "theta2_dot_des": (-100.0, 100.0), "theta_td": (-1.5, 1.5)},
     defaults={"Kp": 0.0, "Kd": 0.0, "theta2_des": math.pi - 0.1, "theta2_dot_des": 0.0, "theta_td": 0.1},
+    drawn=("Kp", "Kd"),
 )
 VPP = VPPLaw(
     name="vpp",
@@ -202,6 +209,7 @@ VPP = VPPLaw(
     nominal={"r_vpp": 0.01, "theta_td": 0.1},
     bounds={"r_vpp": (-10.0, 10.0), "theta_td": (-1.5, 1.5)},
     defaults={"r_vpp": 0.0, "theta_td": 0.1},
+    drawn=("r_vpp",),
 )
 #: Every law by its name in problem files.
 HIP_LAWS: dict[str, HipLaw] = {law.name: law for law in (PD, VPP)}

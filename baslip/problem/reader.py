@@ -37,6 +37,7 @@ from baslip.model.quantities import (
     OBJECTIVES,
     STABILITY_OBJECTIVES,
     design_names,
+    implied_periodicity,
     quantity_names,
     start_value,
 )
@@ -52,7 +53,7 @@ TOP_LEVEL_KEYS = ("name", "params", "hip_law", "fix", "guess", "bounds", "object
 #: each problem to its own law's.
 _ANY_QUANTITY = ANY_DESIGN + ("energy",)
 #: Study kinds that run under every hip law; the others read or write the PD gains.
-ANY_LAW_STUDIES = ("sweep", "controllers")
+ANY_LAW_STUDIES = ("sweep", "controllers", "atlas")
 #: Longest orbit, in strides, that a problem may ask for.
 MAX_STRIDES = 16
 #: Most fixed points one sweep may ask for (a day of solving on two cores).
@@ -226,6 +227,9 @@ def _check_law(problem: Problem) -> None:
                            f"{problem.hip_law.name}, run single gaits, {', '.join(ANY_LAW_STUDIES)} studies or branches")
     if problem.objective in STABILITY_OBJECTIVES:
         raise ProblemError("objective", f"{problem.objective} bounds the multipliers under hip_law pd only, so far")
+    if isinstance(problem.study, Atlas) and problem.study.polish:
+        raise ProblemError("study.polish", f"the stability descent that polishes an atlas's best charts runs under "
+                           f"hip_law pd only, so far; under {problem.hip_law.name}, set polish: 0")
     if problem.continuation is not None and problem.continuation.second is not None:
         # A curve's test functions need apex coordinates free of structural multipliers;
         # a VPP gait's symmetry multiplier has none to leave out.
@@ -419,7 +423,9 @@ def _check_atlas(problem: Problem) -> None:
         return
     held = set(problem.fix) | {a.name for a in study.axes}
     free = [name for name in problem.design if name not in held]
-    dimension = len(free) - APEX.size - ("energy" in held)
+    # Rows implied by structure (z's under a law of positions only) leave a dimension more.
+    implied = implied_periodicity(problem.fix, problem.params, problem.hip_law)
+    dimension = len(free) - (APEX.size - len(implied)) - ("energy" in held)
     if not 1 <= dimension <= 3:
         hint = "fix more quantities (theta2_dot_des, say)" if dimension > 3 else "fix fewer quantities"
         raise ProblemError("study", f"with {', '.join(sorted(held))} held, the fixed points form a set of dimension "

@@ -32,7 +32,8 @@ from pathlib import Path
 
 from baslip.files.atomic import write_files_atomically
 from baslip.files.rows import read_points
-from baslip.model.quantities import DESIGN
+from baslip.model.hiplaw import PD, HipLaw
+from baslip.model.quantities import design_names
 from baslip.problem.reader import Problem
 from baslip.problem.study import Atlas
 from baslip.studies.common import run_info
@@ -42,18 +43,24 @@ from baslip.studies.sweep import key_column, sweep_tasks
 from baslip.viz.atlasmap import atlas_figure
 from baslip.viz.figures import trunk_motion_figure
 
-#: Columns of atlas.csv after the cell's own (one row per chart).
-CHART_COLUMNS = [
-    "chart", "piece", *DESIGN, "spectral_radius", "stable", "status", "residual", "theta_h_min", "theta_h_max",
-    "upright_apex", "upright_throughout", "radius", "area", "neighbours",
-]
-#: Columns of atlas_boundary.csv after the cell's own.
-BOUNDARY_COLUMNS = ["chart", "piece", "kind", "reason", *DESIGN]
-#: Columns of atlas_best.csv after the cell's own (one row per cell and meaning of "best").
-BEST_COLUMNS = [
-    "meaning", "from_chart", "start_radius", *DESIGN, "spectral_radius", "stable", "residual", "theta_h_min",
-    "theta_h_max", "upright_apex", "upright_throughout", "descent_stop",
-]
+
+def chart_columns(law: HipLaw = PD) -> list[str]:
+    """Columns of atlas.csv after the cell's own (one row per chart), under ``law``."""
+    return ["chart", "piece", *design_names(law), "spectral_radius", "stable", "status", "residual", "theta_h_min",
+            "theta_h_max", "upright_apex", "upright_throughout", "radius", "area", "neighbours"]
+
+
+def boundary_columns(law: HipLaw = PD) -> list[str]:
+    """Columns of atlas_boundary.csv after the cell's own."""
+    return ["chart", "piece", "kind", "reason", *design_names(law)]
+
+
+def best_columns(law: HipLaw = PD) -> list[str]:
+    """Columns of atlas_best.csv after the cell's own (one row per cell and meaning of "best")."""
+    return ["meaning", "from_chart", "start_radius", *design_names(law), "spectral_radius", "stable", "residual",
+            "theta_h_min", "theta_h_max", "upright_apex", "upright_throughout", "descent_stop"]
+
+
 #: Columns of cells.csv after the cell's own.
 CELL_COLUMNS = [
     "seeds", "seeds_failed", "seeds_on_covered_pieces", "seeds_not_taken", "pieces", "charts", "not_verified",
@@ -90,10 +97,10 @@ class AtlasTable(ResumableCsv):
     kept in a synced log beside it until the study is complete, then written out as
     ``atlas.csv``, ``atlas_boundary.csv`` and ``atlas_best.csv`` in task order."""
 
-    def __init__(self, path: Path, columns: list[str], key_columns: list[str]):
+    def __init__(self, path: Path, columns: list[str], key_columns: list[str], law: HipLaw = PD):
         super().__init__(path, columns, key_columns)
         self.charts = StateLog(self.path.with_name(f".{self.path.name}.charts"))
-        self.cell_columns = key_columns
+        self.cell_columns, self.law = key_columns, law
 
     def append(self, row: dict) -> None:
         self.charts.append(self.key(row), {"charts": row["chart_rows"], "boundaries": row["boundary_rows"],
@@ -108,12 +115,12 @@ class AtlasTable(ResumableCsv):
             return  # a rerun of a finished study: atlas.csv is already written
         cells = {key: dict(zip(self.cell_columns, key)) for key in keys}
         write_files_atomically({
-            self.path.with_name("atlas.csv"): csv_text(self.cell_columns + CHART_COLUMNS,
+            self.path.with_name("atlas.csv"): csv_text(self.cell_columns + chart_columns(self.law),
                                                      [{**cells[k], **c} for k in keys for c in logged[k]["charts"]]),
             self.path.with_name("atlas_boundary.csv"): csv_text(
-                self.cell_columns + BOUNDARY_COLUMNS, [{**cells[k], **b} for k in keys for b in logged[k]["boundaries"]]),
+                self.cell_columns + boundary_columns(self.law), [{**cells[k], **b} for k in keys for b in logged[k]["boundaries"]]),
             self.path.with_name("atlas_best.csv"): csv_text(
-                self.cell_columns + BEST_COLUMNS, [{**cells[k], **b} for k in keys for b in logged[k]["best"]]),
+                self.cell_columns + best_columns(self.law), [{**cells[k], **b} for k in keys for b in logged[k]["best"]]),
         })
         self.charts.clear()
 
@@ -123,7 +130,7 @@ def run_atlas(problem: Problem, study: Atlas, out_dir: Path, sources: Path, quie
     """Cover the gait manifold at every cell; the answers of each, and over all cells."""
     names = [a.name for a in study.axes]
     keys = [key_column(n) for n in names]
-    table = AtlasTable(out_dir / "cells.csv", keys + CELL_COLUMNS, keys)
+    table = AtlasTable(out_dir / "cells.csv", keys + CELL_COLUMNS, keys, problem.hip_law)
     report = run_tasks(split_lanes(sweep_tasks(study), lanes), atlas_worker, (problem, quiet), table, problem.name,
                        quiet=quiet, workers=workers)
     cells = read_points(out_dir / "cells.csv")
@@ -132,9 +139,10 @@ def run_atlas(problem: Problem, study: Atlas, out_dir: Path, sources: Path, quie
         charts = read_points(out_dir / "atlas.csv")
         atlas_figure(charts, names, study.plot, out_dir, problem.name)
         best = read_points(out_dir / "atlas_best.csv")
-        trunk_motion_figure(best_gait_motions(best, names, problem.params, count=2 * len(cells), note=_meaning),
-                            out_dir)
-        summary.update(_totals(cells, charts), best=[_best_summary(b, names) for b in best])
+        if best:  # none without polishing (polish: 0)
+            trunk_motion_figure(best_gait_motions(best, names, problem.params, count=2 * len(cells), note=_meaning),
+                                out_dir)
+        summary.update(_totals(cells, charts), best=[_best_summary(b, names, problem.hip_law) for b in best])
     return summary
 
 
@@ -143,11 +151,11 @@ def _meaning(row: dict) -> str:
     return ", upright throughout" if row["meaning"] == "upright_throughout" else ""
 
 
-def _best_summary(row: dict, names: list[str]) -> dict:
+def _best_summary(row: dict, names: list[str], law: HipLaw) -> dict:
     """A polished gait for result.json: its cell, meaning, gait and trunk range [deg]."""
     return {**{n: row[key_column(n)] for n in names}, "meaning": row["meaning"],
             "spectral_radius": row["spectral_radius"], "start_radius": row["start_radius"],
-            "residual": row["residual"], **{n: row[n] for n in DESIGN},
+            "residual": row["residual"], **{n: row[n] for n in design_names(law)},
             "trunk_min_deg": math.degrees(row["theta_h_min"]), "trunk_max_deg": math.degrees(row["theta_h_max"]),
             "upright_apex": row["upright_apex"], "upright_throughout": row["upright_throughout"]}
 

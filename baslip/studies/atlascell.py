@@ -19,8 +19,7 @@ from baslip.analysis.gaitatlas import ChartChecker, ChartReport, GaitManifold, c
 from baslip.engine.returnmap import ReturnMap, RunnerFell, Tolerances
 from baslip.gait.from_problem import fixed_point_spec, solver_for
 from baslip.model.dynamics import APEX
-from baslip.model.hiplaw import CONTROL
-from baslip.model.quantities import DESIGN
+from baslip.model.hiplaw import HipLaw
 from baslip.problem.reader import Problem
 from baslip.problem.study import Atlas
 from baslip.status import VERIFY_EPS
@@ -46,7 +45,7 @@ class CellAtlas:
     def __init__(self, problem: Problem, study: Atlas, quiet: bool = True):
         self.problem, self.study, self.quiet = problem, study, quiet
         self.solver = solver_for(problem)
-        self.jacobian_map = ReturnMap(Tolerances(JACOBIAN_TOLERANCE, JACOBIAN_TOLERANCE))
+        self.jacobian_map = ReturnMap(Tolerances(JACOBIAN_TOLERANCE, JACOBIAN_TOLERANCE), law=problem.hip_law)
         self.checker = ChartChecker(problem.hip_law, problem.params)
         self.descent = StabilityDescent(self.solver.residual_map, max_iterations=study.iterations)
         self.base = fixed_point_spec(problem)
@@ -65,7 +64,7 @@ class CellAtlas:
             say(f"solving seed {number + 1} of {self.study.seeds}", always=number == 0)
             seeds.append(self._seed(spec, manifold, rng if number else None))
         atlas, reports = self.cover_and_check(manifold, seeds, say)
-        charts = chart_rows(atlas, reports)
+        charts = chart_rows(atlas, reports, self.problem.hip_law)
         row = {k: v for k, v in task.items() if k.startswith("sweep_")}
         row.update(_cell_counts(atlas, charts))
         best = [self._polished(spec, charts, atlas.neighbours, meaning, say) for meaning in MEANINGS]
@@ -141,7 +140,8 @@ class CellAtlas:
         """Where the descent from ``chart`` ends, verified, as a row of atlas_best.csv;
         None if a stride of the descent falls or its end is not verified."""
         X = np.array([chart[n] for n in APEX.names])
-        u = np.array([chart[n] for n in CONTROL.names])
+        controls = self.problem.hip_law.controls.names
+        u = np.array([chart[n] for n in controls])
         try:
             found = self.descent.run(spec, X, u)
         except RunnerFell:
@@ -151,7 +151,7 @@ class CellAtlas:
             return None
         low, high = self.checker.trunk_range(end.X, end.u, spec.params)
         return {"meaning": meaning, "from_chart": chart["chart"], "start_radius": chart["spectral_radius"],
-                **dict(zip(APEX.names, map(float, end.X))), **dict(zip(CONTROL.names, map(float, end.u))),
+                **dict(zip(APEX.names, map(float, end.X))), **dict(zip(controls, map(float, end.u))),
                 "spectral_radius": end.spectral_radius, "stable": bool(end.stable),
                 "residual": end.residual, "theta_h_min": low, "theta_h_max": high,
                 **_upright(end.X, low, high), "descent_stop": found.stop_reason}
@@ -180,13 +180,13 @@ def _cell_counts(atlas, charts: list[dict]) -> dict:
     }
 
 
-def chart_rows(atlas, reports) -> list[dict]:
-    """The atlas.csv rows of a cell's charts (without the cell's columns)."""
+def chart_rows(atlas, reports, law: HipLaw) -> list[dict]:
+    """The atlas.csv rows of a cell's charts (without the cell's columns), under ``law``."""
     rows = []
     for chart, report, piece, area, near in zip(atlas.charts, reports, atlas.pieces, atlas.areas, atlas.neighbours):
         rows.append({
             "chart": chart.index, "piece": piece,
-            **dict(zip(APEX.names, map(float, report.X))), **dict(zip(CONTROL.names, map(float, report.u))),
+            **dict(zip(APEX.names, map(float, report.X))), **dict(zip(law.controls.names, map(float, report.u))),
             "spectral_radius": report.spectral_radius, "stable": report.stable,
             "status": "converged" if report.residual <= VERIFY_EPS else "not_verified",
             "residual": report.residual, "theta_h_min": report.theta_h_min, "theta_h_max": report.theta_h_max,
@@ -207,4 +207,4 @@ def _upright(X: np.ndarray, low: float, high: float) -> dict:
 def boundary_rows(atlas, manifold: GaitManifold) -> list[dict]:
     """The atlas_boundary.csv rows of a cell (without the cell's columns)."""
     return [{"chart": b.chart, "piece": atlas.pieces[b.chart], "kind": b.kind, "reason": b.reason,
-             **dict(zip(DESIGN, map(float, manifold.to_design(b.point))))} for b in atlas.boundaries]
+             **dict(zip(manifold.design, map(float, manifold.to_design(b.point))))} for b in atlas.boundaries]
