@@ -254,6 +254,32 @@ def test_an_optimal_study_descends_from_every_start(tmp_path, monkeypatch):
     assert (out / "best_gaits_trunk.png").stat().st_size > 0
 
 
+def test_an_adaptive_study_under_vpp_resolves_the_pivot_and_touchdown_angle_and_falls_once_frozen(tmp_path):
+    """The thesis-scale VPP gait (unstable, radius 4.6) under sec. 4.7's per-stride
+    re-solve, tracking: both VPP controls change every stride, the runner keeps hopping
+    and comes back towards the gait, and falls once the last control is held."""
+    import yaml
+
+    data = yaml.safe_load((Path(__file__).resolve().parents[1] / "problems" / "vpp.yaml").read_text())
+    data["guess"]["r_vpp"] = data["fix"].pop("r_vpp")  # re-solved too, not held
+    data["study"] = {"kind": "adaptive", "strides": 12, "frozen_strides": 300, "criterion": "tracking",
+                     "perturbation": {"theta_h_dot": 0.05}, "probe_strides": 4}
+    problem_path = tmp_path / "adaptive_vpp.yaml"
+    problem_path.write_text(yaml.safe_dump(data))
+    out = tmp_path / "adaptive_vpp"
+    summary = run_study(load_problem(problem_path), out, quiet=True)
+    assert summary["adaptive_strides"] == 12 and summary["adaptive_failure"] is None
+    # Towards the gait's family, not X* itself: the symmetry direction is out of reach.
+    assert summary["eps_to_gait"]["last"] < summary["eps_to_gait"]["first"] / 3
+    assert summary["frozen_strides_before_fall"] is not None
+    with open(out / "strides.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    assert "r_vpp" in rows[0] and "Kp" not in rows[0]
+    adaptive = [r for r in rows if r["phase"] == "adaptive"]
+    assert len({r["r_vpp"] for r in adaptive}) == 12 and len({r["theta_td"] for r in adaptive}) == 12
+    assert (out / "adaptive_controls.png").stat().st_size > 0
+
+
 def test_a_controllers_study_compares_four_controllers_on_the_same_starts_box_by_box(tmp_path, monkeypatch):
     """In CasADi's virtual machine, so that nothing is compiled: two boxes of the hanging
     gait, four perturbed starts each for the batched controllers and two for the

@@ -28,14 +28,19 @@ import numpy as np
 from baslip.analysis.feedback import ResolvedControl
 from baslip.gait.polish import eps
 from baslip.model.dynamics import APEX
-from baslip.model.hiplaw import CONTROL
+from baslip.model.hiplaw import PD, HipLaw
 from baslip.problem.reader import Problem
 from baslip.problem.study import Adaptive
 from baslip.studies.common import StudyFailed, study_table
 from baslip.studies.runner import ResumableCsv, Workers
 from baslip.viz import figures
 
-STRIDE_COLUMNS = ["phase", "n", *APEX.names, *CONTROL.names, "eps", "eps_to_gait", "solve_time_s", "note"]
+
+def stride_columns(law: HipLaw = PD) -> list[str]:
+    """The columns of strides.csv under ``law``."""
+    return ["phase", "n", *APEX.names, *law.controls.names, "eps", "eps_to_gait", "solve_time_s", "note"]
+
+
 #: Bisection steps on the perturbation factor, and the largest factor tried.
 BISECTIONS, LARGEST_FACTOR = 4, 64.0
 
@@ -44,6 +49,7 @@ def run_adaptive(controller: ResolvedControl, X0, params, strides: int, frozen_s
                  quiet: bool) -> dict:
     """Run (or resume) the adaptive phase from apex X0, then the frozen phase; return a summary."""
     rmap, X_star = controller.rmap, controller.X_star
+    controls = rmap.law.controls
     rows = table.rows
     adaptive = [r for r in rows if r["phase"] == "adaptive"]
     frozen = [r for r in rows if r["phase"] == "frozen"]
@@ -51,7 +57,7 @@ def run_adaptive(controller: ResolvedControl, X0, params, strides: int, frozen_s
     failure = None
     if adaptive:  # resume: the apex after the last saved stride, as the run had it
         last = adaptive[-1]
-        controller.last = _control(last)
+        controller.last = _control(last, controls)
         stride = rmap.stride(_apex(last), controller.last, params)
         if stride.fall is not None:
             failure = f"stride {len(adaptive) - 1}: the runner falls ({stride.fall.value})"
@@ -65,7 +71,7 @@ def run_adaptive(controller: ResolvedControl, X0, params, strides: int, frozen_s
         t0 = time.perf_counter()
         u, residual = controller.control(X)
         solve_time = time.perf_counter() - t0
-        table.append({"phase": "adaptive", "n": n, **APEX.to_dict(X), **CONTROL.to_dict(u), "eps": residual,
+        table.append({"phase": "adaptive", "n": n, **APEX.to_dict(X), **controls.to_dict(u), "eps": residual,
                       "eps_to_gait": eps(X, X_star), "solve_time_s": solve_time})
         stride = rmap.stride(X, u, params)
         if stride.fall is not None:
@@ -144,18 +150,20 @@ def _apex(row) -> np.ndarray:
     return np.array([float(row[n]) for n in APEX.names])
 
 
-def _control(row) -> np.ndarray:
-    return np.array([float(row[n]) for n in CONTROL.names])
+def _control(row, controls) -> np.ndarray:
+    return np.array([float(row[n]) for n in controls.names])
 
 
 def _run_frozen(rmap, last_adaptive, last_frozen, params, frozen_strides: int, table: ResumableCsv) -> None:
     """Hold the last control from the apex after the last adaptive stride (resuming after
     ``last_frozen``): a row per apex reached, and a final 'fall' row whose n counts the
     strides completed."""
-    u = _control(last_adaptive)
+    controls = rmap.law.controls
+    u = _control(last_adaptive, controls)
     first = rmap.stride(_apex(last_adaptive), u, params)
     if first.fall is not None:
-        table.append({"phase": "fall", "n": 0, **APEX.to_dict(_apex(last_adaptive)), **CONTROL.to_dict(u), "note": first.fall.value})
+        table.append({"phase": "fall", "n": 0, **APEX.to_dict(_apex(last_adaptive)), **controls.to_dict(u),
+                      "note": first.fall.value})
         return
     assert first.apex is not None
     start = first.apex
@@ -163,11 +171,11 @@ def _run_frozen(rmap, last_adaptive, last_frozen, params, frozen_strides: int, t
     for n in range(done, frozen_strides):
         stride = rmap.stride(X, u, params)
         if stride.fall is not None:
-            table.append({"phase": "fall", "n": n, **APEX.to_dict(X), **CONTROL.to_dict(u), "note": stride.fall.value})
+            table.append({"phase": "fall", "n": n, **APEX.to_dict(X), **controls.to_dict(u), "note": stride.fall.value})
             return
         assert stride.apex is not None
         X = stride.apex
-        table.append({"phase": "frozen", "n": n + 1, **APEX.to_dict(X), **CONTROL.to_dict(u),
+        table.append({"phase": "frozen", "n": n + 1, **APEX.to_dict(X), **controls.to_dict(u),
                       "eps": eps(X, start), "solve_time_s": 0.0})
 
 
@@ -180,15 +188,16 @@ def run_adaptive_study(problem: Problem, study: Adaptive, out_dir: Path, sources
     if not result.converged:
         raise StudyFailed(f"the starting fixed point did not converge: {result.status} ({result.message})")
     spec = fixed_point_spec(problem)
-    bounds = np.array([spec.bounds_of(n) for n in CONTROL.names])
-    held = tuple(i for i, n in enumerate(CONTROL.names) if n in problem.fix)
+    names = problem.hip_law.controls.names
+    bounds = np.array([spec.bounds_of(n) for n in names])
+    held = tuple(i for i, n in enumerate(names) if n in problem.fix)
 
     def controller():
         return ResolvedControl(solver.residual_map, problem.params, result.X, result.u, study.criterion,
                                fixed=held, lower=bounds[:, 0], upper=bounds[:, 1])
 
     offset = np.array([dict(study.perturbation).get(n, 0.0) for n in APEX.names])
-    table = study_table(out_dir / "strides.csv", STRIDE_COLUMNS, ["phase", "n"], quiet)
+    table = study_table(out_dir / "strides.csv", stride_columns(problem.hip_law), ["phase", "n"], quiet)
     summary = run_adaptive(controller(), result.X + offset, problem.params, study.strides, study.frozen_strides, table, quiet)
     figures.adaptive_figures(table.rows, out_dir)
     recovery = None

@@ -16,7 +16,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.colors import LogNorm  # noqa: E402
 
-from baslip.model.quantities import UNITS  # noqa: E402
+from baslip.model.quantities import ANY_DESIGN, UNITS  # noqa: E402
 from baslip.problem.study import CONTROLLER_KINDS  # noqa: E402
 from baslip.status import Status
 from baslip.viz.labels import SPECIAL_NAMES  # noqa: E402
@@ -315,8 +315,13 @@ def adaptive_figures(rows: list[dict], out_dir: Path | None) -> list[Path | None
         ax.ticklabel_format(useOffset=False)
     path_states = _save(fig, _in(out_dir, "adaptive_states.png"))
 
-    fig, axes = plt.subplots(2, 3, figsize=(12, 6.5))
-    for ax, name in zip(axes.ravel(), ("Kp", "Kd", "theta_td", "theta2_des", "theta2_dot_des", "eps")):
+    # The hip law's controls are the rows' columns that are design quantities but not apex ones.
+    controls = [k for k in adaptive[0] if k in ANY_DESIGN and k not in _NOMINAL_APEX]
+    panels = (*controls, "eps")
+    fig, axes = plt.subplots(-(-len(panels) // 3), 3, figsize=(12, 3.25 * -(-len(panels) // 3)), squeeze=False)
+    for ax in axes.ravel()[len(panels):]:
+        ax.set_visible(False)
+    for ax, name in zip(axes.ravel(), panels):
         values = col(adaptive, name)
         ax.plot(n, values if name == "eps" else shown(name, values), "-", lw=0.8)
         ax.set_xlabel("stride n")
