@@ -134,9 +134,10 @@ def test_the_atlas_claim_names_the_polished_gaits_and_maps_the_hanging_family(tm
     assert "**Verdict:** differs: a stable gait upright at the apex exists; none was found upright throughout" in text
 
 
-def basins(largest, last_share, cost):
+def basins(largest, last_share, cost, kept_up=0.0):
     return {"largest_90_box": largest, "per_box": [
-        {"box": 1.0, "returned_fraction": 1.0, "ci95": [0.99, 1.0], "median_ms_per_stride": cost},
+        {"box": 1.0, "returned_fraction": 1.0 - kept_up, "bounded_fraction": kept_up, "ci95": [0.99, 1.0],
+         "median_ms_per_stride": cost},
         {"box": 16.0, "returned_fraction": last_share, "ci95": [0.0, 1.0], "median_ms_per_stride": cost}]}
 
 
@@ -150,3 +151,11 @@ def test_the_best_controller_has_the_largest_90_percent_box_then_the_most_return
     assert best_controller(summary) == "resolve"
     summary["basins"] = {"constant": basins(None, 0.0, 0.1), "feedback": basins(None, 0.01, 0.2)}
     assert best_controller(summary) == "feedback"  # no 90 % box: the most returned in the largest box
+
+
+def test_a_controller_that_keeps_most_starts_up_without_returning_is_named_so():
+    from baslip.report.controllers import _kept_up
+
+    summary = {"basins": {"constant": basins(None, 0.0, 0.1, kept_up=1.0), "feedback": basins(4.0, 0.4, 0.2),
+                          "pivot": basins(None, 0.0, 0.2, kept_up=0.4)}}
+    assert _kept_up(summary) == [("constant", 1.0)]

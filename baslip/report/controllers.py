@@ -31,6 +31,10 @@ def controller_claims(ev: Evidence) -> list[str]:
             for controller, basin in summary["basins"].items()]
     feedback = "; ".join(f"{CONTROLLER_GAITS[name]}: {_feedback_text(summary)}" for name, summary in runs.items())
     best = "; ".join(f"{CONTROLLER_GAITS[name]}: {_best_text(summary)}" for name, summary in runs.items())
+    kept = "; ".join(f"{CONTROLLER_GAITS[name]}, {controller}: {share:.0%}" for name, summary in runs.items()
+                     for controller, share in _kept_up(summary))
+    kept_text = (f"\n\nKept up without converging or settling within {first['strides']} strides (most of the 1x "
+                 f"box; neither returned nor fallen, so not counted above): {kept}." if kept else "")
     box = ", ".join(f"{k} +-{v:g}" for k, v in first["perturbation"].items())
     return [claim(
         "Under event-based feedback and receding-horizon re-solve: yes, with measured basins",
@@ -42,7 +46,8 @@ def controller_claims(ev: Evidence) -> list[str]:
         f"{first['basins']['constant']['per_box'][0]['samples']} starts a box, the two re-solves from "
         f"{first['basins'].get('horizon', first['basins']['constant'])['per_box'][0]['samples']}.\n\n"
         + header + "\n" + "\n".join(rows) + f"\n\nThe best controller of each gait (the largest 90 % box, then "
-        f"the most returned in the largest box, then the least cost): {best}.\n\nThe feedback chosen: {feedback}.\n",
+        f"the most returned in the largest box, then the least cost): {best}.{kept_text}\n\nThe feedback chosen: "
+        f"{feedback}.\n",
         "goes further",
         "The tuned feedback u = u* + K (X - X*) is the cheap functional law chapter 5 asks for: a matrix product a "
         "stride. Where the constant law is unstable it makes the gait asymptotically stable, and its basin is "
@@ -98,6 +103,17 @@ def _best_text(summary: dict) -> str:
     largest, last = basin["largest_90_box"], basin["per_box"][-1]
     box = "no box with 90 % returned" if largest is None else f"90 % or more returned up to the {largest:g}x box"
     return f"{name} ({box}; {last['returned_fraction']:.0%} in the {last['box']:g}x box)"
+
+
+def _kept_up(summary: dict) -> list[tuple[str, float]]:
+    """(controller, share) where most of the smallest box was kept up without returning:
+    a slow convergence (a closed loop of radius near 1) that the stride limit cut short."""
+    found = []
+    for controller, basin in summary["basins"].items():
+        share = basin["per_box"][0]["bounded_fraction"]
+        if share is not None and share > 0.5:
+            found.append((controller, share))
+    return found
 
 
 def _median_cost(basin: dict) -> float:
