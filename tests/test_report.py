@@ -159,3 +159,17 @@ def test_a_controller_that_keeps_most_starts_up_without_returning_is_named_so():
     summary = {"basins": {"constant": basins(None, 0.0, 0.1, kept_up=1.0), "feedback": basins(4.0, 0.4, 0.2),
                           "pivot": basins(None, 0.0, 0.2, kept_up=0.4)}}
     assert _kept_up(summary) == [("constant", 1.0)]
+
+
+def test_the_short_upright_answer_counts_what_the_committed_atlases_hold():
+    from baslip.report.answer import upright_answer
+
+    text = upright_answer(Evidence(RESULTS))
+    cells = Evidence(RESULTS).rows("atlas_upright", "cells.csv")
+    stable = sum(1 for c in cells if min(c["least_radius_upright_apex"], c["polished_radius"] or 9) < 1)
+    assert f"a stable gait in {stable} of the {len(cells)} (ydot, z) cells" in text
+    charts = [c for name in ("atlas_vpp", "atlas_vpp_human") for c in Evidence(RESULTS).rows(name, "atlas.csv")
+              if c["status"] == "converged" and c["stable"] is True]
+    upright = sum(1 for c in charts if c["upright_throughout"] is True)
+    assert f"Of its {len(charts)} stable charts, {upright} are upright throughout" in text
+    assert text.count("\n- **") == 3  # one bullet per law of control

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from baslip.report.answer import upright_answer
 from baslip.report.atlas import atlas_claims, crosscheck_claims
 from baslip.report.controllers import controller_claims
 from baslip.report.evidence import DEG, Evidence, _shown, claim
@@ -15,8 +16,10 @@ from baslip.viz.labels import SPECIAL_NAMES
 
 
 def upright_section(ev: Evidence) -> list[str]:
-    """Can an upright BA-SLIP run stably? Under constant PD, constant VPP, and controllers."""
-    out = []
+    """Can an upright BA-SLIP run stably? The short answer under the three laws of control,
+    then the claims under constant PD, constant VPP, and controllers."""
+    answer = upright_answer(ev)
+    out = [answer] if answer else []
     upright, hanging = ev.summary("optimal_upright"), ev.summary("optimal_downward")
     if upright and upright.get("least"):
         least, problem = upright["least"], upright["provenance"]["problem"]
