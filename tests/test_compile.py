@@ -102,6 +102,22 @@ def test_second_call_loads_from_the_cache_without_compiling(cache, tmp_path, mon
     assert capsys.readouterr().err == ""
 
 
+def test_a_large_build_says_what_it_compiles_and_about_how_long_a_cached_load_says_nothing(cache, monkeypatch,
+                                                                                           capsys):
+    """Above ANNOUNCE_BYTES of C (lowered here, so that a small library counts) a build
+    prints one line naming the library, its size and an estimate; the load from the
+    cache prints none. Below it (every other test here) a build is silent."""
+    import baslip.engine.codegen as codegen
+
+    monkeypatch.setattr(codegen, "ANNOUNCE_BYTES", 1)
+    compile_functions("test_lib", make_functions())
+    [line] = capsys.readouterr().err.splitlines()
+    assert line.startswith("baslip: compiling test_lib for this machine (") and " MB of C, about " in line
+    assert str(cache) in line
+    compile_functions("test_lib", make_functions())
+    assert capsys.readouterr().err == ""
+
+
 def test_changed_function_gets_its_own_library(cache):
     compile_functions("test_lib", make_functions(0.01))
     first = libraries(cache)
