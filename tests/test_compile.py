@@ -104,12 +104,16 @@ def test_second_call_loads_from_the_cache_without_compiling(cache, tmp_path, mon
 
 def test_a_large_build_says_what_it_compiles_and_about_how_long_a_cached_load_says_nothing(cache, monkeypatch,
                                                                                            capsys):
-    """Above ANNOUNCE_BYTES of C (lowered here, so that a small library counts) a build
-    prints one line naming the library, its size and an estimate; the load from the
-    cache prints none. Below it (every other test here) a build is silent."""
+    """On a terminal, above ANNOUNCE_BYTES of C (lowered here, so that a small library
+    counts), a build prints one line naming the library, its size and an estimate; the
+    load from the cache prints none. Not on a terminal (every other test here), or below
+    the size, a build is silent."""
     import baslip.engine.codegen as codegen
 
     monkeypatch.setattr(codegen, "ANNOUNCE_BYTES", 1)
+    compile_functions("test_lib_piped", make_functions(gain=0.02))
+    assert capsys.readouterr().err == ""
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
     compile_functions("test_lib", make_functions())
     [line] = capsys.readouterr().err.splitlines()
     assert line.startswith("baslip: compiling test_lib for this machine (") and " MB of C, about " in line

@@ -318,6 +318,7 @@ def _build(name: str, c_text: str, compiler: list[str], library: pathlib.Path) -
         with tempfile.TemporaryDirectory(dir=library.parent, prefix=f".{library.stem}.", suffix=".cc") as scratch:
             source = pathlib.Path(scratch) / f"{name}.c"
             source.write_text(c_text, encoding="utf-8")
+            _announce(name, c_text, library.parent)  # only once the cache has taken the source
             try:
                 _run([*compiler, *CFLAGS, str(source), "-o", partial, *LDLIBS])
             except _NoCompiler as reason:
@@ -411,9 +412,7 @@ def _build_and_load(name, names, build, load, generated, compiler, library: path
         _clear_stale(library, locked)
         _discard(library)  # corrupt, truncated or stale: rebuild once
         _discard(_checksum_path(library))
-        c_text = generated if generated is not None else _generate(name, build())
-        _announce(name, c_text, library.parent)
-        _build(name, c_text, compiler, library)
+        _build(name, generated if generated is not None else _generate(name, build()), compiler, library)
     loaded = load(library, names)
     if loaded is None:
         raise _NoCompiler(f"the freshly compiled {library.name} does not load")
@@ -428,11 +427,12 @@ SECONDS_PER_MB = 12.0
 
 
 def _announce(name: str, c_text: str, folder: pathlib.Path) -> None:
-    """Say on stderr that ``name`` is being compiled, and about how long it takes: the
-    silence of a first run would otherwise look like a hang. Small libraries, and
-    workers (whose parent speaks for them), say nothing."""
+    """Say on stderr, when it is a terminal, that ``name`` is being compiled and about how
+    long it takes: the silence of a first run would otherwise look like a hang. Small
+    libraries, workers (whose parent speaks for them) and output to files or pipes (logs,
+    tests that read stderr) get nothing."""
     size = len(c_text.encode())
-    if size < ANNOUNCE_BYTES or not _PROCESS.notices_here:
+    if size < ANNOUNCE_BYTES or not _PROCESS.notices_here or not sys.stderr.isatty():
         return
     print(f"baslip: compiling {name} for this machine ({size / 1e6:.1f} MB of C, about "
           f"{size / 1e6 * SECONDS_PER_MB:.0f} s; once, then kept in {folder})", file=sys.stderr, flush=True)
