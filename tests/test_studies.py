@@ -254,6 +254,48 @@ def test_an_optimal_study_descends_from_every_start(tmp_path, monkeypatch):
     assert (out / "best_gaits_trunk.png").stat().st_size > 0
 
 
+VPP_PARAMS = "params: {m: 1.0, I: 0.0033, k: 1000.0, rho0: 0.2, d: 0.04, g: 9.81}\nhip_law: vpp\n"
+
+
+def test_basin_and_random_studies_run_under_vpp_from_a_vpp_sweep_and_refuse_another_laws(tmp_path):
+    """A (ydot, z) sweep of thesis-scale VPP gaits at a low apex, where the VPP atlas finds
+    stable ones; from it, a basin study (each stable gait, started at its own apex,
+    converges at once) and a random sample inside its stable region; a PD study cannot
+    read it."""
+    from baslip.cli.solve import main
+
+    results = tmp_path / "results"
+    sweep = tmp_path / "vpp_grid.yaml"
+    sweep.write_text("name: vpp_grid\n" + VPP_PARAMS + "fix: {r_vpp: 0.03}\n"
+                     "guess: {theta_h: \"90 deg\", theta_h_dot: -0.3, theta_td: \"25 deg\"}\n"
+                     "study: {kind: sweep, vary: {ydot: [2.25, 2.75, 0.25], z: [0.235, 0.255, 0.01]}}\n")
+    run_study(load_problem(sweep), results / "vpp_grid", quiet=True)
+    with open(results / "vpp_grid" / "points.csv") as handle:
+        stable = [r for r in csv.DictReader(handle) if r["stable"] == "true"]
+    assert stable
+    basin = tmp_path / "vpp_basin.yaml"
+    basin.write_text("name: vpp_basin\n" + VPP_PARAMS + "study: {kind: basin, source: vpp_grid, "
+                     "stable_at: {ydot: 2.5, z: 0.245}, unstable_at: {ydot: 2.5, z: 0.245}, "
+                     "grid: {ydot: [2.25, 2.75, 0.25], z: [0.235, 0.255, 0.01]}, strides: 20, tolerance: 1.0e-6}\n")
+    summary = run_study(load_problem(basin), results / "vpp_basin", quiet=True)
+    assert summary["stable_points"] == len(stable) and summary["simulations"] == 9 * len(stable)
+    with open(results / "vpp_basin" / "basin.csv") as handle:
+        runs = {(int(r["point"]), float(r["sweep_ydot"]), float(r["sweep_z"])): r for r in csv.DictReader(handle)}
+    for k, point in enumerate(stable):
+        own = runs[(k, float(point["sweep_ydot"]), float(point["sweep_z"]))]
+        assert own["outcome"] == "converged" and own["strides_run"] == "1"
+    sample = tmp_path / "vpp_sample.yaml"
+    sample.write_text("name: vpp_sample\n" + VPP_PARAMS + "fix: {r_vpp: 0.03}\n"
+                      "guess: {theta_h: \"90 deg\", theta_h_dot: -0.3, theta_td: \"25 deg\"}\n"
+                      "study: {kind: random, region: vpp_grid, count: 2, seed: 1}\n")
+    drawn = run_study(load_problem(sample), results / "vpp_sample", quiet=True)
+    assert drawn["complete"] and drawn["solved"] == 2
+    pd_basin = tmp_path / "pd_basin.yaml"
+    pd_basin.write_text(basin.read_text().replace("hip_law: vpp\n", "").replace("vpp_basin", "pd_basin"))
+    assert main([str(pd_basin), "--out", str(results / "pd_basin")]) == 2
+    assert not (results / "pd_basin").exists()
+
+
 def test_an_adaptive_study_under_vpp_resolves_the_pivot_and_touchdown_angle_and_falls_once_frozen(tmp_path):
     """The thesis-scale VPP gait (unstable, radius 4.6) under sec. 4.7's per-stride
     re-solve, tracking: both VPP controls change every stride, the runner keeps hopping

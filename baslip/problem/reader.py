@@ -53,7 +53,7 @@ TOP_LEVEL_KEYS = ("name", "params", "hip_law", "fix", "guess", "bounds", "object
 #: each problem to its own law's.
 _ANY_QUANTITY = ANY_DESIGN + ("energy",)
 #: Study kinds that run under every hip law; the others read or write the PD gains.
-ANY_LAW_STUDIES = ("sweep", "controllers", "atlas", "adaptive")
+ANY_LAW_STUDIES = ("sweep", "controllers", "atlas", "adaptive", "basin", "random")
 #: Longest orbit, in strides, that a problem may ask for.
 MAX_STRIDES = 16
 #: Most fixed points one sweep may ask for (a day of solving on two cores).

@@ -16,7 +16,7 @@ from baslip.engine.returnmap import ReturnMap, Tolerances
 from baslip.files.atomic import write_files_atomically
 from baslip.files.rows import read_points
 from baslip.model.dynamics import APEX, Params
-from baslip.model.hiplaw import CONTROL
+from baslip.model.hiplaw import HipLaw
 from baslip.problem.reader import Problem
 from baslip.problem.study import Basin
 from baslip.status import Status
@@ -96,10 +96,10 @@ def run_many(rmap: ReturnMap, X0, X_star, u_star, params: Params, strides: int, 
 def basin_worker(chunk: list[dict], context: tuple, queue) -> None:
     """Worker process: simulate the (point, ydot, z) tasks of its chunk in lockstep and put
     each row on the queue as its run ends."""
-    points, params, strides, tolerance = context
+    points, params, strides, tolerance, law = context
     chunk = [task for task in chunk if not task.get("done")]  # runs are independent
     try:
-        rmap = ReturnMap(SIMULATION_TOLERANCES)
+        rmap = ReturnMap(SIMULATION_TOLERANCES, law=law)
         X_star = np.array([points[int(task["point"])][0] for task in chunk], dtype=float)
         u_star = np.array([points[int(task["point"])][1] for task in chunk], dtype=float)
         X0 = X_star.copy()
@@ -115,29 +115,30 @@ def run_basin(problem: Problem, study: Basin, out_dir: Path, sources: Path, quie
     """Convergence regions: each stable point of the source sweep run from every grid state."""
     from baslip.engine.returnmap import ReturnMap
 
-    rows, names = source_points(sources, study.source, "study.source")
+    law = problem.hip_law
+    rows, names = source_points(sources, study.source, "study.source", law)
     if set(names) != {"ydot", "z"}:
         raise StudyInputError("study.source", f"{study.source} does not sweep ydot and z")
     converged = [r for r in rows if r["status"] == Status.CONVERGED]
     stable = [r for r in converged if r["stable"] is True]
     unstable = [r for r in converged if r["stable"] is False]
-    points = [_point(r) for r in stable]
+    points = [_point(r, law) for r in stable]
     table = study_table(out_dir / "basin.csv", ["point", key_column("ydot"), key_column("z"), *BASIN_COLUMNS[1:]],
                    ["point", key_column("ydot"), key_column("z")], quiet)
-    context = (points, problem.params, study.strides, study.tolerance)
+    context = (points, problem.params, study.strides, study.tolerance, law)
     report = run_tasks(split_lanes(basin_tasks(study, len(points)), lanes), basin_worker, context, table, problem.name,
                        quiet=quiet, workers=workers)
 
     example_stable, example_unstable = _nearest(stable, study.stable_at), _nearest(unstable, study.unstable_at)
-    rmap = ReturnMap(SIMULATION_TOLERANCES)
+    rmap = ReturnMap(SIMULATION_TOLERANCES, law=law)
     trajectories = {}
     if example_unstable is not None:
-        X_u, u_u = _point(example_unstable)
+        X_u, u_u = _point(example_unstable, law)
         trajectories["unstable_own_control"] = run_from(
             rmap, X_u, X_u, u_u, problem.params, study.strides, study.tolerance, stop_on_arrival=False
         )
         if example_stable is not None:
-            X_s, u_s = _point(example_stable)
+            X_s, u_s = _point(example_stable, law)
             trajectories["unstable_with_stable_control"] = run_from(rmap, X_u, X_s, u_s, problem.params, study.strides, study.tolerance)
     _write_trajectories(out_dir / "trajectories.csv", trajectories)
 
@@ -164,7 +165,7 @@ def run_basin(problem: Problem, study: Basin, out_dir: Path, sources: Path, quie
 
 def check_basin(problem: Problem, study: Basin, sources: Path) -> None:
     """Refuse a basin study whose source sweep is not there, finished and baslip's."""
-    source_points(sources, study.source, "study.source")
+    source_points(sources, study.source, "study.source", problem.hip_law)
 
 
 def _write_trajectories(path: Path, trajectories: dict) -> None:
@@ -174,8 +175,9 @@ def _write_trajectories(path: Path, trajectories: dict) -> None:
     write_files_atomically({path: "\n".join(lines) + "\n"})
 
 
-def _point(row: dict) -> tuple[np.ndarray, np.ndarray]:
-    return np.array([row[n] for n in APEX.names]), np.array([row[n] for n in CONTROL.names])
+def _point(row: dict, law: HipLaw) -> tuple[np.ndarray, np.ndarray]:
+    """The gait (X, u) of a source row under ``law``."""
+    return np.array([row[n] for n in APEX.names]), np.array([row[n] for n in law.controls.names])
 
 
 def _nearest(rows: list[dict], at: tuple[float, float]) -> dict | None:

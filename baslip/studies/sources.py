@@ -17,7 +17,7 @@ from baslip.errors import InputError
 from baslip.files.lock import busy
 from baslip.files.rows import read_points, regular_text
 from baslip.model.dynamics import APEX
-from baslip.model.hiplaw import CONTROL
+from baslip.model.hiplaw import PD, HipLaw
 from baslip.problem.study import RandomSample
 from baslip.studies.boundary import boundary_segments, read_curves
 
@@ -26,8 +26,9 @@ class StudyInputError(InputError):
     """A study refers to something that is not there (e.g. an unfinished source study)."""
 
 
-def source_points(sources: Path, name: str, key: str) -> tuple[list[dict], tuple[str, str]]:
-    """The rows and swept quantities of the finished two-quantity sweep ``sources/name``."""
+def source_points(sources: Path, name: str, key: str, law: HipLaw = PD) -> tuple[list[dict], tuple[str, str]]:
+    """The rows and swept quantities of the finished two-quantity sweep ``sources/name``,
+    which must have been run under ``law`` (the reading study's hip law)."""
     folder = sources / name
     path = folder / "points.csv"
     if not path.exists():
@@ -40,11 +41,15 @@ def source_points(sources: Path, name: str, key: str) -> tuple[list[dict], tuple
         record = json.loads(regular_text(folder / "result.json"))
     if not isinstance(record, dict) or record.get("complete") is not True:
         raise StudyInputError(key, f"the study {name!r} has not run to the end (its result.json does not say complete); rerun it first")
+    source_law = _recorded_law(record)
+    if source_law != law.name:
+        raise StudyInputError(key, f"the study {name!r} was run under hip_law {source_law}, this problem is under "
+                              f"{law.name}: use a source of the same law")
     try:
         rows = read_points(path)
         names = tuple(c[len("sweep_"):] for c in rows[0] if c.startswith("sweep_")) if rows else ()
         for row in rows:
-            for column in (*APEX.names, *CONTROL.names, "spectral_radius", "stable", "status"):
+            for column in (*APEX.names, *law.controls.names, "spectral_radius", "stable", "status"):
                 if column not in row:
                     raise ValueError(f"it has no column {column}")
                 if column in ("stable", "status"):
@@ -60,6 +65,16 @@ def source_points(sources: Path, name: str, key: str) -> tuple[list[dict], tuple
     if len(names) != 2:
         raise StudyInputError(key, f"{path} is not a sweep over two quantities")
     return rows, names
+
+
+def _recorded_law(record: dict) -> str:
+    """The hip law a finished study recorded in its provenance (pd, the only law before
+    laws were recorded, if none)."""
+    with contextlib.suppress(KeyError, TypeError):
+        law = record["provenance"]["problem"]["hip_law"]
+        if isinstance(law, str):
+            return law
+    return PD.name
 
 
 def traced_boundary(sources: Path, study: RandomSample, names: tuple[str, str]):

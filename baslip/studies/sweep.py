@@ -100,7 +100,8 @@ def interpolated_radius(a, b, radius, x: float, y: float) -> float:
     return float(np.sum(corners * weights))
 
 
-def random_tasks(study: RandomSample, region_rows: list[dict], names: tuple[str, str], segments=None) -> list[dict]:
+def random_tasks(study: RandomSample, region_rows: list[dict], names: tuple[str, str], segments=None,
+                 law: HipLaw = PD) -> list[dict]:
     """``count`` uniform draws inside the region's stable set, ordered along the first
     axis. Inside means an interpolated radius below 1 or, given the ``segments`` of a
     traced stability boundary, on the stable side of it as seen from the nearest stable
@@ -138,7 +139,7 @@ def random_tasks(study: RandomSample, region_rows: list[dict], names: tuple[str,
         task: dict[str, Any] = {key_column(names[0]): x, key_column(names[1]): y}
         if segments is None:
             start = nearest(x, y)
-            task["guess"] = {n: start[n] for n in APEX.names + PD.controls.names if n not in names}
+            task["guess"] = {n: start[n] for n in APEX.names + law.controls.names if n not in names}
         tasks.append(task)
     return tasks
 
@@ -196,9 +197,9 @@ def run_sweep(problem: Problem, study: Sweep, out_dir: Path, sources: Path, quie
 
 def run_random(problem: Problem, study: RandomSample, out_dir: Path, sources: Path, quiet: bool, lanes: int, workers: Workers) -> dict:
     """Random samples over the stable cells of a finished sweep (or inside a traced boundary)."""
-    region_rows, names = source_points(sources, study.region, "study.region")
+    region_rows, names = source_points(sources, study.region, "study.region", problem.hip_law)
     curve_rows, segments = traced_boundary(sources, study, names)
-    tasks = split_lanes(random_tasks(study, region_rows, names, segments), lanes)
+    tasks = split_lanes(random_tasks(study, region_rows, names, segments, problem.hip_law), lanes)
     summary = solve_points(problem, out_dir, tasks, list(names), quiet, workers)
     summary["region"] = study.region
     if study.boundary is not None:
@@ -209,8 +210,8 @@ def run_random(problem: Problem, study: RandomSample, out_dir: Path, sources: Pa
 
 def check_random(problem: Problem, study: RandomSample, sources: Path) -> None:
     """Refuse a sample whose region or boundary is not there, or whose draws the problem refuses."""
-    rows, names = source_points(sources, study.region, "study.region")
-    tasks = random_tasks(study, rows, names, traced_boundary(sources, study, names)[1])
+    rows, names = source_points(sources, study.region, "study.region", problem.hip_law)
+    tasks = random_tasks(study, rows, names, traced_boundary(sources, study, names)[1], problem.hip_law)
     if not tasks:
         raise StudyInputError("study.region", f"{study.region!r} has no stable region to draw from (no stable "
                               "point, or none inside the boundary)")
