@@ -53,6 +53,7 @@ from baslip.engine.returnmap import ReturnMap, Tolerances
 from baslip.files.rows import read_points
 from baslip.gait.polish import eps
 from baslip.model.dynamics import APEX
+from baslip.model.hiplaw import HipLaw
 from baslip.model.quantities import NOMINAL
 from baslip.problem.reader import Problem
 from baslip.problem.study import ADAPTED_CONTROLS, Controllers
@@ -222,7 +223,7 @@ def feedback_for(study: Controllers, context: dict, A, B, scale, rmap: ReturnMap
     return replace(choice, K=full(choice.K))
 
 
-def adapted_controls(name: str, law) -> np.ndarray:
+def adapted_controls(name: str, law: HipLaw) -> np.ndarray:
     """Indices of the controls the linear feedback ``name`` moves: those of
     :data:`~baslip.problem.study.ADAPTED_CONTROLS`, or all of ``law``'s."""
     return np.array([law.controls.index(n) for n in ADAPTED_CONTROLS.get(name, law.controls.names)])
