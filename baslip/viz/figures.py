@@ -16,6 +16,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.colors import LogNorm  # noqa: E402
 
+from baslip.model.dynamics import APEX  # noqa: E402
 from baslip.model.quantities import ANY_DESIGN, UNITS  # noqa: E402
 from baslip.problem.study import CONTROLLER_KINDS  # noqa: E402
 from baslip.status import Status
@@ -316,9 +317,10 @@ def adaptive_figures(rows: list[dict], out_dir: Path | None) -> list[Path | None
     path_states = _save(fig, _in(out_dir, "adaptive_states.png"))
 
     # The hip law's controls are the rows' columns that are design quantities but not apex ones.
-    controls = [k for k in adaptive[0] if k in ANY_DESIGN and k not in _NOMINAL_APEX]
+    controls = [k for k in adaptive[0] if k in ANY_DESIGN and k not in APEX.names]
     panels = (*controls, "eps")
-    fig, axes = plt.subplots(-(-len(panels) // 3), 3, figsize=(12, 3.25 * -(-len(panels) // 3)), squeeze=False)
+    panel_rows = math.ceil(len(panels) / 3)
+    fig, axes = plt.subplots(panel_rows, 3, figsize=(12, 3.25 * panel_rows), squeeze=False)
     for ax in axes.ravel()[len(panels):]:
         ax.set_visible(False)
     for ax, name in zip(axes.ravel(), panels):
