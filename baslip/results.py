@@ -108,13 +108,16 @@ class RunResults:
             plots.basin_figures(*self._basin_inputs(), None)
         elif self.kind == "optimal":
             from baslip.model.dynamics import Params
+            from baslip.model.hiplaw import HIP_LAWS
             from baslip.studies.optimal import best_gait_motions, best_rows
+            from baslip.studies.sources import recorded_law
 
             names = self._swept(self.rows("points"))
             best = best_rows(self.rows("points"), names)
             plots.sweep_figures(best, names, None)
             params = Params(**self.record["provenance"]["problem"]["params"])
-            plots.trunk_motion_figure(best_gait_motions(best, names, params), None)
+            law = HIP_LAWS[recorded_law(self.record)]
+            plots.trunk_motion_figure(best_gait_motions(best, names, params, law=law), None)
         if self.kind == "random":
             rows = self.rows("points")
             pair = tuple(c[len("sweep_"):] for c in rows[0] if c.startswith("sweep_"))

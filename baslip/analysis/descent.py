@@ -39,7 +39,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from baslip.analysis.compass import CompassSettings, compass_search
-from baslip.engine.codegen import compile_kernels
+from baslip.engine.codegen import compile_kernels, library_name
 from baslip.engine.kernels import multiplier_gradient_function
 from baslip.engine.kernels import sources as stride_sources
 from baslip.engine.outcome import precheck
@@ -49,10 +49,13 @@ from baslip.gait.fixedpoint import FixedPointResult, FixedPointSolver
 from baslip.gait.polish import Polish, eps, movable_quantities
 from baslip.gait.shooting import FixedPointSpec
 from baslip.gait.stability import classify
-from baslip.model.quantities import DESIGN, NOMINAL
+from baslip.model.dynamics import APEX
+from baslip.model.quantities import NOMINAL, design_names
 
 #: q of the surrogate (see the module docstring).
 SURROGATE_POWER = 8
+#: The apex's share of a design vector (X, u): the rest are the law's controls.
+NX = APEX.size
 #: Armijo constant, largest step (scaled units), halvings per iteration, and the
 #: reduced-gradient norm and step length at which the descent stops.
 ARMIJO = 1e-4
@@ -125,7 +128,8 @@ class StabilityDescent:
         in CasADi's virtual machine (about 0.13 s a call instead of 9 ms)."""
         self.rmap, self.max_iterations, self.compile = rmap, max_iterations, compile
         self.polish = Polish(rmap, rmap)
-        self.scale = np.array([NOMINAL[n] for n in DESIGN])
+        # Scaled units of the design quantities of the map's hip law.
+        self.scale = np.array([NOMINAL[n] for n in design_names(rmap.law)])
         self._kernels: dict[int, object] = {}
 
     # -- the objective ---------------------------------------------------------------------
@@ -133,7 +137,7 @@ class StabilityDescent:
     def evaluate(self, spec: FixedPointSpec, X, u) -> tuple[float, float, np.ndarray]:
         """(spectral radius, phi, gradient of phi in (X, u)) at a fixed point."""
         dr_dX, _ = self.rmap.jacobians(X, u, spec.params)
-        stability = classify(dr_dX, spec.params, u)
+        stability = classify(dr_dX, spec.params, u, spec.law)
         trivial = np.array([m.trivial for m in stability.multipliers])
         phi, G = surrogate(dr_dX, trivial)
         return stability.spectral_radius, phi, self.gradient(X, u, spec, G)
@@ -152,7 +156,8 @@ class StabilityDescent:
     def _kernel(self, engine, n: int):
         if n not in self._kernels:
             name = f"multiplier_gradient_{n}"
-            kernels = compile_kernels(f"baslip_curvature_{n}", [name],
+            # The library holds one law's second derivatives: the law is in its name.
+            kernels = compile_kernels(library_name(f"baslip_curvature_{n}", self.rmap.law), [name],
                                       lambda: [multiplier_gradient_function(engine.functions.flow, n)],
                                       stride_sources(), enabled=self.compile)
             self._kernels[n] = kernels[name]
@@ -174,12 +179,14 @@ class StabilityDescent:
         """
         if spec.strides != 1:
             raise ValueError("the stability descent handles one-stride gaits")
+        if spec.law is not self.rmap.law:
+            raise ValueError(f"this descent is built for hip law {self.rmap.law.name}, not {spec.law.name}")
         design = np.concatenate([X, u]).astype(float)
         try:
-            radius, phi, grad = self.evaluate(spec, design[:4], design[4:])
+            radius, phi, grad = self.evaluate(spec, design[:NX], design[NX:])
         except NoSecondDerivatives:
             return self._compass_only(spec, design)
-        steps = [DescentStep(design[:4].copy(), design[4:].copy(), radius, phi)]
+        steps = [DescentStep(design[:NX].copy(), design[NX:].copy(), radius, phi)]
         evaluations, chart, norm = 1, None, float("nan")
         for _ in range(self.max_iterations):
             if chart is None:
@@ -211,7 +218,7 @@ class StabilityDescent:
             s = (trial[chart] - design[chart]) / self.scale[chart]
             t_reduced = self._reduced_gradient(spec, trial, t_grad, chart)
             design, radius, phi, grad = trial, t_radius, t_phi, t_grad
-            steps.append(DescentStep(design[:4].copy(), design[4:].copy(), radius, phi))
+            steps.append(DescentStep(design[:NX].copy(), design[NX:].copy(), radius, phi))
             if t_reduced is None:
                 chart = None
                 continue
@@ -234,7 +241,7 @@ class StabilityDescent:
         """The descent where the start has no second derivatives (the compiled engine
         cannot vouch for its stride, so the surrogate has no gradient): the compass search
         on the spectral radius alone, which needs first derivatives only."""
-        dr_dX, _ = self.rmap.jacobians(design[:4], design[4:], spec.params)
+        dr_dX, _ = self.rmap.jacobians(design[:NX], design[NX:], spec.params)
         start = _step_at(design, dr_dX, spec)
         found, searched, compass = self._pattern_search(spec, design, start.spectral_radius)
         return Descent((start, *found), f"{compass} (no second derivatives at the start)", float("nan"), 1 + searched)
@@ -253,7 +260,7 @@ class StabilityDescent:
             if trial is not None:
                 evaluations += 1
                 try:
-                    t_radius, t_phi, t_grad = self.evaluate(spec, trial[:4], trial[4:])
+                    t_radius, t_phi, t_grad = self.evaluate(spec, trial[:NX], trial[NX:])
                 except (RunnerFell, NoSecondDerivatives):
                     t_phi = np.inf
                 if t_phi <= phi + ARMIJO * length * slope:
@@ -266,9 +273,10 @@ class StabilityDescent:
         return np.nonzero(movable_quantities(spec, design))[0]
 
     def _constraints(self, spec: FixedPointSpec, design) -> np.ndarray:
-        """The fixed-point equations' Jacobian in all nine scaled design quantities."""
-        energy_target = self.polish.energy_target(spec, design[:4])
-        return self.polish.equations_jacobian(spec, design[:4], design[4:], energy_target) * self.scale
+        """The fixed-point equations' Jacobian in the scaled design quantities (nine under
+        PD, six under VPP)."""
+        energy_target = self.polish.energy_target(spec, design[:NX])
+        return self.polish.equations_jacobian(spec, design[:NX], design[NX:], energy_target) * self.scale
 
     def _chart(self, spec: FixedPointSpec, design) -> np.ndarray:
         """Chart quantities: the free ones left after picking, column by column (greedy
@@ -314,7 +322,7 @@ class StabilityDescent:
             if trial is None:
                 return None
             try:
-                dr_dX, _ = self.rmap.jacobians(trial[:4], trial[4:], spec.params)
+                dr_dX, _ = self.rmap.jacobians(trial[:NX], trial[NX:], spec.params)
             except RunnerFell:
                 return np.inf, trial, None
             here = _step_at(trial, dr_dX, spec)
@@ -331,12 +339,12 @@ class StabilityDescent:
         or leaves a bound."""
         held = dict(spec.fixed)
         for i, value in zip(chart, values):
-            lo, hi = spec.bounds_of(DESIGN[i])
-            held[DESIGN[i]] = float(min(max(value, lo), hi))
+            lo, hi = spec.bounds_of(spec.design[i])
+            held[spec.design[i]] = float(min(max(value, lo), hi))
         start = design.copy()
         for i in chart:
-            start[i] = held[DESIGN[i]]
-        X, u, _, note = self.polish.run(replace(spec, fixed=held), start[:4], start[4:], within_bounds=True)
+            start[i] = held[spec.design[i]]
+        X, u, _, note = self.polish.run(replace(spec, fixed=held), start[:NX], start[NX:], within_bounds=True)
         if note:
             return None
         point = np.concatenate([X, u])
@@ -349,9 +357,9 @@ class StabilityDescent:
 def _step_at(design: np.ndarray, dr_dX: np.ndarray, spec: FixedPointSpec) -> DescentStep:
     """The descent's record of the fixed point ``design`` whose return-map Jacobian is
     ``dr_dX``: its spectral radius and surrogate (structural multipliers left out)."""
-    stability = classify(dr_dX, spec.params, design[4:])
+    stability = classify(dr_dX, spec.params, design[NX:], spec.law)
     trivial = np.array([m.trivial for m in stability.multipliers])
-    return DescentStep(design[:4].copy(), design[4:].copy(), stability.spectral_radius, surrogate(dr_dX, trivial)[0])
+    return DescentStep(design[:NX].copy(), design[NX:].copy(), stability.spectral_radius, surrogate(dr_dX, trivial)[0])
 
 
 def _bfgs(H: np.ndarray, s: np.ndarray, y: np.ndarray) -> np.ndarray:

@@ -53,7 +53,7 @@ TOP_LEVEL_KEYS = ("name", "params", "hip_law", "fix", "guess", "bounds", "object
 #: each problem to its own law's.
 _ANY_QUANTITY = ANY_DESIGN + ("energy",)
 #: Study kinds that run under every hip law; the others read or write the PD gains.
-ANY_LAW_STUDIES = ("sweep", "controllers", "atlas", "adaptive", "basin", "random")
+ANY_LAW_STUDIES = ("sweep", "optimal", "controllers", "atlas", "adaptive", "basin", "random")
 #: Longest orbit, in strides, that a problem may ask for.
 MAX_STRIDES = 16
 #: Most fixed points one sweep may ask for (a day of solving on two cores).
@@ -227,14 +227,16 @@ def _check_law(problem: Problem) -> None:
                            f"{problem.hip_law.name}, run single gaits, {', '.join(ANY_LAW_STUDIES)} studies or branches")
     if problem.objective in STABILITY_OBJECTIVES:
         raise ProblemError("objective", f"{problem.objective} bounds the multipliers under hip_law pd only, so far")
-    if isinstance(problem.study, Atlas) and problem.study.polish:
-        raise ProblemError("study.polish", f"the stability descent that polishes an atlas's best charts runs under "
-                           f"hip_law pd only, so far; under {problem.hip_law.name}, set polish: 0")
-    if problem.continuation is not None and problem.continuation.second is not None:
-        # A curve's test functions need apex coordinates free of structural multipliers;
-        # a VPP gait's symmetry multiplier has none to leave out.
-        raise ProblemError("continuation.second", f"bifurcation curves run under hip_law pd only, so far; under "
-                           f"{problem.hip_law.name}, trace a branch (no second parameter)")
+    if isinstance(problem.study, Optimal) and problem.study.method == "schur_nlp":
+        # Its accuracy constraints bound the PD gains' rates (:mod:`baslip.gait.monodromy`).
+        raise ProblemError("study.method", f"the stability NLP (schur_nlp) runs under hip_law pd only, so far; under "
+                           f"{problem.hip_law.name}, use method: descent")
+    if problem.continuation is not None and "fold" in problem.continuation.follow and problem.hip_law.positional:
+        # A fold multiplier meets the symmetry multiplier at +1, where the deflation that
+        # removes the latter from the curves' matrices breaks down.
+        raise ProblemError("continuation.follow", f"fold curves are not followed under hip_law "
+                           f"{problem.hip_law.name} (their multiplier +1 meets the symmetric gaits' structural "
+                           f"one); follow period_doubling or neimark_sacker")
 
 
 def _check_adapted_controls(problem: Problem) -> None:

@@ -140,7 +140,8 @@ def run_atlas(problem: Problem, study: Atlas, out_dir: Path, sources: Path, quie
         atlas_figure(charts, names, study.plot, out_dir, problem.name)
         best = read_points(out_dir / "atlas_best.csv")
         if best:  # none without polishing (polish: 0)
-            trunk_motion_figure(best_gait_motions(best, names, problem.params, count=2 * len(cells), note=_meaning),
+            trunk_motion_figure(best_gait_motions(best, names, problem.params, count=2 * len(cells), note=_meaning,
+                                                  law=problem.hip_law),
                                 out_dir)
         summary.update(_totals(cells, charts), best=[_best_summary(b, names, problem.hip_law) for b in best])
     return summary

@@ -67,7 +67,8 @@ class CellAtlas:
         charts = chart_rows(atlas, reports, self.problem.hip_law)
         row = {k: v for k, v in task.items() if k.startswith("sweep_")}
         row.update(_cell_counts(atlas, charts))
-        best = [self._polished(spec, charts, atlas.neighbours, meaning, say) for meaning in MEANINGS]
+        descents: dict[int, dict | None] = {}  # by chart: a chart best in both meanings descends once
+        best = [self._polished(spec, charts, atlas.neighbours, meaning, descents, say) for meaning in MEANINGS]
         row["polished_radius"], row["polished_upright_throughout_radius"] = (
             None if b is None else b["spectral_radius"] for b in best)
         return {**row, "chart_rows": charts, "boundary_rows": boundary_rows(atlas, manifold),
@@ -115,13 +116,15 @@ class CellAtlas:
         return manifold.to_atlas(np.concatenate([result.X, result.u]))
 
     def _polished(self, spec, charts: list[dict], neighbours: Sequence[Sequence[int]], meaning: str,
-                  say: Callable[..., None]) -> dict | None:
+                  descents: dict[int, dict | None], say: Callable[..., None]) -> dict | None:
         """The atlas_best.csv row of a cell for ``meaning`` (see :data:`MEANINGS`): the
         stability descent from each of the ``study.polish`` least local minima of the radius
         over the verified charts of that meaning (on the chart graph, ``neighbours``), its
         end verified independently; the verified end of least radius that still has that
         meaning (None if there is none). Local minima, not the least charts: the least
-        charts crowd one valley, and their descents end at its one bottom."""
+        charts crowd one valley, and their descents end at its one bottom. ``descents``
+        keeps the ends by chart, so a chart that is a candidate in both meanings (every
+        chart, where all gaits are upright throughout) descends once."""
         def has_meaning(row: dict) -> bool:
             return meaning == "any" or bool(row[meaning])
 
@@ -131,14 +134,16 @@ class CellAtlas:
         for number, chart in enumerate(candidates):
             say(f"polishing ({meaning.replace('_', ' ')}): descent {number + 1} of {len(candidates)}",
                 always=number == 0)
-            end = self._descend(spec, chart, meaning)
+            if chart["chart"] not in descents:
+                descents[chart["chart"]] = self._descend(spec, chart)
+            end = descents[chart["chart"]]
             if end is not None and has_meaning(end):
-                ends.append(end)
+                ends.append({"meaning": meaning, **end})
         return min(ends, key=lambda end: end["spectral_radius"], default=None)
 
-    def _descend(self, spec, chart: dict, meaning: str) -> dict | None:
-        """Where the descent from ``chart`` ends, verified, as a row of atlas_best.csv;
-        None if a stride of the descent falls or its end is not verified."""
+    def _descend(self, spec, chart: dict) -> dict | None:
+        """Where the descent from ``chart`` ends, verified, as a row of atlas_best.csv
+        but for its meaning; None if a stride of the descent falls or its end is not verified."""
         X = np.array([chart[n] for n in APEX.names])
         controls = self.problem.hip_law.controls.names
         u = np.array([chart[n] for n in controls])
@@ -150,7 +155,7 @@ class CellAtlas:
         if not end.converged:
             return None
         low, high = self.checker.trunk_range(end.X, end.u, spec.params)
-        return {"meaning": meaning, "from_chart": chart["chart"], "start_radius": chart["spectral_radius"],
+        return {"from_chart": chart["chart"], "start_radius": chart["spectral_radius"],
                 **dict(zip(APEX.names, map(float, end.X))), **dict(zip(controls, map(float, end.u))),
                 "spectral_radius": end.spectral_radius, "stable": bool(end.stable),
                 "residual": end.residual, "theta_h_min": low, "theta_h_max": high,

@@ -1,7 +1,8 @@
 """The ``optimal`` study: the most stable gait at every point of a grid.
 
-Each task is one start at one grid point: gains drawn over their whole bounds (seeded by
-the study's seed, the grid point and the start number, so a task draws the same gains in
+Each task is one start at one grid point: the hip law's drawn controls (the gains Kp and
+Kd under PD, the pivot r_vpp under VPP) drawn over their whole bounds (seeded by the
+study's seed, the grid point and the start number, so a task draws the same values in
 any lane and on any resume), the fixed point solved with them held, the
 descent to the least spectral radius nearby (:mod:`baslip.analysis.descent`), or with
 ``method: schur_nlp`` the stability NLP from there (:mod:`baslip.analysis.stablenlp`),
@@ -21,13 +22,13 @@ import numpy as np
 
 from baslip.files.rows import read_points
 from baslip.model.dynamics import APEX
-from baslip.model.hiplaw import CONTROL
+from baslip.model.hiplaw import PD, HipLaw
 from baslip.problem.reader import Problem
 from baslip.problem.study import Atlas, Optimal
 from baslip.status import Status
 from baslip.studies.common import run_info, status_counts, study_table
 from baslip.studies.runner import Workers, run_tasks, split_lanes
-from baslip.studies.sweep import RESULT_COLUMNS, key_column, result_row, sweep_tasks
+from baslip.studies.sweep import key_column, result_columns, result_row, sweep_tasks
 from baslip.viz import figures
 
 #: Upright at the apex: |theta_h - 90 deg| within this; upright throughout: the trunk
@@ -35,10 +36,18 @@ from baslip.viz import figures
 UPRIGHT_AT_APEX = math.radians(30)
 UPRIGHT_THROUGHOUT = math.radians(45)
 
-OPTIMAL_COLUMNS = [
-    "start", *RESULT_COLUMNS, "drawn_Kp", "drawn_Kd", "start_status", "start_radius", "descent_steps", "descent_stop",
-    "trunk_min_deg", "trunk_max_deg", "upright_apex", "upright_throughout",
-]
+
+
+def optimal_columns(law: HipLaw = PD) -> list[str]:
+    """The columns of one start under hip law ``law``, after the grid point's: its gait,
+    the controls drawn for its start (``drawn_Kp``, ``drawn_Kd`` under PD, ``drawn_r_vpp``
+    under VPP), how its descent went, and the trunk's range."""
+    return ["start", *result_columns(law), *(f"drawn_{n}" for n in law.drawn), "start_status", "start_radius",
+            "descent_steps", "descent_stop", "trunk_min_deg", "trunk_max_deg", "upright_apex", "upright_throughout"]
+
+
+#: The columns of one start under the default (PD) law.
+OPTIMAL_COLUMNS = optimal_columns(PD)
 
 
 def optimal_tasks(study: Optimal) -> list[dict]:
@@ -53,13 +62,13 @@ def task_rng(study: Optimal | Atlas, task: dict) -> np.random.Generator:
 
 
 def optimal_row(task: dict, gait, rmap, params) -> dict:
-    """The CSV row of one start (see :data:`OPTIMAL_COLUMNS`)."""
+    """The CSV row of one start (see :func:`optimal_columns`)."""
     from baslip.engine.trajectory import trunk_angle_range
 
     final = gait.end if gait.end is not None else gait.start
     row = {**result_row(task, final), "start": task["start"]}
+    row.update({f"drawn_{n}": gait.held.get(n) for n in final.law.drawn})
     row.update(
-        drawn_Kp=gait.held.get("Kp"), drawn_Kd=gait.held.get("Kd"),
         start_status=gait.start.status,
         start_radius=gait.start.spectral_radius,
         descent_steps=_steps(gait),
@@ -116,19 +125,17 @@ def optimal_worker(chunk: list[dict], problem: Problem, queue) -> None:
 
 
 def best_gait_motions(best: list[dict], names: list[str], params, count: int = 6,
-                      note=lambda row: "") -> list[tuple[str, np.ndarray, np.ndarray]]:
+                      note=lambda row: "", law: HipLaw = PD) -> list[tuple[str, np.ndarray, np.ndarray]]:
     """(label, t [s], theta_h [rad]) over one stride of the ``count`` most stable of the
-    ``best`` rows, simulated at rtol = atol = 1e-12: the trunk motion figure's lines.
-    ``note(row)`` is added to a line's label."""
+    ``best`` rows (gaits under hip law ``law``), simulated at rtol = atol = 1e-12: the
+    trunk motion figure's lines. ``note(row)`` is added to a line's label."""
     from baslip.engine.returnmap import ReturnMap, Tolerances
     from baslip.engine.trajectory import stride_trajectory
-    from baslip.model.dynamics import APEX
-    from baslip.model.hiplaw import CONTROL
 
-    rmap = ReturnMap(Tolerances(1e-12, 1e-12))
+    rmap = ReturnMap(Tolerances(1e-12, 1e-12), law=law)
     motions = []
     for row in sorted(best, key=lambda r: r["spectral_radius"])[:count]:
-        X, u = np.array([row[n] for n in APEX.names]), np.array([row[n] for n in CONTROL.names])
+        X, u = np.array([row[n] for n in APEX.names]), np.array([row[n] for n in law.controls.names])
         motion = stride_trajectory(rmap, X, u, params, strides=1, samples=100)
         where = ", ".join(f"{n} = {row[key_column(n)]:g}" for n in names)
         motions.append((f"{where}{note(row)}: radius {row['spectral_radius']:.3g}", motion.t, motion.theta_h))
@@ -153,13 +160,14 @@ def run_optimal(problem: Problem, study: Optimal, out_dir: Path, sources: Path, 
     """The most stable gait at every grid point, from many random starts each."""
     names = [a.name for a in study.axes]
     keys = [key_column(n) for n in names]
-    table = study_table(out_dir / "points.csv", keys + OPTIMAL_COLUMNS, keys + ["start"], quiet)
+    law = problem.hip_law
+    table = study_table(out_dir / "points.csv", keys + optimal_columns(law), keys + ["start"], quiet)
     report = run_tasks(split_lanes(optimal_tasks(study), lanes), optimal_worker, problem, table,
                        problem.name, quiet=quiet, workers=workers)
     rows = read_points(out_dir / "points.csv")
     best = best_rows(rows, names)
     figures.sweep_figures(best, names, out_dir)
-    figures.trunk_motion_figure(best_gait_motions(best, names, problem.params), out_dir)
+    figures.trunk_motion_figure(best_gait_motions(best, names, problem.params, law=law), out_dir)
 
     def least(where) -> dict | None:
         candidates = best_rows(rows, names, where)
@@ -168,7 +176,7 @@ def run_optimal(problem: Problem, study: Optimal, out_dir: Path, sources: Path, 
         row = min(candidates, key=lambda r: r["spectral_radius"])
         return {**{n: row[key_column(n)] for n in names}, "start": int(row["start"]),
                 "spectral_radius": row["spectral_radius"], "stable": row["stable"],
-                "apex": {n: row[n] for n in APEX.names}, "control": {n: row[n] for n in CONTROL.names},
+                "apex": {n: row[n] for n in APEX.names}, "control": {n: row[n] for n in law.controls.names},
                 "trunk_range_deg": [row["trunk_min_deg"], row["trunk_max_deg"]]}
 
     not_solved = [{**{k: r[k] for k in keys}, "start": r["start"], "status": r["status"], "reason": r["reason"]}

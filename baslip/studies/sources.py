@@ -41,7 +41,7 @@ def source_points(sources: Path, name: str, key: str, law: HipLaw = PD) -> tuple
         record = json.loads(regular_text(folder / "result.json"))
     if not isinstance(record, dict) or record.get("complete") is not True:
         raise StudyInputError(key, f"the study {name!r} has not run to the end (its result.json does not say complete); rerun it first")
-    source_law = _recorded_law(record)
+    source_law = recorded_law(record)
     if source_law != law.name:
         raise StudyInputError(key, f"the study {name!r} was run under hip_law {source_law}, this problem is under "
                               f"{law.name}: use a source of the same law")
@@ -67,7 +67,7 @@ def source_points(sources: Path, name: str, key: str, law: HipLaw = PD) -> tuple
     return rows, names
 
 
-def _recorded_law(record: dict) -> str:
+def recorded_law(record: dict) -> str:
     """The hip law a finished study recorded in its provenance (pd, the only law before
     laws were recorded, if none)."""
     with contextlib.suppress(KeyError, TypeError):
