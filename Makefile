@@ -11,8 +11,10 @@ BRANCHES = continuation_slip_attack continuation_downward_speed continuation_dow
 AFTER_CURVES = stable_region_traced
 GAITS = downward upward downward_period2 vpp vpp_human
 # Under the virtual-pivot-point hip law: sweeps over the pivot, the speed and the height,
-# at the thesis's scale and at human scale, and the human gait's branch in the pivot.
-VPP_STUDIES = vpp_sweep_thesis vpp_sweep_thesis_low vpp_sweep_human vpp_sweep_human_height continuation_vpp_pivot atlas_vpp atlas_vpp_human
+# at the thesis's scale and at human scale, the human gait's branch in the pivot and its
+# period-doubling curve, the atlases and the stability-optimal search.
+VPP_STUDIES = vpp_sweep_thesis vpp_sweep_thesis_low vpp_sweep_human vpp_sweep_human_height continuation_vpp_pivot \
+	curve_vpp_pivot atlas_vpp atlas_vpp_human optimal_vpp
 # Atlases of the gait families (long: minutes per cell), and the controllers compared on
 # the most stable upright gait the upright atlas found (its gait copied into the problem),
 # and the stability NLP's cross-check of the upright atlas: from drawn starts, then from

@@ -10,6 +10,9 @@ curves of the BA-SLIP in two parameters, on the shipped problems.
 * A generalised period doubling is where the two-stride orbits born at the period doubling
   change stability, which two independent branch runs confirm.
 * A curve type asked for but not found is a failure, not a result.
+* Under the VPP law, a period-doubling curve keeps -1 besides the symmetric gaits' structural
+  +1, passes through the branch's period doubling, and ends the stable band it bounds at a
+  fold-flip point, where a second multiplier crosses +1.
 """
 
 import csv
@@ -160,3 +163,26 @@ def test_a_model_parameter_can_be_the_second_parameter(tmp_path):
     stiffness = sorted(float(r["k"]) for r in curve)
     assert stiffness[0] == pytest.approx(19500.0, abs=1e-9) and stiffness[-1] == pytest.approx(20500.0, abs=1e-9)
     assert all(np.min(np.abs(multipliers(r) + 1)) < 1e-8 for r in curve)
+
+
+def test_a_vpp_period_doubling_curve_ends_its_stable_band_at_a_fold_flip(tmp_path):
+    """curve_vpp_pivot (human scale, z = 1.1 m) in (r_vpp, ydot) from the branch's period
+    doubling at 5 m/s, over 3.9 to 5.1 m/s (measured: the fold-flip at r_vpp = 0.23264 m,
+    ydot = 4.00187 m/s)."""
+    summary, _, curve = run(tmp_path, "curve_vpp_pivot", **{"range: [0.05, 0.5]": "range: [0.09, 0.3]",
+                                                           "second_range: [3.0, 6.0]": "second_range: [3.9, 5.1]"})
+    assert len(curve) > 10
+    for row in curve:
+        mu = multipliers(row)
+        assert np.min(np.abs(mu + 1)) < 1e-8 and np.min(np.abs(mu - 1)) < 1e-5  # critical, and by symmetry
+    (start,) = summary["special_points"]
+    along = sorted(curve, key=lambda r: float(r["ydot"]))
+    speeds, pivots = [float(r["ydot"]) for r in along], [float(r["r_vpp"]) for r in along]
+    assert np.interp(5.0, speeds, pivots) == pytest.approx(start["r_vpp"], abs=1e-5)
+    (fold_flip,) = summary["curves"]["codimension_two_points"]
+    assert fold_flip["type"] == "fold_flip" and fold_flip["ydot"] == pytest.approx(4.0019, abs=1e-3)
+    near_one = [m for m in fold_flip["multipliers"] if abs(complex(*m) - 1) < 1e-4]
+    assert len(near_one) == 2  # the structural one and the one crossing
+    for row in along:  # the curve bounds stable gaits on the fast side of the fold-flip only
+        if abs(float(row["ydot"]) - fold_flip["ydot"]) > 0.01:
+            assert (row["stability_boundary"] == "true") == (float(row["ydot"]) > fold_flip["ydot"])

@@ -173,3 +173,23 @@ def test_the_short_upright_answer_counts_what_the_committed_atlases_hold():
     upright = sum(1 for c in charts if c["upright_throughout"] is True)
     assert f"Of its {len(charts)} stable charts, {upright} are upright throughout" in text
     assert text.count("\n- **") == 3  # one bullet per law of control
+
+
+def test_the_vpp_descent_claim_compares_each_cell_with_the_atlas_and_says_where_it_went_lower(tmp_path):
+    """Each optimal_vpp cell is set beside atlas_vpp's polished least at its speed (whose
+    family, z free, holds the cell's); a cell below it is named as the atlas's miss."""
+    import json
+    import shutil
+
+    from baslip.report.vpp import optimal_claims
+
+    (text,) = optimal_claims(Evidence(RESULTS))
+    summary = Evidence(RESULTS).summary("optimal_vpp")
+    assert text.count("\n| ") == len(summary["least_per_point"]) + 1  # a row per cell, and the header
+    assert "At every cell the descent ends at or above the atlas's polished least" in text
+    for name in ("optimal_vpp", "atlas_vpp"):
+        shutil.copytree(RESULTS / name, tmp_path / name)
+    summary["least_per_point"][0]["spectral_radius"] = 0.5  # below every polished radius
+    (tmp_path / "optimal_vpp" / "result.json").write_text(json.dumps(summary))
+    (text,) = optimal_claims(Evidence(tmp_path))
+    assert "At 1 cell the descent ends below the atlas's polished least" in text

@@ -1,10 +1,11 @@
-"""Specification of baslip.gait.stability: multipliers, trivial ones labelled and set aside."""
+"""Specification of baslip.gait.stability: multipliers, trivial ones labelled and set aside,
+and the symmetry multiplier deflated (moved to 0, the others kept) for the curves."""
 
 import numpy as np
 import pytest
 
 from baslip import Params
-from baslip.gait.stability import classify, trivial_labels
+from baslip.gait.stability import classify, trivial_labels, without_symmetry_multiplier
 
 NO_TORQUE = [0.0, 0.0, 0.3, 0.0, 0.1]
 PD = [2.0, 0.5, 0.3, 0.0, 0.1]
@@ -59,3 +60,15 @@ def test_a_structural_label_needs_a_multiplier_near_one():
 def test_a_radius_within_the_margin_of_one_is_not_stable():
     neutral = classify(np.diag([1.0 - 1e-9, 0.5, 0.2, 0.1]), Params(), PD)
     assert not neutral.stable
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_deflation_moves_the_real_multiplier_nearest_one_to_zero_and_keeps_the_others(seed):
+    rng = np.random.default_rng(seed)
+    block = np.array([[0.6, -0.7], [0.7, 0.6]])  # a complex pair, 0.6 +- 0.7i
+    D = np.zeros((4, 4))
+    D[:2, :2], D[2, 2], D[3, 3] = block, 1.0 + 1e-4, -3.0
+    V = rng.normal(size=(4, 4))
+    A = V @ D @ np.linalg.inv(V)
+    mu = np.sort_complex(np.linalg.eigvals(without_symmetry_multiplier(A)))
+    assert mu == pytest.approx(np.sort_complex(np.array([0.0, -3.0, 0.6 + 0.7j, 0.6 - 0.7j])), abs=1e-10)

@@ -15,7 +15,9 @@ of the solution of the bordered system::
     [ c^T  0 ] [  g  ] = [ 1 ]
 
 where A is the Jacobian of the map on its dynamic coordinates (no multiplier 1 by
-structure there; see :meth:`baslip.analysis.gaitsystem.FixedPointSystem.dynamic_coordinates`) and
+structure there; see :meth:`baslip.analysis.gaitsystem.FixedPointSystem.dynamic_coordinates`;
+under a law of positions only, VPP, the symmetric gaits' multiplier 1 is deflated to 0,
+:func:`baslip.gait.stability.without_symmetry_multiplier`) and
 
 * fold: M = A - I (a multiplier at +1);
 * period doubling: M = A + I (a multiplier at -1);
@@ -106,8 +108,10 @@ class CurveSystem:
     ``base`` gives the fixed-point equations in two parameters: ``residual(v)`` (n),
     ``jacobian(v)`` (n x (n + 2)), ``multipliers(v)`` and ``map_jacobian(v, shift)``,
     the Jacobian of the map on its dynamic coordinates at the fixed point displaced by
-    ``shift``; optionally ``auxiliary``, the indices of unknowns the map does not depend
-    on. v = (w, l1, l2).
+    ``shift``, and ``normal_forms``, whether that Jacobian's derivatives are the map's own
+    (False where a structural multiplier is deflated from it: the cusp and generalised
+    period-doubling coefficients are then not computed); optionally ``auxiliary``, the
+    indices of unknowns the map does not depend on. v = (w, l1, l2).
     """
 
     def __init__(self, base, kind: str):
@@ -194,7 +198,8 @@ class CurveSystem:
         """The codimension-two test functions at a point of the curve (which also moves
         the border to this point's null vectors)."""
         A, _, phi, psi = self._defining(v)
-        tests = codim2_tests(self.kind, A, phi, psi, lambda shift: self.base.map_jacobian(v, shift))
+        tests = codim2_tests(self.kind, A, phi, psi, lambda shift: self.base.map_jacobian(v, shift),
+                             self.base.normal_forms)
         self._set_border(defining_matrix(self.kind, A), self._border)  # a new version: g is recomputed
         return tests
 
@@ -220,12 +225,14 @@ class CurveSystem:
 
 
 def codim2_tests(kind: str, A: np.ndarray, phi: np.ndarray, psi: np.ndarray,
-                 jacobian_at: Callable[[np.ndarray], np.ndarray]) -> dict[str, float]:
+                 jacobian_at: Callable[[np.ndarray], np.ndarray], normal_forms: bool = True) -> dict[str, float]:
     """Test functions of the codimension-two points on a curve of ``kind``.
 
     ``A`` is the map's Jacobian at the point, ``phi`` and ``psi`` the bordered right and
     left null vectors of the defining matrix, and ``jacobian_at(shift)`` the Jacobian at
-    the point displaced by ``shift``. Each function changes sign at its point:
+    the point displaced by ``shift``. Without ``normal_forms`` (``jacobian_at``'s
+    derivatives are not the map's), cusp and generalised_period_doubling are NaN: never a
+    sign change. Each function changes sign at its point:
 
     fold curve (multiplier mu_0 = +1)
       cusp: psi.B(phi, phi), the numerator of the fold's normal-form coefficient;
@@ -250,13 +257,14 @@ def codim2_tests(kind: str, A: np.ndarray, phi: np.ndarray, psi: np.ndarray,
         tests["complex_pairs"] = float(np.sum(others.imag > 1e-9))
         orthogonality = float(psi @ phi)
         if kind == "fold":
-            tests["cusp"] = float(psi @ _second(jacobian_at, A, phi, phi))
+            tests["cusp"] = float(psi @ _second(jacobian_at, A, phi, phi)) if normal_forms else math.nan
             tests["bogdanov_takens"] = orthogonality
             tests["fold_flip"] = _product(others + 1.0)
             pairs = [others[i] * others[j] - 1.0 for i in range(len(others)) for j in range(i + 1, len(others))]
             tests["fold_neimark_sacker"] = _product(pairs)
         else:
-            tests["generalised_period_doubling"] = _flip_numerator(jacobian_at, A, phi, psi)
+            tests["generalised_period_doubling"] = (_flip_numerator(jacobian_at, A, phi, psi) if normal_forms
+                                                    else math.nan)
             tests["resonance_1_2"] = orthogonality
             tests["fold_flip"] = _product(others - 1.0)
         return tests
@@ -350,6 +358,9 @@ class SmoothMap:
 
     ``f`` is a CasADi Function of (x (k), p (2)); v = (x, l1, l2), unscaled.
     """
+
+    #: Its Jacobian's derivatives are the map's own.
+    normal_forms = True
 
     def __init__(self, f: ca.Function):
         x, p = ca.SX.sym("x", f.size1_in(0)), ca.SX.sym("p", 2)

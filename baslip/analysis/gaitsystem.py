@@ -25,7 +25,7 @@ from baslip.analysis.continuation import CorrectionFailed
 from baslip.engine.returnmap import ReturnMap, RunnerFell
 from baslip.gait.fixedpoint import VERIFY_EPS, minimal_period
 from baslip.gait.shooting import FixedPointSpec, implied_periodicity
-from baslip.gait.stability import classify
+from baslip.gait.stability import classify, without_symmetry_multiplier
 from baslip.model.dynamics import APEX, PARAMS, Params, apex_energy
 from baslip.model.quantities import NOMINAL
 from baslip.problem.continuation import BranchError, branch_shape, check_branch, check_parameter
@@ -79,6 +79,9 @@ class FixedPointSystem:
         self.design = spec.design
         self.free = [n for n in self.design if n not in spec.fixed and n not in self.parameters]
         self.rows = [n for n in APEX.names if n not in implied_periodicity(spec)]
+        #: Whether map_jacobian's derivatives are the map's own, as the curves' normal-form
+        #: coefficients need: not where a symmetry multiplier is deflated from it.
+        self.normal_forms = not spec.law.positional
         self.energy_row = "energy" in spec.fixed
         self.lam_scales = [self._scale_of(name) for name in self.parameters]
         self.lam_scale = self.lam_scales[0]
@@ -200,7 +203,7 @@ class FixedPointSystem:
     # -- the map itself, for bifurcation curves -------------------------------------------
 
     def dynamic_coordinates(self, u, params: Params) -> tuple[str, ...]:
-        """Apex coordinates in which the map has no multiplier that is 1 by structure.
+        """Apex coordinates in which the map has no multiplier that is 1 by energy or spin.
 
         With a hip torque, all four. Without one, energy is conserved: z follows from the
         energy and the others, so it is left out; with d = 0 as well, the trunk spins
@@ -226,7 +229,10 @@ class FixedPointSystem:
             dr_dX = self._cache[1][3]
         else:
             dr_dX = self._map_jacobians(lifted, u, params)[0]
-        return dr_dX[index, :] @ self._lift_jacobian(lifted, index, params, len(names) < APEX.size)
+        jacobian = dr_dX[index, :] @ self._lift_jacobian(lifted, index, params, len(names) < APEX.size)
+        # A law of positions only has a multiplier 1 by the gaits' symmetry: moved to 0, it
+        # can be no bifurcation's critical multiplier.
+        return without_symmetry_multiplier(jacobian) if self.spec.law.positional else jacobian
 
     def _lift(self, X, index, shift, params, conserved: bool) -> np.ndarray:
         """The apex at dynamic coordinates X[index] + shift: z moves to keep the energy
@@ -326,6 +332,7 @@ class NearestGuessSystem:
         points = self.fixed_points
         self.spec, self.parameter, self.parameters = spec, parameter, points.parameters
         self.lam_scales, self.lam_scale = points.lam_scales, points.lam_scale
+        self.normal_forms = points.normal_forms
         self.n_free, self.n_equations = len(points.free), len(points.rows) + points.energy_row
         design = dict(zip(spec.design, spec.start_design()))
         self.target = np.array([design[n] for n in points.free]) / points.scale[: self.n_free]

@@ -92,3 +92,24 @@ def classify(jacobian: np.ndarray, params: Params, u, law: HipLaw = PD) -> Stabi
     nontrivial = [abs(m.value) for m in multipliers if not m.trivial]
     radius = max(nontrivial) if nontrivial else 0.0
     return Stability(np.asarray(jacobian), multipliers, float(radius), bool(radius < 1.0 - STABILITY_MARGIN))
+
+
+def without_symmetry_multiplier(jacobian: np.ndarray) -> np.ndarray:
+    """``jacobian`` with its real multiplier nearest 1 moved to 0, the others unchanged
+    (Wielandt deflation: A - mu P, with P the spectral projector of mu).
+
+    At a symmetric gait of a law of positions only (VPP) that multiplier is the structural
+    ``symmetry`` one; near the gait (as where a curve's derivatives are differenced) it is
+    still the one nearest 1, and the projector changes smoothly with the matrix while mu
+    stays simple. A multiplier that crosses +1 there (a fold of the symmetric family)
+    meets it and makes P singular, so fold curves are not followed this way.
+    """
+    A = np.asarray(jacobian, dtype=float)
+    mu, V = np.linalg.eig(A)
+    real = np.abs(mu.imag) <= 1e-9 * max(1.0, float(np.max(np.abs(mu))))
+    if not real.any():
+        return A
+    k = int(np.argmin(np.where(real, np.abs(mu - 1.0), np.inf)))
+    right = np.real(V[:, k])
+    left = np.real(np.linalg.inv(V)[k])  # left eigenvector with left @ right = 1
+    return A - float(np.real(mu[k])) * np.outer(right, left)

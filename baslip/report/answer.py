@@ -53,7 +53,8 @@ def _vpp(ev: Evidence) -> str:
         cells = ev.rows(name, "cells.csv")
         stable_charts += [c for c in ev.rows(name, "atlas.csv") if c["status"] == "converged" and c["stable"] is True]
         stable = sorted(c["sweep_ydot"] for c in cells if isinstance(c["stable_share"], float) and c["stable_share"] > 0)
-        radius = min(c["least_radius"] for c in cells)
+        # The polished gaits where the atlas polished its best charts, else the charts.
+        radius = min(min(c["least_radius"], c["polished_radius"] or math.inf) for c in cells)
         speeds = f"{min(c['sweep_ydot'] for c in cells):g} to {max(c['sweep_ydot'] for c in cells):g} m/s"
         if stable:
             froude = stable[0] / math.sqrt(params.g * params.rho0)

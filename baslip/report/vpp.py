@@ -24,8 +24,9 @@ VPP_ATLASES = {"atlas_vpp": "thesis scale", "atlas_vpp_human": "human scale"}
 
 
 def vpp_claims(ev: Evidence) -> list[str]:
-    """The sweeps' claim (:func:`sweep_claims`) and the atlases' (:func:`atlas_claims`)."""
-    return sweep_claims(ev) + atlas_claims(ev)
+    """The sweeps' claim (:func:`sweep_claims`), the atlases' (:func:`atlas_claims`) and the
+    stability-optimal search's (:func:`optimal_claims`)."""
+    return sweep_claims(ev) + atlas_claims(ev) + optimal_claims(ev)
 
 
 def sweep_claims(ev: Evidence) -> list[str]:
@@ -71,6 +72,11 @@ def sweep_claims(ev: Evidence) -> list[str]:
     )]
 
 
+def _tilt(summary: dict) -> float:
+    """The trunk's largest angle from vertical [deg] over the least gaits of an optimal study."""
+    return max(abs(angle - 90.0) for cell in summary["least_per_point"] for angle in cell["trunk_range_deg"])
+
+
 def _span(rows: list[dict]) -> str:
     """The ranges of ydot, z and r_vpp over ``rows``, those that vary."""
     parts = []
@@ -89,7 +95,64 @@ def _branch_text(ev: Evidence) -> str:
     at_com = any(p["type"] == "branch_point" and abs(p["r_vpp"]) < 1e-6 for p in points)
     return (f" The branch in r_vpp of the human-scale gait at 5 m/s (continuation_vpp_pivot, {summary['points']} "
             f"verified points over [{summary['range'][0]:g}, {summary['range'][1]:g}] m): {special}"
-            + ("; the branch point at r_vpp = 0 is where the trunk-spin pair becomes 1 by structure." if at_com else "."))
+            + ("; the branch point at r_vpp = 0 is where the trunk-spin pair becomes 1 by structure." if at_com else ".")
+            + _curve_text(ev))
+
+
+def _curve_text(ev: Evidence) -> str:
+    """Where the period-doubling curve of curve_vpp_pivot bounds stable gaits, and its
+    codimension-two points."""
+    summary = ev.summary("curve_vpp_pivot")
+    rows = [r for r in ev.rows("curve_vpp_pivot", "curve.csv") if r["type"] == "period_doubling"]
+    if summary is None or not rows:
+        return ""
+    bounding = [r for r in rows if r["stability_boundary"] is True]
+    lo, hi = summary["curves"]["second_range"]
+    points = "; ".join(f"{p['type'].replace('_', '-')} at r_vpp = {p['r_vpp']:.4g} m, ydot = {p['ydot']:.4g} m/s"
+                       for p in summary["curves"]["codimension_two_points"]) or "no codimension-two point"
+    where = (f"it bounds stable gaits for ydot {min(r['ydot'] for r in bounding):.4g} to "
+             f"{max(r['ydot'] for r in bounding):.4g} m/s (r_vpp {min(r['r_vpp'] for r in bounding):.4g} to "
+             f"{max(r['r_vpp'] for r in bounding):.4g} m)" if bounding else "it bounds no stable gaits")
+    return (f" Its period doubling followed in (r_vpp, ydot) over {lo:g} to {hi:g} m/s (curve_vpp_pivot, {len(rows)} "
+            f"verified points, the symmetry multiplier deflated): {where}; {points}.")
+
+
+def optimal_claims(ev: Evidence) -> list[str]:
+    """One claim: the least radius per cell of the VPP stability-optimal search, beside
+    the thesis-scale atlas's polished least at the same speed (whose family, with z free,
+    holds the cell's)."""
+    summary = ev.summary("optimal_vpp")
+    if summary is None or not summary.get("complete"):
+        return []
+    polished = {c["sweep_ydot"]: c["polished_radius"] for c in ev.rows("atlas_vpp", "cells.csv")}
+    lines = []
+    for cell in summary["least_per_point"]:
+        atlas = polished.get(cell["ydot"])
+        shown = f"{atlas:.4f}" if isinstance(atlas, float) else "-"
+        lines.append(f"| {cell['ydot']:g} | {cell['z']:g} | {cell['spectral_radius']:.4f} | "
+                     f"{'yes' if cell['stable'] else 'no'} | {shown} |")
+    table = ("| ydot [m/s] | z [m] | least radius | stable | atlas_vpp, polished, z free |\n"
+             "|---|---|---|---|---|\n" + "\n".join(lines) + "\n")
+    below = [c for c in summary["least_per_point"] if isinstance(polished.get(c["ydot"]), float)
+             and c["spectral_radius"] < polished[c["ydot"]] * (1 - 1e-9)]
+    agreement = ("At every cell the descent ends at or above the atlas's polished least at its speed, as it must if "
+                 "the atlas found the family's best" if not below else
+                 f"At {len(below)} cell{'s' if len(below) != 1 else ''} the descent ends below the atlas's polished least at its speed: the atlas's "
+                 "two polished minima missed a better valley there")
+    least = summary["least"]
+    return [claim(
+        "Under constant VPP, the most stable gait per cell (descent)",
+        "not studied (the thesis knows the PD law only).",
+        f"optimal_vpp: at each (ydot, z) cell, {summary['starts']} starts with r_vpp drawn over its bounds, each "
+        f"descended along the cell's family of gaits (the symmetry multiplier left out), {summary['points']} starts, "
+        f"{summary['solved']} verified:\n\n" + table + f"\n{agreement}. The least: {least['spectral_radius']:.4f} at "
+        f"ydot = {least['ydot']:g} m/s, z = {least['z']:g} m, r_vpp = {least['control']['r_vpp']:.4g} m.\n",
+        "goes further",
+        f"The search is local from each start; the claim is as wide as its {len(summary['least_per_point'])} cells "
+        f"and their starts. The least gait of every cell stays within {_tilt(summary):.2f} deg of vertical "
+        "throughout its stride.",
+        ["optimal_vpp/spectral_radius_map.png"],
+    )]
 
 
 def atlas_claims(ev: Evidence) -> list[str]:
@@ -112,10 +175,10 @@ def atlas_claims(ev: Evidence) -> list[str]:
             covered = "whole" if cell["complete"] is True else f"not whole ({_why_not_whole(cell)})"
             lines.append(f"| {VPP_ATLASES[name]} | {speed:g} | {cell['pieces']:g} from {cell['seeds']:g} "
                          f"({cell['seeds_failed']:g} failed) | {cell['charts']:g}, {covered} | "
-                         f"{cell['least_radius']:.3f} | {cell['stable_share']:.1%} | "
+                         f"{cell['least_radius']:.3f} | {_polished(cell)} | {cell['stable_share']:.1%} | "
                          + (_ranges(stable) if stable else "-") + " |")
-    table = ("| atlas | ydot [m/s] | pieces from seeds | charts | least radius | stable share | stable gaits |\n"
-             "|---|---|---|---|---|---|---|\n" + "\n".join(lines) + "\n")
+    table = ("| atlas | ydot [m/s] | pieces from seeds | charts | least radius | polished | stable share | "
+             "stable gaits |\n|---|---|---|---|---|---|---|---|\n" + "\n".join(lines) + "\n")
     wide = "; ".join(f"{VPP_ATLASES[name]}: " + ", ".join(
         f"{k} in [{_shown_bound(k, lo)}, {_shown_bound(k, hi)}]" for k, (lo, hi) in
         found[name]["provenance"]["problem"]["bounds"].items()) for name in found)
@@ -125,14 +188,22 @@ def atlas_claims(ev: Evidence) -> list[str]:
         "not studied (the thesis knows the PD law only).",
         "at each speed, the 2-D manifold of fixed points in the apex height, the pivot and the touchdown angle, "
         "covered by charts from independent solves (r_vpp drawn over its bounds), every chart verified by the "
-        "independent re-simulation. The stable share is of the family's area in atlas coordinates:\n\n" + table
+        "independent re-simulation; the least local minima of the radius polished by the stability descent "
+        "(its end verified too). The stable share is of the family's area in atlas coordinates:\n\n" + table
         + "\n" + "; ".join(_onset(ev, name, summary) for name, summary in found.items()) + ".\n",
         "goes further",
         "Every gait found is symmetric (theta_h = 90 deg at the apex): the one family per speed that the seeds "
         "reached. The claim holds within the bounds (" + wide + ") and for the pieces reached; where a speed is not "
-        f"covered whole, for the part covered. The margins are thin: no radius below {least:.3f}.",
+        f"covered whole, for the part covered. The margins are thin: no chart's radius below {least:.3f}, no "
+        f"polished gait's below {_least_polished(ev, found):.3f}.",
         [f"{name}/atlas.png" for name in found],
     )]
+
+
+def _least_polished(ev: Evidence, found: dict) -> float:
+    radii = [c["polished_radius"] for name in found for c in ev.rows(name, "cells.csv")
+             if isinstance(c["polished_radius"], float)]
+    return min(radii, default=math.nan)
 
 
 def _onset(ev: Evidence, name: str, summary: dict) -> str:
@@ -147,6 +218,12 @@ def _onset(ev: Evidence, name: str, summary: dict) -> str:
     before = f" (none at {max(slower):g} m/s)" if slower else ""
     return (f"{VPP_ATLASES[name]}: stable gaits from {speeds[0]:g} m/s{before}, Froude number ydot / sqrt(g rho0) = "
             f"{froude:.2f}")
+
+
+def _polished(cell: dict) -> str:
+    """The radius the descent reached from the cell's best charts ('-' if not polished)."""
+    radius = cell["polished_radius"]
+    return f"{radius:.3f}" if isinstance(radius, float) else "-"
 
 
 def _why_not_whole(cell: dict) -> str:
