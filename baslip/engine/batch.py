@@ -24,6 +24,7 @@ from baslip.engine.driver import (
     REFINE,
     UNSURE,
     CompiledEngine,
+    events_unsettled_many,
     first_tiers_many,
     next_tier,
     richardson_error,
@@ -138,6 +139,7 @@ class _Batch:
         diagnostics = np.full((DIAGNOSTICS.size, size), np.nan)
         coarse, coarse_steps = np.full_like(results, np.nan), np.zeros(size)
         waits = np.zeros(size, dtype=bool)  # its latest pass waits for the pass at the count below
+        regridded = np.zeros(size, dtype=bool)  # its guesses were reset from a pass's own durations
         active = tier < len(TIERS)  # no stable step count: the careful path decides
         while active.any():
             needed = np.where(waits, tier - 1, tier)
@@ -157,12 +159,20 @@ class _Batch:
                                                     coarse_steps[rows[compared]], steps[compared])
             by_richardson = (codes == REFINE) & (richardson <= tolerance)
             codes = np.where(by_richardson, ACCEPTED, codes)
+            # As the careful path does, once: a pass whose events ended off its grid (the
+            # scout's guess was too far) is taken again at its count from its own durations.
+            regrid = ((codes == UNSURE) & ~regridded[rows]
+                      & events_unsettled_many(results[APEX.size :, rows], diagnostics[:, rows]))
+            again = rows[regrid]
+            guesses[:, again] = results[APEX.size : APEX.size + 3, again]
+            regridded[again], coarse_steps[again], waits[again] = True, 0, False
+            codes = np.where(regrid, REFINE, codes)  # active still, its tier kept
             error = np.where(by_richardson, richardson, diagnostics[DIAGNOSTICS.index("error"), rows])
             for k in np.nonzero((codes != REFINE) & (codes != UNSURE))[0]:
                 self.results[live[rows[k]]] = stride_of_verdict(
                     int(codes[k]), results[: APEX.size, rows[k]], results[APEX.size :, rows[k]], error[k])
             active[rows[codes != REFINE]] = False
-            refine = codes == REFINE
+            refine = (codes == REFINE) & ~regrid
             waits[rows] = refine & ~compared & (tier[rows] > lowest[rows])
             moves = refine & ~waits[rows]
             coarse[:, rows[moves]], coarse_steps[rows[moves]] = results[:, rows[moves]], steps[moves]

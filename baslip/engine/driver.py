@@ -335,14 +335,26 @@ def events_unsettled(durations, diagnostics) -> bool:
     event's step more than :data:`LAST_STEP_RANGE` grid steps from its grid's end or left
     the event's Newton update unconverged: its grid and event start, not its accuracy,
     are in doubt, and a pass from its own durations settles them."""
-    d = DIAGNOSTICS.to_dict(diagnostics)
+    return bool(_unsettled(DIAGNOSTICS.to_dict(diagnostics), np.asarray(durations, dtype=float)))
+
+
+def events_unsettled_many(durations, diagnostics) -> np.ndarray:
+    """:func:`events_unsettled` of many final passes at once (one column each)."""
+    d = dict(zip(DIAGNOSTICS.names, np.asarray(diagnostics, dtype=float)))
+    return np.asarray(_unsettled(d, np.asarray(durations, dtype=float)), dtype=bool)
+
+
+def _unsettled(d, durations):
+    """The rule of :func:`events_unsettled`, on numbers (one pass) or rows (many): only
+    numpy's logical functions, which work on both."""
     lo, hi = LAST_STEP_RANGE
-    off = not (lo < d["bottom_last_step"] < hi and lo < d["liftoff_last_step"] < hi)
-    unconverged = not (abs(d["bottom_update"]) <= NEWTON_CONVERGED * durations[_COMPRESSION]
-                       and abs(d["liftoff_update"]) <= NEWTON_CONVERGED * durations[_DECOMPRESSION])
-    clear = all(d[f"{name}_min"] > 0.0 for name in CLEARANCES) and d["zdot_lo"] > 0.0
-    positive = bool(np.all(np.isfinite(durations)) and np.all(np.asarray(durations[:3]) > 0.0))
-    return (off or unconverged) and clear and positive
+    on_grid = np.logical_and.reduce([lo < d["bottom_last_step"], d["bottom_last_step"] < hi,
+                                     lo < d["liftoff_last_step"], d["liftoff_last_step"] < hi])
+    converged = np.logical_and(abs(d["bottom_update"]) <= NEWTON_CONVERGED * durations[_COMPRESSION],
+                               abs(d["liftoff_update"]) <= NEWTON_CONVERGED * durations[_DECOMPRESSION])
+    clear = np.logical_and.reduce([d[f"{name}_min"] > 0.0 for name in CLEARANCES] + [d["zdot_lo"] > 0.0])
+    positive = np.logical_and(np.isfinite(durations).all(axis=0), (durations[:3] > 0.0).all(axis=0))
+    return np.logical_not(np.logical_and(on_grid, converged)) & clear & positive
 
 
 def stride_of_verdict(code: int, apex, durations, error: float) -> Stride | str | None:
