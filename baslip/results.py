@@ -14,9 +14,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from html import escape
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any
 
 from baslip.status import Status
+
+if TYPE_CHECKING:
+    from baslip.viz.gallery import Figures
 
 #: The table ``to_dataframe()`` gives by default, by kind of run.
 DEFAULT_TABLE = {"continuation": "branch", "gait": "multipliers"}
@@ -92,13 +95,16 @@ class RunResults:
                 frame[column] = frame[column].map(lambda v: v if pandas.isna(v) else str(v).lower() == "true").astype("boolean")
         return frame
 
-    def plot(self) -> list:
-        """The run's figures as matplotlib Figures (nothing is written): a sweep's lines
-        (one quantity) or maps (two), a random sample over its region (and traced boundary),
-        convergence regions and their example runs, the most stable gaits per cell and
-        their trunk motion (one stride of each simulated again), an adaptive run's states
-        and controls, a controller comparison, a branch's diagram and its curves."""
+    def plot(self) -> Figures:
+        """The run's figures (nothing is written), by the names of the files the command
+        line writes them to: a sweep's lines (one quantity) or maps (two), a random sample
+        over its region (and traced boundary), convergence regions and their example runs,
+        the most stable gaits per cell and their trunk motion (one stride of each simulated
+        again), an adaptive run's states and controls, a controller comparison, a branch's
+        diagram and its curves. A notebook shows them all
+        (:class:`~baslip.viz.gallery.Figures`)."""
         from baslip.viz import figures as plots
+        from baslip.viz.gallery import Figures
 
         before = set(plots.plt.get_fignums())
         if self.kind == "sweep":
@@ -135,7 +141,7 @@ class RunResults:
             if "basins" in self.record:
                 plots.basin_figure(self.record["basins"], self.record["name"], None)
         drawn = [plots.plt.figure(n) for n in sorted(set(plots.plt.get_fignums()) - before)]
-        return drawn + self._diagrams()
+        return Figures(drawn + self._diagrams())
 
     def _diagrams(self) -> list:
         from baslip.viz import figures as plots
@@ -145,9 +151,11 @@ class RunResults:
             parameter = self.record["parameter"]
             quantity = self.record.get("provenance", {}).get("problem", {}).get("continuation", {}).get("plot", "z")
             figures.append(plots.bifurcation_diagram(self.rows("branch"), parameter, quantity))
+            figures[-1].set_label("diagram")  # the names of the command line's files
             if "curve" in self.tables:
                 second = self.record["curves"]["second"]
                 figures.append(plots.curve_diagram(self.rows("curve"), parameter, second))
+                figures[-1].set_label("curve")
         return figures
 
     @staticmethod

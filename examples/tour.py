@@ -60,7 +60,7 @@ def main() -> None:
     print(band)
     for point in band.record["special_points"]:
         print(f"  {point['type']} at theta_td = {np.degrees(point['theta_td']):.4f} deg")
-    band.plot()[0].savefig(out / "band_diagram.png", dpi=110)
+    band.plot()["diagram"].savefig(out / "band_diagram.png", dpi=110)
     print(f"wrote the tour's files into {out}/")
 
 

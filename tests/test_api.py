@@ -6,6 +6,8 @@
   ``out`` the folder holds exactly the command line's files.
 * ``solve_problem`` refuses a problem that holds a study or a continuation, naming
   ``baslip.run``; bad input to ``run`` is an ``InputError`` raised before any solve.
+* A gait's ``animate()`` is one type, with or without IPython: it saves as a GIF and shows
+  itself in a notebook as that GIF, embedded (nothing fetched from the web).
 """
 
 import contextlib
@@ -106,6 +108,19 @@ def test_run_of_a_gait_is_the_verified_fixed_point(tmp_path):
     assert result.residual <= 1e-10
     frame = result.to_dataframe()
     assert list(frame["z"]) == [result.apex["z"]]
+
+
+def test_a_gaits_animation_saves_a_gif_and_shows_it_embedded(tmp_path):
+    import base64
+
+    result = baslip.run("downward")
+    animation = result.animate(strides=1)
+    saved = animation.save(tmp_path / "gait.gif").read_bytes()
+    assert saved[:6] == b"GIF89a" and len(saved) > 10_000
+    page = animation._repr_html_()
+    assert page.startswith('<img src="data:image/gif;base64,') and "http" not in page
+    embedded = base64.b64decode(page.split("base64,")[1].split('"')[0])
+    assert embedded[:6] == b"GIF89a" and abs(len(embedded) - len(saved)) < 0.01 * len(saved)
 
 
 def test_solve_problem_refuses_a_study_and_names_run():

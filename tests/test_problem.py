@@ -1,4 +1,5 @@
-"""Specification of baslip.problem.reader: YAML problem files and their validation.
+"""Specification of baslip.problem.reader: YAML problem files and their validation; a bare
+name that is no file here means the shipped problem of that name.
 
 Every bad input raises ProblemError naming the offending key; the CLI turns it into one
 line on stderr and exit code 2 (see test_solve.py).
@@ -104,6 +105,19 @@ def test_bad_input_names_the_key(data, key, words):
 def test_missing_file(tmp_path):
     with pytest.raises(ProblemError, match="no such problem file"):
         load_problem(tmp_path / "absent.yaml")
+
+
+def test_a_bare_name_means_the_shipped_problem_unless_a_file_here_has_it(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert load_problem("downward").name == load_problem("downward.yaml").name == "downward"
+    assert load_problem("downward").fix["z"] == 0.4
+    (tmp_path / "downward.yaml").write_text("name: mine\nfix: {z: 0.41, ydot: 0.5}\n")
+    assert load_problem("downward.yaml").name == "mine"  # the user's copy comes first
+    with pytest.raises(ProblemError, match="nor the name of a shipped problem"):
+        load_problem("no_such_problem")
+    with pytest.raises(ProblemError, match="no such problem file") as err:
+        load_problem(tmp_path / "sub" / "downward.yaml")  # a path with folders means that path
+    assert "shipped" not in str(err.value)
 
 
 def test_malformed_yaml_reports_the_line(tmp_path):

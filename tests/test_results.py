@@ -1,4 +1,5 @@
-"""Specification of baslip.results: runs read back from their folders, for notebooks."""
+"""Specification of baslip.results: runs read back from their folders, for notebooks; their
+figures come back by the names of the files the run wrote, and show themselves."""
 
 import pytest
 from runs import ROOT
@@ -25,7 +26,11 @@ def test_a_sweep_reads_back_with_a_short_repr_a_table_and_figures():
     assert len(frame) == 90 and str(frame["stable"].dtype) == "boolean"
     assert int(frame["stable"].sum()) == grid.record["stable"]
     figures = grid.plot()
-    assert len(figures) == 2 and "multiplier" in figures[1].axes[1].get_ylabel()
+    assert list(figures) == ["theta_h_map", "spectral_radius_map"]  # the names of the files the run wrote
+    assert all((RESULTS / "grid_downward" / f"{name}.png").exists() for name in figures)
+    assert "multiplier" in figures["spectral_radius_map"].axes[1].get_ylabel()
+    page = figures._repr_html_()  # a notebook shows each, named, with no display() call
+    assert page.count('<img src="data:image/png;base64,') == 2 and "<h4>theta_h_map</h4>" in page
 
 
 def test_failed_rows_keep_a_boolean_stable_column_and_say_why():
@@ -42,7 +47,7 @@ def test_a_continuation_with_curves_reads_back():
     assert {"theta_td", "energy", "special", "stability_boundary"} <= set(curve.columns)
     assert str(curve["stability_boundary"].dtype) == "boolean"
     figures = band.plot()
-    assert len(figures) == 2 and figures[1].axes[0].get_ylabel() == "apex energy [J]"
+    assert list(figures) == ["diagram", "curve"] and figures["curve"].axes[0].get_ylabel() == "apex energy [J]"
     with pytest.raises(KeyError, match="no nothing.csv"):
         band.to_dataframe("nothing")
 
@@ -59,14 +64,16 @@ def test_other_studies_draw_their_figures_without_writing(name, count):
     before = {p: p.stat().st_mtime_ns for p in folder.iterdir()}
     figures = open_results(folder).plot()
     assert len(figures) == count
-    assert all(any(ax.get_xlabel() or ax.get_ylabel() for ax in fig.axes) for fig in figures)
+    assert all(any(ax.get_xlabel() or ax.get_ylabel() for ax in fig.axes) for fig in figures.values())
+    assert all((folder / f"{name}.png").exists() for name in figures)  # named as the run's files
     assert {p: p.stat().st_mtime_ns for p in folder.iterdir()} == before
 
 
 def test_convergence_regions_redrawn_from_files_hold_the_counted_cells():
     """The regions read back are those the run counted: one stable point's and the union."""
     basin = open_results(RESULTS / "convergence_regions")
-    region, union = basin.plot()[:2]
+    figures = basin.plot()
+    region, union = figures["region"], figures["union"]
     labels = [text.get_text() for fig in (region, union) for legend in fig.axes[0].artists + [fig.axes[0].get_legend()]
               for text in legend.get_texts() if "cells" in text.get_text()]
     assert labels == [f"starts that converge ({basin.record['example_region_states']} cells)",
@@ -77,5 +84,5 @@ def test_optimal_gaits_redrawn_show_the_least_radius_per_cell():
     optimal = open_results(RESULTS / "optimal_downward")
     frame = optimal.to_dataframe()
     least = frame[frame["status"] == "converged"]["spectral_radius"].min()
-    trunk = optimal.plot()[2]
+    trunk = optimal.plot()["best_gaits_trunk"]
     assert f"radius {least:.3g}" in trunk.axes[0].get_legend().get_texts()[1].get_text()

@@ -161,8 +161,9 @@ class FixedPointResult:
         return gait_figure(self.trajectory(strides), self.name)
 
     def animate(self, strides: int = 2):
-        """The gait as an animation for a notebook (IPython HTML), or a matplotlib
-        FuncAnimation when IPython is not there."""
+        """The gait over ``strides`` strides, animated: a
+        :class:`~baslip.viz.animation.GaitAnimation`, which a notebook shows (an embedded
+        GIF) and ``.save("gait.gif")`` writes, with or without IPython."""
         from baslip.viz.animation import notebook_animation
 
         return notebook_animation(self.X, self.u, self.params, self.name, strides, self.law)

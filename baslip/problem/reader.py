@@ -42,6 +42,7 @@ from baslip.model.quantities import (
     start_value,
 )
 from baslip.problem.continuation import ContinuationSpec, check_continuation, parse_continuation
+from baslip.problem.shipped import find_problem
 from baslip.problem.study import ADAPTED_CONTROLS, STUDY_KINDS, Atlas, Basin, Optimal, Study, Sweep, parse_study
 from baslip.problem.text import UnreadableText, clip, excerpt, read_yaml
 from baslip.problem.values import mapping, physical
@@ -131,12 +132,20 @@ def _unpickled_problem(state: dict) -> Problem:
 
 
 def load_problem(path: str | Path) -> Problem:
-    """Read and validate a YAML problem file."""
-    path = Path(path)
+    """Read and validate a YAML problem file.
+
+    Parameters
+    ----------
+    path
+        The file; a bare name that is no file here (``downward``, ``downward.yaml``)
+        means the shipped problem of that name (``baslip problems`` lists them).
+    """
+    path = find_problem(Path(path))
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise ProblemError("", f"no such problem file: {path}") from None
+        shipped = " (nor the name of a shipped problem: `baslip problems` lists them)" if path.parent == Path(".") else ""
+        raise ProblemError("", f"no such problem file: {path}{shipped}") from None
     except UnicodeDecodeError:
         raise ProblemError("", f"problem file {path} is not UTF-8 text") from None
     except OSError as err:

@@ -23,6 +23,19 @@ def shipped_problems() -> list[Path]:
     return sorted(problems_dir().glob("*.yaml"))
 
 
+def find_problem(path: Path) -> Path:
+    """``path`` itself where it exists or names a folder; else the shipped problem that a
+    bare name means (``downward`` or ``downward.yaml``), if there is one; else ``path``.
+
+    A file of that name in the working folder comes first, so a user's copy of a shipped
+    problem is the one read."""
+    if path.exists() or path.parent != Path("."):
+        return path
+    name = path.name if path.suffix in (".yaml", ".yml") else f"{path.name}.yaml"
+    shipped = problems_dir() / name
+    return shipped if shipped.is_file() else path
+
+
 def describe(path: Path) -> str:
     """The first comment line of a problem file (what it is), or ''."""
     for line in path.read_text(encoding="utf-8").splitlines():

@@ -6,6 +6,10 @@ The command that solves problems and writes their GIFs is :mod:`baslip.cli.anima
 
 from __future__ import annotations
 
+import base64
+import html
+import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import matplotlib
@@ -14,6 +18,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
 
 from baslip.engine.returnmap import ReturnMap, Tolerances  # noqa: E402
 from baslip.engine.trajectory import Trajectory, stride_trajectory  # noqa: E402
@@ -45,18 +50,38 @@ def animate(trajectory: Trajectory, params: Params, title: str, path: Path) -> P
     return path
 
 
-def notebook_animation(X, u, params: Params, title: str, strides: int = 2, law: HipLaw = PD):
-    """The gait from apex ``X`` under control ``u`` of hip law ``law`` as an animation for a
-    notebook: IPython HTML (JavaScript player) if IPython is installed, else the
-    matplotlib FuncAnimation."""
+@dataclass(frozen=True)
+class GaitAnimation:
+    """A gait's animation, one type everywhere: it shows itself in a notebook as an
+    embedded GIF (no player or icons fetched from the web) and saves as a GIF."""
+
+    figure: Figure
+    animation: FuncAnimation
+    title: str
+
+    def save(self, path: str | Path) -> Path:
+        """Write the GIF to ``path`` (any suffix; the file is a GIF) and return the path."""
+        path = Path(path)
+        self.animation.save(path, writer=PillowWriter(fps=FPS))
+        return path
+
+    def gif(self) -> bytes:
+        """The GIF's bytes."""
+        with tempfile.TemporaryDirectory() as folder:
+            return self.save(Path(folder) / "gait.gif").read_bytes()
+
+    def _repr_html_(self) -> str:
+        encoded = base64.b64encode(self.gif()).decode("ascii")
+        return f'<img src="data:image/gif;base64,{encoded}" alt="{html.escape(self.title)}: animated gait">'
+
+
+def notebook_animation(X, u, params: Params, title: str, strides: int = 2, law: HipLaw = PD) -> GaitAnimation:
+    """The gait from apex ``X`` under control ``u`` of hip law ``law``, ``strides`` strides
+    in slow motion, as a :class:`GaitAnimation`."""
     trajectory = stride_trajectory(ReturnMap(Tolerances(1e-10, 1e-10), law=law), X, u, params, strides=strides)
     fig, animation = _animation(trajectory, params, title)
-    plt.close(fig)
-    try:
-        from IPython.display import HTML
-    except ImportError:
-        return animation
-    return HTML(animation.to_jshtml())
+    plt.close(fig)  # drawn by the animation alone: a notebook shows no extra still frame
+    return GaitAnimation(fig, animation, title)
 
 
 def _trunk_length(params: Params) -> float:

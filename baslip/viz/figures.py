@@ -7,6 +7,7 @@ unstable ones as red crosses, and points without a verified fixed point as grey 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import matplotlib
@@ -70,10 +71,17 @@ def figure_file(stem: str) -> str:
     return f"{stem}.{figure_format()}"
 
 
-def _in(out_dir: Path | None, name: str) -> Path | None:
-    """Where a figure goes: ``out_dir / name``, or nowhere (None) when the figure is to
-    be returned open instead of written."""
-    return None if out_dir is None else out_dir / name
+@dataclass(frozen=True)
+class Unwritten:
+    """Where a figure returned open (not written) goes: nowhere, but under its file's name."""
+
+    name: str
+
+
+def _in(out_dir: Path | None, name: str) -> Path | Unwritten:
+    """Where a figure goes: ``out_dir / name``, or, when the figure is to be returned open
+    instead of written (no ``out_dir``), nowhere under that name."""
+    return Unwritten(name) if out_dir is None else out_dir / name
 
 
 def _save(fig, path, tight: bool = True) -> Path | None:
@@ -83,6 +91,9 @@ def _save(fig, path, tight: bool = True) -> Path | None:
     layout of the caller's own (constrained layout, which places shared colour bars)."""
     if tight:
         fig.tight_layout()
+    if isinstance(path, Unwritten):
+        fig.set_label(Path(path.name).stem)  # the name it is listed under (RunResults.plot)
+        return None
     if path is None:
         return None
     fmt = figure_format()
