@@ -18,6 +18,11 @@ from typing import IO, TYPE_CHECKING, Any
 
 from baslip.status import Status
 
+#: Columns of text: they stay text where every row leaves them empty (a sweep without a
+#: failure has no ``reason``).
+TEXT_COLUMNS = ("status", "reason", "special", "type", "descent_stop", "meaning", "kind", "outcome", "start_status",
+                "neighbours", "on")
+
 if TYPE_CHECKING:
     from baslip.viz.gallery import Figures
 
@@ -79,7 +84,11 @@ class RunResults:
 
     def to_dataframe(self, table: str | None = None):
         """A table as a pandas DataFrame (needs pandas): by default ``points`` for a study,
-        ``branch`` for a continuation; ``curve`` for its bifurcation curves."""
+        ``branch`` for a continuation; ``curve`` for its bifurcation curves.
+
+        True/false columns are nullable booleans (empty in failed rows), text columns are
+        text ("" where empty, even when every row is), and a study's rows are sorted by
+        their swept values (then by start), not in the order its lanes finished them."""
         try:
             import pandas
         except ImportError:
@@ -89,10 +98,15 @@ class RunResults:
             raise KeyError(f"{self.folder or self.name} has no {name}.csv; it has {', '.join(self.tables) or 'no tables'}")
         with self._open(name) as handle:
             frame = pandas.read_csv(handle)
-        for column in frame.columns:  # true/false with gaps (failed rows) as a nullable bool
+        for column in frame.columns:
             values = set(frame[column].dropna().astype(str).str.lower())
-            if values and values <= {"true", "false"}:
+            if values and values <= {"true", "false"}:  # with gaps (failed rows): a nullable bool
                 frame[column] = frame[column].map(lambda v: v if pandas.isna(v) else str(v).lower() == "true").astype("boolean")
+            elif column in TEXT_COLUMNS or frame[column].dtype == object:
+                frame[column] = frame[column].astype("string").fillna("")
+        keys = [c for c in frame.columns if c.startswith("sweep_")] + [c for c in ("start",) if c in frame.columns]
+        if keys and name != "curve":
+            frame = frame.sort_values(keys, kind="stable").reset_index(drop=True)
         return frame
 
     def plot(self) -> Figures:

@@ -33,6 +33,21 @@ def test_a_sweep_reads_back_with_a_short_repr_a_table_and_figures():
     assert page.count('<img src="data:image/png;base64,') == 2 and "<h4>theta_h_map</h4>" in page
 
 
+def test_dataframe_columns_have_their_types_and_rows_their_swept_order():
+    """Text stays text where every row is empty, and a study's rows come sorted by their
+    swept values (points.csv holds them in the order the lanes finished)."""
+    grid = open_results(RESULTS / "grid_downward").to_dataframe()
+    assert str(grid["reason"].dtype) == "string" and (grid.loc[grid["status"] == "converged", "reason"] == "").all()
+    keys = list(zip(grid["sweep_ydot"], grid["sweep_z"]))
+    assert keys == sorted(keys) and len(set(keys)) == len(keys)
+    branch = open_results(RESULTS / "continuation_downward_height").to_dataframe()
+    assert str(branch["special"].dtype) == "string" and (branch["special"] == "").sum() > 0
+    assert not branch["special"].isna().any()
+    optimal = open_results(RESULTS / "optimal_vpp").to_dataframe()
+    order = list(zip(optimal["sweep_ydot"], optimal["sweep_z"], optimal["start"]))
+    assert order == sorted(order) and str(optimal["start"].dtype) == "int64"
+
+
 def test_failed_rows_keep_a_boolean_stable_column_and_say_why():
     scan = open_results(RESULTS / "body_angle_scan").to_dataframe()
     assert str(scan["stable"].dtype) == "boolean"

@@ -26,6 +26,8 @@ def test_the_motion_has_every_column_and_the_four_phases(hanging_motion):
     assert list(dict.fromkeys(hanging_motion["phase"])) == ["descent", "compression", "decompression", "ascent"]
     assert np.all(np.diff(hanging_motion["t"]) >= 0)
     assert set(hanging_motion["stride"]) == {0, 1}
+    frame = hanging_motion.to_dataframe()
+    assert str(frame["stride"].dtype) == "int64" and list(frame.columns) == list(MOTION_COLUMNS)
 
 
 def test_work_of_the_hip_torque_equals_the_change_in_energy(hanging_motion):

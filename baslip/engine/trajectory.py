@@ -181,8 +181,11 @@ class Motion:
         return "\n".join(lines) + "\n"
 
     def to_dataframe(self):
-        """A pandas DataFrame of the columns (needs pandas)."""
-        return _pandas().DataFrame({n: self.columns[n] for n in MOTION_COLUMNS})
+        """A pandas DataFrame of the columns (needs pandas): ``stride`` as integers,
+        ``phase`` as text, the rest floats in SI units and radians."""
+        frame = _pandas().DataFrame({n: self.columns[n] for n in MOTION_COLUMNS})
+        frame["stride"] = frame["stride"].astype("int64")
+        return frame
 
     def work_of_torque(self) -> float:
         """The hip motor's work [J] over the samples: the trapezoidal integral of
