@@ -263,28 +263,31 @@ def run_summary_text(record: dict) -> str:
 
 
 def _continuation_lines(record: dict) -> list[str]:
+    from baslip.model.quantities import quantity_text
     from baslip.viz.labels import CODIM2_NAMES, SPECIAL_NAMES
 
     name, parameter, lines = record.get("name", ""), record["parameter"], []
     for b in record["branches"]:
-        special = ", ".join(f"{p['type']} at {parameter} = {p[parameter]:.7g}"
+        special = ", ".join(f"{p['type']} at {quantity_text(parameter, p[parameter])}"
                             for p in record["special_points"] if p["branch"] == b["branch"])
         origin = f", switched at the {SPECIAL_NAMES[b['switched_from']['type']]}" if b["switched_from"] else ""
         lines.append(f"{name}: branch {b['branch']} ({b['strides']}-stride orbits{origin}): "
                      f"{b['points']} verified points, stopped: {b['stop_reason']}")
         lines.append(f"  special points: {special or 'none'}")
     for f in record["failed_switches"]:
-        lines.append(f"  could not switch at the {SPECIAL_NAMES[f['type']]} at {parameter} = {f[parameter]:.7g}: "
+        lines.append(f"  could not switch at the {SPECIAL_NAMES[f['type']]} at {quantity_text(parameter, f[parameter])}: "
                      f"{f['reason']}")
     curves = record.get("curves")
     if curves is not None:
         second = curves["second"]
         for c in curves["curves"]:
-            lines.append(f"  curve {c['curve']} ({c['type'].replace('_', ' ')}) from {parameter} = "
-                         f"{c['from'][parameter]:.7g}: {c['points']} verified points, stopped: {c['stop_reason']}")
+            lines.append(f"  curve {c['curve']} ({c['type'].replace('_', ' ')}) from "
+                         f"{quantity_text(parameter, c['from'][parameter])}: {c['points']} verified points, stopped: "
+                         f"{c['stop_reason']}")
         for f in curves["failed_curves"]:
-            lines.append(f"  no {f['type'].replace('_', ' ')} curve from {parameter} = {f[parameter]:.7g}: {f['reason']}")
-        found = "; ".join(f"{CODIM2_NAMES[p['type']]} at {parameter} = {p[parameter]:.7g}, {second} = {p[second]:.7g}"
+            lines.append(f"  no {f['type'].replace('_', ' ')} curve from {quantity_text(parameter, f[parameter])}: {f['reason']}")
+        found = "; ".join(f"{CODIM2_NAMES[p['type']]} at {quantity_text(parameter, p[parameter])}, "
+                          f"{quantity_text(second, p[second])}"
                           for p in curves["codimension_two_points"])
         lines.append(f"  codimension-two points: {found or 'none'}")
     return lines

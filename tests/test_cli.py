@@ -1,6 +1,7 @@
 """Specification of the ``baslip`` command (baslip.cli.main) and of the notebook-facing parts of
 a result."""
 
+import math
 import subprocess
 import sys
 
@@ -77,6 +78,9 @@ def test_a_result_is_short_in_text_and_a_table_in_a_notebook():
     assert text.startswith("<FixedPointResult downward: converged, stable") and len(text) < 120
     html = result._repr_html_()
     assert "<table>" in html and "spectral radius" in html and "0.899" in html
+    # Angles as people read them, with the unit in the row's name.
+    assert "theta_h [deg]" in html and f"{math.degrees(result.apex['theta_h']):.6g}" in html
+    assert "theta_h_dot [deg/s]" in html and "z [m]" in html
     assert result.summary().splitlines()[0] == "downward: converged (verified fixed point)"
     figure = result.plot()
     assert len(figure.axes) == 3 and figure.axes[2].get_ylabel() == "ground reaction force [N]"

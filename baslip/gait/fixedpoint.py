@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
@@ -27,7 +28,7 @@ from baslip.gait.shooting import FixedPointSpec, NlpSolution, ShootingNLP, Shoot
 from baslip.gait.stability import Multiplier, Stability, classify
 from baslip.model.dynamics import APEX, Params
 from baslip.model.hiplaw import PD, HipLaw
-from baslip.model.quantities import NOMINAL, STABILITY_OBJECTIVES
+from baslip.model.quantities import NOMINAL, STABILITY_OBJECTIVES, UNITS
 from baslip.status import VERIFY_EPS, Status
 
 #: Tolerances of the independent verification map.
@@ -116,7 +117,7 @@ class FixedPointResult:
         from html import escape
 
         rows = [("status", f"{self.status} ({self.message})")]
-        rows += [(n, f"{v:.6g}") for n, v in {**self.apex, **self.control}.items()]
+        rows += [_html_quantity(n, v) for n, v in {**self.apex, **self.control}.items()]
         rows += [("energy [J]", f"{self.energy:.6g}")]
         if self.residual is not None:
             rows.append(("residual eps", f"{self.residual:.2e}"))
@@ -169,7 +170,9 @@ class FixedPointResult:
         return notebook_animation(self.X, self.u, self.params, self.name, strides, self.law)
 
     def to_json_dict(self) -> dict:
-        """The ``result.json`` record: exactly the documented keys, plain JSON types."""
+        """The ``result.json`` record, plain JSON types: the documented keys but for
+        ``provenance``, which the writer adds (:func:`baslip.files.atomic.write_result`):
+        it describes the run, not the gait."""
         eigenvalues = self.eigenvalues
         return {
             "name": self.name,
@@ -401,3 +404,11 @@ def _describe(rmap: ReturnMap) -> str:
 def _first_line(err: Exception) -> str:
     lines = str(err).strip().splitlines()
     return lines[-1] if lines else type(err).__name__
+
+
+def _html_quantity(name: str, value: float) -> tuple[str, str]:
+    """(``name [unit]``, value) of a row of the HTML table: angles in degrees, as people read them."""
+    unit = UNITS[name]
+    if unit.startswith("rad"):
+        return f"{name} [deg{unit[len('rad'):]}]", f"{math.degrees(value):.6g}"
+    return f"{name} [{unit}]", f"{value:.6g}"

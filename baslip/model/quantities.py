@@ -72,6 +72,15 @@ UNITS = {
 }
 
 
+def quantity_text(name: str, value: float, digits: int = 7) -> str:
+    """``name = value unit`` for people: angles (in radians in data and code) in degrees,
+    the rest in their SI units."""
+    unit = UNITS.get(name, "")
+    if unit.startswith("rad"):
+        return f"{name} = {math.degrees(value):.{digits}g} deg{unit[len('rad'):]}"
+    return f"{name} = {value:.{digits}g}" + (f" {unit}" if unit else "")
+
+
 def physical_range(name: str) -> tuple[float, float]:
     """Documented range of a design quantity, ``energy`` or a model parameter."""
     if name in DEFAULT_BOUNDS:

@@ -30,6 +30,7 @@ from baslip.files.atomic import json_text, write_files_atomically
 from baslip.files.lock import hold
 from baslip.gait.stability import STABILITY_MARGIN
 from baslip.model.dynamics import APEX
+from baslip.model.quantities import quantity_text
 from baslip.studies.curve import curve_csv, follow_curves
 from baslip.studies.traced import TracedBranch, named_stop, point_record, points_csv, progress_lines
 
@@ -140,7 +141,7 @@ def _trace(system, v0, direction, settings, solver, number, origin, quiet) -> Tr
         rate = abs(lam - lam0) / elapsed if elapsed > 0 else 0.0
         eta = f", about {abs(end - lam) / rate:.0f} s to the end of the range" if rate > 0 and math.isfinite(end) else ""
         return (f"branch {number} ({system.spec.strides} stride{'s' if system.spec.strides > 1 else ''}): "
-                f"{n} points, {system.parameter} = {lam * system.lam_scale:.6g}{eta}")
+                f"{n} points, {quantity_text(system.parameter, lam * system.lam_scale, 6)}{eta}")
 
     progress = progress_lines(describe, quiet)
 

@@ -23,6 +23,7 @@ import numpy as np
 from baslip.analysis.bifurcation import CurveSystem, stability_boundary, trace_curve
 from baslip.analysis.continuation import Branch, CorrectionFailed, Point, Settings
 from baslip.model.dynamics import APEX
+from baslip.model.quantities import quantity_text
 from baslip.studies.traced import TracedBranch, named_stop, point_record, points_csv, progress_lines
 
 #: Largest step along a curve (scaled units): small enough that the drawn polyline, and
@@ -111,7 +112,7 @@ def _on_traced(v: np.ndarray, kind: str, traced) -> int | None:
 
 
 def _describe(base, kind: str, number: int, n: int, point: Point) -> str:
-    values = ", ".join(f"{name} = {value:.6g}" for name, value in base.values(point.v).items())
+    values = ", ".join(quantity_text(name, value, 6) for name, value in base.values(point.v).items())
     return f"curve {number} ({kind.replace('_', ' ')}): {n} points, {values}"
 
 
