@@ -247,8 +247,10 @@ def read_into_memory(folder: Path, sources: Path | None) -> RunResults:
 
 
 def run_summary_text(record: dict) -> str:
-    """A study's or a continuation's result record, told in a few lines."""
+    """A gait's, a study's or a continuation's result record, told in a few lines."""
     name = record.get("name", "")
+    if "parameter" not in record and "kind" not in record:
+        return _gait_text(record)
     if "kind" in record:
         counts = ", ".join(f"{k} {v}" for k, v in record.items() if isinstance(v, int) and not isinstance(v, bool))
         lines = [f"{name}: {record['kind']} study {'complete' if record.get('complete', True) else 'incomplete'}: {counts}"]
@@ -260,6 +262,19 @@ def run_summary_text(record: dict) -> str:
                          "(see points.csv, column reason)")
         return "\n".join(lines)
     return "\n".join(_continuation_lines(record))
+
+
+def _gait_text(record: dict) -> str:
+    """A single gait's result.json in two lines: its status and stability, its apex and
+    control (angles in degrees)."""
+    from baslip.model.quantities import quantity_text
+
+    radius, stable = record.get("spectral_radius"), record.get("stable")
+    verdict = "" if radius is None else f", spectral radius {radius:.6g} ({'stable' if stable else 'unstable'})"
+    residual = "" if record.get("residual") is None else f", eps {record['residual']:.1e}"
+    values = {**(record.get("apex") or {}), **(record.get("control") or {})}
+    return (f"{record.get('name', '')}: {record.get('status', 'unknown')}{verdict}{residual}\n  "
+            + ", ".join(quantity_text(n, v, 6) for n, v in values.items()))
 
 
 def _continuation_lines(record: dict) -> list[str]:

@@ -193,3 +193,21 @@ def test_the_vpp_descent_claim_compares_each_cell_with_the_atlas_and_says_where_
     (tmp_path / "optimal_vpp" / "result.json").write_text(json.dumps(summary))
     (text,) = optimal_claims(Evidence(tmp_path))
     assert "At 1 cell the descent ends below the atlas's polished least" in text
+
+
+def test_a_folder_of_a_users_own_runs_is_told_plainly_and_beside_the_thesis_comparison(tmp_path):
+    """Runs under names the report does not know are told as the command line tells them;
+    without any shipped study in the folder there is no thesis comparison at all."""
+    import shutil
+
+    from baslip.report.page import build_report
+
+    shutil.copytree(RESULTS / "downward", tmp_path / "my_gait")
+    shutil.copytree(RESULTS / "curve_slip_band", tmp_path / "my_band")
+    text = build_report(tmp_path)
+    assert text.startswith(f"# The runs in {tmp_path.name}/") and "Sec. 4.3" not in text
+    assert "### my_band" in text and "period_doubling at theta_td = 21.1464 deg" in text
+    assert "### my_gait" in text and "downward: converged, spectral radius 0.899" in text
+    shutil.copytree(RESULTS / "speed_sweep", tmp_path / "speed_sweep")  # a shipped study: the comparison too
+    text = build_report(tmp_path)
+    assert "## Sec. 4.3" in text and "## Other runs in this folder" in text and "### speed_sweep" not in text

@@ -8,9 +8,12 @@ integrator none of the solves used (erk at rtol = atol = 1e-13) and prints its e
 """
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
+from baslip.problem.shipped import shipped_problems
+from baslip.report.atlas import SCHUR_FROM_ATLAS
 from baslip.report.beyond import branch_sections, curve_sections, upright_section
 from baslip.report.evidence import Evidence
 from baslip.report.thesis import (
@@ -23,6 +26,7 @@ from baslip.report.thesis import (
     scan_claims,
     speed_claims,
 )
+from baslip.results import run_summary_text
 
 HEADER = """# baslip against the thesis, chapter 4
 
@@ -47,6 +51,28 @@ Regenerate everything with `make studies`. The figures are in each study's folde
 
 
 def build_report(results: Path) -> str:
+    """REPORT.md of the folder ``results``: the thesis comparison, when any shipped study
+    was run there, and an account of the other runs in it (a user's own)."""
+    shipped = {path.stem for path in shipped_problems()} | {SCHUR_FROM_ATLAS}  # the runs the claims read
+    runs = sorted(path.parent for path in results.glob("*/result.json"))
+    others = [run for run in runs if run.name not in shipped]
+    if runs and not any(run.name in shipped for run in runs):
+        return f"# The runs in {results.name}/\n\n" + runs_account(others)
+    account = f"## Other runs in this folder\n\n{runs_account(others)}" if others else ""
+    return thesis_report(results) + account
+
+
+def runs_account(runs: list[Path]) -> str:
+    """Each run as the command line tells it (angles in degrees), under its folder's name."""
+    parts = []
+    for run in runs:
+        record = json.loads((run / "result.json").read_text(encoding="utf-8"))
+        parts.append(f"### {run.name}\n\n```\n{run_summary_text(record)}\n```\n")
+    return "\n".join(parts) or "No runs.\n"
+
+
+def thesis_report(results: Path) -> str:
+    """The comparison with the thesis's chapter 4, from the shipped studies' results."""
     ev = Evidence(results)
     sections = [
         ("Sec. 4.3: fixed points for a given speed", speed_claims(ev)),
