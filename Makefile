@@ -26,7 +26,7 @@ ATLASES = atlas_upright atlas_downward controllers_upright_best optimal_upright_
 studies:
 	@for s in $(STUDIES) $(BRANCHES) $(AFTER_CURVES) $(VPP_STUDIES); do $(PY) -m baslip.solve problems/$$s.yaml || exit 1; done
 	@for g in $(GAITS); do $(PY) -m baslip.solve problems/$$g.yaml || exit 1; done
-	$(PY) -m baslip.animate problems/downward.yaml problems/upward.yaml --out results/animation
+	$(PY) -m baslip.animate problems/downward.yaml problems/upward.yaml problems/vpp_human.yaml --out results/animation
 	$(PY) -m baslip.report
 
 atlases:

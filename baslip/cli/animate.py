@@ -18,7 +18,7 @@ from baslip.engine.returnmap import ReturnMap, Tolerances
 from baslip.engine.trajectory import stride_trajectory
 from baslip.gait.from_problem import solve_start
 from baslip.problem.reader import ProblemError, load_problem
-from baslip.viz.animation import SLOW_MOTION, animate
+from baslip.viz.animation import animate
 
 
 def main(argv: list[str] | None = None, prog: str = "python -m baslip.animate") -> int:
@@ -27,22 +27,24 @@ def main(argv: list[str] | None = None, prog: str = "python -m baslip.animate") 
     parser.add_argument("problems", nargs="+", type=Path, help="single fixed-point problem files")
     parser.add_argument("--out", type=Path, default=Path("results/animation"), metavar="DIR")
     args = parser.parse_args(argv)
-    rmap = ReturnMap(Tolerances(1e-10, 1e-10))
-    args.out.mkdir(parents=True, exist_ok=True)
-    for path in args.problems:
+    problems = []
+    for path in args.problems:  # every file read before anything is written
         try:
-            problem = load_problem(path)
+            problems.append(load_problem(path))
         except ProblemError as err:
             print(f"error: {path}: {err}", file=sys.stderr)
             return 2
+    args.out.mkdir(parents=True, exist_ok=True)
+    for path, problem in zip(args.problems, problems):
         result = solve_start(problem)
         if not result.converged:
             print(f"error: {path}: no verified fixed point to animate ({result.message})", file=sys.stderr)
             return 1
+        rmap = ReturnMap(Tolerances(1e-10, 1e-10), law=problem.hip_law)  # the problem's own hip law
         trajectory = stride_trajectory(rmap, result.X, result.u, problem.params)
         verdict = "stable" if result.stable else "unstable"
         title = (f"{problem.name}: theta_h = {np.degrees(result.apex['theta_h']):.1f} deg, "
-                 f"ydot = {result.apex['ydot']:.2f} m/s, {verdict} (x{SLOW_MOTION:g} slow)")
+                 f"ydot = {result.apex['ydot']:.2f} m/s, {verdict}")
         out = animate(trajectory, problem.params, title, args.out / f"{problem.name}.gif")
         print(f"wrote {out} ({out.stat().st_size // 1024} KB)")
     return 0

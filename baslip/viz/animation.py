@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import base64
 import html
+import math
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -84,45 +85,51 @@ def notebook_animation(X, u, params: Params, title: str, strides: int = 2, law: 
     return GaitAnimation(fig, animation, title)
 
 
-def _trunk_length(params: Params) -> float:
-    return 3 * params.d + 0.04
+def trunk_half_length(params: Params) -> float:
+    """Half the length of the trunk as drawn [m]: the uniform rod centred on the CoM that has
+    the body's inertia, I = m L^2 / 12. (The model fixes only I and the hip's distance d
+    from the CoM, so this is the one trunk its numbers imply.)"""
+    return math.sqrt(3.0 * params.I / params.m)
 
 
 def _animation(trajectory: Trajectory, params: Params, title: str):
     """(figure, FuncAnimation) of ``trajectory`` in slow motion, framed so that the whole
-    runner, trunk tip included, stays inside."""
+    runner, trunk ends included, stays inside; a legend and a clock in the corner."""
     frames = np.arange(0.0, trajectory.t[-1], 1.0 / (FPS * SLOW_MOTION))
     motion = trajectory.at(frames)
-    fig, ax = plt.subplots(figsize=(5.0, 3.2), dpi=70)
-    # The trunk runs from the hip to trunk_length beyond it: its tip can be the highest point.
-    tip_y = motion.y + (_trunk_length(params) - params.d) * np.cos(motion.theta_h)
-    tip_z = motion.z + (_trunk_length(params) - params.d) * np.sin(motion.theta_h)
-    margin = 0.05
-    ax.set_xlim(min(motion.y.min(), tip_y.min(), motion.foot_y.min()) - margin,
-                max(motion.y.max(), tip_y.max(), motion.foot_y.max()) + margin)
-    ax.set_ylim(-0.03, max(motion.z.max(), tip_z.max(), 0.3) + margin)
+    fig, ax = plt.subplots(figsize=(6.4, 3.8), dpi=110)
+    half = trunk_half_length(params)
+    ends_y = motion.y[None, :] + np.array([[-half], [half]]) * np.cos(motion.theta_h)[None, :]
+    ends_z = motion.z[None, :] + np.array([[-half], [half]]) * np.sin(motion.theta_h)[None, :]
+    margin = 0.05 * max(params.rho0 / 0.2, 1.0)
+    ax.set_xlim(min(ends_y.min(), motion.foot_y.min()) - margin, max(ends_y.max(), motion.foot_y.max()) + margin)
+    ax.set_ylim(min(ends_z.min(), 0.0) - 0.03, max(motion.z.max(), ends_z.max(), 1.5 * params.rho0) + margin)
     ax.set_aspect("equal")
     ax.axhline(0.0, color="k", lw=1.5)
     ax.set_xlabel("y [m]")
     ax.set_ylabel("z [m]")
     ax.set_title(title, fontsize=9)
+    (trunk,) = ax.plot([], [], color="tab:blue", lw=5, solid_capstyle="round", alpha=0.8, zorder=2,
+                       label="trunk (rod of the body's inertia)")
+    (leg,) = ax.plot([], [], color="tab:gray", lw=1.2, zorder=3, label="spring leg")
+    (com,) = ax.plot([], [], "o", color="k", ms=4, zorder=4, label="centre of mass")
+    (hip,) = ax.plot([], [], "o", color="tab:orange", ms=5, zorder=4, label="hip")
+    (contact,) = ax.plot([], [], "^", color="tab:red", ms=8, zorder=4, label="foot on the ground")
+    ax.legend(loc="center left", bbox_to_anchor=(1.02, 0.5), fontsize=7, frameon=False)
+    clock = ax.text(0.02, 0.95, "", transform=ax.transAxes, fontsize=8, va="top")
     fig.tight_layout()
-    (leg,) = ax.plot([], [], color="tab:gray", lw=1.2)
-    (trunk,) = ax.plot([], [], color="tab:blue", lw=5, solid_capstyle="round")
-    (com,) = ax.plot([], [], "o", color="k", ms=4)
-    (hip,) = ax.plot([], [], "o", color="tab:orange", ms=5)
-    (contact,) = ax.plot([], [], "^", color="tab:red", ms=8)
-    trunk_length = _trunk_length(params)
 
     def draw(k):
         c = np.array([motion.y[k], motion.z[k]])
         direction = np.array([np.cos(motion.theta_h[k]), np.sin(motion.theta_h[k])])
         h = c - params.d * direction
-        trunk.set_data(*np.column_stack([h - 0.01 * direction, h + trunk_length * direction]))
+        trunk.set_data(*np.column_stack([c - half * direction, c + half * direction]))
         com.set_data([c[0]], [c[1]])
         hip.set_data([h[0]], [h[1]])
-        leg.set_data(*spring_points(h, (motion.foot_y[k], motion.foot_z[k])))
+        leg.set_data(*spring_points(h, (motion.foot_y[k], motion.foot_z[k]), width=0.06 * params.rho0))
         contact.set_data(([motion.foot_y[k]], [0.0]) if motion.stance[k] else ([], []))
-        return leg, trunk, com, hip, contact
+        clock.set_text(f"t = {frames[k]:.3f} s ({'stance' if motion.stance[k] else 'flight'}), "
+                       f"{SLOW_MOTION:g}x slower")
+        return leg, trunk, com, hip, contact, clock
 
     return fig, FuncAnimation(fig, draw, frames=len(frames), blit=True)
