@@ -8,9 +8,9 @@ import math
 from pathlib import Path
 
 import numpy as np
-from matplotlib.colors import LogNorm
 from matplotlib.tri import Triangulation
 
+from baslip.viz.colours import radius_colorbar, radius_colours
 from baslip.viz.figures import LABELS, _in, _save, plt, shown
 
 
@@ -37,23 +37,22 @@ def atlas_figure(charts: list[dict], names: list[str], plot: tuple[str, str], ou
     fig, axes = plt.subplots(rows_count, columns, figsize=(4.6 * columns + 1.2, 3.9 * rows_count + 0.6),
                              squeeze=False, layout="constrained")
     radii = np.array([c["spectral_radius"] for c in charts if c["status"] == "converged"], dtype=float)
-    span = max(float(np.abs(np.log10(radii)).max()), math.log10(2.0)) if radii.size else 1.0
-    norm = LogNorm(vmin=10**-span, vmax=10**span)  # symmetric about 1: white is the stability boundary
+    colours = radius_colours(radii)  # blues below 1, reds above
     image = None
     for ax, cell in zip(axes.flat, cells):
         mine = [c for c in charts if tuple(c[f"sweep_{n}"] for n in names) == cell and c["status"] == "converged"]
-        image = _panel(ax, mine, plot, norm) or image
+        image = _panel(ax, mine, plot, colours) or image
         ax.set_title(", ".join(f"{n} = {v:g}" for n, v in zip(names, cell)) + f": {len(mine)} charts", fontsize=9)
     for ax in list(axes.flat)[len(cells):]:
         ax.set_visible(False)
     if image is not None:
-        fig.colorbar(image, ax=axes, label=LABELS["spectral_radius"] + " (log scale)")
+        radius_colorbar(fig, image, axes, LABELS["spectral_radius"] + " (log scale; blue: stable)")
     fig.suptitle(f"{title}: atlas of the fixed points, coloured by spectral radius\n"
                  "stable part shaded, radius 1 drawn, star = most stable chart", fontsize=10)
     return _save(fig, _in(out_dir, "atlas.png"), tight=False)
 
 
-def _panel(ax, charts: list[dict], plot: tuple[str, str], norm):
+def _panel(ax, charts: list[dict], plot: tuple[str, str], colours):
     if not charts:
         ax.text(0.5, 0.5, "no verified chart", ha="center", va="center", transform=ax.transAxes)
         return None
@@ -66,7 +65,7 @@ def _panel(ax, charts: list[dict], plot: tuple[str, str], norm):
         if level.min() < 0 < level.max():
             ax.tricontourf(mesh, level, levels=[level.min() - 1, 0.0], colors=["#9ecae1"], alpha=0.5)
             ax.tricontour(mesh, level, levels=[0.0], colors="k", linewidths=0.8)
-    image = ax.scatter(x, y, c=radius, s=6, cmap="coolwarm", norm=norm, linewidths=0)
+    image = ax.scatter(x, y, c=radius, s=6, cmap=colours[0], norm=colours[1], linewidths=0)
     best = int(np.argmin(radius))
     ax.plot(x[best], y[best], "*", ms=13, mfc="gold", mec="k", label=f"least radius {radius[best]:.3g}")
     ax.legend(fontsize=7, loc="best")

@@ -15,12 +15,12 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib.colors import LogNorm  # noqa: E402
 
 from baslip.model.dynamics import APEX  # noqa: E402
 from baslip.model.quantities import ANY_DESIGN, UNITS  # noqa: E402
 from baslip.problem.study import CONTROLLER_KINDS  # noqa: E402
 from baslip.status import Status
+from baslip.viz.colours import colour_limits, radius_colorbar, radius_colours  # noqa: E402
 from baslip.viz.labels import SPECIAL_NAMES  # noqa: E402
 
 DEG = 180 / math.pi
@@ -178,19 +178,16 @@ def draw_map(fig, ax, rows, names, quantity) -> None:
     """A sweep's map of ``quantity`` over its two axes on ``ax``, with a colour bar; stable
     cells ringed, unstable ones crossed, cells without a verified fixed point marked."""
     a, b, values, stable = _grid(rows, names, quantity)
-    cmap = plt.get_cmap("viridis" if quantity == "theta_h" else "coolwarm").with_extremes(bad="0.85")
     extent = _extent(shown(names[0], a), shown(names[1], b))
     if quantity == "spectral_radius":
-        finite = values[np.isfinite(values) & (values > 0)]
-        # Symmetric in log10 about 1, so that white is the stability boundary.
-        span = max(np.abs(np.log10(finite)).max(), np.log10(2.0)) if finite.size else 1.0
-        norm = LogNorm(vmin=10**-span, vmax=10**span)
-        image = ax.imshow(values, origin="lower", aspect="auto", extent=extent, cmap=cmap, norm=norm)
-        label = LABELS[quantity] + " (log scale)"
+        colours, norm = radius_colours(values)
+        image = ax.imshow(values, origin="lower", aspect="auto", extent=extent, cmap=colours, norm=norm)
+        radius_colorbar(fig, image, ax, LABELS[quantity] + " (log scale; blue: stable)")
     else:
-        image = ax.imshow(shown(quantity, values), origin="lower", aspect="auto", extent=extent, cmap=cmap)
-        label = LABELS[quantity]
-    fig.colorbar(image, ax=ax, label=label)
+        cmap = plt.get_cmap("viridis" if quantity == "theta_h" else "coolwarm").with_extremes(bad="0.85")
+        image = ax.imshow(shown(quantity, values), origin="lower", aspect="auto", extent=extent, cmap=cmap,
+                          **colour_limits(quantity, shown(quantity, values)))
+        fig.colorbar(image, ax=ax, label=LABELS[quantity])
     A, B = np.meshgrid(shown(names[0], a), shown(names[1], b))
     unstable = np.isfinite(values) & ~stable
     if stable.any():  # only what is there gets a legend entry
