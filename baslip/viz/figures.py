@@ -7,6 +7,7 @@ unstable ones as red crosses, and points without a verified fixed point as grey 
 from __future__ import annotations
 
 import math
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,7 +22,7 @@ from baslip.model.quantities import ANY_DESIGN, UNITS  # noqa: E402
 from baslip.problem.study import CONTROLLER_KINDS  # noqa: E402
 from baslip.status import Status
 from baslip.viz.colours import colour_limits, radius_colorbar, radius_colours  # noqa: E402
-from baslip.viz.labels import SPECIAL_NAMES  # noqa: E402
+from baslip.viz.labels import CONTROLLER_NAMES, SPECIAL_NAMES  # noqa: E402
 
 DEG = 180 / math.pi
 ANGLES = ("theta_h", "theta2_des", "theta_td")
@@ -509,14 +510,17 @@ def controllers_figure(rows: list[dict], perturbation: dict, out_dir: Path | Non
     axes_names = sorted(perturbation, key=lambda n: -perturbation[n] / _NOMINAL_APEX[n])[:2]
     if len(axes_names) < 2:
         axes_names = (axes_names + ["z", "ydot"])[:2]
-    fig, axes = plt.subplots(1, 1 + len(names), figsize=(4.0 * (1 + len(names)), 3.8))
+    fig, axes = plt.subplots(1, 1 + len(names), figsize=(4.0 * (1.5 + len(names)), 3.8),
+                             gridspec_kw={"width_ratios": [1.5] + [1] * len(names)})
     outcomes = tuple(OUTCOME_STYLE)
     bottom = np.zeros(len(names))
     for outcome in outcomes:
         share = np.array([np.mean([r["outcome"] == outcome for r in rows if r["controller"] == n]) for n in names])
-        axes[0].bar(names, share, bottom=bottom, color=OUTCOME_STYLE[outcome][1], label=outcome)
+        axes[0].bar([textwrap.fill(CONTROLLER_NAMES[n], 12) for n in names], share, bottom=bottom,
+                    color=OUTCOME_STYLE[outcome][1], label=outcome)
         bottom += share
     axes[0].set_ylabel("share of perturbed starts")
+    axes[0].tick_params(axis="x", labelsize=7)
     axes[0].set_ylim(0, 1)
     axes[0].legend(fontsize=8)
     for ax, name in zip(axes[1:], names):
@@ -528,7 +532,7 @@ def controllers_figure(rows: list[dict], perturbation: dict, out_dir: Path | Non
                 ax.plot(shown(axes_names[0], [r[f"d_{axes_names[0]}"] for r in pick]),
                         shown(axes_names[1], [r[f"d_{axes_names[1]}"] for r in pick]),
                         marker, color=color, ms=4, ls="none", label=outcome)
-        ax.set_title(name, fontsize=9)
+        ax.set_title(CONTROLLER_NAMES[name], fontsize=9)
         ax.set_xlabel("change of " + LABELS[axes_names[0]])
         ax.set_ylabel("change of " + LABELS[axes_names[1]])
         ax.legend(fontsize=7)
@@ -549,7 +553,7 @@ def basin_figure(basins: dict, title: str, out_dir: Path | None) -> Path | None:
         share = np.array([b["returned_fraction"] or 0.0 for b in basin["per_box"]])
         low, high = (np.array([b["ci95"][i] for b in basin["per_box"]]) for i in (0, 1))
         spread = [np.maximum(share - low, 0.0), np.maximum(high - share, 0.0)]  # round-off can cross zero
-        ax.errorbar(boxes, share, yerr=spread, marker="o", ms=4, capsize=3, label=name)
+        ax.errorbar(boxes, share, yerr=spread, marker="o", ms=4, capsize=3, label=CONTROLLER_NAMES.get(name, name))
     ax.axhline(0.9, color="0.5", ls="--", lw=0.8)
     ax.set_xscale("log", base=2)
     ax.set_ylim(-0.02, 1.02)

@@ -15,3 +15,9 @@ CODIM2_NAMES = {
     "resonance_1_1": "1:1 resonance", "resonance_1_2": "1:2 resonance", "resonance_1_3": "1:3 resonance",
     "resonance_1_4": "1:4 resonance",
 }
+
+#: The stride-to-stride controllers of a ``controllers`` study.
+CONTROLLER_NAMES = {
+    "constant": "constant control", "feedback": "LQR feedback (all controls)",
+    "pivot": "pivot feedback (r_vpp only)", "horizon": "receding-horizon re-solve", "resolve": "one-stride re-solve",
+}
