@@ -108,3 +108,12 @@ def test_optimal_gaits_redrawn_show_the_least_radius_per_cell():
     least = frame[frame["status"] == "converged"]["spectral_radius"].min()
     trunk = optimal.plot()["best_gaits_trunk"]
     assert f"radius {least:.3g}" in trunk.axes[0].get_legend().get_texts()[1].get_text()
+
+
+def test_the_trunk_figure_spans_the_traces_not_the_upright_band():
+    """The VPP gaits swing 2 deg about vertical: the axis must show that swing, not the
+    45-135 deg band (in which they were flat lines)."""
+    trunk = open_results(RESULTS / "optimal_vpp").plot()["best_gaits_trunk"]
+    low, high = trunk.axes[0].get_ylim()
+    lines = [line.get_ydata() for line in trunk.axes[0].get_lines()]
+    assert 80 < low < min(min(y) for y in lines) and max(max(y) for y in lines) < high < 100

@@ -483,11 +483,17 @@ def _orbit_value(row: dict, k: int, quantity: str) -> float:
 
 def trunk_motion_figure(motions: list[tuple[str, np.ndarray, np.ndarray]], out_dir: Path | None) -> Path | None:
     """Trunk angle over one stride of each gait: (label, t [s], theta_h [rad]), with the
-    band of 'upright throughout' (within 45 deg of vertical) shaded."""
+    band of 'upright throughout' (within 45 deg of vertical) shaded where it falls within
+    the traces' range: the range follows the traces (at least 10 deg), not the band."""
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    angles = [shown("theta_h", theta_h) for _, _, theta_h in motions]
     ax.axhspan(45, 135, color="0.92", label="within 45 deg of vertical")
-    for label, t, theta_h in motions:
-        ax.plot(t, shown("theta_h", theta_h), lw=1.2, label=label)
+    for (label, t, _), angle in zip(motions, angles):
+        ax.plot(t, angle, lw=1.2, label=label)
+    if angles:
+        low, high = min(a.min() for a in angles), max(a.max() for a in angles)
+        margin = max(0.1 * (high - low), 5.0)
+        ax.set_ylim(low - margin, high + margin)
     ax.set_xlabel("time from apex t [s]")
     ax.set_ylabel(LABELS["theta_h"])
     ax.set_title("Trunk angle over one stride of the most stable gaits")
