@@ -146,7 +146,9 @@ class RunResults:
             curves = self._source(boundary).rows("curve") if boundary else None
             plots.random_figure(rows, region, pair, None, curves)
         elif self.kind == "adaptive":
-            plots.adaptive_figures(self.rows("strides"), None)
+            from baslip.viz.adaptive import adaptive_figures
+
+            adaptive_figures(self.rows("strides"), None)
         elif self.kind == "controllers":
             rows, boxes = self.rows("controllers"), self.record.get("boxes", [1.0])
             smallest = [r for r in rows if r.get("box", boxes[0]) == min(boxes)]

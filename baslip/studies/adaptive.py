@@ -33,7 +33,7 @@ from baslip.problem.reader import Problem
 from baslip.problem.study import Adaptive
 from baslip.studies.common import StudyFailed, study_table
 from baslip.studies.runner import ResumableCsv, Workers
-from baslip.viz import figures
+from baslip.viz.adaptive import adaptive_figures
 
 
 def stride_columns(law: HipLaw = PD) -> list[str]:
@@ -199,7 +199,7 @@ def run_adaptive_study(problem: Problem, study: Adaptive, out_dir: Path, sources
     offset = np.array([dict(study.perturbation).get(n, 0.0) for n in APEX.names])
     table = study_table(out_dir / "strides.csv", stride_columns(problem.hip_law), ["phase", "n"], quiet)
     summary = run_adaptive(controller(), result.X + offset, problem.params, study.strides, study.frozen_strides, table, quiet)
-    figures.adaptive_figures(table.rows, out_dir)
+    adaptive_figures(table.rows, out_dir)
     recovery = None
     if offset.any():
         if not quiet:

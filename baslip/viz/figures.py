@@ -17,8 +17,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from baslip.model.dynamics import APEX  # noqa: E402
-from baslip.model.quantities import ANY_DESIGN, UNITS  # noqa: E402
+from baslip.model.quantities import UNITS  # noqa: E402
 from baslip.problem.study import CONTROLLER_KINDS  # noqa: E402
 from baslip.status import Status
 from baslip.viz.colours import colour_limits, radius_colorbar, radius_colours  # noqa: E402
@@ -298,77 +297,6 @@ def basin_figures(basin_rows, stable, unstable, example_index, example_unstable,
         path = _in(out_dir, f"{case}.png")
         paths.append(_save(fig, path))
     return paths
-
-
-# --- time-varying control -------------------------------------------------------------------
-
-
-def adaptive_figures(rows: list[dict], out_dir: Path | None) -> list[Path | None]:
-    adaptive = [r for r in rows if r["phase"] == "adaptive"]
-    frozen = [r for r in rows if r["phase"] == "frozen"]
-    if not adaptive:
-        return []
-
-    def col(rs, name):
-        return np.array([float(r[name]) for r in rs])
-
-    n = col(adaptive, "n")
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.8))
-    axes[0].plot(col(adaptive, "ydot"), col(adaptive, "z"), "-", lw=0.8)
-    axes[0].set_xlabel(LABELS["ydot"])
-    axes[0].set_ylabel(LABELS["z"])
-    axes[0].ticklabel_format(useOffset=False)
-    for ax, name in zip(axes[1:], ("ydot", "z")):
-        ax.plot(n, col(adaptive, name), "-", lw=0.8)
-        ax.set_xlabel("stride n")
-        ax.set_ylabel(LABELS[name])
-        ax.ticklabel_format(useOffset=False)
-    path_states = _save(fig, _in(out_dir, "adaptive_states.png"))
-
-    # The hip law's controls are the rows' columns that are design quantities but not apex ones.
-    controls = [k for k in adaptive[0] if k in ANY_DESIGN and k not in APEX.names]
-    panels = (*controls, "eps")
-    panel_rows = math.ceil(len(panels) / 3)
-    fig, axes = plt.subplots(panel_rows, 3, figsize=(12, 3.25 * panel_rows), squeeze=False)
-    for ax in axes.ravel()[len(panels):]:
-        ax.set_visible(False)
-    for ax, name in zip(axes.ravel(), panels):
-        values = col(adaptive, name)
-        ax.plot(n, values if name == "eps" else shown(name, values), "-", lw=0.8)
-        ax.set_xlabel("stride n")
-        ax.set_ylabel(LABELS[name])
-        if name == "eps":
-            ax.set_yscale("log")
-        else:
-            ax.ticklabel_format(useOffset=False)
-            _unless_round_off(ax, shown(name, values))
-    path_controls = _save(fig, _in(out_dir, "adaptive_controls.png"))
-
-    paths = [path_states, path_controls]
-    if frozen:
-        fig, ax = plt.subplots(figsize=(6.4, 4.0))
-        m = col(frozen, "n")
-        ax.semilogy(m, col(frozen, "eps"), "-o", ms=3)
-        ax.set_xlabel("stride after freezing the control")
-        ax.set_ylabel("|X_n - X_2048| / |X_2048|")
-        ax.set_title(f"last control held fixed: {len(frozen)} strides before the fall", fontsize=10)
-        path = _in(out_dir, "frozen_control.png")
-        paths.append(_save(fig, path))
-    return paths
-
-
-def _unless_round_off(ax, values) -> None:
-    """If ``values`` change only by round-off (a control held fixed), show them as the
-    constant they are, on a readable scale, instead of magnifying the noise."""
-    finite = np.asarray(values, dtype=float)
-    finite = finite[np.isfinite(finite)]
-    if finite.size == 0:
-        return
-    middle = float(np.mean(finite))
-    if np.ptp(finite) <= 1e-9 * max(1.0, abs(middle)):
-        band = 0.05 * max(1.0, abs(middle))
-        ax.set_ylim(middle - band, middle + band)
-        ax.text(0.5, 0.9, "held constant", transform=ax.transAxes, ha="center", fontsize=8, color="0.4")
 
 
 # --- continuation ---------------------------------------------------------------------------
