@@ -17,7 +17,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from baslip.model.quantities import UNITS  # noqa: E402
+from baslip.model.quantities import UNITS, quantity_text  # noqa: E402
 from baslip.problem.study import CONTROLLER_KINDS  # noqa: E402
 from baslip.status import Status
 from baslip.viz.colours import colour_limits, radius_colorbar, radius_colours  # noqa: E402
@@ -332,12 +332,12 @@ def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path=No
         marker, color = markers[r["special"]]
         xv, yv = shown(parameter, [r[parameter]])[0], shown(quantity, [_orbit_value(r, 0, quantity)])[0]
         ax.plot(xv, yv, marker, color=color, ms=8)
-        value = r[parameter] * DEG if parameter in ANGLES else r[parameter]
         # Labels alternate above and below, in their marker's colour and tied to it by a
         # line, so that neighbouring points stay readable and unambiguous; they lean
         # towards the middle, so that they stay inside the frame.
         right = xv <= x_mid
-        ax.annotate(f"{SPECIAL_NAMES[r['special']]}\n{value:.6g}", (xv, yv), textcoords="offset points",
+        ax.annotate(f"{SPECIAL_NAMES[r['special']]}\n{quantity_text(parameter, r[parameter], 6)}", (xv, yv),
+                    textcoords="offset points",
                     xytext=(14 if right else -14, 12 if i % 2 == 0 else -30), ha="left" if right else "right",
                     fontsize=8, color=color, arrowprops={"arrowstyle": "-", "color": color, "lw": 0.7})
     ax.set_xlabel(LABELS.get(parameter, f"{parameter}"))
