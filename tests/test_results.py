@@ -117,3 +117,15 @@ def test_the_trunk_figure_spans_the_traces_not_the_upright_band():
     low, high = trunk.axes[0].get_ylim()
     lines = [line.get_ydata() for line in trunk.axes[0].get_lines()]
     assert 80 < low < min(min(y) for y in lines) and max(max(y) for y in lines) < high < 100
+
+
+def test_figures_save_under_their_names_as_a_run_writes_them(tmp_path):
+    from PIL import Image
+
+    figures = open_results(RESULTS / "grid_downward").plot()
+    paths = figures.save(tmp_path / "maps")
+    assert [p.name for p in paths] == ["theta_h_map.png", "spectral_radius_map.png"]
+    width, height = figures["theta_h_map"].get_size_inches() * 110  # the runs' PNG resolution
+    assert Image.open(paths[0]).size == (round(width), round(height))
+    with pytest.raises(KeyError, match="the figures are theta_h_map, spectral_radius_map"):
+        figures["nothing"]

@@ -14,6 +14,8 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
+from baslip.viz.figures import PNG_DPI
+
 #: Resolution of the figures embedded in a notebook [dots per inch].
 EMBED_DPI = 90
 
@@ -73,6 +75,6 @@ class Figures(Mapping[str, Figure]):
         paths = []
         for name, figure in self._figures.items():
             path = folder / f"{name}.{format}"
-            figure.savefig(path, format=format)
+            figure.savefig(path, format=format, dpi=PNG_DPI if format == "png" else None)  # as a run writes it
             paths.append(path)
         return paths
