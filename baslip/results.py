@@ -123,9 +123,9 @@ class RunResults:
         before = set(plots.plt.get_fignums())
         if self.kind == "sweep":
             rows = self.rows("points")
-            plots.sweep_figures(rows, self._swept(rows), None)
+            plots.sweep_figures(rows, self._swept(rows), None, problem=self.name)
         elif self.kind == "basin":
-            plots.basin_figures(*self._basin_inputs(), None)
+            plots.basin_figures(*self._basin_inputs(), None, problem=self.name)
         elif self.kind == "optimal":
             from baslip.model.dynamics import Params
             from baslip.model.hiplaw import HIP_LAWS
@@ -134,26 +134,26 @@ class RunResults:
 
             names = self._swept(self.rows("points"))
             best = best_rows(self.rows("points"), names)
-            plots.sweep_figures(best, names, None)
+            plots.sweep_figures(best, names, None, problem=self.name)
             params = Params(**self.record["provenance"]["problem"]["params"])
             law = HIP_LAWS[recorded_law(self.record)]
-            plots.trunk_motion_figure(best_gait_motions(best, names, params, law=law), None)
+            plots.trunk_motion_figure(best_gait_motions(best, names, params, law=law), None, problem=self.name)
         if self.kind == "random":
             rows = self.rows("points")
             pair = tuple(c[len("sweep_"):] for c in rows[0] if c.startswith("sweep_"))
             region = self._source(self.record["region"]).rows("points")
             boundary = self.record.get("boundary")
             curves = self._source(boundary).rows("curve") if boundary else None
-            plots.random_figure(rows, region, pair, None, curves)
+            plots.random_figure(rows, region, pair, None, curves, problem=self.name)
         elif self.kind == "adaptive":
             from baslip.viz.adaptive import adaptive_figures
 
-            adaptive_figures(self.rows("strides"), None)
+            adaptive_figures(self.rows("strides"), None, problem=self.name)
         elif self.kind == "controllers":
             rows, boxes = self.rows("controllers"), self.record.get("boxes", [1.0])
             smallest = [r for r in rows if r.get("box", boxes[0]) == min(boxes)]
             perturbation = {n: w * min(boxes) for n, w in self.record["perturbation"].items()}
-            plots.controllers_figure(smallest, perturbation, None)
+            plots.controllers_figure(smallest, perturbation, None, problem=self.name)
             if "basins" in self.record:
                 plots.basin_figure(self.record["basins"], self.record["name"], None)
         drawn = [plots.plt.figure(n) for n in sorted(set(plots.plt.get_fignums()) - before)]
@@ -166,11 +166,11 @@ class RunResults:
         if self.kind == "continuation":
             parameter = self.record["parameter"]
             quantity = self.record.get("provenance", {}).get("problem", {}).get("continuation", {}).get("plot", "z")
-            figures.append(plots.bifurcation_diagram(self.rows("branch"), parameter, quantity))
+            figures.append(plots.bifurcation_diagram(self.rows("branch"), parameter, quantity, problem=self.name))
             figures[-1].set_label("diagram")  # the names of the command line's files
             if "curve" in self.tables:
                 second = self.record["curves"]["second"]
-                figures.append(plots.curve_diagram(self.rows("curve"), parameter, second))
+                figures.append(plots.curve_diagram(self.rows("curve"), parameter, second, problem=self.name))
                 figures[-1].set_label("curve")
         return figures
 

@@ -142,7 +142,7 @@ def run_atlas(problem: Problem, study: Atlas, out_dir: Path, sources: Path, quie
         if best:  # none without polishing (polish: 0)
             trunk_motion_figure(best_gait_motions(best, names, problem.params, count=2 * len(cells), note=_meaning,
                                                   law=problem.hip_law),
-                                out_dir)
+                                out_dir, problem=problem.name)
         summary.update(_totals(cells, charts), best=[_best_summary(b, names, problem.hip_law) for b in best])
     return summary
 

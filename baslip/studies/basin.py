@@ -145,7 +145,8 @@ def run_basin(problem: Problem, study: Basin, out_dir: Path, sources: Path, quie
     basin_rows = read_points(out_dir / "basin.csv")
     example_index = stable.index(example_stable) if example_stable is not None else None
     grid = (study.grid[0].values, study.grid[1].values)
-    figures.basin_figures(basin_rows, stable, unstable, example_index, example_unstable, trajectories, grid, out_dir)
+    figures.basin_figures(basin_rows, stable, unstable, example_index, example_unstable, trajectories, grid, out_dir,
+                          problem=problem.name)
     grid_size = len(study.grid[0].values) * len(study.grid[1].values)
     union = {(r[key_column("ydot")], r[key_column("z")]) for r in basin_rows if r["outcome"] == "converged"}
     example_cells = sum(1 for r in basin_rows if r["outcome"] == "converged" and r["point"] == example_index)

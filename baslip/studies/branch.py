@@ -92,14 +92,14 @@ def _run_continuation(problem, out_dir: Path, quiet: bool, code: dict[str, str])
 
     rows = [_row(t, p, solver) for t in traced for p in t.branch.points]
     diagram = io.BytesIO()
-    plots.bifurcation_diagram(rows, spec.parameter, spec.plot, diagram)
+    plots.bifurcation_diagram(rows, spec.parameter, spec.plot, diagram, problem=problem.name)
     files: dict[Path, str | bytes] = {}
     curves = None
     if spec.second is not None:
 
         curve_rows, curves = follow_curves(problem, traced[0], solver, quiet)
         figure = io.BytesIO()
-        plots.curve_diagram(curve_rows, spec.parameter, spec.second, figure)
+        plots.curve_diagram(curve_rows, spec.parameter, spec.second, figure, problem=problem.name)
         files = {out_dir / "curve.csv": curve_csv(curve_rows, spec.parameter, spec.second, controls),
                  out_dir / plots.figure_file("curve"): figure.getvalue()}
     summary = {

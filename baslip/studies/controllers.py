@@ -267,7 +267,8 @@ def run_controllers(problem: Problem, study: Controllers, out_dir: Path, sources
     rows = read_points(out_dir / "controllers.csv")
     basins = {name: _basin(rows, name, study.boxes) for name in study.controllers}
     smallest = [r for r in rows if r["box"] == min(study.boxes)]
-    figures.controllers_figure(smallest, {n: w * min(study.boxes) for n, w in dict(study.perturbation).items()}, out_dir)
+    figures.controllers_figure(smallest, {n: w * min(study.boxes) for n, w in dict(study.perturbation).items()}, out_dir,
+                               problem=problem.name)
     figures.basin_figure(basins, problem.name, out_dir)
     return {
         "gait": {"hip_law": law.name, "apex": gait.apex, "control": gait.control,

@@ -166,8 +166,8 @@ def run_optimal(problem: Problem, study: Optimal, out_dir: Path, sources: Path, 
                        problem.name, quiet=quiet, workers=workers)
     rows = read_points(out_dir / "points.csv")
     best = best_rows(rows, names)
-    figures.sweep_figures(best, names, out_dir)
-    figures.trunk_motion_figure(best_gait_motions(best, names, problem.params, law=law), out_dir)
+    figures.sweep_figures(best, names, out_dir, problem=problem.name)
+    figures.trunk_motion_figure(best_gait_motions(best, names, problem.params, law=law), out_dir, problem=problem.name)
 
     def least(where) -> dict | None:
         candidates = best_rows(rows, names, where)

@@ -191,7 +191,7 @@ def run_sweep(problem: Problem, study: Sweep, out_dir: Path, sources: Path, quie
     origin = {a.name: problem.start_value(a.name) for a in study.axes}
     names = [a.name for a in study.axes]
     summary = solve_points(problem, out_dir, sweep_lanes(study, origin, lanes), names, quiet, workers)
-    figures.sweep_figures(read_points(out_dir / "points.csv"), names, out_dir)
+    figures.sweep_figures(read_points(out_dir / "points.csv"), names, out_dir, problem=problem.name)
     return summary
 
 
@@ -204,7 +204,8 @@ def run_random(problem: Problem, study: RandomSample, out_dir: Path, sources: Pa
     summary["region"] = study.region
     if study.boundary is not None:
         summary["boundary"] = study.boundary
-    figures.random_figure(read_points(out_dir / "points.csv"), region_rows, names, out_dir, curve_rows)
+    figures.random_figure(read_points(out_dir / "points.csv"), region_rows, names, out_dir, curve_rows,
+                          problem=problem.name)
     return summary
 
 

@@ -17,7 +17,7 @@ from baslip.model.quantities import ANY_DESIGN
 from baslip.viz.figures import LABELS, _in, _save, plt, shown
 
 
-def adaptive_figures(rows: list[dict], out_dir: Path | None) -> list[Path | None]:
+def adaptive_figures(rows: list[dict], out_dir: Path | None, *, problem: str = "") -> list[Path | None]:
     adaptive = [r for r in rows if r["phase"] == "adaptive"]
     frozen = [r for r in rows if r["phase"] == "frozen"]
     if not adaptive:
@@ -39,7 +39,7 @@ def adaptive_figures(rows: list[dict], out_dir: Path | None) -> list[Path | None
         ax.set_ylabel(LABELS[name])
         ax.ticklabel_format(useOffset=False)
         _mark_end(ax, end)
-    path_states = _save(fig, _in(out_dir, "adaptive_states.png"))
+    path_states = _save(fig, _in(out_dir, "adaptive_states.png"), problem=problem)
 
     # The hip law's controls are the rows' columns that are design quantities but not apex ones.
     controls = [k for k in adaptive[0] if k in ANY_DESIGN and k not in APEX.names]
@@ -59,7 +59,7 @@ def adaptive_figures(rows: list[dict], out_dir: Path | None) -> list[Path | None
             ax.ticklabel_format(useOffset=False)
             _unless_round_off(ax, shown(name, values))
         _mark_end(ax, end)
-    path_controls = _save(fig, _in(out_dir, "adaptive_controls.png"))
+    path_controls = _save(fig, _in(out_dir, "adaptive_controls.png"), problem=problem)
 
     paths = [path_states, path_controls]
     if frozen:
@@ -70,7 +70,7 @@ def adaptive_figures(rows: list[dict], out_dir: Path | None) -> list[Path | None
         ax.set_ylabel("|X_n - X_2048| / |X_2048|")
         ax.set_title(f"last control held fixed: {len(frozen)} strides before the fall", fontsize=10)
         path = _in(out_dir, "frozen_control.png")
-        paths.append(_save(fig, path))
+        paths.append(_save(fig, path, problem=problem))
     return paths
 
 

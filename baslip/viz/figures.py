@@ -84,11 +84,15 @@ def _in(out_dir: Path | None, name: str) -> Path | Unwritten:
     return Unwritten(name) if out_dir is None else out_dir / name
 
 
-def _save(fig, path, tight: bool = True) -> Path | None:
+def _save(fig, path, tight: bool = True, problem: str = "") -> Path | None:
     """Save to ``path`` (a file name, whose suffix becomes the current format, or a
     binary file object) and close the figure; return where it went. With ``path`` None
     only lay the figure out (it is returned to the caller). ``tight`` False keeps a
-    layout of the caller's own (constrained layout, which places shared colour bars)."""
+    layout of the caller's own (constrained layout, which places shared colour bars).
+    ``problem`` names the figure's problem at its top left, so that a figure taken out of
+    its folder says what it shows."""
+    if problem:
+        fig.suptitle(problem, x=0.01, ha="left", fontsize=9, color="0.3")
     if tight:
         fig.tight_layout()
     if isinstance(path, Unwritten):
@@ -117,17 +121,18 @@ def _classes(rows):
 # --- sweeps -------------------------------------------------------------------------------
 
 
-def sweep_figures(rows: list[dict], names: list[str], out_dir: Path | None) -> list[Path | None]:
+def sweep_figures(rows: list[dict], names: list[str], out_dir: Path | None, *, problem: str = "") -> list[Path | None]:
     """1-D sweeps: z, theta_h, spectral radius and residual against the swept quantity.
-    2-D sweeps: maps of theta_h and of the spectral radius, with the stable region."""
+    2-D sweeps: maps of theta_h and of the spectral radius, with the stable region.
+    ``problem``: the problem's name, shown on each figure."""
     if not rows:
         return []
     if len(names) == 1:
-        return [_sweep_line(rows, names[0], y, out_dir) for y in ("z", "theta_h", "spectral_radius", "residual")]
-    return [_sweep_map(rows, names, value, out_dir) for value in ("theta_h", "spectral_radius")]
+        return [_sweep_line(rows, names[0], y, out_dir, problem) for y in ("z", "theta_h", "spectral_radius", "residual")]
+    return [_sweep_map(rows, names, value, out_dir, problem) for value in ("theta_h", "spectral_radius")]
 
 
-def _sweep_line(rows, name, quantity, out_dir) -> Path | None:
+def _sweep_line(rows, name, quantity, out_dir, problem: str = "") -> Path | None:
     x = shown(name, _column(rows, f"sweep_{name}"))
     y = _column(rows, quantity)
     y = y if quantity in ("spectral_radius", "residual") else shown(quantity, y)
@@ -151,7 +156,7 @@ def _sweep_line(rows, name, quantity, out_dir) -> Path | None:
     ax.set_ylabel(LABELS[quantity])
     ax.legend(fontsize=8)
     path = _in(out_dir, f"{quantity}.png")
-    return _save(fig, path)
+    return _save(fig, path, problem=problem)
 
 
 def _grid(rows, names, quantity):
@@ -167,11 +172,11 @@ def _grid(rows, names, quantity):
     return np.array(a), np.array(b), values, stable
 
 
-def _sweep_map(rows, names, quantity, out_dir) -> Path | None:
+def _sweep_map(rows, names, quantity, out_dir, problem: str = "") -> Path | None:
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     draw_map(fig, ax, rows, names, quantity)
     ax.legend(fontsize=8, loc="upper right")
-    return _save(fig, _in(out_dir, f"{quantity}_map.png"))
+    return _save(fig, _in(out_dir, f"{quantity}_map.png"), problem=problem)
 
 
 def draw_map(fig, ax, rows, names, quantity) -> None:
@@ -206,7 +211,8 @@ def _extent(a, b):
     return (a[0] - da, a[-1] + da, b[0] - db, b[-1] + db)
 
 
-def random_figure(rows: list[dict], region_rows: list[dict], names, out_dir: Path | None, curve_rows=None) -> Path | None:
+def random_figure(rows: list[dict], region_rows: list[dict], names, out_dir: Path | None, curve_rows=None, *,
+                  problem: str = "") -> Path | None:
     """The random points over the region's stable grid points, and over the traced
     stability boundary when there is one."""
     fig, ax = plt.subplots(figsize=(7.2, 4.8) if curve_rows else (6.4, 4.8))
@@ -233,13 +239,14 @@ def random_figure(rows: list[dict], region_rows: list[dict], names, out_dir: Pat
     ax.set_ylabel(LABELS.get(names[1], names[1]))
     ax.legend(fontsize=8)
     path = _in(out_dir, "samples.png")
-    return _save(fig, path)
+    return _save(fig, path, problem=problem)
 
 
 # --- convergence regions --------------------------------------------------------------------
 
 
-def basin_figures(basin_rows, stable, unstable, example_index, example_unstable, trajectories, grid, out_dir: Path | None) -> list[Path | None]:
+def basin_figures(basin_rows, stable, unstable, example_index, example_unstable, trajectories, grid, out_dir: Path | None,
+                  *, problem: str = "") -> list[Path | None]:
     """The convergence region of one stable point and the union of all, over the grid of
     starting states ``grid`` = (ydot values [m/s], z values [m]); and each example run
     (``trajectories``: case -> (outcome, strides, _, apexes)) in the (ydot, z) plane and
@@ -276,7 +283,7 @@ def basin_figures(basin_rows, stable, unstable, example_index, example_unstable,
         ax.set_title(title, fontsize=10)
         ax.legend(fontsize=8, loc="upper right")
         path = _in(out_dir, name)
-        paths.append(_save(fig, path))
+        paths.append(_save(fig, path, problem=problem))
     for case, (outcome, n, _, apexes) in trajectories.items():
         fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4))
         z, ydot = apexes[:, 0], apexes[:, 2]
@@ -295,14 +302,14 @@ def basin_figures(basin_rows, stable, unstable, example_index, example_unstable,
         right.set_xlabel("stride n")
         right.set_title(f"{case.replace('_', ' ')}: {outcome} after {n} strides", fontsize=10)
         path = _in(out_dir, f"{case}.png")
-        paths.append(_save(fig, path))
+        paths.append(_save(fig, path, problem=problem))
     return paths
 
 
 # --- continuation ---------------------------------------------------------------------------
 
 
-def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path=None):
+def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path=None, *, problem: str = ""):
     """Branch diagram: stable segments solid, unstable dashed, special points labelled.
     ``path`` is a file name or a binary file object; without one the Figure is returned.
 
@@ -343,7 +350,7 @@ def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path=No
     ax.set_xlabel(LABELS.get(parameter, f"{parameter}"))
     ax.set_ylabel(LABELS.get(quantity, quantity))
     ax.legend(fontsize=8)
-    saved = _save(fig, path)
+    saved = _save(fig, path, problem=problem)
     return fig if path is None else saved
 
 
@@ -352,7 +359,7 @@ CURVE_STYLES = {"fold": ("tab:red", "fold (+1)"), "period_doubling": ("tab:green
                 "neimark_sacker": ("tab:purple", "Neimark-Sacker"), "neutral_saddle": ("0.6", "neutral saddle (no bifurcation)")}
 
 
-def curve_diagram(rows: list[dict], first: str, second: str, path=None):
+def curve_diagram(rows: list[dict], first: str, second: str, path=None, *, problem: str = ""):
     """Bifurcation curves in the (first, second) plane: solid where they bound a region
     of stable gaits, dotted where the gaits are unstable on both sides; codimension-two
     points marked and named. ``path`` is a file name or a binary file object; without
@@ -375,7 +382,7 @@ def curve_diagram(rows: list[dict], first: str, second: str, path=None):
     ax.set_ylabel(LABELS.get(second, second))
     if ax.get_legend_handles_labels()[0]:
         ax.legend(fontsize=8)
-    saved = _save(fig, path)
+    saved = _save(fig, path, problem=problem)
     return fig if path is None else saved
 
 
@@ -409,7 +416,8 @@ def _orbit_value(row: dict, k: int, quantity: str) -> float:
 # --- stability-optimal gaits ----------------------------------------------------------------
 
 
-def trunk_motion_figure(motions: list[tuple[str, np.ndarray, np.ndarray]], out_dir: Path | None) -> Path | None:
+def trunk_motion_figure(motions: list[tuple[str, np.ndarray, np.ndarray]], out_dir: Path | None, *,
+                        problem: str = "") -> Path | None:
     """Trunk angle over one stride of each gait: (label, t [s], theta_h [rad]), with the
     band of 'upright throughout' (within 45 deg of vertical) shaded where it falls within
     the traces' range: the range follows the traces (at least 10 deg), not the band."""
@@ -427,7 +435,7 @@ def trunk_motion_figure(motions: list[tuple[str, np.ndarray, np.ndarray]], out_d
     ax.set_title("Trunk angle over one stride of the most stable gaits")
     ax.legend(fontsize=7, loc="best")
     path = _in(out_dir, "best_gaits_trunk.png")
-    return _save(fig, path)
+    return _save(fig, path, problem=problem)
 
 
 # --- controllers ----------------------------------------------------------------------------
@@ -436,7 +444,7 @@ OUTCOME_STYLE = {"converged": ("o", "tab:blue"), "settled": ("d", "tab:green"), 
                  "fell": ("x", "tab:red")}
 
 
-def controllers_figure(rows: list[dict], perturbation: dict, out_dir: Path | None) -> Path | None:
+def controllers_figure(rows: list[dict], perturbation: dict, out_dir: Path | None, *, problem: str = "") -> Path | None:
     """Left: the share of perturbed starts each controller brings back to the gait, keeps
     up without converging, or lets fall. Right, per controller: the starts in the plane of
     the two most perturbed apex quantities, marked by outcome."""
@@ -471,7 +479,7 @@ def controllers_figure(rows: list[dict], perturbation: dict, out_dir: Path | Non
         ax.set_ylabel("change of " + LABELS[axes_names[1]])
         ax.legend(fontsize=7)
     path = _in(out_dir, "controllers.png")
-    return _save(fig, path)
+    return _save(fig, path, problem=problem)
 
 
 _NOMINAL_APEX = {"z": 0.1, "theta_h": 0.1, "ydot": 0.1, "theta_h_dot": 1.0}
@@ -493,9 +501,9 @@ def basin_figure(basins: dict, title: str, out_dir: Path | None) -> Path | None:
     ax.set_ylim(-0.02, 1.02)
     ax.set_xlabel("box half-widths [multiples of the study's perturbation]")
     ax.set_ylabel("share of starts that return")
-    ax.set_title(f"{title}: basins (95 % intervals)", fontsize=10)
+    ax.set_title("share of starts that return, by box size (95 % intervals)", fontsize=10)
     ax.legend(fontsize=8)
-    return _save(fig, _in(out_dir, "basins.png"))
+    return _save(fig, _in(out_dir, "basins.png"), problem=title)
 
 
 # --- a gait's motion ----------------------------------------------------------------------
