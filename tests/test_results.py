@@ -130,3 +130,11 @@ def test_figures_save_under_their_names_as_a_run_writes_them(tmp_path):
     assert Image.open(paths[0]).size == (round(width), round(height))
     with pytest.raises(KeyError, match="the figures are theta_h_map, spectral_radius_map"):
         figures["nothing"]
+
+
+def test_the_traced_boundary_has_the_grid_maps_axes():
+    """curve_downward_boundary is traced in (z, ydot); it is drawn as grid_downward's maps
+    are, speed across and height up, so that the two can be laid over each other."""
+    curve = open_results(RESULTS / "curve_downward_boundary").plot()["curve"].axes[0]
+    grid = open_results(RESULTS / "grid_downward").plot()["spectral_radius_map"].axes[0]
+    assert (curve.get_xlabel(), curve.get_ylabel()) == (grid.get_xlabel(), grid.get_ylabel())

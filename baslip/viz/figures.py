@@ -362,10 +362,13 @@ CURVE_STYLES = {"fold": ("tab:red", "fold (+1)"), "period_doubling": ("tab:green
 def curve_diagram(rows: list[dict], first: str, second: str, path=None, *, problem: str = ""):
     """Bifurcation curves in the (first, second) plane: solid where they bound a region
     of stable gaits, dotted where the gaits are unstable on both sides; codimension-two
-    points marked and named. ``path`` is a file name or a binary file object; without
-    one the Figure is returned."""
+    points marked and named. In (z, ydot) the speed goes across and the height up, as on
+    the sweeps' maps. ``path`` is a file name or a binary file object; without one the
+    Figure is returned."""
     from baslip.viz.labels import CODIM2_NAMES
 
+    if (first, second) == ("z", "ydot"):  # the grid maps' axes: speed across, height up
+        first, second = second, first
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     draw_curves(ax, rows, first, second)
     specials = [r for r in rows if r["special"]]
