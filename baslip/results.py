@@ -160,6 +160,7 @@ class RunResults:
         return Figures(drawn + self._diagrams())
 
     def _diagrams(self) -> list:
+        from baslip.model.dynamics import Params
         from baslip.viz import figures as plots
 
         figures = []
@@ -170,7 +171,8 @@ class RunResults:
             figures[-1].set_label("diagram")  # the names of the command line's files
             if "curve" in self.tables:
                 second = self.record["curves"]["second"]
-                figures.append(plots.curve_diagram(self.rows("curve"), parameter, second, problem=self.name))
+                figures.append(plots.curve_diagram(self.rows("curve"), parameter, second, problem=self.name,
+                                                  params=Params(**self.record["provenance"]["problem"]["params"])))
                 figures[-1].set_label("curve")
         return figures
 

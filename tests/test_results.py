@@ -1,6 +1,8 @@
 """Specification of baslip.results: runs read back from their folders, for notebooks; their
 figures come back by the names of the files the run wrote, and show themselves."""
 
+import math
+
 import pytest
 from runs import ROOT
 
@@ -138,3 +140,13 @@ def test_the_traced_boundary_has_the_grid_maps_axes():
     curve = open_results(RESULTS / "curve_downward_boundary").plot()["curve"].axes[0]
     grid = open_results(RESULTS / "grid_downward").plot()["spectral_radius_map"].axes[0]
     assert (curve.get_xlabel(), curve.get_ylabel()) == (grid.get_xlabel(), grid.get_ylabel())
+
+
+def test_an_energy_axis_also_reads_as_the_speed_at_a_leg_length_high_apex():
+    """curve_slip_band's energies 1424.8 to 2224.8 J are 4 to 6 m/s at a 1 m apex (80 kg)."""
+    ax = open_results(RESULTS / "curve_slip_band").plot()["curve"].axes[0]
+    (speed,) = ax.child_axes
+    low, high = ax.get_ylim()
+    assert "speed at a 1 m apex" in speed.get_ylabel()
+    assert speed.get_ylim() == pytest.approx(tuple(math.sqrt(2 * (e - 80 * 9.81) / 80) for e in (low, high)))
+    assert math.sqrt(2 * (2224.8 - 80 * 9.81) / 80) == pytest.approx(6.0)

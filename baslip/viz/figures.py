@@ -359,12 +359,13 @@ CURVE_STYLES = {"fold": ("tab:red", "fold (+1)"), "period_doubling": ("tab:green
                 "neimark_sacker": ("tab:purple", "Neimark-Sacker"), "neutral_saddle": ("0.6", "neutral saddle (no bifurcation)")}
 
 
-def curve_diagram(rows: list[dict], first: str, second: str, path=None, *, problem: str = ""):
+def curve_diagram(rows: list[dict], first: str, second: str, path=None, *, problem: str = "", params=None):
     """Bifurcation curves in the (first, second) plane: solid where they bound a region
     of stable gaits, dotted where the gaits are unstable on both sides; codimension-two
     points marked and named. In (z, ydot) the speed goes across and the height up, as on
-    the sweeps' maps. ``path`` is a file name or a binary file object; without one the
-    Figure is returned."""
+    the sweeps' maps. With ``params`` (:class:`~baslip.model.dynamics.Params`) an energy
+    axis also reads as a speed. ``path`` is a file name or a binary file object; without
+    one the Figure is returned."""
     from baslip.viz.labels import CODIM2_NAMES
 
     if (first, second) == ("z", "ydot"):  # the grid maps' axes: speed across, height up
@@ -383,10 +384,29 @@ def curve_diagram(rows: list[dict], first: str, second: str, path=None, *, probl
                     xytext=(10 if x <= x_mid else -10, 8), ha="left" if x <= x_mid else "right")
     ax.set_xlabel(LABELS.get(first, first))
     ax.set_ylabel(LABELS.get(second, second))
+    if params is not None and "energy" in (first, second):
+        _speed_axis(ax, params, "y" if second == "energy" else "x")
     if ax.get_legend_handles_labels()[0]:
         ax.legend(fontsize=8)
     saved = _save(fig, path, problem=problem)
     return fig if path is None else saved
+
+
+def _speed_axis(ax, params, which: str) -> None:
+    """A second scale on the energy axis: the forward speed [m/s] of an apex one rest leg
+    length high, without trunk spin, at that energy (E = m g rho0 + m ydot^2 / 2)."""
+    floor = params.m * params.g * params.rho0
+
+    def speed(energy):
+        return np.sqrt(np.maximum(2 * (np.asarray(energy, dtype=float) - floor) / params.m, 0.0))
+
+    def energy(v):
+        return floor + 0.5 * params.m * np.asarray(v, dtype=float) ** 2
+
+    axis = ax.secondary_yaxis("right", functions=(speed, energy)) if which == "y" else \
+        ax.secondary_xaxis("top", functions=(speed, energy))
+    axis.set_ylabel(f"speed at a {params.rho0:g} m apex, same energy [m/s]") if which == "y" else \
+        axis.set_xlabel(f"speed at a {params.rho0:g} m apex, same energy [m/s]")
 
 
 def draw_curves(ax, rows: list[dict], first: str, second: str) -> None:
