@@ -18,6 +18,19 @@ from baslip.viz.figures import LABELS, _in, _save, plt, shown
 
 
 def adaptive_figures(rows: list[dict], out_dir: Path | None, *, problem: str = "") -> list[Path | None]:
+    """The figures of an adaptive run's strides.csv rows: the apex states and the controls
+    stride by stride (where the adaptive phase ended marked), and the strides under the
+    frozen control if there were any.
+
+    Parameters
+    ----------
+    rows
+        strides.csv rows (``phase``, ``n``, the apex, the law's controls, ``eps``).
+    out_dir
+        Where the PNGs go; None returns the figures open instead.
+    problem
+        The problem's name, shown on each figure.
+    """
     adaptive = [r for r in rows if r["phase"] == "adaptive"]
     frozen = [r for r in rows if r["phase"] == "frozen"]
     if not adaptive:
