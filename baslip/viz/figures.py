@@ -403,6 +403,9 @@ def _speed_axis(ax, params, which: str) -> None:
     def energy(v):
         return floor + 0.5 * params.m * np.asarray(v, dtype=float) ** 2
 
+    limits = ax.get_ylim() if which == "y" else ax.get_xlim()
+    if not speed(max(limits)) > speed(min(limits)):  # no energy above the floor on the axis
+        return
     axis = ax.secondary_yaxis("right", functions=(speed, energy)) if which == "y" else \
         ax.secondary_xaxis("top", functions=(speed, energy))
     axis.set_ylabel(f"speed at a {params.rho0:g} m apex, same energy [m/s]") if which == "y" else \
