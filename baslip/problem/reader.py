@@ -53,8 +53,6 @@ TOP_LEVEL_KEYS = ("name", "params", "hip_law", "fix", "guess", "bounds", "object
 #: What fix, guess and bounds may name under some hip law; :func:`_check_law` then holds
 #: each problem to its own law's.
 _ANY_QUANTITY = ANY_DESIGN + ("energy",)
-#: Study kinds that run under every hip law; the others read or write the PD gains.
-ANY_LAW_STUDIES = ("sweep", "optimal", "controllers", "atlas", "adaptive", "basin", "random")
 #: Longest orbit, in strides, that a problem may ask for.
 MAX_STRIDES = 16
 #: Most fixed points one sweep may ask for (a day of solving on two cores).
@@ -231,9 +229,6 @@ def _check_law(problem: Problem) -> None:
     _check_adapted_controls(problem)
     if problem.hip_law is PD:
         return
-    if problem.study is not None and problem.study.kind not in ANY_LAW_STUDIES:
-        raise ProblemError("hip_law", f"a {problem.study.kind} study runs under hip_law pd only, so far; under "
-                           f"{problem.hip_law.name}, run single gaits, {', '.join(ANY_LAW_STUDIES)} studies or branches")
     if problem.objective in STABILITY_OBJECTIVES:
         raise ProblemError("objective", f"{problem.objective} bounds the multipliers under hip_law pd only, so far")
     if isinstance(problem.study, Optimal) and problem.study.method == "schur_nlp":

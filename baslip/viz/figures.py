@@ -406,10 +406,11 @@ def _speed_axis(ax, params, which: str) -> None:
     limits = ax.get_ylim() if which == "y" else ax.get_xlim()
     if not speed(max(limits)) > speed(min(limits)):  # no energy above the floor on the axis
         return
-    axis = ax.secondary_yaxis("right", functions=(speed, energy)) if which == "y" else \
-        ax.secondary_xaxis("top", functions=(speed, energy))
-    axis.set_ylabel(f"speed at a {params.rho0:g} m apex, same energy [m/s]") if which == "y" else \
-        axis.set_xlabel(f"speed at a {params.rho0:g} m apex, same energy [m/s]")
+    label = f"speed at a {params.rho0:g} m apex, same energy [m/s]"
+    if which == "y":
+        ax.secondary_yaxis("right", functions=(speed, energy)).set_ylabel(label)
+    else:
+        ax.secondary_xaxis("top", functions=(speed, energy)).set_xlabel(label)
 
 
 def draw_curves(ax, rows: list[dict], first: str, second: str) -> None:
