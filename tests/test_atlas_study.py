@@ -19,6 +19,7 @@ manifold it covers (:mod:`baslip.analysis.gaitatlas`):
 
 import csv
 import json
+import logging
 import os
 import signal
 import subprocess
@@ -180,11 +181,12 @@ def test_a_run_killed_after_its_first_cell_resumes_to_the_same_atlas(finished, t
     assert strip(table(out / "cells.csv")) == strip(table(reference / "cells.csv"))
 
 
-def test_a_cell_says_on_stderr_what_it_is_doing_phase_by_phase(capsys):
+def test_a_cell_logs_what_it_is_doing_phase_by_phase(caplog):
+    caplog.set_level(logging.INFO, logger="baslip")
     problem = load_problem(ROOT / "problems" / "atlas_downward.yaml")
     study = replace(problem.study, seeds=1, max_charts=6, polish=1, iterations=2)
     row = CellAtlas(problem, study, quiet=False).run({"sweep_ydot": 0.5, "sweep_z": 0.4})
-    lines = capsys.readouterr().err.splitlines()
+    lines = [r.getMessage() for r in caplog.records if r.name == "baslip.studies.atlascell"]
     assert lines and all(line.startswith("atlas_downward: cell ydot = 0.5, z = 0.4: ") for line in lines)
     assert any(line.endswith(f"{row['charts']} charts covered; finishing their independent verification") for line in lines)
     assert any(line.endswith("polishing (any): descent 1 of 1") for line in lines)
@@ -229,7 +231,7 @@ CUSP_MARGIN = 1e-3
 def test_the_committed_atlas_never_does_worse_than_the_multistart_search_at_its_cells(atlas, search):
     """At every cell of a committed atlas, its least radius (a chart's, or a polished
     gait's) is at most the least the multi-start optimal search found there, within
-    :data:`CUSP_MARGIN`; README: Atlas, Measured."""
+    :data:`CUSP_MARGIN`; docs/guides/atlas.md, Measured."""
     searched = json.loads((ROOT / "results" / search / "result.json").read_text())["least_per_point"]
     least = {(p["ydot"], p["z"]): p["spectral_radius"] for p in searched}
     cells = table(ROOT / "results" / atlas / "cells.csv")

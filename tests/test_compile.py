@@ -5,6 +5,7 @@ none touches the user's cache; the compiler is gcc unless a test sets ``CC``.
 """
 
 import hashlib
+import logging
 import os
 import pathlib
 import shutil
@@ -23,6 +24,19 @@ pytestmark = pytest.mark.skipif(shutil.which("gcc") is None, reason="needs gcc")
 
 POINTS = [np.array([0.3, -0.2, 0.5]), np.array([-1.1, 2.0, 0.25]), np.zeros(3)]
 
+
+
+@pytest.fixture(autouse=True)
+def _diagnostics_recorded(caplog):
+    caplog.set_level(logging.INFO, logger="baslip")
+
+
+def _said(caplog) -> list[str]:
+    """The diagnostics the compiler's module logged since the last call (they go through
+    logging: the command line shows them on stderr)."""
+    lines = [r.getMessage() for r in caplog.records if r.name == "baslip.engine.codegen"]
+    caplog.clear()
+    return lines
 
 def make_functions(gain=0.01):
     """A map f(x) = 30 steps of an SX step function (sin, cos) via mapaccum, and its Jacobian."""
@@ -70,17 +84,17 @@ def test_cache_dir_from_environment(monkeypatch, tmp_path):
     assert cache_dir() == tmp_path / "home" / ".cache" / "baslip"
 
 
-def test_compiled_functions_match_the_virtual_machine(cache, capsys):
+def test_compiled_functions_match_the_virtual_machine(cache, caplog):
     functions = make_functions()
     compiled = compile_functions("test_lib", functions)
     assert all(g.is_a("External") for g in compiled.values())
     assert_same_results(functions, compiled)
     assert libraries(cache) == [next(iter(libraries(cache)))]  # one library for both
     assert libraries(cache)[0].startswith("test_lib-")
-    assert capsys.readouterr().err == ""
+    assert _said(caplog) == []
 
 
-def test_second_call_loads_from_the_cache_without_compiling(cache, tmp_path, monkeypatch, capsys):
+def test_second_call_loads_from_the_cache_without_compiling(cache, tmp_path, monkeypatch, caplog):
     """The compiler is only asked for its version (part of the key), never to compile."""
     log = tmp_path / "cc.log"
     wrapper = tmp_path / "cc"
@@ -99,27 +113,27 @@ def test_second_call_loads_from_the_cache_without_compiling(cache, tmp_path, mon
     assert library.stat().st_mtime_ns == mtime
     assert libraries(cache) == [library.name]
     assert_same_results(functions, again)
-    assert capsys.readouterr().err == ""
+    assert _said(caplog) == []
 
 
 def test_a_large_build_says_what_it_compiles_and_about_how_long_a_cached_load_says_nothing(cache, monkeypatch,
-                                                                                           capsys):
+                                                                                           caplog):
     """On a terminal, above ANNOUNCE_BYTES of C (lowered here, so that a small library
-    counts), a build prints one line naming the library, its size and an estimate; the
-    load from the cache prints none. Not on a terminal (every other test here), or below
+    counts), a build logs one line naming the library, its size and an estimate; the
+    load from the cache logs none. Not on a terminal (every other test here), or below
     the size, a build is silent."""
     import baslip.engine.codegen as codegen
 
     monkeypatch.setattr(codegen, "ANNOUNCE_BYTES", 1)
     compile_functions("test_lib_piped", make_functions(gain=0.02))
-    assert capsys.readouterr().err == ""
+    assert _said(caplog) == []
     monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
     compile_functions("test_lib", make_functions())
-    [line] = capsys.readouterr().err.splitlines()
+    [line] = _said(caplog)
     assert line.startswith("baslip: compiling test_lib for this machine (") and " MB of C, about " in line
     assert str(cache) in line
     compile_functions("test_lib", make_functions())
-    assert capsys.readouterr().err == ""
+    assert _said(caplog) == []
 
 
 def test_changed_function_gets_its_own_library(cache):
@@ -130,29 +144,29 @@ def test_changed_function_gets_its_own_library(cache):
     assert_same_results(make_functions(0.02), compiled)
 
 
-def test_without_a_compiler_the_originals_are_used_with_one_notice(cache, monkeypatch, capsys):
+def test_without_a_compiler_the_originals_are_used_with_one_notice(cache, monkeypatch, caplog):
     monkeypatch.setenv("CC", "/nonexistent/cc")
     functions = make_functions()
     result = compile_functions("test_lib", functions)
     assert all(result[f.name()] is f for f in functions)
     assert_same_results(functions, result)
-    lines = capsys.readouterr().err.splitlines()
+    lines = _said(caplog)
     assert len(lines) == 1
     assert lines[0].startswith("baslip: no working C compiler (")
     assert "virtual machine" in lines[0]
     assert not cache.exists() or list(cache.iterdir()) == []
 
 
-def test_failing_compiler_falls_back(cache, monkeypatch, capsys):
+def test_failing_compiler_falls_back(cache, monkeypatch, caplog):
     monkeypatch.setenv("CC", "false")  # runs, but fails (its --version prints nothing)
     functions = make_functions()
     result = compile_functions("test_lib", functions)
     assert all(result[f.name()] is f for f in functions)
-    assert len(capsys.readouterr().err.splitlines()) == 1
+    assert len(_said(caplog)) == 1
     assert not cache.exists() or list(cache.iterdir()) == []
 
 
-def test_unwritable_cache_falls_back(tmp_path, monkeypatch, capsys):
+def test_unwritable_cache_falls_back(tmp_path, monkeypatch, caplog):
     blocker = tmp_path / "file"
     blocker.write_text("")
     monkeypatch.setenv("BASLIP_CACHE_DIR", str(blocker / "cache"))  # parent is a file
@@ -161,25 +175,25 @@ def test_unwritable_cache_falls_back(tmp_path, monkeypatch, capsys):
     functions = make_functions()
     result = compile_functions("test_lib", functions)
     assert all(result[f.name()] is f for f in functions)
-    [line] = capsys.readouterr().err.splitlines()
+    [line] = _said(caplog)
     assert "not writable" in line
 
 
 @pytest.mark.parametrize("value", ["1", "yes"])
-def test_no_compile_returns_the_originals_silently(cache, monkeypatch, capsys, value):
+def test_no_compile_returns_the_originals_silently(cache, monkeypatch, caplog, value):
     monkeypatch.setenv("BASLIP_NO_COMPILE", value)
     functions = make_functions()
     result = compile_functions("test_lib", functions)
     assert all(result[f.name()] is f for f in functions)
-    assert capsys.readouterr().err == ""
+    assert _said(caplog) == []
     assert not cache.exists()
 
 
-def test_enabled_false_returns_the_originals(cache, capsys):
+def test_enabled_false_returns_the_originals(cache, caplog):
     functions = make_functions()
     result = compile_functions("test_lib", functions, enabled=False)
     assert all(result[f.name()] is f for f in functions)
-    assert capsys.readouterr().err == "" and not cache.exists()
+    assert _said(caplog) == [] and not cache.exists()
 
 
 def test_no_compile_zero_still_compiles(cache, monkeypatch):
@@ -196,7 +210,7 @@ def test_invalid_names_are_rejected(cache):
         compile_functions("test_lib", [f, f])
 
 
-def test_corrupt_library_is_rebuilt(cache, capsys):
+def test_corrupt_library_is_rebuilt(cache, caplog):
     functions = make_functions()
     compile_functions("test_lib", functions)
     [library] = cache.glob("*.so")
@@ -205,7 +219,7 @@ def test_corrupt_library_is_rebuilt(cache, capsys):
     assert all(g.is_a("External") for g in compiled.values())
     assert_same_results(functions, compiled)
     assert libraries(cache) == [library.name]
-    assert capsys.readouterr().err == ""
+    assert _said(caplog) == []
 
 
 TRUNCATED_RUN = """
@@ -237,14 +251,14 @@ def test_a_truncated_library_is_rebuilt_not_loaded(cache):
         assert again.stderr == "" and library.read_bytes() == whole
 
 
-def test_a_library_without_its_checksum_is_rebuilt(cache, capsys):
+def test_a_library_without_its_checksum_is_rebuilt(cache, caplog):
     functions = make_functions()
     compile_functions("test_lib", functions)
     [library] = cache.glob("*.so")
     (cache / f"{library.name}.sha256").unlink()
     compiled = compile_functions("test_lib", functions)
     assert_same_results(functions, compiled)
-    assert (cache / f"{library.name}.sha256").exists() and capsys.readouterr().err == ""
+    assert (cache / f"{library.name}.sha256").exists() and _said(caplog) == []
 
 
 def test_two_processes_starting_at_once_compile_once(cache, tmp_path, monkeypatch):
@@ -392,7 +406,7 @@ def test_stale_temporaries_of_other_libraries_are_cleared_once_old(cache):
     assert not old.exists() and young.is_dir()
 
 
-def test_a_notice_is_shown_once_per_reason_and_names_it(tmp_path, monkeypatch, capsys):
+def test_a_notice_is_shown_once_per_reason_and_names_it(tmp_path, monkeypatch, caplog):
     """Three libraries that cannot be cached give one line, which blames the cache (not the
     compiler); what each ran on is recorded for provenance."""
     from baslip.engine.codegen import recording_code
@@ -405,7 +419,7 @@ def test_a_notice_is_shown_once_per_reason_and_names_it(tmp_path, monkeypatch, c
     with recording_code() as used:
         for name in ("lib_a", "lib_b", "lib_c"):
             compile_functions(name, make_functions())
-    [line] = capsys.readouterr().err.splitlines()
+    [line] = _said(caplog)
     assert "compiled-code cache" in line and "not a folder" in line and "no working C compiler" not in line
     assert sorted(used) == ["lib_a", "lib_b", "lib_c"]
     assert all(route.startswith("CasADi virtual machine (the compiled-code cache") for route in used.values())
@@ -432,7 +446,7 @@ def test_an_empty_home_gives_no_cache_at_the_root(monkeypatch, home):
     assert found is None or (found.is_absolute() and found.parts[1] != ".cache")
 
 
-def test_no_home_at_all_runs_in_the_virtual_machine_with_one_line(monkeypatch, capsys):
+def test_no_home_at_all_runs_in_the_virtual_machine_with_one_line(monkeypatch, caplog):
     import baslip.engine.codegen as codegen
 
     monkeypatch.delenv("BASLIP_CACHE_DIR", raising=False)
@@ -442,5 +456,5 @@ def test_no_home_at_all_runs_in_the_virtual_machine_with_one_line(monkeypatch, c
     functions = make_functions()
     result = compile_functions("lib_nohome", functions)
     assert all(result[f.name()] is f for f in functions)
-    [line] = capsys.readouterr().err.splitlines()
+    [line] = _said(caplog)
     assert "HOME is empty or unset; set BASLIP_CACHE_DIR" in line

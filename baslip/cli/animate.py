@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from baslip.diagnostics import show_on_stderr
 from baslip.engine.returnmap import ReturnMap, Tolerances
 from baslip.engine.trajectory import stride_trajectory
 from baslip.gait.from_problem import solve_start
@@ -23,6 +24,7 @@ from baslip.viz.animation import animate
 
 def main(argv: list[str] | None = None, prog: str = "python -m baslip.animate") -> int:
     """Solve each problem file given in ``argv`` and write its GIF; return the exit status."""
+    show_on_stderr()  # diagnostics (progress, notes) go through logging; show them
     parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
     parser.add_argument("problems", nargs="+", type=Path, help="single fixed-point problem files")
     parser.add_argument("--out", type=Path, default=Path("results/animation"), metavar="DIR")

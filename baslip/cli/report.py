@@ -7,12 +7,14 @@ import sys
 from pathlib import Path
 
 from baslip.cli.common import EXIT_BAD_INPUT, place_refusal
+from baslip.diagnostics import show_on_stderr
 from baslip.files.atomic import write_files_atomically
 from baslip.report.page import build_report
 
 
 def main(argv: list[str] | None = None, prog: str = "python -m baslip.report") -> int:
     """Write ``REPORT.md`` into the results folder given by ``--results``; return the exit status."""
+    show_on_stderr()  # diagnostics (progress, notes) go through logging; show them
     parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
     parser.add_argument("--results", type=Path, default=Path("results"), metavar="DIR")
     args = parser.parse_args(argv)

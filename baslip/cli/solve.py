@@ -18,6 +18,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from baslip.cli.common import EXIT_BAD_INPUT, EXIT_NOT_CONVERGED, EXIT_OK, OneLineParser
+from baslip.diagnostics import show_on_stderr
 from baslip.errors import InputError, RunError
 from baslip.gait.describe import summary_text as summary
 from baslip.problem.reader import ProblemError, load_problem
@@ -42,13 +43,13 @@ def _parser(prog: str = "python -m baslip.solve") -> argparse.ArgumentParser:
             "A problem with a continuation: section traces a branch of fixed points in one\n"
             "parameter (branch.csv, diagram.png) and, with second/second_range/follow, the\n"
             "bifurcation curves in two parameters (curve.csv, curve.png).\n"
-            "See the README for every key; problems/ has examples of each.\n\n"
+            "docs/guides/problem-files.md has every key; problems/ has examples of each.\n\n"
             "Exit status: 0 verified fixed point or completed study/branch; 1 solver failure,\n"
             "not verified, a study that solved nothing or stopped short, or a curve not found;\n"
             "2 bad input or a busy or stale output folder."
         ),
     )
-    parser.add_argument("problem", type=Path, help="YAML problem file (see README: Problem files)")
+    parser.add_argument("problem", type=Path, help="YAML problem file (see docs/guides/problem-files.md)")
     parser.add_argument("--out", type=Path, metavar="DIR", help="output folder (default: results/<name>/)")
     talk = parser.add_mutually_exclusive_group()
     talk.add_argument("--quiet", action="store_true", help="print nothing but errors")
@@ -87,6 +88,7 @@ def _positive(text: str) -> int:
 
 
 def main(argv: list[str] | None = None, prog: str = "python -m baslip.solve") -> int:
+    show_on_stderr()  # diagnostics (progress, notes) go through logging; show them
     args = _parser(prog).parse_args(argv)
     try:
         problem = load_problem(args.problem)

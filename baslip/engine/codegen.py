@@ -53,7 +53,10 @@ from collections.abc import Callable, Iterator, Sequence
 import casadi as ca
 
 from baslip.children import compiler_preexec, in_own_group
+from baslip.diagnostics import logger
 from baslip.engine.native import Kernel, NativeKernel, VirtualMachineKernel
+
+_log = logger(__name__)
 
 #: Flags after the compiler command: optimised, position-independent shared library.
 CFLAGS = ("-O3", "-fPIC", "-shared", "-ffp-contract=off")
@@ -160,7 +163,7 @@ def _note(name: str, route: str) -> None:
     reason = route[len(VIRTUAL_MACHINE) + 2:-1] if route.startswith(VIRTUAL_MACHINE + " (") else ""
     if reason and not reason.startswith(_SWITCHED_OFF) and _PROCESS.notices_here and reason not in _PROCESS.noticed:
         _PROCESS.noticed.add(reason)
-        print(f"baslip: {reason}; using CasADi's virtual machine instead (slower, same results)", file=sys.stderr)
+        _log.warning(f"baslip: {reason}; using CasADi's virtual machine instead (slower, same results)")
 
 
 #: How a fallback that was asked for is described (no notice is shown for it).
@@ -434,8 +437,8 @@ def _announce(name: str, c_text: str, folder: pathlib.Path) -> None:
     size = len(c_text.encode())
     if size < ANNOUNCE_BYTES or not _PROCESS.notices_here or not sys.stderr.isatty():
         return
-    print(f"baslip: compiling {name} for this machine ({size / 1e6:.1f} MB of C, about "
-          f"{size / 1e6 * SECONDS_PER_MB:.0f} s; once, then kept in {folder})", file=sys.stderr, flush=True)
+    _log.info(f"baslip: compiling {name} for this machine ({size / 1e6:.1f} MB of C, about "
+              f"{size / 1e6 * SECONDS_PER_MB:.0f} s; once, then kept in {folder})")
 
 
 def _checksum_path(library: pathlib.Path) -> pathlib.Path:

@@ -19,13 +19,13 @@ factor s of ``perturbation``: recovered means the re-solved runner is still hopp
 
 from __future__ import annotations
 
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
 from baslip.analysis.feedback import ResolvedControl
+from baslip.diagnostics import logger
 from baslip.gait.polish import eps
 from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import PD, HipLaw
@@ -34,6 +34,8 @@ from baslip.problem.study import Adaptive
 from baslip.studies.common import StudyFailed, study_table
 from baslip.studies.runner import ResumableCsv, Workers
 from baslip.viz.adaptive import adaptive_figures
+
+_log = logger(__name__)
 
 
 def stride_columns(law: HipLaw = PD) -> list[str]:
@@ -81,8 +83,7 @@ def run_adaptive(controller: ResolvedControl, X0, params, strides: int, frozen_s
         X = stride.apex
         if not quiet and (n + 1) % 256 == 0:
             elapsed = time.perf_counter() - start
-            print(f"adaptive control: {n + 1}/{strides} strides, {elapsed / (n + 1 - len(adaptive)) * 1e3:.1f} ms a stride",
-                  file=sys.stderr, flush=True)
+            _log.info(f"adaptive control: {n + 1}/{strides} strides, {elapsed / (n + 1 - len(adaptive)) * 1e3:.1f} ms a stride")
     adaptive = [r for r in table.rows if r["phase"] == "adaptive"]
     ended = any(r["phase"] == "fall" for r in table.rows) or len(frozen) >= frozen_strides
     if failure is None and adaptive and len(adaptive) == strides and not ended:
@@ -203,7 +204,7 @@ def run_adaptive_study(problem: Problem, study: Adaptive, out_dir: Path, sources
     recovery = None
     if offset.any():
         if not quiet:
-            print(f"{problem.name}: bisecting the largest recovered perturbation...", file=sys.stderr)
+            _log.info(f"{problem.name}: bisecting the largest recovered perturbation...")
         recovery = largest_recovered(controller, solver.residual_map, problem.params, result.X, offset, study.probe_strides)
     return {
         "start": {"apex": result.apex, "control": result.control, "spectral_radius": result.spectral_radius},

@@ -4,7 +4,6 @@ polished best gaits (see :mod:`baslip.studies.atlas`)."""
 from __future__ import annotations
 
 import math
-import sys
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -16,6 +15,7 @@ from baslip.analysis.atlas import Atlas as Covering
 from baslip.analysis.atlas import AtlasSettings, cover, local_minima
 from baslip.analysis.descent import StabilityDescent, random_start
 from baslip.analysis.gaitatlas import ChartChecker, ChartReport, GaitManifold, chart_report
+from baslip.diagnostics import logger
 from baslip.engine.returnmap import ReturnMap, RunnerFell, Tolerances
 from baslip.gait.from_problem import fixed_point_spec, solver_for
 from baslip.model.dynamics import APEX
@@ -25,6 +25,8 @@ from baslip.problem.study import Atlas
 from baslip.status import VERIFY_EPS
 from baslip.studies.optimal import UPRIGHT_AT_APEX, UPRIGHT_THROUGHOUT, task_rng
 from baslip.studies.sweep import key_column
+
+_log = logger(__name__)
 
 #: Tolerance of the map whose AD Jacobian gives the charts' tangents and multipliers (the
 #: equations themselves are solved on the 1e-12 map): a Jacobian at 1e-10 costs a third
@@ -101,7 +103,7 @@ class CellAtlas:
         def say(text: str, always: bool = False) -> None:
             if not self.quiet and (always or time.monotonic() - last[0] >= PROGRESS_EVERY_S):
                 last[0] = time.monotonic()
-                print(f"{self.problem.name}: cell {cell}: {text}", file=sys.stderr, flush=True)
+                _log.info(f"{self.problem.name}: cell {cell}: {text}")
 
         return say
 

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import io
 import math
-import sys
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -24,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from baslip.analysis.continuation import CorrectionFailed, Point, Settings, continue_branch, join, switch_branch
+from baslip.diagnostics import end_progress_line
 from baslip.engine.codegen import recording_code
 from baslip.errors import RunError
 from baslip.files.atomic import json_text, write_files_atomically
@@ -57,6 +57,7 @@ def _run_continuation(problem, out_dir: Path, quiet: bool, code: dict[str, str])
     from baslip.analysis.gaitsystem import branch_system
     from baslip.files.provenance import provenance
     from baslip.gait.from_problem import fixed_point_spec, solve_start, solver_for
+    from baslip.viz import branchplot
     from baslip.viz import figures as plots
 
     spec = problem.continuation
@@ -92,7 +93,7 @@ def _run_continuation(problem, out_dir: Path, quiet: bool, code: dict[str, str])
 
     rows = [_row(t, p, solver) for t in traced for p in t.branch.points]
     diagram = io.BytesIO()
-    plots.bifurcation_diagram(rows, spec.parameter, spec.plot, diagram, problem=problem.name)
+    branchplot.bifurcation_diagram(rows, spec.parameter, spec.plot, diagram, problem=problem.name)
     files: dict[Path, str | bytes] = {}
     curves = None
     if spec.second is not None:
@@ -158,8 +159,7 @@ def _trace(system, v0, direction, settings, solver, number, origin, quiet) -> Tr
     else:
         branch = continue_branch(system, v0, direction, settings, accept=verified, progress=progress)
         branch.stop_reason = named_stop(system, branch)
-    if not quiet and sys.stderr.isatty():
-        print(file=sys.stderr)
+    end_progress_line()
     return TracedBranch(number, system, branch, origin)
 
 

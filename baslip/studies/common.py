@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
+from baslip.diagnostics import logger
 from baslip.errors import RunError
 from baslip.status import Status
 from baslip.studies.runner import ResumableCsv, RunReport
+
+_log = logger(__name__)
 
 
 class StudyFailed(RunError):
@@ -19,7 +21,7 @@ def study_table(path: Path, columns: list[str], keys: list[str], quiet: bool) ->
     table = ResumableCsv(path, columns, keys)
     if not quiet:
         for note in table.notes:
-            print(f"note: {note}", file=sys.stderr)
+            _log.warning(f"note: {note}")
     return table
 
 

@@ -15,13 +15,13 @@ label) and the summary of the curves for ``result.json``.
 
 from __future__ import annotations
 
-import sys
 from dataclasses import replace
 
 import numpy as np
 
 from baslip.analysis.bifurcation import CurveSystem, stability_boundary, trace_curve
 from baslip.analysis.continuation import Branch, CorrectionFailed, Point, Settings
+from baslip.diagnostics import end_progress_line
 from baslip.model.dynamics import APEX
 from baslip.model.quantities import quantity_text
 from baslip.studies.traced import TracedBranch, named_stop, point_record, points_csv, progress_lines
@@ -67,8 +67,7 @@ def follow_curves(problem, branch: TracedBranch, solver, quiet: bool) -> tuple[l
             failed.append({**origin, "reason": str(err)})
             continue
         traced.append((number, curve, points, origin))
-        if not quiet and sys.stderr.isatty():
-            print(file=sys.stderr)  # end the progress line
+        end_progress_line()
     rows = [_row(number, curve, point) for number, curve, points, _ in traced for point in points.points]
     summary = {
         "second": spec.second,

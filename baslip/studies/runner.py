@@ -38,9 +38,12 @@ from typing import Any
 import numpy as np
 
 from baslip.children import run_pickled
+from baslip.diagnostics import IN_PLACE, end_progress_line, logger
 from baslip.engine.codegen import leave_notices_to_parent, note_code, recording_code
 from baslip.errors import InputError, RunError
 from baslip.files.atomic import write_files_atomically
+
+_log = logger(__name__)
 
 #: Lanes a study's tasks are cut into. Fixed, so that the warm starts (and so the answers)
 #: do not depend on the machine; it is recorded with the study.
@@ -251,7 +254,7 @@ def run_tasks(
     """
     note = table.keep_tasks([task for lane in lanes for task in lane])
     if note is not None and not quiet:
-        print(f"note: {note}", file=sys.stderr)
+        _log.warning(f"note: {note}")
     done, states = table.done(), table.states.read()
     total = sum(len(lane) for lane in lanes)
     marked = [[_marked(task, table.key(task), done, states) for task in lane] for lane in lanes]
@@ -535,17 +538,15 @@ class Progress:
         if self.terminal:  # a bar, rewritten in place
             filled = int(BAR_WIDTH * done / self.total) if self.total else BAR_WIDTH
             bar = "#" * filled + "-" * (BAR_WIDTH - filled)
-            print(f"\r{self.label} [{bar}] {done}/{self.total}, {rate:.2f}/s, about {eta:.0f} s left   ",
-                  end="", file=sys.stderr, flush=True)
+            _log.info(f"{self.label} [{bar}] {done}/{self.total}, {rate:.2f}/s, about {eta:.0f} s left", extra=IN_PLACE)
         elif elapsed - self._last >= self.every_s or done == self.total:
             self._last = elapsed
-            print(text, file=sys.stderr, flush=True)
+            _log.info(text)
 
     def interrupted(self, saved: int, why: str = "interrupted") -> None:
         if not self.quiet:
-            print(f"{chr(10) if self.terminal else ''}{self.label}: {why}; {saved} of {self.total} rows are saved",
-                  file=sys.stderr)
+            _log.warning(f"{self.label}: {why}; {saved} of {self.total} rows are saved")
 
     def close(self) -> None:
-        if not self.quiet and self.terminal:
-            print(file=sys.stderr)
+        if not self.quiet:
+            end_progress_line()

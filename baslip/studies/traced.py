@@ -16,9 +16,12 @@ from dataclasses import dataclass
 
 from baslip.analysis.continuation import Branch
 from baslip.analysis.gaitsystem import FixedPointSystem, NearestGuessSystem
+from baslip.diagnostics import IN_PLACE, logger
 from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import PD
 from baslip.studies.runner import format_value
+
+_log = logger(__name__)
 
 
 @dataclass(frozen=True)
@@ -45,10 +48,10 @@ def progress_lines(describe, quiet: bool):
             return
         elapsed = time.perf_counter() - started
         if sys.stderr.isatty():
-            print(f"\r{describe(n, point)}   ", end="", file=sys.stderr, flush=True)
+            _log.info(describe(n, point), extra=IN_PLACE)
         elif elapsed - shown[0] >= 10.0:
             shown[0] = elapsed
-            print(describe(n, point), file=sys.stderr, flush=True)
+            _log.info(describe(n, point))
 
     return progress
 
