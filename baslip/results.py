@@ -38,6 +38,19 @@ class RunResults:
     Read from a folder (``folder``), or held in memory (``texts``: table name -> CSV
     text) for a run that wrote nothing. ``sources`` is the folder that holds the runs this
     one read (a basin study's source sweep, a random sample's region and boundary).
+
+    Attributes
+    ----------
+    folder : Path or None
+        The run's folder, or None for a run held in memory.
+    record : dict
+        The run's ``result.json``, as plain JSON data (SI units and radians).
+    tables : tuple of str
+        The names of its CSV tables, without ``.csv``, sorted.
+    texts : Mapping of str to str or None
+        Table name -> CSV text for a run held in memory; None for one read from a folder.
+    sources : Path or None
+        The folder that holds the runs this one read.
     """
 
     folder: Path | None
@@ -55,6 +68,7 @@ class RunResults:
 
     @property
     def name(self) -> str:
+        """The problem's name from ``record``, else the folder's name, else ``""``."""
         return self.record.get("name", self.folder.name if self.folder else "")
 
     def summary(self) -> str:
@@ -62,7 +76,19 @@ class RunResults:
         return run_summary_text(self.record)
 
     def rows(self, table: str | None = None) -> list[dict]:
-        """The rows of a table, numbers as floats and flags as bools."""
+        """The rows of a table, numbers as floats and flags as bools.
+
+        Parameters
+        ----------
+        table : str, optional
+            The table's name (``points``, ``branch``, ...); by default the one
+            :meth:`to_dataframe` gives.
+
+        Returns
+        -------
+        list of dict
+            One dict per row, column name -> value, SI units and radians.
+        """
         from baslip.files.rows import points_from
 
         with self._open(table or self._default_table()) as handle:
@@ -88,7 +114,26 @@ class RunResults:
 
         True/false columns are nullable booleans (empty in failed rows), text columns are
         text ("" where empty, even when every row is), and a study's rows are sorted by
-        their swept values (then by start), not in the order its lanes finished them."""
+        their swept values (then by start), not in the order its lanes finished them.
+
+        Parameters
+        ----------
+        table : str, optional
+            The table's name; by default ``points`` for a study, ``branch`` for a
+            continuation and ``multipliers`` for a gait (else the first table).
+
+        Returns
+        -------
+        pandas.DataFrame
+            The table, SI units and radians.
+
+        Raises
+        ------
+        KeyError
+            If the run has no such table.
+        ImportError
+            If pandas is not installed.
+        """
         try:
             import pandas
         except ImportError:
@@ -161,13 +206,14 @@ class RunResults:
 
     def _diagrams(self) -> list:
         from baslip.model.dynamics import Params
+        from baslip.viz import branchplot
         from baslip.viz import figures as plots
 
         figures = []
         if self.kind == "continuation":
             parameter = self.record["parameter"]
             quantity = self.record.get("provenance", {}).get("problem", {}).get("continuation", {}).get("plot", "z")
-            figures.append(plots.bifurcation_diagram(self.rows("branch"), parameter, quantity, problem=self.name))
+            figures.append(branchplot.bifurcation_diagram(self.rows("branch"), parameter, quantity, problem=self.name))
             figures[-1].set_label("diagram")  # the names of the command line's files
             if "curve" in self.tables:
                 second = self.record["curves"]["second"]
@@ -234,7 +280,13 @@ class RunResults:
 
 def open_results(folder: str | Path) -> RunResults:
     """The results in ``folder`` (one written by ``baslip solve``). Raises
-    FileNotFoundError if it holds no result.json."""
+    FileNotFoundError if it holds no result.json.
+
+    Parameters
+    ----------
+    folder : str or Path
+        The run's folder; its parent is taken as the folder of the runs it read.
+    """
     folder = Path(folder)
     path = folder / "result.json"
     if not path.exists():

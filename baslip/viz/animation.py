@@ -13,9 +13,9 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-import matplotlib
+from baslip.viz.backend import use_file_backend
 
-matplotlib.use("Agg")
+use_file_backend()
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
@@ -54,14 +54,31 @@ def animate(trajectory: Trajectory, params: Params, title: str, path: Path) -> P
 @dataclass(frozen=True)
 class GaitAnimation:
     """A gait's animation, one type everywhere: it shows itself in a notebook as an
-    embedded GIF (no player or icons fetched from the web) and saves as a GIF."""
+    embedded GIF (no player or icons fetched from the web) and saves as a GIF.
+
+    Attributes
+    ----------
+    figure : matplotlib.figure.Figure
+        The figure the animation draws on (closed in pyplot: it shows no still frame).
+    animation : matplotlib.animation.FuncAnimation
+        The frames, in slow motion (:data:`SLOW_MOTION` animation seconds per simulated
+        second, :data:`FPS` frames per second).
+    title : str
+        The figure's title, also in the GIF's alternative text in a notebook.
+    """
 
     figure: Figure
     animation: FuncAnimation
     title: str
 
     def save(self, path: str | Path) -> Path:
-        """Write the GIF to ``path`` (any suffix; the file is a GIF) and return the path."""
+        """Write the GIF to ``path`` (any suffix; the file is a GIF) and return the path.
+
+        Parameters
+        ----------
+        path : str or Path
+            The file to write.
+        """
         path = Path(path)
         self.animation.save(path, writer=PillowWriter(fps=FPS))
         return path

@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import math
 
-import matplotlib
+from baslip.viz.backend import use_file_backend
 
-matplotlib.use("Agg")
+use_file_backend()
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.colors import Colormap, ListedColormap, LogNorm  # noqa: E402

@@ -11,17 +11,17 @@ import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
-import matplotlib
+from baslip.viz.backend import hand_over, use_file_backend
 
-matplotlib.use("Agg")
+use_file_backend()
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from baslip.model.quantities import UNITS, quantity_text  # noqa: E402
+from baslip.model.quantities import UNITS  # noqa: E402
 from baslip.problem.study import CONTROLLER_KINDS  # noqa: E402
 from baslip.status import Status
 from baslip.viz.colours import colour_limits, radius_colorbar, radius_colours  # noqa: E402
-from baslip.viz.labels import CONTROLLER_NAMES, SPECIAL_NAMES  # noqa: E402
+from baslip.viz.labels import CONTROLLER_NAMES  # noqa: E402
 
 DEG = 180 / math.pi
 ANGLES = ("theta_h", "theta2_des", "theta_td")
@@ -96,9 +96,10 @@ def _save(fig, path, tight: bool = True, problem: str = "") -> Path | None:
     if tight:
         fig.tight_layout()
     if isinstance(path, Unwritten):
-        fig.set_label(Path(path.name).stem)  # the name it is listed under (RunResults.plot)
-        return None
+        fig.set_label(Path(path.name).stem)  # the name it is listed under (RunResults.plot, which
+        return None  # finds it among pyplot's figures and hands it to a Figures mapping)
     if path is None:
+        hand_over(fig)
         return None
     fmt = figure_format()
     if isinstance(path, (str, Path)):
@@ -309,51 +310,6 @@ def basin_figures(basin_rows, stable, unstable, example_index, example_unstable,
 # --- continuation ---------------------------------------------------------------------------
 
 
-def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path=None, *, problem: str = ""):
-    """Branch diagram: stable segments solid, unstable dashed, special points labelled.
-    ``path`` is a file name or a binary file object; without one the Figure is returned.
-
-    Rows carry ``branch``, ``strides`` and ``orbit`` (the apexes of the orbit): an orbit
-    of N strides is drawn at each of its N apexes, so a period-2 branch shows both.
-    """
-    fig, ax = plt.subplots(figsize=(6.4, 4.4))
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    for number in sorted({r["branch"] for r in rows}):
-        branch = [r for r in rows if r["branch"] == number]
-        color = colors[int(number) % len(colors)]
-        stable = [r["stable"] for r in branch]
-        for k in range(len(branch[0].get("orbit", [None]))):
-            x = shown(parameter, [_orbit_value(r, k, parameter) for r in branch])
-            y = shown(quantity, [_orbit_value(r, k, quantity) for r in branch])
-            for i in range(len(branch) - 1):
-                style = "-" if stable[i] and stable[i + 1] else "--"
-                ax.plot(x[i : i + 2], y[i : i + 2], style, color=color)
-        strides = int(branch[0]["strides"])
-        for style, word, present in (("-", "stable", any(stable)), ("--", "unstable", not all(stable))):
-            if present:  # only the styles drawn get a legend entry
-                ax.plot([], [], style, color=color, label=f"{strides}-stride orbits, {word}")
-    markers = {"fold": ("s", "tab:red"), "turning_point": ("<", "tab:brown"), "period_doubling": ("D", "tab:green"),
-               "neimark_sacker": ("^", "tab:purple"), "branch_point": ("o", "tab:orange")}
-    x_mid = np.mean(ax.get_xlim())
-    for i, r in enumerate(r for r in rows if r["special"]):
-        marker, color = markers[r["special"]]
-        xv, yv = shown(parameter, [r[parameter]])[0], shown(quantity, [_orbit_value(r, 0, quantity)])[0]
-        ax.plot(xv, yv, marker, color=color, ms=8)
-        # Labels alternate above and below, in their marker's colour and tied to it by a
-        # line, so that neighbouring points stay readable and unambiguous; they lean
-        # towards the middle, so that they stay inside the frame.
-        right = xv <= x_mid
-        ax.annotate(f"{SPECIAL_NAMES[r['special']]}\n{quantity_text(parameter, r[parameter], 6)}", (xv, yv),
-                    textcoords="offset points",
-                    xytext=(14 if right else -14, 12 if i % 2 == 0 else -30), ha="left" if right else "right",
-                    fontsize=8, color=color, arrowprops={"arrowstyle": "-", "color": color, "lw": 0.7})
-    ax.set_xlabel(LABELS.get(parameter, f"{parameter}"))
-    ax.set_ylabel(LABELS.get(quantity, quantity))
-    ax.legend(fontsize=8)
-    saved = _save(fig, path, problem=problem)
-    return fig if path is None else saved
-
-
 #: Colours of the curve types, and how they are named in legends.
 CURVE_STYLES = {"fold": ("tab:red", "fold (+1)"), "period_doubling": ("tab:green", "period doubling (-1)"),
                 "neimark_sacker": ("tab:purple", "Neimark-Sacker"), "neutral_saddle": ("0.6", "neutral saddle (no bifurcation)")}
@@ -430,17 +386,6 @@ def draw_curves(ax, rows: list[dict], first: str, second: str) -> None:
         for bounding, words in ((True, "bounds stable gaits"), (False, "unstable both sides")):
             if (kind, bounding) in present:
                 ax.plot([], [], "-" if bounding else ":", color=color, label=f"{name}, {words}")
-
-
-def _orbit_value(row: dict, k: int, quantity: str) -> float:
-    """``quantity`` at apex k of the row's orbit (controls and model parameters are the
-    same at every apex)."""
-    if "orbit" not in row:  # read back from branch.csv: the first apex only
-        return row[quantity]
-    return row["orbit"][k][quantity] if quantity in row["orbit"][k] else row[quantity]
-
-
-# --- stability-optimal gaits ----------------------------------------------------------------
 
 
 def trunk_motion_figure(motions: list[tuple[str, np.ndarray, np.ndarray]], out_dir: Path | None, *,
@@ -560,4 +505,5 @@ def gait_figure(motion, title: str):
         ax.set_xlabel("time t [s]")
         ax.fill_between(t, 0, 1, where=stance, color="0.9", transform=ax.get_xaxis_transform(), label="_stance")
     fig.tight_layout()
+    hand_over(fig)
     return fig

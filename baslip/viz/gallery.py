@@ -14,6 +14,7 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
+from baslip.viz.backend import release
 from baslip.viz.figures import PNG_DPI
 
 #: Resolution of the figures embedded in a notebook [dots per inch].
@@ -25,6 +26,12 @@ class Figures(Mapping[str, Figure]):
 
     A notebook shows all of them, each under its name (PNG images embedded in the page:
     they need no pyplot display call). :meth:`save` writes them into a folder.
+
+    Parameters
+    ----------
+    figures : Sequence of matplotlib.figure.Figure
+        The figures, each named by its label, or ``figure_<n>`` without one (n its position,
+        from 1); a repeated name gets ``_<n>`` appended.
     """
 
     def __init__(self, figures: Sequence[Figure]):
@@ -34,6 +41,7 @@ class Figures(Mapping[str, Figure]):
             while name in named:  # two figures of one name (a study's per-case figures)
                 name = f"{name}_{number}"
             named[name] = figure
+            release(figure)  # shown through this mapping: pyplot must not show it again
         self._figures = named
 
     def __getitem__(self, name: str) -> Figure:
@@ -65,9 +73,9 @@ class Figures(Mapping[str, Figure]):
 
         Parameters
         ----------
-        folder
+        folder : str or Path
             Where the files go (created if needed).
-        format
+        format : str
             The files' format, as matplotlib names it.
         """
         folder = Path(folder)
