@@ -12,11 +12,11 @@ the same files, the same exit status for the same outcome.
 from __future__ import annotations
 
 import contextlib
-import sys
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
+from baslip.diagnostics import logger, show_on_stderr
 from baslip.engine.codegen import recording_code
 from baslip.errors import InputError
 from baslip.files.atomic import write_result
@@ -30,6 +30,8 @@ from baslip.results import RunResults, open_results, read_into_memory
 from baslip.studies.branch import run_continuation
 from baslip.studies.registry import check_study_inputs, run_study
 from baslip.studies.runner import check_scheduler
+
+_log = logger(__name__)
 
 
 class OutputUnwritable(InputError):
@@ -83,6 +85,8 @@ def run(problem: Problem | str | Path, out: str | Path | None = None, *, jobs: i
     RunError
         A run that could not start, e.g. a study or branch whose start did not converge.
     """
+    if progress:
+        show_on_stderr()
     if not isinstance(problem, Problem):
         problem = load_problem(Path(problem))
     folder = None if out is None else Path(out)
@@ -157,12 +161,12 @@ def solve_and_write(problem: Problem, out: Path, quiet: bool = True) -> FixedPoi
         if not quiet:
             s = problem.solver
             orbit = "" if problem.strides == 1 else f", {problem.strides}-stride orbits"
-            print(f"{problem.name}: loading the compiled model and NLP ({s.nodes} nodes x {s.substeps} RK4 steps "
-                  f"per stance phase{orbit}; the first run on a machine compiles them)...", file=sys.stderr)
+            _log.info(f"{problem.name}: loading the compiled model and NLP ({s.nodes} nodes x {s.substeps} RK4 "
+                      f"steps per stance phase{orbit}; the first run on a machine compiles them)...")
         solver = solver_for(problem)
         solver.nlp_for(problem.strides)
         if not quiet:
-            print(f"{problem.name}: solving ({problem.objective}) and verifying...", file=sys.stderr)
+            _log.info(f"{problem.name}: solving ({problem.objective}) and verifying...")
         result = solve_problem(problem, solver)
         write_result(result, out, provenance(problem, code))
     return result

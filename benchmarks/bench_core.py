@@ -5,7 +5,7 @@ its Jacobian, and a verified fixed-point solve. The compiled engine has its own,
     python benchmarks/bench_core.py [--repeats N]
 
 Prints medians over repeated runs in one process, after everything is built. Also compares
-the two ways of locating stance events that CasADi offers (see README, "Event location"):
+the two ways of locating stance events that CasADi offers (see docs/background/engine.md, "Event location"):
 
 * A: one ``erk`` integrator with zero-crossing events and a transition function (the
   event map's route);

@@ -3,7 +3,7 @@ continuation setting, and the command line.
 
 Every bad input gives exit code 2 and exactly one short line on stderr that starts with
 "error:" and names the key (or the file, folder or option) at fault; no traceback, and
-nothing is written. The generated cases come in classes, which the README's "Rejected
+nothing is written. The generated cases come in classes, which docs/guides/problem-files.md's "Rejected
 input" section lists. Valid but unusual spellings of a problem are accepted, and mean the
 same problem as the plain spelling.
 """

@@ -46,7 +46,16 @@ class Fall(str, Enum):
 
 @dataclass(frozen=True)
 class Tolerances:
-    """Integrator tolerances (relative and absolute) of a return map."""
+    """Integrator tolerances (relative and absolute) of a return map.
+
+    Attributes
+    ----------
+    rtol : float
+        Relative tolerance (dimensionless).
+    atol : float
+        Absolute tolerance, in the integrated states' SI units and radians. The compiled
+        engine holds its error estimate to the smaller of the two.
+    """
 
     rtol: float = 1e-10
     atol: float = 1e-10
@@ -54,7 +63,21 @@ class Tolerances:
 
 @dataclass(frozen=True)
 class Stride:
-    """Outcome of one stride: the next apex, or the reason the runner fell."""
+    """Outcome of one stride: the next apex, or the reason the runner fell.
+
+    Attributes
+    ----------
+    apex : numpy.ndarray or None
+        The next apex X, shape (4,): z [m], theta_h [rad], ydot [m/s], theta_h_dot [rad/s];
+        None after a fall.
+    durations : dict of str to float
+        Duration [s] of each phase reached (``descent``, ``compression``,
+        ``decompression``, ``ascent``); phases not reached are absent.
+    fall : Fall or None
+        Why the runner fell, or None if the stride reached the next apex.
+    error : float or None
+        The engine's error estimate of the stance integration, if it has one.
+    """
 
     apex: np.ndarray | None  # next apex X [z m, theta_h rad, ydot m/s, theta_h_dot rad/s]
     durations: dict[str, float]  # phase -> duration [s]; phases not reached are absent
@@ -63,6 +86,7 @@ class Stride:
 
     @property
     def ok(self) -> bool:
+        """Whether the stride reached the next apex (no fall)."""
         return self.fall is None
 
     def __repr__(self) -> str:
@@ -78,7 +102,20 @@ class Stride:
 
 @dataclass(frozen=True)
 class Simulation:
-    """Apex sequence of a multi-stride run; ``fall`` is set if it ended early."""
+    """Apex sequence of a multi-stride run; ``fall`` is set if it ended early.
+
+    Attributes
+    ----------
+    apexes : numpy.ndarray
+        The apexes reached, shape (n + 1, 4) after n strides, the initial apex first; each
+        row z [m], theta_h [rad], ydot [m/s], theta_h_dot [rad/s].
+    durations : list of dict of str to float
+        Per completed stride, the duration [s] of each phase.
+    fall : Fall or None
+        Why the run ended early, or None if every stride reached its apex.
+    fall_stride : int or None
+        0-based index of the stride that fell, or None.
+    """
 
     apexes: np.ndarray  # (n + 1) x 4, the initial apex first
     durations: list[dict[str, float]] = field(default_factory=list)

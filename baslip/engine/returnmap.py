@@ -48,13 +48,33 @@ if TYPE_CHECKING:
 
 
 class ReturnMap:
-    """The apex return map of the BA-SLIP under the PD hip law, built once per tolerance.
+    """The apex return map of the BA-SLIP under a hip law (PD by default), built once per tolerance.
 
     ``plugin`` is ``"compiled"`` (the default for tolerances down to 1e-12), ``"erk"`` (the
     default below that) or ``"rosenbrock"``. ``compile`` forces the C route (of the
     compiled engine, or of an event map's strides) on or off; None follows
     ``BASLIP_NO_COMPILE``.
 
+    Throughout, ``X`` is an apex (z [m], theta_h [rad], ydot [m/s], theta_h_dot [rad/s]),
+    ``u`` a control vector of the law (PD: Kp [N m/rad], Kd [N m s/rad], theta2_des [rad],
+    theta2_dot_des [rad/s], theta_td [rad]; VPP: r_vpp [m], theta_td [rad]) and ``params``
+    a :class:`~baslip.model.dynamics.Params` or its vector (m, I, k, rho0, d, g).
+
+    Parameters
+    ----------
+    tolerances : Tolerances
+        The integrators' tolerances (default 1e-10 relative and absolute).
+    plugin : str, optional
+        The engine: ``"compiled"``, ``"erk"`` or ``"rosenbrock"``; by default the compiled
+        engine down to 1e-12, ``"erk"`` below. Raises ValueError for the compiled engine
+        below 1e-12.
+    compile : bool, optional
+        Force the C route on or off; None follows ``BASLIP_NO_COMPILE``.
+    law : HipLaw
+        The stance hip law whose controls ``u`` holds.
+
+    Examples
+    --------
     >>> rmap = ReturnMap()
     >>> stride = rmap.stride(X, u, Params())     # numeric, with fall detection
     >>> A, B = rmap.jacobians(X, u, Params())    # dr/dX (4x4) and dr/du (4x5)
@@ -104,7 +124,22 @@ class ReturnMap:
     # -- one stride ------------------------------------------------------------------
 
     def stride(self, X, u, params) -> Stride:
-        """One apex-to-apex stride from apex ``X`` under control ``u`` with ``params``."""
+        """One apex-to-apex stride from apex ``X`` under control ``u`` with ``params``.
+
+        Parameters
+        ----------
+        X : array_like
+            The apex, shape (4,).
+        u : array_like
+            The control vector, shape (controls,).
+        params : Params or array_like
+            The model parameters, or their vector, shape (6,).
+
+        Returns
+        -------
+        Stride
+            The next apex and the phase durations [s], or the fall.
+        """
         X, u, p = vec(X), vec(u), param_vector(params)
         fallen, t_guess = precheck(X, u, p)
         if fallen is not None:
@@ -152,22 +187,88 @@ class ReturnMap:
         With ``strides = n`` these are the Jacobians of the n-stride map r^n (the same
         control every stride), by the chain rule: dr^n/dX is the product of the strides'
         dr/dX. Raises :class:`RunnerFell` if a stride falls: there is no Jacobian then.
+
+        Parameters
+        ----------
+        X : array_like
+            The apex, shape (4,).
+        u : array_like
+            The control vector, shape (controls,), the same every stride.
+        params : Params or array_like
+            The model parameters, or their vector, shape (6,).
+        strides : int
+            The number n of strides of the map r^n.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            dr^n/dX, shape (4, 4), and dr^n/du, shape (4, controls) (4 x 5 under PD).
         """
         dX, du, _ = self._chained_jacobians(X, u, params, strides, with_parameters=False)
         return dX, du
 
     def linearised_stride(self, X, u, params) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(dr/dX, dr/du, the next apex) of one stride, from one pass; raises
-        :class:`RunnerFell` if it falls."""
+        :class:`RunnerFell` if it falls.
+
+        Parameters
+        ----------
+        X : array_like
+            The apex, shape (4,).
+        u : array_like
+            The control vector, shape (controls,).
+        params : Params or array_like
+            The model parameters, or their vector, shape (6,).
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            dr/dX, shape (4, 4); dr/du, shape (4, controls); the next apex, shape (4,).
+        """
         jac, apex = self._stride_jacobian(vec(X), vec(u), param_vector(params), with_parameters=False)
         return jac[:, : APEX.size], jac[:, APEX.size :], apex
 
     def parameter_jacobian(self, X, u, params, strides: int = 1) -> np.ndarray:
-        """dr^n/dp (4 x 6) with respect to the model parameters (m, I, k, rho0, d, g)."""
+        """dr^n/dp (4 x 6) with respect to the model parameters (m, I, k, rho0, d, g).
+
+        Parameters
+        ----------
+        X : array_like
+            The apex, shape (4,).
+        u : array_like
+            The control vector, shape (controls,), the same every stride.
+        params : Params or array_like
+            The model parameters, or their vector, shape (6,).
+        strides : int
+            The number n of strides of the map r^n.
+
+        Returns
+        -------
+        numpy.ndarray
+            dr^n/dp, shape (4, 6), in the apex's and the parameters' SI units.
+        """
         return self.all_jacobians(X, u, params, strides)[2]
 
     def all_jacobians(self, X, u, params, strides: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(dr^n/dX, dr^n/du, dr^n/dp) from one pass over the strides."""
+        """(dr^n/dX, dr^n/du, dr^n/dp) from one pass over the strides.
+
+        Parameters
+        ----------
+        X : array_like
+            The apex, shape (4,).
+        u : array_like
+            The control vector, shape (controls,), the same every stride.
+        params : Params or array_like
+            The model parameters, or their vector, shape (6,).
+        strides : int
+            The number n of strides of the map r^n.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            Shapes (4, 4), (4, controls) and (4, 6). Raises :class:`RunnerFell` if a
+            stride falls.
+        """
         return self._chained_jacobians(X, u, params, strides, with_parameters=True)
 
     def _chained_jacobians(self, X, u, params, strides: int, with_parameters: bool):
@@ -189,7 +290,22 @@ class ReturnMap:
 
     def strides(self, X, U, params) -> list[Stride]:
         """One stride from each row of ``X`` (n x 4) under the row of ``U`` (n x controls,
-        or one control for all): the compiled engine takes them in batches on both cores."""
+        or one control for all): the compiled engine takes them in batches on both cores.
+
+        Parameters
+        ----------
+        X : array_like
+            Apexes, shape (n, 4) (or one apex, shape (4,)).
+        U : array_like
+            Controls, shape (n, controls), or one control vector for every row.
+        params : Params or array_like
+            The model parameters, or their vector, shape (6,).
+
+        Returns
+        -------
+        list of Stride
+            One per row of ``X``, in order.
+        """
         X = np.atleast_2d(np.asarray(X, dtype=float))
         U = np.broadcast_to(np.asarray(U, dtype=float), (len(X), self.law.controls.size))
         p = param_vector(params)
@@ -209,7 +325,24 @@ class ReturnMap:
 
     def simulate_many(self, X0, U, params, strides: int) -> list[Simulation]:
         """:meth:`simulate` from each row of ``X0`` (under the rows of ``U``, or one
-        control), run in lockstep so that every stride is one batch."""
+        control), run in lockstep so that every stride is one batch.
+
+        Parameters
+        ----------
+        X0 : array_like
+            Initial apexes, shape (n, 4) (or one apex, shape (4,)).
+        U : array_like
+            Controls, shape (n, controls), or one control vector for every row.
+        params : Params or array_like
+            The model parameters, or their vector, shape (6,).
+        strides : int
+            The most strides to run from each apex.
+
+        Returns
+        -------
+        list of Simulation
+            One per row of ``X0``, in order.
+        """
         X0 = np.atleast_2d(np.asarray(X0, dtype=float))
         U = np.broadcast_to(np.asarray(U, dtype=float), (len(X0), self.law.controls.size))
         apexes = [[x] for x in X0]
@@ -233,7 +366,24 @@ class ReturnMap:
         ]
 
     def simulate(self, X0, u, params, strides: int) -> Simulation:
-        """Apply ``u`` for up to ``strides`` strides from apex ``X0``."""
+        """Apply ``u`` for up to ``strides`` strides from apex ``X0``.
+
+        Parameters
+        ----------
+        X0 : array_like
+            The initial apex, shape (4,).
+        u : array_like
+            The control vector, shape (controls,), the same every stride.
+        params : Params or array_like
+            The model parameters, or their vector, shape (6,).
+        strides : int
+            The most strides to run.
+
+        Returns
+        -------
+        Simulation
+            The apexes reached, shape (strides + 1, 4) unless a stride fell, and the fall.
+        """
         apexes = [vec(X0)]
         durations: list[dict[str, float]] = []
         for n in range(strides):
@@ -247,10 +397,45 @@ class ReturnMap:
 
     def stance_samples(self, x_touchdown, u, params, duration: float, n: int) -> np.ndarray:
         """Stance states (6 x n) at n equal steps up to ``duration`` [s] after touchdown,
-        for drawing; ``duration`` is normally the stride's stance time."""
+        for drawing; ``duration`` is normally the stride's stance time.
+
+        Parameters
+        ----------
+        x_touchdown : array_like
+            The stance state at touchdown, shape (6,): rho [m], theta1 [rad], theta2 [rad],
+            rhodot [m/s], theta1_dot [rad/s], theta2_dot [rad/s].
+        u : array_like
+            The control vector, shape (controls,).
+        params : Params or array_like
+            The model parameters, or their vector, shape (6,).
+        duration : float
+            The time [s] after touchdown of the last sample.
+        n : int
+            The number of samples.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (6, n): the stance states at ``duration * k / n`` for k = 1 .. n.
+        """
         return self.event_map.stance_samples(x_touchdown, u, params, duration, n)
 
     @staticmethod
     def touchdown_guess(X, u, p) -> float | None:
-        """First zero of the foot height after apex [s]; see :func:`baslip.engine.outcome.touchdown_guess`."""
+        """First zero of the foot height after apex [s]; see :func:`baslip.engine.outcome.touchdown_guess`.
+
+        Parameters
+        ----------
+        X : array_like
+            The apex, shape (4,).
+        u : array_like
+            The control vector; only its last entry, theta_td [rad], is read.
+        p : array_like
+            The parameter vector, shape (6,) (m, I, k, rho0, d, g), not a ``Params``.
+
+        Returns
+        -------
+        float or None
+            The time [s] after apex of touchdown, or None if the foot cannot reach the ground.
+        """
         return touchdown_guess(X, u, p)

@@ -155,6 +155,12 @@ class Motion:
     Touchdown and liftoff appear twice, at the end of the flight and at the start of the
     stance (or the other way round), so that flight and stance are each sampled from end
     to end.
+
+    Attributes
+    ----------
+    columns : dict of str to numpy.ndarray
+        Column name -> one value per sample; ``motion["z"]`` reads one column. ``phase``
+        holds text, the others floats in SI units and radians.
     """
 
     columns: dict

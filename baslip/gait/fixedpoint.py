@@ -40,7 +40,20 @@ ACCEPTED_IPOPT = ("Solve_Succeeded", "Solved_To_Acceptable_Level", "Feasible_Poi
 
 @dataclass(frozen=True)
 class SolverReport:
-    """What IPOPT said, plus the wall time of the whole solve [s]."""
+    """What IPOPT said, plus the wall time of the whole solve [s].
+
+    Attributes
+    ----------
+    return_status : str
+        IPOPT's return status (``Solve_Succeeded``, ...), or why IPOPT did not run.
+    iterations : int
+        IPOPT's iterations, over both tries when the exact-Hessian NLP had a second one.
+    time_s : float
+        Wall time [s] of the whole solve: NLP, polish and verification (not building the NLP).
+    spectral_bound : float or None
+        The stability NLP's bound on the multipliers (on its own discretisation;
+        dimensionless), or None for other objectives.
+    """
 
     return_status: str
     iterations: int
@@ -55,6 +68,47 @@ class FixedPointResult:
     ``status`` is ``converged`` (verified, eps <= 1e-10), ``not_verified`` (IPOPT succeeded
     but the independent re-simulation disagrees or falls) or ``failed`` (IPOPT failed).
     Units: SI and radians throughout.
+
+    Attributes
+    ----------
+    name : str
+        The problem's name.
+    status : Status
+        ``converged``, ``not_verified`` or ``failed``.
+    message : str
+        One line on how the solve ended (the re-simulation's complaint, IPOPT's status).
+    solver : SolverReport
+        IPOPT's return status and iterations, and the wall time [s].
+    params : Params
+        The model parameters.
+    X : numpy.ndarray
+        The apex, shape (4,): z [m], theta_h [rad], ydot [m/s], theta_h_dot [rad/s].
+    u : numpy.ndarray
+        The controls of ``law``, shape (controls,) (see :attr:`control` for their names).
+    durations : Mapping of str to float or None
+        Duration [s] of each phase (``descent``, ``compression``, ``decompression``,
+        ``ascent``) of the first stride (the NLP's own where the re-simulation fell or did
+        not run).
+    energy : float
+        Total mechanical energy at the apex [J].
+    residual : float or None
+        eps = |r^n(X) - X| / |X| with n = ``strides`` (relative, dimensionless), or None if
+        a stride falls.
+    stability : Stability or None
+        The multipliers and the verdict; None unless ``converged``.
+    polish_iterations : int
+        Gauss-Newton iterations of the polish on the return map.
+    residual_source : str
+        Which map measured ``residual`` (the independent re-simulation, or the return map).
+    nlp_w : numpy.ndarray or None
+        IPOPT's point (every NLP variable), to warm-start a neighbouring solve.
+    strides : int
+        The orbit's period asked for, in strides.
+    orbit : numpy.ndarray or None
+        The apexes of a multi-stride orbit, shape (strides, 4), ``X`` first; None for one
+        stride or when the orbit falls.
+    law : HipLaw
+        The hip law whose controls ``u`` holds.
     """
 
     name: str
@@ -77,22 +131,30 @@ class FixedPointResult:
 
     @property
     def converged(self) -> bool:
+        """Whether the result is a verified fixed point (status ``converged``)."""
         return self.status == Status.CONVERGED
 
     @property
     def apex(self) -> dict[str, float]:
+        """The apex state as a dict: z [m], theta_h [rad], ydot [m/s], theta_h_dot [rad/s]."""
         return APEX.to_dict(self.X)
 
     @property
     def control(self) -> dict[str, float]:
+        """The controls as a dict by the law's names, SI units and radians (under PD: Kp
+        [N m/rad], Kd [N m s/rad], theta2_des [rad], theta2_dot_des [rad/s], theta_td [rad])."""
         return self.law.control_dict(self.u)
 
     @property
     def eigenvalues(self) -> list[complex] | None:
+        """The multipliers (eigenvalues of dr/dX, dimensionless), trivial ones included; None
+        without stability."""
         return None if self.stability is None else [m.value for m in self.stability.multipliers]
 
     @property
     def spectral_radius(self) -> float | None:
+        """The largest modulus of the non-trivial multipliers (dimensionless, 0 when all are
+        trivial); None without stability."""
         return None if self.stability is None else self.stability.spectral_radius
 
     @property
@@ -103,6 +165,8 @@ class FixedPointResult:
 
     @property
     def stable(self) -> bool | None:
+        """Whether the gait is stable (spectral radius below 1 by a margin); None without
+        stability."""
         return None if self.stability is None else self.stability.stable
 
     # -- for people: text, notebooks, motion and figures ---------------------------------
@@ -125,7 +189,7 @@ class FixedPointResult:
             rows.append(("multipliers", ", ".join(f"{m.value:.4g}" for m in self.stability.multipliers)))
             rows.append(("spectral radius", f"{self.spectral_radius:.6g} ({'stable' if self.stable else 'unstable'})"))
         body = "".join(f"<tr><th style='text-align:left'>{escape(k)}</th><td>{escape(v)}</td></tr>" for k, v in rows)
-        return f"<b>{escape(self.name)}</b><table>{body}</table><small>SI units, radians</small>"
+        return f"<b>{escape(self.name)}</b><table>{body}</table><small>angles in degrees; Python values (result.apex, result.control) are SI units and radians</small>"
 
     def summary(self) -> str:
         """A short human-readable account (as the command line prints it)."""
@@ -148,7 +212,25 @@ class FixedPointResult:
 
     def trajectory(self, strides: int = 1, samples: int = 100):
         """The continuous motion of the gait (:class:`baslip.engine.trajectory.Motion`):
-        ``samples`` per phase over ``strides`` strides, from the verified apex."""
+        ``samples`` per phase over ``strides`` strides, from the verified apex.
+
+        Parameters
+        ----------
+        strides : int
+            The number of strides.
+        samples : int
+            Samples in each phase (the stance's two phases together get 2 * samples + 1).
+
+        Returns
+        -------
+        Motion
+            Time [s], positions [m], velocities [m/s], angles [rad], forces [N], ... per sample.
+
+        Raises
+        ------
+        RunnerFell
+            If a stride falls (as it can from a point that is not a verified fixed point).
+        """
         from baslip.engine.returnmap import ReturnMap, Tolerances
         from baslip.engine.trajectory import motion
 
@@ -156,7 +238,13 @@ class FixedPointResult:
 
     def plot(self, strides: int = 2):
         """A matplotlib Figure of the gait: CoM path, trunk angle and ground reaction force
-        over ``strides`` strides. Writes nothing."""
+        over ``strides`` strides. Writes nothing.
+
+        Parameters
+        ----------
+        strides : int
+            The number of strides drawn.
+        """
         from baslip.viz.figures import gait_figure
 
         return gait_figure(self.trajectory(strides), self.name)
@@ -164,7 +252,13 @@ class FixedPointResult:
     def animate(self, strides: int = 2):
         """The gait over ``strides`` strides, animated: a
         :class:`~baslip.viz.animation.GaitAnimation`, which a notebook shows (an embedded
-        GIF) and ``.save("gait.gif")`` writes, with or without IPython."""
+        GIF) and ``.save("gait.gif")`` writes, with or without IPython.
+
+        Parameters
+        ----------
+        strides : int
+            The number of strides animated.
+        """
         from baslip.viz.animation import notebook_animation
 
         return notebook_animation(self.X, self.u, self.params, self.name, strides, self.law)
@@ -209,7 +303,15 @@ class FixedPointResult:
 
 
 class FixedPointSolver:
-    """Builds the NLP and the return maps once; solves and verifies many problems."""
+    """Builds the NLP and the return maps once; solves and verifies many problems.
+
+    Parameters
+    ----------
+    options : ShootingOptions
+        The NLP's discretisation (shooting nodes, substeps, Hessian) and IPOPT's options.
+    law : HipLaw
+        The stance hip law; every spec solved must be under this law.
+    """
 
     def __init__(self, options: ShootingOptions = ShootingOptions(), law: HipLaw = PD):
         self.options = options
@@ -230,6 +332,21 @@ class FixedPointSolver:
         (:mod:`baslip.gait.monodromy`) starts from the periodic orbit nearest the guess
         (or from ``w0``) and minimises its bound on the multipliers; the verified radius
         is the compiled map's, and the NLP's own bound is in the solver report.
+
+        Parameters
+        ----------
+        spec : FixedPointSpec
+            What to solve: parameters, fixed values, guess, bounds [SI units, radians],
+            objective and the orbit's strides.
+        name : str
+            The result's name.
+        w0 : numpy.ndarray, optional
+            An NLP point to start from (a neighbouring result's ``nlp_w``) instead of the guess.
+
+        Returns
+        -------
+        FixedPointResult
+            The verified gait, or a result whose status says why there is none.
         """
         if spec.objective in STABILITY_OBJECTIVES:
             return self._solve_stable(spec, name, w0)
@@ -238,7 +355,7 @@ class FixedPointSolver:
         sol = self._run_nlp(nlp, spec, w0)
         if sol.return_status not in ACCEPTED_IPOPT and nlp.options.hessian != "exact":
             # The fast NLP drops the constraints' curvature; from a poor start the exact
-            # Hessian sometimes succeeds where it fails (measured in the README), so it gets
+            # Hessian sometimes succeeds where it fails (measured in docs/background/stability.md), so it gets
             # a second try, from the same start.
             retry = self._run_nlp(self.nlp_for(spec.strides, exact=True), spec, w0)
             sol = replace(retry, iterations=sol.iterations + retry.iterations)
@@ -279,7 +396,24 @@ class FixedPointSolver:
 
     def verify_point(self, spec: FixedPointSpec, X, u, name: str = "problem") -> FixedPointResult:
         """The same polish, independent re-simulation and stability as :meth:`solve`, for a
-        point found some other way (IPOPT does not run; its report says so)."""
+        point found some other way (IPOPT does not run; its report says so).
+
+        Parameters
+        ----------
+        spec : FixedPointSpec
+            The problem the point should solve (fixed values, bounds, strides).
+        X : array_like
+            The apex, shape (4,): z [m], theta_h [rad], ydot [m/s], theta_h_dot [rad/s].
+        u : array_like
+            The controls of the solver's law, shape (controls,), SI units and radians.
+        name : str
+            The result's name.
+
+        Returns
+        -------
+        FixedPointResult
+            The polished and verified point, or a result whose status says why not.
+        """
         start = time.perf_counter()
         X, u = np.asarray(X, dtype=float), np.asarray(u, dtype=float)
         given = NlpSolution(X, u, np.full(len(PHASES), np.nan), "not run (point given)", 0, 0.0)
@@ -304,7 +438,15 @@ class FixedPointSolver:
 
     def nlp_for(self, strides: int, exact: bool = False) -> ShootingNLP:
         """The NLP for orbits of ``strides`` strides, built on first use; ``exact`` gives
-        its exact-Hessian variant, the second try after a failure."""
+        its exact-Hessian variant, the second try after a failure.
+
+        Parameters
+        ----------
+        strides : int
+            The orbit's period in strides.
+        exact : bool
+            Whether to use the exact Hessian instead of the options' own.
+        """
         options = replace(self.options, hessian="exact") if exact else self.options
         key = (strides, options.hessian)
         if key not in self._nlps:
@@ -337,13 +479,27 @@ class FixedPointSolver:
         return None
 
     def torque_effort(self, result: FixedPointResult) -> float:
-        """Integral of tau^2 dt over the stance of a result's (first) stride [N^2 m^2 s]."""
+        """Integral of tau^2 dt over the stance of a result's (first) stride [N^2 m^2 s].
+
+        Parameters
+        ----------
+        result : FixedPointResult
+            A result of this solver's law that has its phase durations [s].
+        """
         assert result.durations is not None, "a result with a stance has its phase durations"
         durations = [result.durations[ph] for ph in PHASES]
         return torque_effort(self.nlp.interval, result.X, result.u, durations, result.params)
 
     def energy(self, X, params: Params) -> float:
-        """Total mechanical energy at apex ``X`` [J]."""
+        """Total mechanical energy at apex ``X`` [J].
+
+        Parameters
+        ----------
+        X : array_like
+            The apex, shape (4,): z [m], theta_h [rad], ydot [m/s], theta_h_dot [rad/s].
+        params : Params
+            The model parameters.
+        """
         return self._polish.energy(X, params)
 
     def _result(self, spec, name, status, message, sol, start, X, u, polish_iterations=0, check=None, stability=None):

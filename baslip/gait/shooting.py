@@ -72,7 +72,7 @@ from baslip.problem.reader import SolverSettings
 #: Hessians IPOPT can be given: ``exact``, the Hessian of the Lagrangian through the
 #: intervals; ``objective``, the objective's Hessian alone (the constraints' curvature
 #: dropped; Gauss-Newton for the torque term); or IPOPT's ``limited-memory`` BFGS. The
-#: README's table measures them; ``objective`` is the default, with ``exact`` as the
+#: table of docs/background/engine.md measures them; ``objective`` is the default, with ``exact`` as the
 #: second try after a failure (see :class:`baslip.gait.fixedpoint.FixedPointSolver`).
 HESSIANS = ("exact", "objective", "limited-memory")
 
@@ -84,7 +84,7 @@ class ShootingOptions:
     nodes: int = SolverSettings.nodes  # shooting intervals per stance phase
     substeps: int = SolverSettings.substeps  # steps of the scheme per interval
     hessian: str = "objective"  # see HESSIANS
-    scheme: str = "rk4"  # the interval's steps: "rk4" or "dop853" (see the README's measurements)
+    scheme: str = "rk4"  # the interval's steps: "rk4" or "dop853" (see docs/background/engine.md)
     margin: float = 1e-3  # transversality margin on guard rates [SI]
     # Bound the multipliers inside the NLP by a Schur form of the shot stride's dr/dX and
     # minimise the bound (:mod:`baslip.gait.monodromy`); one-stride orbits only.

@@ -37,19 +37,43 @@ STABILITY_MARGIN = 1e-6
 
 @dataclass(frozen=True)
 class Multiplier:
-    """One eigenvalue of dr/dX, with ``label`` naming it if it is trivial by structure."""
+    """One eigenvalue of dr/dX, with ``label`` naming it if it is trivial by structure.
+
+    Attributes
+    ----------
+    value : complex
+        The eigenvalue (dimensionless).
+    label : str or None
+        ``"energy"``, ``"spin"`` or ``"symmetry"`` for a multiplier that is 1 by structure,
+        else None.
+    """
 
     value: complex
     label: str | None = None  # None, "energy", "spin" or "symmetry"
 
     @property
     def trivial(self) -> bool:
+        """Whether the multiplier is 1 by structure (it has a label), and so left out of the
+        spectral radius."""
         return self.label is not None
 
 
 @dataclass(frozen=True)
 class Stability:
-    """Multipliers of a fixed point; radius and verdict over the non-trivial ones."""
+    """Multipliers of a fixed point; radius and verdict over the non-trivial ones.
+
+    Attributes
+    ----------
+    jacobian : numpy.ndarray
+        dr/dX (of r^n for an n-stride orbit), shape (4, 4), rows and columns in the apex's
+        order and units: z [m], theta_h [rad], ydot [m/s], theta_h_dot [rad/s].
+    multipliers : tuple of Multiplier
+        Its eigenvalues, the trivial ones labelled.
+    spectral_radius : float
+        The largest modulus of the non-trivial multipliers (0 when all are trivial).
+    stable : bool
+        Whether ``spectral_radius`` is below 1 by more than :data:`STABILITY_MARGIN`.
+    """
 
     jacobian: np.ndarray  # dr/dX, 4 x 4
     multipliers: tuple[Multiplier, ...]
@@ -79,7 +103,24 @@ def trivial_labels(params: Params, u, law: HipLaw = PD) -> list[str]:
 
 def classify(jacobian: np.ndarray, params: Params, u, law: HipLaw = PD) -> Stability:
     """Eigenvalues of ``jacobian``; the trivial ones are those expected by structure that
-    lie nearest to 1, and within :data:`TRIVIAL_TOLERANCE` of it."""
+    lie nearest to 1, and within :data:`TRIVIAL_TOLERANCE` of it.
+
+    Parameters
+    ----------
+    jacobian : array_like
+        dr/dX at the fixed point, shape (4, 4).
+    params : Params
+        The model parameters (``d`` decides whether the trunk spins freely).
+    u : array_like
+        The controls of ``law`` at the fixed point, SI units and radians.
+    law : HipLaw
+        The stance hip law, which decides the multipliers that are 1 by structure.
+
+    Returns
+    -------
+    Stability
+        The labelled multipliers, the spectral radius and the verdict.
+    """
     eigenvalues = np.linalg.eigvals(np.asarray(jacobian, dtype=float))
     labels = trivial_labels(params, u, law)
     order = np.argsort(np.abs(eigenvalues - 1.0))

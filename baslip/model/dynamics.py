@@ -58,10 +58,23 @@ APEX = Layout(("z", "theta_h", "ydot", "theta_h_dot"))
 class Params:
     """Physical parameters of the runner.
 
-    m: trunk mass [kg]; I: trunk inertia about its CoM [kg m^2]; k: leg stiffness [N/m];
-    rho0: leg rest length [m]; d: hip-to-CoM distance [m]; g: gravity [m/s^2].
     ``rho0`` and ``d`` are the thesis's values; ``m``, ``I``, ``k`` and ``g`` are our
     documented choice (the thesis does not print them).
+
+    Attributes
+    ----------
+    m : float
+        Trunk mass [kg] (the leg is massless).
+    I : float
+        Trunk moment of inertia about its CoM [kg m^2].
+    k : float
+        Leg stiffness [N/m].
+    rho0 : float
+        Leg rest length [m].
+    d : float
+        Hip-to-CoM distance [m].
+    g : float
+        Gravity [m/s^2].
     """
 
     m: float = 1.0
@@ -76,9 +89,17 @@ class Params:
         return np.array([self.m, self.I, self.k, self.rho0, self.d, self.g], dtype=float)
 
     def to_dict(self) -> dict[str, float]:
+        """The parameters as plain floats by name (m, I, k, rho0, d, g), SI units."""
         return {k: float(v) for k, v in asdict(self).items()}
 
     def with_(self, **changes: float) -> Params:
+        """A copy with some parameters changed, e.g. ``Params().with_(k=2000.0)``.
+
+        Parameters
+        ----------
+        **changes : float
+            New values by parameter name, SI units; they are not range-checked here.
+        """
         return replace(self, **changes)
 
 

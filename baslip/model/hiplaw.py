@@ -72,24 +72,58 @@ class HipLaw:
 
     def torque(self, x, u, p):
         """Hip torque [N m] on the trunk (on theta2) at stance state ``x``, control ``u``
-        and parameters ``p``; columns of ``x`` give a row of torques."""
+        and parameters ``p``; columns of ``x`` give a row of torques.
+
+        Parameters
+        ----------
+        x : casadi.SX, casadi.MX or casadi.DM
+            Stance state, 6 x 1 or 6 x n: rho [m], theta1 [rad], theta2 [rad], rhodot [m/s],
+            theta1_dot [rad/s], theta2_dot [rad/s].
+        u : casadi.SX, casadi.MX or casadi.DM
+            The law's control vector (SI units and radians).
+        p : casadi.SX, casadi.MX or casadi.DM
+            The parameter vector (m, I, k, rho0, d, g), as
+            :meth:`baslip.model.dynamics.Params.vector` orders it.
+        """
         raise NotImplementedError
 
     def torque_free(self, values: Mapping[str, float]) -> bool:
         """Whether controls ``values`` (a subset, e.g. a problem's fixed ones) make the
-        torque zero in every stance state, so that energy is conserved."""
+        torque zero in every stance state, so that energy is conserved.
+
+        Parameters
+        ----------
+        values : Mapping of str to float
+            Some of the law's controls by name, SI units and radians.
+        """
         return False
 
     def spin_free(self, values: Mapping[str, float], params) -> bool:
         """Whether controls ``values`` (a subset) and ``params`` leave the trunk's spin
         unchanged through every stance: the ground force then has no moment about the
-        CoM, so theta_h_dot maps to itself and theta_h to itself plus T theta_h_dot."""
+        CoM, so theta_h_dot maps to itself and theta_h to itself plus T theta_h_dot.
+
+        Parameters
+        ----------
+        values : Mapping of str to float
+            Some of the law's controls by name, SI units and radians.
+        params : Params
+            The model parameters (here: whether d [m] is zero).
+        """
         return self.torque_free(values) and params.d == 0.0
 
     def step_rates(self, u, p) -> tuple[float, float]:
         """(hip stiffness [N m/rad], hip damping [N m s/rad]): upper estimates of
         |d tau / d theta2| and |d tau / d theta2_dot| for the integrator's first step size
-        (the accuracy checks do not rely on them); ``u`` may hold rows of many controls."""
+        (the accuracy checks do not rely on them); ``u`` may hold rows of many controls.
+
+        Parameters
+        ----------
+        u : array_like
+            The law's control vector, shape (controls,), or rows of many, shape (n, controls).
+        p : array_like
+            The parameter vector, shape (6,) (m, I, k, rho0, d, g).
+        """
         raise NotImplementedError
 
     @property
@@ -99,7 +133,13 @@ class HipLaw:
         return False
 
     def control_dict(self, u) -> dict[str, float]:
-        """Plain-float dictionary of a numeric control vector."""
+        """Plain-float dictionary of a numeric control vector.
+
+        Parameters
+        ----------
+        u : array_like
+            The law's control vector, shape (controls,), SI units and radians.
+        """
         return self.controls.to_dict(u)
 
 
@@ -110,19 +150,53 @@ def touchdown_angle(u):
 
 @dataclass(frozen=True, eq=False)
 class PDLaw(HipLaw):
-    """The thesis's PD torque on theta2, eq. 3.37."""
+    """The thesis's PD torque on theta2, eq. 3.37.
+
+    Attributes
+    ----------
+    name, controls, units, nominal, bounds, defaults, drawn
+        As for :class:`HipLaw`; :data:`PD` holds this law's: controls Kp [N m/rad],
+        Kd [N m s/rad], theta2_des [rad], theta2_dot_des [rad/s], theta_td [rad].
+    """
 
     def torque(self, x, u, p):
-        """tau = -Kp (th2 - th2_des) - Kd (th2dot - th2dot_des) [N m]."""
+        """tau = -Kp (th2 - th2_des) - Kd (th2dot - th2dot_des) [N m].
+
+        Parameters
+        ----------
+        x : casadi.SX, casadi.MX or casadi.DM
+            Stance state, 6 x 1 or 6 x n (rho [m], theta1, theta2 [rad], rhodot [m/s],
+            theta1_dot, theta2_dot [rad/s]).
+        u : casadi.SX, casadi.MX, casadi.DM or array_like
+            The PD controls (Kp, Kd, theta2_des, theta2_dot_des, theta_td).
+        p : casadi.SX, casadi.MX or casadi.DM
+            The parameter vector; the PD torque does not depend on it.
+        """
         c = self.controls.unpack(u)
         theta2_error = STANCE.get(x, "theta2") - c["theta2_des"]
         theta2_rate_error = STANCE.get(x, "theta2_dot") - c["theta2_dot_des"]
         return -c["Kp"] * theta2_error - c["Kd"] * theta2_rate_error
 
     def torque_free(self, values: Mapping[str, float]) -> bool:
+        """Whether ``values`` fix both gains at zero (Kp = Kd = 0): no torque at all.
+
+        Parameters
+        ----------
+        values : Mapping of str to float
+            Some of the PD controls by name, SI units and radians.
+        """
         return values.get("Kp") == 0.0 and values.get("Kd") == 0.0
 
     def step_rates(self, u, p) -> tuple[float, float]:
+        """(|Kp| [N m/rad], |Kd| [N m s/rad]), exactly the torque's rates.
+
+        Parameters
+        ----------
+        u : array_like
+            The PD controls, shape (5,), or rows of many, shape (n, 5).
+        p : array_like
+            The parameter vector (unused).
+        """
         u = np.asarray(u, dtype=float).T  # entries first
         return np.abs(u[self.controls.index("Kp")]), np.abs(u[self.controls.index("Kd")])
 
@@ -137,11 +211,28 @@ class VPPLaw(HipLaw):
     axial element: a law that set the force's magnitude to the spring force instead would
     need an axial force the massless leg cannot carry. The torque is then the one value
     that turns that force through the pivot.
+
+    Attributes
+    ----------
+    name, controls, units, nominal, bounds, defaults, drawn
+        As for :class:`HipLaw`; :data:`VPP` holds this law's: controls r_vpp [m] and
+        theta_td [rad].
     """
 
     def torque(self, x, u, p):
         """tau = rho k (rho0 - rho) (V x e) / (V x n) [N m], from V x G = 0 with G of
-        :func:`ground_force`, V the pivot relative to the foot."""
+        :func:`ground_force`, V the pivot relative to the foot.
+
+        Parameters
+        ----------
+        x : casadi.SX, casadi.MX or casadi.DM
+            Stance state, 6 x 1 or 6 x n (rho [m], theta1, theta2 [rad], rhodot [m/s],
+            theta1_dot, theta2_dot [rad/s]).
+        u : casadi.SX, casadi.MX or casadi.DM
+            The VPP controls (r_vpp [m], theta_td [rad]).
+        p : casadi.SX, casadi.MX or casadi.DM
+            The parameter vector (m, I, k, rho0, d, g).
+        """
         q = x[:3, :]
         pivot = virtual_pivot(q, self.controls.get(u, "r_vpp"), p)
         along, across = leg_axes(STANCE.get(x, "theta1"))
@@ -151,12 +242,32 @@ class VPPLaw(HipLaw):
 
     @property
     def positional(self) -> bool:
+        """True: the VPP torque depends on positions only (no velocities)."""
         return True
 
     def spin_free(self, values: Mapping[str, float], params) -> bool:
+        """Whether ``values`` fix the pivot at the CoM (r_vpp = 0), whatever ``params``.
+
+        Parameters
+        ----------
+        values : Mapping of str to float
+            Some of the VPP controls by name, SI units and radians.
+        params : Params
+            The model parameters (unused: the force then points at the CoM for any d).
+        """
         return values.get("r_vpp") == 0.0  # the force points at the CoM
 
     def step_rates(self, u, p) -> tuple[float, float]:
+        """(3 m g (|r_vpp| + d) [N m/rad], 0 [N m s/rad]): the hip stiffness estimated from
+        a force of 3 body weights on the lever to the pivot; no damping.
+
+        Parameters
+        ----------
+        u : array_like
+            The VPP controls, shape (2,), or rows of many, shape (n, 2).
+        p : array_like
+            The parameter vector, shape (6,) (m, I, k, rho0, d, g).
+        """
         # The torque is a spring-force fraction of the lever to the pivot: bound the force
         # by 3 body weights (running's peak) and the lever by |r_vpp| + d.
         r = np.abs(np.asarray(u, dtype=float).T[self.controls.index("r_vpp")])
@@ -220,7 +331,21 @@ CONTROL = PD.controls
 
 @dataclass(frozen=True)
 class Control:
-    """Numeric PD control vector of one stride (units as in the module docstring)."""
+    """Numeric PD control vector of one stride (units as in the module docstring).
+
+    Attributes
+    ----------
+    Kp : float
+        Proportional gain on the leg-trunk angle theta2 [N m/rad].
+    Kd : float
+        Derivative gain on its rate [N m s/rad].
+    theta2_des : float
+        Set point of theta2 [rad].
+    theta2_dot_des : float
+        Set point of theta2's rate [rad/s].
+    theta_td : float
+        Leg angle from the vertical held in flight, so at touchdown [rad].
+    """
 
     Kp: float
     Kd: float
@@ -229,11 +354,19 @@ class Control:
     theta_td: float
 
     def vector(self) -> np.ndarray:
+        """The controls as an array of shape (5,) in the PD law's order (Kp, Kd, theta2_des,
+        theta2_dot_des, theta_td), SI units and radians."""
         return CONTROL.pack({n: getattr(self, n) for n in CONTROL.names})
 
 
 def hip_law(name: str) -> HipLaw:
-    """The law called ``name`` in problem files; raises KeyError naming the known ones."""
+    """The law called ``name`` in problem files; raises KeyError naming the known ones.
+
+    Parameters
+    ----------
+    name : str
+        ``"pd"`` or ``"vpp"`` (the keys of :data:`HIP_LAWS`).
+    """
     try:
         return HIP_LAWS[name]
     except KeyError:

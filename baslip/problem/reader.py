@@ -64,8 +64,18 @@ TOLERANCES = (1e-16, 1e-2)
 class SolverSettings:
     """Discretisation and IPOPT settings.
 
-    nodes: shooting intervals per stance phase; substeps: RK4 steps per interval;
-    max_iter: IPOPT iteration limit; tol: IPOPT tolerance; print_level: IPOPT verbosity.
+    Attributes
+    ----------
+    nodes : int
+        Shooting intervals per stance phase (2 to 200).
+    substeps : int
+        RK4 steps per interval (1 to 20).
+    max_iter : int
+        IPOPT's iteration limit (1 to 100000).
+    tol : float
+        IPOPT's tolerance (1e-16 to 1e-2).
+    print_level : int
+        IPOPT's verbosity (0 to 12).
     """
 
     nodes: int = 20
@@ -77,7 +87,34 @@ class SolverSettings:
 
 @dataclass(frozen=True)
 class Problem:
-    """A validated fixed-point problem (values in SI units and radians)."""
+    """A validated fixed-point problem (values in SI units and radians).
+
+    Attributes
+    ----------
+    name : str
+        The problem's name (up to 100 letters, digits, ``_``, ``-`` or ``.``).
+    params : Params
+        The model parameters.
+    hip_law : HipLaw
+        The stance hip law, whose controls ``fix``, ``guess`` and ``bounds`` name.
+    fix : Mapping of str to float
+        Fixed values of design quantities (apex state, controls) or of the apex ``energy``
+        [J], SI units and radians.
+    guess : Mapping of str to float
+        Starting values of design quantities that are not fixed.
+    bounds : Mapping of str to tuple of float
+        (lo, hi) bounds by quantity, infinite where a file gave null.
+    objective : str
+        ``nearest_guess``, ``min_torque``, ``feasibility`` or ``least_spectral_radius``.
+    strides : int
+        The orbit's period in strides (1 to 16); ``fix`` and ``guess`` refer to its first apex.
+    solver : SolverSettings
+        Discretisation and IPOPT settings.
+    study : Study or None
+        Many solves or simulations instead of one fixed point (a sweep, a basin, ...).
+    continuation : ContinuationSpec or None
+        A branch to trace instead.
+    """
 
     name: str
     params: Params = Params()
@@ -101,7 +138,14 @@ class Problem:
         return {n: self.start_value(n) for n in self.design if n not in self.fix}
 
     def start_value(self, name: str) -> float:
-        """The fixed value of ``name`` if fixed, else its starting value."""
+        """The fixed value of ``name`` if fixed, else its starting value.
+
+        Parameters
+        ----------
+        name : str
+            A design quantity (``z``, ``theta_h``, ..., a control); the value is in its SI
+            unit or radians.
+        """
         return start_value(name, self.fix, self.guess, self.bounds)
 
     def __reduce__(self):
@@ -116,6 +160,13 @@ class Problem:
         Values are given as in a problem file (``fix={"z": 0.45}``, ``params={"k": 2000}``,
         ``study={...}``), or as the objects the problem holds (``params=Params(k=2000)``).
         Raises :class:`ProblemError` with the same one-line message a file would get.
+
+        Parameters
+        ----------
+        **changes : Any
+            New values by top-level key (``name``, ``params``, ``hip_law``, ``fix``,
+            ``guess``, ``bounds``, ``objective``, ``strides``, ``solver``, ``study``,
+            ``continuation``); each replaces that key's whole value.
         """
         return replace_problem(self, **changes)
 
@@ -162,6 +213,24 @@ def parse_problem(data: Any, default_name: str = "problem") -> Problem:
 
     ``params`` and ``solver`` may also be given as :class:`Params` and
     :class:`SolverSettings` objects; they are checked like their mappings.
+
+    Parameters
+    ----------
+    data : Any
+        A mapping of the problem file's top-level keys to their values (SI units and
+        radians, or strings such as ``"-90 deg"``).
+    default_name : str
+        The name when ``data`` has no ``name``.
+
+    Returns
+    -------
+    Problem
+        The validated problem.
+
+    Raises
+    ------
+    ProblemError
+        If anything is invalid; its ``key`` names the offending entry.
     """
     top = mapping(data, "", TOP_LEVEL_KEYS)
     fields: dict[str, Any] = {key: _FIELDS[key](top[key]) for key in TOP_LEVEL_KEYS if key in top}

@@ -144,6 +144,18 @@ Study = Sweep | RandomSample | Basin | Adaptive | Optimal | Controllers | Atlas
 #: The study classes, for ``isinstance``.
 STUDY_KINDS = (Sweep, RandomSample, Basin, Adaptive, Optimal, Controllers, Atlas)
 KINDS = ("sweep", "random", "basin", "adaptive", "optimal", "controllers", "atlas")
+#: The keys each study kind accepts (docs/guides/problem-files.md documents each).
+STUDY_KEYS = {
+    "sweep": ("kind", "vary"),
+    "random": ("kind", "region", "count", "seed", "boundary"),
+    "basin": ("kind", "source", "grid", "stable_at", "unstable_at", "strides", "tolerance"),
+    "adaptive": ("kind", "strides", "frozen_strides", "perturbation", "criterion", "probe_strides"),
+    "optimal": ("kind", "vary", "starts", "seed", "iterations", "method"),
+    "controllers": ("kind", "perturbation", "samples", "seed", "strides", "tolerance", "criterion", "lqr_scale",
+                    "boxes", "controllers", "horizon", "solve_samples"),
+    "atlas": ("kind", "vary", "seeds", "seed", "radius", "max_radius", "max_charts", "plot", "polish",
+              "iterations"),
+}
 
 
 def parse_study(data) -> Study:
@@ -153,17 +165,7 @@ def parse_study(data) -> Study:
     kind = data.get("kind")
     if not isinstance(kind, str) or kind not in KINDS:
         raise StudyError("study.kind", f"expected one of {', '.join(KINDS)}, got {excerpt(kind)}")
-    allowed = {
-        "sweep": ("kind", "vary"),
-        "random": ("kind", "region", "count", "seed", "boundary"),
-        "basin": ("kind", "source", "grid", "stable_at", "unstable_at", "strides", "tolerance"),
-        "adaptive": ("kind", "strides", "frozen_strides", "perturbation", "criterion", "probe_strides"),
-        "optimal": ("kind", "vary", "starts", "seed", "iterations", "method"),
-        "controllers": ("kind", "perturbation", "samples", "seed", "strides", "tolerance", "criterion", "lqr_scale",
-                        "boxes", "controllers", "horizon", "solve_samples"),
-        "atlas": ("kind", "vary", "seeds", "seed", "radius", "max_radius", "max_charts", "plot", "polish",
-                  "iterations"),
-    }[kind]
+    allowed = STUDY_KEYS[kind]
     for key in data:
         if isinstance(key, NonScalarKey):
             raise StudyError(f"study.{key}", f"a key must be a plain name, not a {key.kind}")

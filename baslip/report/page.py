@@ -38,7 +38,7 @@ accepted eps < 1e-5.
 
 **Limits of the comparison.** The thesis prints the leg rest length (0.2 m) and the hip
 offset (0.04 m) but not the mass, the inertia or the leg stiffness. baslip uses m = 1 kg,
-I = 0.0033 kg m^2 and k = 1000 N/m (see the README). Stability margins, the size and
+I = 0.0033 kg m^2 and k = 1000 N/m (see docs/background/model.md). Stability margins, the size and
 position of the stable region, and multiplier magnitudes all depend on these. So the
 comparison is about qualitative structure and existence, not exact numbers. Also, the
 fixed points form a manifold, and which point a solve returns depends on the objective.
