@@ -218,7 +218,8 @@ class RunResults:
             if "curve" in self.tables:
                 second = self.record["curves"]["second"]
                 figures.append(plots.curve_diagram(self.rows("curve"), parameter, second, problem=self.name,
-                                                  params=Params(**self.record["provenance"]["problem"]["params"])))
+                                                  params=Params(**self.record["provenance"]["problem"]["params"]),
+                                                  branch=self.rows("branch")))
                 figures[-1].set_label("curve")
         return figures
 

@@ -101,7 +101,7 @@ def _run_continuation(problem, out_dir: Path, quiet: bool, code: dict[str, str])
         curve_rows, curves = follow_curves(problem, traced[0], solver, quiet)
         figure = io.BytesIO()
         plots.curve_diagram(curve_rows, spec.parameter, spec.second, figure, problem=problem.name,
-                            params=problem.params)
+                            params=problem.params, branch=rows)
         files = {out_dir / "curve.csv": curve_csv(curve_rows, spec.parameter, spec.second, controls),
                  out_dir / plots.figure_file("curve"): figure.getvalue()}
     summary = {

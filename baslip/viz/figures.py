@@ -315,19 +315,24 @@ CURVE_STYLES = {"fold": ("tab:red", "fold (+1)"), "period_doubling": ("tab:green
                 "neimark_sacker": ("tab:purple", "Neimark-Sacker"), "neutral_saddle": ("0.6", "neutral saddle (no bifurcation)")}
 
 
-def curve_diagram(rows: list[dict], first: str, second: str, path=None, *, problem: str = "", params=None):
+def curve_diagram(rows: list[dict], first: str, second: str, path=None, *, problem: str = "", params=None,
+                  branch=None):
     """Bifurcation curves in the (first, second) plane: solid where they bound a region
     of stable gaits, dotted where the gaits are unstable on both sides; codimension-two
     points marked and named. In (z, ydot) the speed goes across and the height up, as on
     the sweeps' maps. With ``params`` (:class:`~baslip.model.dynamics.Params`) an energy
-    axis also reads as a speed. ``path`` is a file name or a binary file object; without
-    one the Figure is returned."""
+    axis also reads as a speed. With ``branch`` (branch.csv rows, the branch the curves
+    started from), the band between two bounding curves that holds the branch's stable
+    gaits, and none of its unstable ones, is shaded. ``path`` is a file name or a binary
+    file object; without one the Figure is returned."""
     from baslip.viz.labels import CODIM2_NAMES
 
     if (first, second) == ("z", "ydot"):  # the grid maps' axes: speed across, height up
         first, second = second, first
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     draw_curves(ax, rows, first, second)
+    if branch:
+        _shade_stable_band(ax, rows, branch, first, second)
     specials = [r for r in rows if r["special"]]
     if specials:
         ax.plot([], [], "o", color="k", mfc="none", label="codimension-two point")
@@ -346,6 +351,47 @@ def curve_diagram(rows: list[dict], first: str, second: str, path=None, *, probl
         ax.legend(fontsize=8)
     saved = _save(fig, path, problem=problem)
     return fig if path is None else saved
+
+
+def _monotone_in(values, along) -> tuple[np.ndarray, np.ndarray] | None:
+    """``values`` as a function of ``along`` (sorted), or None where ``along`` turns back."""
+    along, values = np.asarray(along, dtype=float), np.asarray(values, dtype=float)
+    order = np.argsort(along)
+    if not (np.all(np.diff(along) > 0) or np.all(np.diff(along) < 0)):
+        return None
+    return along[order], values[order]
+
+
+def _shade_stable_band(ax, rows: list[dict], branch: list[dict], first: str, second: str) -> None:
+    """Shade the band between two curves that bound stable gaits, each a function of the
+    vertical quantity, where the branch's own stable gaits lie between them at its level:
+    the curves then carry that band, where stable gaits exist, over their common range.
+    (Unstable gaits may share the band's points: the plane leaves out the other apex
+    quantities, and a branch that folds back passes over itself.)"""
+    bounding = [[r for r in rows if r["curve"] == n] for n in sorted({r["curve"] for r in rows})]
+    bounding = [c for c in bounding if all(r["stability_boundary"] for r in c)]
+    if second not in branch[0] or first not in branch[0]:  # a model parameter: no branch column
+        return
+    level = shown(second, [branch[0][second]])[0]
+    stable_x = shown(first, [r[first] for r in branch if r["stable"] and r["branch"] == branch[0]["branch"]])
+    for i, a in enumerate(bounding):
+        for b in bounding[i + 1:]:
+            curve_a, curve_b = (_monotone_in(shown(first, [r[first] for r in c]), shown(second, [r[second] for r in c]))
+                                for c in (a, b))
+            if curve_a is None or curve_b is None or not len(stable_x):
+                continue
+            (ya, xa), (yb, xb) = curve_a, curve_b
+            low, high = max(ya[0], yb[0]), min(ya[-1], yb[-1])
+            if not low <= level <= high:
+                continue
+            left, right = sorted((np.interp(level, ya, xa), np.interp(level, yb, xb)))
+            stable, slack = np.asarray(stable_x, dtype=float), 1e-6 * (right - left)  # a curve starts at the branch
+            if np.any((stable < left - slack) | (stable > right + slack)):
+                continue
+            y = np.linspace(low, high, 200)
+            ax.fill_betweenx(y, np.interp(y, ya, xa), np.interp(y, yb, xb), color="tab:blue", alpha=0.15, lw=0,
+                             label="stable gaits exist (the branch's, carried by the curves)")
+            return
 
 
 def _speed_axis(ax, params, which: str) -> None:

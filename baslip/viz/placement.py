@@ -79,7 +79,9 @@ def clear_placement(ax, xy, drawn, placed: list, size=(120.0, 24.0)) -> Placemen
     for offset in OFFSETS:
         box = _box(anchor, offset, size, scale)
         inside = box[0] >= frame.x0 and box[1] >= frame.y0 and box[2] <= frame.x1 and box[3] <= frame.y1
-        score = _clearance(box, others) - (0.0 if inside else 1e6)
+        # Any box inside the frame beats every box outside it (clearances are capped well
+        # below the penalty: with nothing drawn every clearance is infinite).
+        score = min(_clearance(box, others), 1e5) - (0.0 if inside else 1e6)
         if score > best_score:
             best, best_score = offset, score
     placed.append(_box(anchor, best, size, scale))

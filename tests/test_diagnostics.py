@@ -1,0 +1,53 @@
+"""Diagnostics through logging: the console handler writes bare messages to the current
+stderr, rewrites progress in place and ends that line before the next message; it is
+installed once, and not over an application's own logging set-up."""
+
+import logging
+
+import pytest
+
+from baslip import diagnostics
+
+
+@pytest.fixture
+def bare_logging(monkeypatch):
+    """The baslip logger without handlers, and a call that takes the root logger's away
+    (pytest's own capture among them, which it adds as the test starts), as in a fresh
+    script; both are restored afterwards."""
+    base, root = logging.getLogger(diagnostics.ROOT_LOGGER), logging.getLogger()
+    monkeypatch.setattr(base, "handlers", [])
+    monkeypatch.setattr(root, "handlers", [])
+    monkeypatch.setattr(base, "level", logging.NOTSET)
+    return base
+
+
+def _a_fresh_script() -> None:
+    logging.getLogger().handlers.clear()
+
+
+def test_progress_is_rewritten_in_place_and_the_next_message_starts_a_line(bare_logging, capsys):
+    _a_fresh_script()
+    diagnostics.show_on_stderr()
+    log = diagnostics.logger("baslip.studies.runner")
+    log.info("grid: 1/4 done", extra=diagnostics.IN_PLACE)
+    log.info("grid: 2/4 done", extra=diagnostics.IN_PLACE)
+    log.warning("note: a row was repaired")
+    log.info("grid: 3/4 done", extra=diagnostics.IN_PLACE)
+    diagnostics.end_progress_line()
+    diagnostics.end_progress_line()  # nothing left open: nothing written
+    err = capsys.readouterr().err
+    assert err == "\rgrid: 1/4 done   \rgrid: 2/4 done   \nnote: a row was repaired\n\rgrid: 3/4 done   \n"
+
+
+def test_it_is_installed_once(bare_logging):
+    _a_fresh_script()
+    diagnostics.show_on_stderr()
+    diagnostics.show_on_stderr()
+    assert [type(h) for h in bare_logging.handlers] == [diagnostics.ConsoleHandler]
+
+
+def test_an_application_that_configured_logging_keeps_its_own_handlers(bare_logging):
+    _a_fresh_script()
+    logging.getLogger().handlers.append(logging.StreamHandler())
+    diagnostics.show_on_stderr()
+    assert bare_logging.handlers == []
