@@ -168,9 +168,9 @@ class RunResults:
         before = set(plots.plt.get_fignums())
         if self.kind == "sweep":
             rows = self.rows("points")
-            plots.sweep_figures(rows, self._swept(rows), None, problem=self.name)
+            plots.sweep_figures(rows, self._swept(rows), None, problem=self._title())
         elif self.kind == "basin":
-            plots.basin_figures(*self._basin_inputs(), None, problem=self.name)
+            plots.basin_figures(*self._basin_inputs(), None, problem=self._title())
         elif self.kind == "optimal":
             from baslip.model.dynamics import Params
             from baslip.model.hiplaw import HIP_LAWS
@@ -179,30 +179,46 @@ class RunResults:
 
             names = self._swept(self.rows("points"))
             best = best_rows(self.rows("points"), names)
-            plots.sweep_figures(best, names, None, problem=self.name)
+            plots.sweep_figures(best, names, None, problem=self._title())
             params = Params(**self.record["provenance"]["problem"]["params"])
             law = HIP_LAWS[recorded_law(self.record)]
-            plots.trunk_motion_figure(best_gait_motions(best, names, params, law=law), None, problem=self.name)
+            plots.trunk_motion_figure(best_gait_motions(best, names, params, law=law), None, problem=self._title())
         if self.kind == "random":
             rows = self.rows("points")
             pair = tuple(c[len("sweep_"):] for c in rows[0] if c.startswith("sweep_"))
             region = self._source(self.record["region"]).rows("points")
             boundary = self.record.get("boundary")
             curves = self._source(boundary).rows("curve") if boundary else None
-            plots.random_figure(rows, region, pair, None, curves, problem=self.name)
+            plots.random_figure(rows, region, pair, None, curves, problem=self._title())
         elif self.kind == "adaptive":
             from baslip.viz.adaptive import adaptive_figures
 
-            adaptive_figures(self.rows("strides"), None, problem=self.name)
+            adaptive_figures(self.rows("strides"), None, problem=self._title())
+        elif self.kind == "atlas":
+            from baslip.viz.atlasmap import atlas_figure
+
+            plot = self.record["provenance"]["problem"]["study"]["plot"]
+            atlas_figure(self.rows("atlas"), list(self.record["swept"]), (plot[0], plot[1]), None, self._title())
         elif self.kind == "controllers":
             rows, boxes = self.rows("controllers"), self.record.get("boxes", [1.0])
             smallest = [r for r in rows if r.get("box", boxes[0]) == min(boxes)]
             perturbation = {n: w * min(boxes) for n, w in self.record["perturbation"].items()}
-            plots.controllers_figure(smallest, perturbation, None, problem=self.name)
+            plots.controllers_figure(smallest, perturbation, None, problem=self._title())
             if "basins" in self.record:
-                plots.basin_figure(self.record["basins"], self.record["name"], None)
+                plots.basin_figure(self.record["basins"], self._title(), None)
         drawn = [plots.plt.figure(n) for n in sorted(set(plots.plt.get_fignums()) - before)]
         return Figures(drawn + self._diagrams())
+
+    def _title(self) -> str:
+        """The title line of the run's figures: its name, hip law and body."""
+        from baslip.model.dynamics import Params
+        from baslip.studies.sources import recorded_law
+        from baslip.viz.labels import figure_title
+
+        params = self.record.get("provenance", {}).get("problem", {}).get("params")
+        if not isinstance(params, dict):
+            return self.name
+        return figure_title(self.name, Params(**params), recorded_law(self.record))
 
     def _diagrams(self) -> list:
         from baslip.model.dynamics import Params
@@ -213,11 +229,11 @@ class RunResults:
         if self.kind == "continuation":
             parameter = self.record["parameter"]
             quantity = self.record.get("provenance", {}).get("problem", {}).get("continuation", {}).get("plot", "z")
-            figures.append(branchplot.bifurcation_diagram(self.rows("branch"), parameter, quantity, problem=self.name))
+            figures.append(branchplot.bifurcation_diagram(self.rows("branch"), parameter, quantity, problem=self._title()))
             figures[-1].set_label("diagram")  # the names of the command line's files
             if "curve" in self.tables:
                 second = self.record["curves"]["second"]
-                figures.append(plots.curve_diagram(self.rows("curve"), parameter, second, problem=self.name,
+                figures.append(plots.curve_diagram(self.rows("curve"), parameter, second, problem=self._title(),
                                                   params=Params(**self.record["provenance"]["problem"]["params"]),
                                                   branch=self.rows("branch")))
                 figures[-1].set_label("curve")

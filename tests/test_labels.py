@@ -20,3 +20,20 @@ def test_the_controller_panels_are_titled_in_words():
     assert titles and all(title in CONTROLLER_NAMES.values() for title in titles)
     legend = [text.get_text() for text in figures["basins"].axes[0].get_legend().get_texts()]
     assert "pivot feedback (r_vpp only)" in legend and "pivot" not in legend
+
+
+def test_every_figure_of_a_run_is_titled_with_its_problem_law_and_body():
+    from baslip.model.hiplaw import HIP_LAWS
+    from baslip.studies.sources import recorded_law
+    from baslip.viz.labels import LAW_NAMES
+
+    assert set(LAW_NAMES) == set(HIP_LAWS)
+    thesis, human = ("m = 1 kg, I = 0.0033 kg m^2, k = 1000 N/m, rho0 = 0.2 m, d = 0.04 m",
+                     "m = 80 kg, I = 4.58 kg m^2, k = 20000 N/m, rho0 = 1 m, d = 0.1 m")
+    for name, body in (("grid_downward", thesis), ("controllers_vpp_human", human), ("atlas_vpp", thesis)):
+        run = open_results(ROOT / "results" / name)
+        law = LAW_NAMES[recorded_law(run.record)]  # pd where a run predates the recorded law
+        figures = run.plot()
+        assert len(figures) >= 1
+        for figure in figures.values():  # the atlas adds a line on what it shows
+            assert figure.get_suptitle().startswith(f"{name}\n{law}; {body}")

@@ -34,6 +34,7 @@ from baslip.problem.study import Adaptive
 from baslip.studies.common import StudyFailed, study_table
 from baslip.studies.runner import ResumableCsv, Workers
 from baslip.viz.adaptive import adaptive_figures
+from baslip.viz.labels import problem_title
 
 _log = logger(__name__)
 
@@ -200,7 +201,7 @@ def run_adaptive_study(problem: Problem, study: Adaptive, out_dir: Path, sources
     offset = np.array([dict(study.perturbation).get(n, 0.0) for n in APEX.names])
     table = study_table(out_dir / "strides.csv", stride_columns(problem.hip_law), ["phase", "n"], quiet)
     summary = run_adaptive(controller(), result.X + offset, problem.params, study.strides, study.frozen_strides, table, quiet)
-    adaptive_figures(table.rows, out_dir, problem=problem.name)
+    adaptive_figures(table.rows, out_dir, problem=problem_title(problem))
     recovery = None
     if offset.any():
         if not quiet:

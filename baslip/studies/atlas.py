@@ -42,6 +42,7 @@ from baslip.studies.runner import ResumableCsv, StateLog, Workers, csv_text, run
 from baslip.studies.sweep import key_column, sweep_tasks
 from baslip.viz.atlasmap import atlas_figure
 from baslip.viz.figures import trunk_motion_figure
+from baslip.viz.labels import problem_title
 
 
 def chart_columns(law: HipLaw = PD) -> list[str]:
@@ -137,12 +138,12 @@ def run_atlas(problem: Problem, study: Atlas, out_dir: Path, sources: Path, quie
     summary = {**run_info(report), "swept": names, "cells": _cell_summaries(cells, names)}
     if report.complete:
         charts = read_points(out_dir / "atlas.csv")
-        atlas_figure(charts, names, study.plot, out_dir, problem.name)
+        atlas_figure(charts, names, study.plot, out_dir, problem_title(problem))
         best = read_points(out_dir / "atlas_best.csv")
         if best:  # none without polishing (polish: 0)
             trunk_motion_figure(best_gait_motions(best, names, problem.params, count=2 * len(cells), note=_meaning,
                                                   law=problem.hip_law),
-                                out_dir, problem=problem.name)
+                                out_dir, problem=problem_title(problem))
         summary.update(_totals(cells, charts), best=[_best_summary(b, names, problem.hip_law) for b in best])
     return summary
 

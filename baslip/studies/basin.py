@@ -25,6 +25,7 @@ from baslip.studies.runner import Workers, run_tasks, split_lanes
 from baslip.studies.sources import StudyInputError, source_points
 from baslip.studies.sweep import key_column
 from baslip.viz import figures
+from baslip.viz.labels import problem_title
 
 #: Simulation accuracy: convergence is judged at 1e-4, far above the map's error.
 SIMULATION_TOLERANCES = Tolerances(1e-8, 1e-8)
@@ -146,7 +147,7 @@ def run_basin(problem: Problem, study: Basin, out_dir: Path, sources: Path, quie
     example_index = stable.index(example_stable) if example_stable is not None else None
     grid = (study.grid[0].values, study.grid[1].values)
     figures.basin_figures(basin_rows, stable, unstable, example_index, example_unstable, trajectories, grid, out_dir,
-                          problem=problem.name)
+                          problem=problem_title(problem))
     grid_size = len(study.grid[0].values) * len(study.grid[1].values)
     union = {(r[key_column("ydot")], r[key_column("z")]) for r in basin_rows if r["outcome"] == "converged"}
     example_cells = sum(1 for r in basin_rows if r["outcome"] == "converged" and r["point"] == example_index)

@@ -33,6 +33,7 @@ from baslip.model.dynamics import APEX
 from baslip.model.quantities import quantity_text
 from baslip.studies.curve import curve_csv, follow_curves
 from baslip.studies.traced import TracedBranch, named_stop, point_record, points_csv, progress_lines
+from baslip.viz.labels import problem_title
 
 #: First step onto a switched branch, as a fraction of the continuation step: small, so
 #: that the new branch starts close to the bifurcation it comes from.
@@ -93,14 +94,14 @@ def _run_continuation(problem, out_dir: Path, quiet: bool, code: dict[str, str])
 
     rows = [_row(t, p, solver) for t in traced for p in t.branch.points]
     diagram = io.BytesIO()
-    branchplot.bifurcation_diagram(rows, spec.parameter, spec.plot, diagram, problem=problem.name)
+    branchplot.bifurcation_diagram(rows, spec.parameter, spec.plot, diagram, problem=problem_title(problem))
     files: dict[Path, str | bytes] = {}
     curves = None
     if spec.second is not None:
 
         curve_rows, curves = follow_curves(problem, traced[0], solver, quiet)
         figure = io.BytesIO()
-        plots.curve_diagram(curve_rows, spec.parameter, spec.second, figure, problem=problem.name,
+        plots.curve_diagram(curve_rows, spec.parameter, spec.second, figure, problem=problem_title(problem),
                             params=problem.params, branch=rows)
         files = {out_dir / "curve.csv": curve_csv(curve_rows, spec.parameter, spec.second, controls),
                  out_dir / plots.figure_file("curve"): figure.getvalue()}

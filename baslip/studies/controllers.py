@@ -60,6 +60,7 @@ from baslip.problem.study import ADAPTED_CONTROLS, Controllers
 from baslip.studies.common import StudyFailed, run_info, study_table
 from baslip.studies.runner import Workers, run_tasks
 from baslip.viz import figures
+from baslip.viz.labels import problem_title
 
 #: Controllers whose control depends on the apex alone: their runs go in lockstep batches.
 BATCHED = ("constant", "feedback", "pivot")
@@ -268,8 +269,8 @@ def run_controllers(problem: Problem, study: Controllers, out_dir: Path, sources
     basins = {name: _basin(rows, name, study.boxes) for name in study.controllers}
     smallest = [r for r in rows if r["box"] == min(study.boxes)]
     figures.controllers_figure(smallest, {n: w * min(study.boxes) for n, w in dict(study.perturbation).items()}, out_dir,
-                               problem=problem.name)
-    figures.basin_figure(basins, problem.name, out_dir)
+                               problem=problem_title(problem))
+    figures.basin_figure(basins, problem_title(problem), out_dir)
     return {
         "gait": {"hip_law": law.name, "apex": gait.apex, "control": gait.control,
                  "spectral_radius": gait.spectral_radius, "rank_dr_du": control_rank(B, scale)},

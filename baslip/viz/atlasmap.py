@@ -29,7 +29,8 @@ def atlas_figure(charts: list[dict], names: list[str], plot: tuple[str, str], ou
     out_dir : Path or None
         Where to write the figure (None: lay it out and leave it open).
     title : str
-        The problem's name, for the figure's title.
+        The figure's title: the problem's name, hip law and body
+        (:func:`baslip.viz.labels.figure_title`).
     """
     cells = sorted({tuple(c[f"sweep_{n}"] for n in names) for c in charts})
     columns = min(3, max(len(cells), 1))
@@ -47,7 +48,7 @@ def atlas_figure(charts: list[dict], names: list[str], plot: tuple[str, str], ou
         ax.set_visible(False)
     if image is not None:
         radius_colorbar(fig, image, axes, LABELS["spectral_radius"] + " (log scale; blue: stable)")
-    fig.suptitle(f"{title}: atlas of the fixed points, coloured by spectral radius\n"
+    fig.suptitle(f"{title}\natlas of the fixed points, coloured by spectral radius; "
                  "stable part shaded, radius 1 drawn, star = most stable chart", fontsize=10)
     return _save(fig, _in(out_dir, "atlas.png"), tight=False)
 
