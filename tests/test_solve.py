@@ -24,6 +24,10 @@ RESULT_KEYS = [
 ]
 
 
+#: The libraries a first solve compiles (and a provenance names).
+ENGINE_LIBRARIES = ("baslip_stride", "baslip_stride_jacobians", "baslip_nlp_1_20x1_rk4_objective", "baslip_events_rosenbrock")
+
+
 def run_cli(*args, cwd=ROOT):
     return subprocess.run(
         [sys.executable, "-m", "baslip.solve", *map(str, args)], cwd=cwd, capture_output=True, text=True, timeout=600
@@ -41,7 +45,7 @@ def test_downward_end_to_end(tmp_path):
     assert provenance["problem"]["fix"] == {"ydot": 0.5, "z": 0.4} and len(provenance["problem_hash"]) == 64
     assert set(provenance["versions"]) == {"baslip", "casadi", "ipopt", "numpy", "python"}
     assert provenance["versions"]["ipopt"].count(".") == 2
-    assert set(provenance["code"]) == {"baslip_stride", "baslip_nlp_1_20x1_rk4_objective", "baslip_events_rosenbrock"}
+    assert set(provenance["code"]) == set(ENGINE_LIBRARIES)
     assert all(route.startswith(("compiled C (", "CasADi virtual machine (")) for route in provenance["code"].values())
     assert record["apex"]["z"] == 0.4 and record["apex"]["ydot"] == 0.5
     assert "converged" in proc.stdout and "spectral radius" in proc.stdout
@@ -69,7 +73,7 @@ def test_provenance_records_the_virtual_machine_when_it_ran(tmp_path):
     proc = run_with_cache_that_is_a_file(tmp_path, "problems/downward.yaml", out)
     assert proc.returncode == 0, proc.stderr
     code = json.loads((out / "result.json").read_text())["provenance"]["code"]
-    assert len(code) == 3 and vm_routes(code)
+    assert set(code) == set(ENGINE_LIBRARIES) and vm_routes(code)
     notices = [line for line in proc.stderr.splitlines() if line.startswith("baslip: ")]
     assert len(notices) == 1 and "not a folder" in notices[0] and "C compiler" not in notices[0]
 
@@ -211,17 +215,18 @@ def test_a_re_solve_that_dies_leaves_the_earlier_result_whole(tmp_path, monkeypa
     assert {name: (out / name).read_bytes() for name in before} == before
 
 
-@pytest.mark.parametrize("library", ["baslip_stride", "baslip_nlp_1_20x1_rk4_objective", "baslip_events_rosenbrock"])
+@pytest.mark.parametrize("library", ENGINE_LIBRARIES)
 def test_each_cached_library_cut_short_is_rebuilt_and_the_solve_succeeds(tmp_path, library):
     """A library truncated in the cache (a full disk, a killed copy) could map and then kill
     the process with SIGBUS: its checksum fails, so the next solve rebuilds it, silently,
     and succeeds with compiled code."""
-    assert main(["problems/downward.yaml", "--out", str(tmp_path / "warm"), "--quiet"]) == 0  # the cache holds all three
+    assert main(["problems/downward.yaml", "--out", str(tmp_path / "warm"), "--quiet"]) == 0  # the cache holds all four
     cache = tmp_path / "cache"
     cache.mkdir()
-    # Every cached version of the three (the one the warm solve loaded is among them; older
-    # keys may linger), and every version of ``library`` cut in half.
-    for name in ("baslip_stride", "baslip_nlp_1_20x1_rk4_objective", "baslip_events_rosenbrock"):
+    # Every cached version of the four (the one the warm solve loaded is among them; older
+    # keys may linger), and every version of ``library`` cut in half. The Jacobians' library
+    # is rebuilt in its thread (baslip.engine.background), and checked the same way.
+    for name in ENGINE_LIBRARIES:
         for built in cache_dir().glob(f"{name}-*.so"):
             if (built.parent / f"{built.name}.sha256").exists():
                 shutil.copy(built, cache / built.name)

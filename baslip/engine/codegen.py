@@ -58,8 +58,11 @@ from baslip.engine.native import Kernel, NativeKernel, VirtualMachineKernel
 
 _log = logger(__name__)
 
-#: Flags after the compiler command: optimised, position-independent shared library.
+#: Flags after the compiler command: optimised, position-independent shared library. The
+#: first is the optimisation level, which a library may choose (:func:`compile_kernels`).
 CFLAGS = ("-O3", "-fPIC", "-shared", "-ffp-contract=off")
+#: The optimisation level of a library that does not choose one.
+OPTIMISATION = CFLAGS[0]
 #: Libraries after the source file (the generated code calls sin, cos, ... of libm).
 LDLIBS = ("-lm",)
 #: Seconds after which a compiler run (or its ``--version`` probe) is abandoned.
@@ -192,10 +195,10 @@ def compile_functions(
     error: the originals are returned with one line on stderr.
     """
     originals = _by_name(name, functions)
-    if not _compiling(enabled):
+    if not compiling(enabled):
         _note_switched_off(name, enabled)
         return originals
-    c_text = _generate(name, functions)
+    c_text = generate_c(name, functions)
     return _cached(name, list(originals), lambda: functions, [c_text.encode()], True, _load, lambda _: originals,
                    generated=c_text)
 
@@ -210,14 +213,14 @@ def _by_name(name: str, functions: Sequence[ca.Function]) -> dict[str, ca.Functi
     return originals
 
 
-def _compiling(enabled: bool | None) -> bool:
+def compiling(enabled: bool | None) -> bool:
     """Whether to compile: ``enabled`` if given, else unless BASLIP_NO_COMPILE is set."""
     if enabled is not None:
         return enabled
     return os.environ.get("BASLIP_NO_COMPILE", "") in ("", "0")
 
 
-def _generate(name: str, functions: Sequence[ca.Function]) -> str:
+def generate_c(name: str, functions: Sequence[ca.Function]) -> str:
     """The C source of one file holding all ``functions``."""
     generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})
     for function in functions:
@@ -300,7 +303,7 @@ def _discard(path: pathlib.Path | str) -> None:
         os.unlink(path)
 
 
-def _build(name: str, c_text: str, compiler: list[str], library: pathlib.Path) -> None:
+def _build(name: str, c_text: str, compiler: list[str], library: pathlib.Path, optimisation: str) -> None:
     """Compile ``c_text`` into ``library``, atomically; raises _NoCompiler on failure.
 
     The source goes to a private temporary directory and the library to a unique
@@ -321,9 +324,9 @@ def _build(name: str, c_text: str, compiler: list[str], library: pathlib.Path) -
         with tempfile.TemporaryDirectory(dir=library.parent, prefix=f".{library.stem}.", suffix=".cc") as scratch:
             source = pathlib.Path(scratch) / f"{name}.c"
             source.write_text(c_text, encoding="utf-8")
-            _announce(name, c_text, library.parent)  # only once the cache has taken the source
+            _announce(name, c_text, library.parent, optimisation)  # once the cache has taken the source
             try:
-                _run([*compiler, *CFLAGS, str(source), "-o", partial, *LDLIBS])
+                _run([*compiler, *_flags(optimisation), str(source), "-o", partial, *LDLIBS])
             except _NoCompiler as reason:
                 raise _NoCompiler(f"compiling {name} failed ({reason})") from None
         digest = _sha256(pathlib.Path(partial))
@@ -344,6 +347,8 @@ def compile_kernels(
     *,
     enabled: bool | None = None,
     settings: str = "",
+    optimisation: str = OPTIMISATION,
+    generated: str | None = None,
 ) -> dict[str, Kernel]:
     """Kernels for the functions ``names`` that ``build()`` makes, compiled and cached.
 
@@ -352,10 +357,24 @@ def compile_kernels(
     integrator tolerances), the CasADi version, the compiler and its flags, so a warm
     process loads the library without building or generating anything. ``enabled`` and
     the fallback behave as in :func:`compile_functions`; the fallback's kernels run in
-    the VM.
+    the VM. ``optimisation`` is gcc's level for this library (``-O3``, ``-O1``, ...);
+    ``generated`` the C text of ``build()``'s functions, when the caller made it already.
     """
     fingerprint = [*_read(sources), settings.encode()]
-    return _cached(name, names, build, fingerprint, enabled, _native_kernels, _vm_kernels)
+    return _cached(name, names, build, fingerprint, enabled, _native_kernels, _vm_kernels, generated, optimisation)
+
+
+def cached_kernels(name: str, names: Sequence[str], sources: Sequence[pathlib.Path], *, settings: str = "",
+                   optimisation: str = OPTIMISATION) -> dict[str, Kernel] | None:
+    """The kernels :func:`compile_kernels` would return, if the cache already holds an
+    intact library of them (loaded, without building anything), else None."""
+    with contextlib.suppress(_NoCompiler):
+        library, _, version = _library_path(name, names, [*_read(sources), settings.encode()], optimisation)
+        kernels = _native_kernels(library, names) if _intact(library) else None
+        if kernels is not None:
+            _note(name, f"{COMPILED_C} ({version})")
+        return kernels
+    return None
 
 
 def compile_library(
@@ -365,24 +384,27 @@ def compile_library(
     sources: Sequence[pathlib.Path],
     *,
     enabled: bool | None = None,
+    optimisation: str = OPTIMISATION,
 ) -> dict[str, ca.Function]:
     """As :func:`compile_kernels`, but as CasADi Functions (``casadi.external``), for
     use inside other CasADi objects such as an NLP solver, which call them from C++."""
-    return _cached(name, names, build, _read(sources), enabled, _load, lambda functions: {f.name(): f for f in functions})
+    return _cached(name, names, build, _read(sources), enabled, _load, lambda functions: {f.name(): f for f in functions},
+                   optimisation=optimisation)
 
 
-def _cached(name, names, build, fingerprint: Sequence[bytes], enabled, load, fallback, generated: str | None = None):
+def _cached(name, names, build, fingerprint: Sequence[bytes], enabled, load, fallback, generated: str | None = None,
+            optimisation: str = OPTIMISATION):
     """The library of ``names``, keyed by ``fingerprint`` (the generated C, or the sources
     it is derived from) with the CasADi version and the compiler: loaded, or else built
     under a lock, compiled and loaded; ``fallback(build())`` without a compiler or with
     compiling switched off. ``generated`` is the C text when the caller has it already."""
     if not _NAME.fullmatch(name):
         raise ValueError(f"library name {name!r} is not a C identifier")
-    if not _compiling(enabled):
+    if not compiling(enabled):
         _note_switched_off(name, enabled)
         return fallback(build())
     try:
-        loaded, version = _load_or_build(name, names, build, fingerprint, load, generated)
+        loaded, version = _load_or_build(name, names, build, fingerprint, load, generated, optimisation)
     except _NoCompiler as reason:
         _note(name, f"{VIRTUAL_MACHINE} ({reason})")
         return fallback(build())
@@ -390,22 +412,28 @@ def _cached(name, names, build, fingerprint: Sequence[bytes], enabled, load, fal
     return loaded
 
 
-def _load_or_build(name, names, build, fingerprint, load, generated):
-    """(the loaded library, the compiler's version): from the cache if it holds an intact
-    copy, else built under a lock first; raises _NoCompiler if neither works."""
+def _library_path(name, names, fingerprint, optimisation) -> tuple[pathlib.Path, list[str], str]:
+    """(where the library of this key lives in the cache, the compiler, its version);
+    raises _NoCompiler without a cache folder."""
     compiler = _compiler()
     version = _compiler_version(compiler)
     folder = cache_dir()
     if folder is None:
         raise _NoCompiler("there is no folder for compiled code (HOME is empty or unset; set BASLIP_CACHE_DIR)")
-    library = folder / f"{name}-{_key(fingerprint, names, compiler, version)[:20]}.so"
+    return folder / f"{name}-{_key(fingerprint, names, compiler, version, optimisation)[:20]}.so", compiler, version
+
+
+def _load_or_build(name, names, build, fingerprint, load, generated, optimisation):
+    """(the loaded library, the compiler's version): from the cache if it holds an intact
+    copy, else built under a lock first; raises _NoCompiler if neither works."""
+    library, compiler, version = _library_path(name, names, fingerprint, optimisation)
     loaded = load(library, names) if _intact(library) else None
     if loaded is None:
-        loaded = _build_and_load(name, names, build, load, generated, compiler, library)
+        loaded = _build_and_load(name, names, build, load, generated, compiler, library, optimisation)
     return loaded, version
 
 
-def _build_and_load(name, names, build, load, generated, compiler, library: pathlib.Path):
+def _build_and_load(name, names, build, load, generated, compiler, library: pathlib.Path, optimisation: str):
     """Build ``library`` under its lock (unless another process did while this one
     waited) and load it; raises _NoCompiler if it cannot be built or does not load."""
     with _build_lock(library) as locked:
@@ -415,7 +443,7 @@ def _build_and_load(name, names, build, load, generated, compiler, library: path
         _clear_stale(library, locked)
         _discard(library)  # corrupt, truncated or stale: rebuild once
         _discard(_checksum_path(library))
-        _build(name, generated if generated is not None else _generate(name, build()), compiler, library)
+        _build(name, generated if generated is not None else generate_c(name, build()), compiler, library, optimisation)
     loaded = load(library, names)
     if loaded is None:
         raise _NoCompiler(f"the freshly compiled {library.name} does not load")
@@ -423,13 +451,14 @@ def _build_and_load(name, names, build, load, generated, compiler, library: path
 
 
 #: Generated C from which on a build is announced on stderr (smaller ones take a second or
-#: two), and gcc's pace at -O3 on the 2-core machine, measured on baslip's libraries (the
-#: stride kernels: 3.2 MB in 40 s; the shooting NLP: 1.1 MB in 11 s) [s per MB].
+#: two), and gcc's pace by optimisation level on the 2-core machine, measured on baslip's
+#: libraries alone (at -O3 the engine's passes, 0.64 MB in 7.7 s, and the shooting NLP,
+#: 1.1 MB in 12.3 s; at -O1 the engine's Jacobians, 2.84 MB in 21.7 s) [s per MB].
 ANNOUNCE_BYTES = 200_000
-SECONDS_PER_MB = 12.0
+SECONDS_PER_MB = {"-O3": 12.0, "-O1": 7.6}
 
 
-def _announce(name: str, c_text: str, folder: pathlib.Path) -> None:
+def _announce(name: str, c_text: str, folder: pathlib.Path, optimisation: str = OPTIMISATION) -> None:
     """Say on stderr, when it is a terminal, that ``name`` is being compiled and about how
     long it takes: the silence of a first run would otherwise look like a hang. Small
     libraries, workers (whose parent speaks for them) and output to files or pipes (logs,
@@ -438,7 +467,7 @@ def _announce(name: str, c_text: str, folder: pathlib.Path) -> None:
     if size < ANNOUNCE_BYTES or not _PROCESS.notices_here or not sys.stderr.isatty():
         return
     _log.info(f"baslip: compiling {name} for this machine ({size / 1e6:.1f} MB of C, about "
-              f"{size / 1e6 * SECONDS_PER_MB:.0f} s; once, then kept in {folder})")
+              f"{size / 1e6 * SECONDS_PER_MB.get(optimisation, 12.0):.0f} s; once, then kept in {folder})")
 
 
 def _checksum_path(library: pathlib.Path) -> pathlib.Path:
@@ -502,11 +531,17 @@ def _read(sources: Sequence[pathlib.Path]) -> list[bytes]:
     return [pathlib.Path(source).read_bytes() for source in sources]
 
 
-def _key(fingerprint: Sequence[bytes], names: Sequence[str], compiler: list[str], version: str) -> str:
+def _flags(optimisation: str) -> tuple[str, ...]:
+    """The compiler's flags at an optimisation level (:data:`CFLAGS` at the default)."""
+    return (optimisation, *CFLAGS[1:])
+
+
+def _key(fingerprint: Sequence[bytes], names: Sequence[str], compiler: list[str], version: str,
+         optimisation: str = OPTIMISATION) -> str:
     """sha256 of everything that decides a library's contents."""
     digest = hashlib.sha256()
     parts = [*fingerprint, " ".join(names).encode(), ca.__version__.encode(),  # type: ignore[attr-defined]
-             shlex.join([*compiler, *CFLAGS, *LDLIBS]).encode(), version.encode()]
+             shlex.join([*compiler, *_flags(optimisation), *LDLIBS]).encode(), version.encode()]
     for part in parts:
         digest.update(part)
         digest.update(b"\0")

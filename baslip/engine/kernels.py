@@ -42,6 +42,7 @@ import numpy as np
 from baslip.engine import codegen as _codegen
 from baslip.engine import dop853 as flow
 from baslip.engine import outcome as _outcome_module
+from baslip.engine.background import KernelsLater
 from baslip.engine.codegen import compile_kernels, library_name, module_files
 from baslip.engine.native import Kernel
 from baslip.engine.outcome import COLLAPSE_FRACTION
@@ -198,20 +199,35 @@ class StanceFlow:
         return self._chains[n]
 
 
+#: gcc's optimisation level of the Jacobians' library. Measured on the 2-core machine: its
+#: 2.84 MB of C take 21.7 s at -O1 against 38.9 s at -O3, and the Jacobian at the
+#: hanging gait 1.299 ms against 1.262 ms (best of 5 runs of 200, both in one process):
+#: 3 % slower, for a first run that no longer waits for the longest compile.
+JACOBIAN_OPTIMISATION = "-O1"
+
+
 class StrideFunctions:
     """The Functions of the compiled stride, built and compiled once: the planning call
     (touchdown state, one scout call and its events), the stance scout alone (for the
     careful path) and, per tier, the final pass and its Jacobian in (X, u, p); the
     planning and the final passes also mapped over :data:`BATCH` strides.
 
-    ``law``: the hip law; each law has its own library, named after it.
+    ``law``: the hip law; each law has its own libraries, named after it.
     ``compile``: True or False forces the C route on or off; None follows the
-    environment (see :func:`baslip.engine.codegen.compile_functions`)."""
+    environment (see :func:`baslip.engine.codegen.compile_functions`).
+
+    The Jacobians are a library of their own, compiled at :data:`JACOBIAN_OPTIMISATION`
+    and, on a first run, in a thread while the process goes on (a solve first asks for
+    them after IPOPT has run): they are most of the engine's C."""
 
     def __init__(self, law: HipLaw = PD, compile: bool | None = None):
         self.law = law
         self.flow = StanceFlow(law)
-        self.functions = compile_kernels(library_name("baslip_stride", law), _names(), self._all, sources(),
+        # The Jacobians first, so that their compile (the longest) starts at once.
+        self._jacobians = KernelsLater(library_name("baslip_stride_jacobians", law), _jacobian_names(),
+                                       self._all_jacobians, sources(), optimisation=JACOBIAN_OPTIMISATION,
+                                       enabled=compile)
+        self.functions = compile_kernels(library_name("baslip_stride", law), _names(), self._passes, sources(),
                                          enabled=compile)
         self.scout = self.functions["stance_scout"]
         self.plan = self.functions["stance_plan"]
@@ -222,7 +238,7 @@ class StrideFunctions:
 
     def jacobian(self, n: int) -> Kernel:
         """(X, u, p, guesses) -> (dr/d(X, u, p) 4 x (4 + controls + 6), apex, durations, diagnostics)."""
-        return self.functions[f"stride_jacobian_{n}"]
+        return self._jacobians.get()[f"stride_jacobian_{n}"]
 
     def _scout(self) -> ca.Function:
         """(x0, h, theta) -> the M + 1 nodes from x0 (columns), their rates xdot, and each
@@ -258,14 +274,18 @@ class StrideFunctions:
             ["X", "u", "p", "guesses"], ["dr_dXup", "apex", "durations", "diagnostics"],
         )
 
-    def _all(self) -> list[ca.Function]:
-        """Every Function of the engine, compiled together so that the step and its
-        derivatives are generated once for all tiers."""
+    def _passes(self) -> list[ca.Function]:
+        """The engine's Functions but the Jacobians, compiled together so that the step is
+        generated once for all tiers."""
         finals = [_final_pass(self.flow, n) for n in TIERS]
         scout = self._scout()
         batched = [self._plan(scout), *finals]  # the batch path plans and runs final passes
         batches = [f.map(f"batch_{f.name()}", "serial", BATCH, [], [], {}) for f in batched]
-        return [scout, *batched, *(self._jacobian(f) for f in finals), *batches]
+        return [scout, *batched, *batches]
+
+    def _all_jacobians(self) -> list[ca.Function]:
+        """The final passes' Jacobians, every tier, compiled together (their library)."""
+        return [self._jacobian(_final_pass(self.flow, n)) for n in TIERS]
 
     def batch(self, name: str) -> Kernel:
         """The function ``name`` mapped over :data:`BATCH` columns (one stride each)."""
@@ -452,9 +472,16 @@ def scout_events() -> ca.Function:
 
 
 def _names() -> list[str]:
-    """Names of the engine's functions, in the order :meth:`StrideFunctions._all` builds them."""
+    """Names of the engine's functions but the Jacobians, in the order
+    :meth:`StrideFunctions._passes` builds them."""
     batched = ["stance_plan", *(f"stride_{n}" for n in TIERS)]
-    return ["stance_scout", *batched, *(f"stride_jacobian_{n}" for n in TIERS), *(f"batch_{name}" for name in batched)]
+    return ["stance_scout", *batched, *(f"batch_{name}" for name in batched)]
+
+
+def _jacobian_names() -> list[str]:
+    """Names of the final passes' Jacobians, in the order :meth:`StrideFunctions._all_jacobians`
+    builds them."""
+    return [f"stride_jacobian_{n}" for n in TIERS]
 
 
 def sources() -> list[pathlib.Path]:

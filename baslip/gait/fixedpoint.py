@@ -316,13 +316,15 @@ class FixedPointSolver:
     def __init__(self, options: ShootingOptions = ShootingOptions(), law: HipLaw = PD):
         self.options = options
         self.law = law
-        self.nlp = ShootingNLP(options, law=law)
-        self._nlps: dict[tuple[int, str], ShootingNLP] = {}
+        # The engine first: on a first run its Jacobians compile on the other core while
+        # the verification's map and the NLP compile on this one.
         self.residual_map = ReturnMap(Tolerances(1e-12, 1e-12), law=law)
         # The compiled engine's Jacobian at 1e-12 costs a few ms once per solve; a second
         # map at 1e-10 would cost a second build of the engine in every process.
         self.jacobian_map = self.residual_map
         self.verify_map = ReturnMap(VERIFY_TOLERANCES, plugin="rosenbrock", law=law)
+        self.nlp = ShootingNLP(options, law=law)
+        self._nlps: dict[tuple[int, str], ShootingNLP] = {}
         self._polish = Polish(self.residual_map, self.jacobian_map)
 
     def solve(self, spec: FixedPointSpec, name: str = "problem", w0: np.ndarray | None = None) -> FixedPointResult:
