@@ -323,8 +323,8 @@ def curve_diagram(rows: list[dict], first: str, second: str, path=None, *, probl
     the sweeps' maps. With ``params`` (:class:`~baslip.model.dynamics.Params`) an energy
     axis also reads as a speed. With ``branch`` (branch.csv rows, the branch the curves
     started from), the band between two bounding curves that holds the branch's stable
-    gaits, and none of its unstable ones, is shaded. ``path`` is a file name or a binary
-    file object; without one the Figure is returned."""
+    gaits at its level is shaded: stable gaits exist there. ``path`` is a file name or a
+    binary file object; without one the Figure is returned."""
     from baslip.viz.labels import CODIM2_NAMES
 
     if (first, second) == ("z", "ydot"):  # the grid maps' axes: speed across, height up
@@ -432,6 +432,9 @@ def draw_curves(ax, rows: list[dict], first: str, second: str) -> None:
         for bounding, words in ((True, "bounds stable gaits"), (False, "unstable both sides")):
             if (kind, bounding) in present:
                 ax.plot([], [], "-" if bounding else ":", color=color, label=f"{name}, {words}")
+
+
+# --- stability-optimal gaits ----------------------------------------------------------------
 
 
 def trunk_motion_figure(motions: list[tuple[str, np.ndarray, np.ndarray]], out_dir: Path | None, *,
