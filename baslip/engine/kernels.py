@@ -277,7 +277,7 @@ class StrideFunctions:
     def _passes(self) -> list[ca.Function]:
         """The engine's Functions but the Jacobians, compiled together so that the step is
         generated once for all tiers."""
-        finals = [_final_pass(self.flow, n) for n in TIERS]
+        finals = self._finals
         scout = self._scout()
         batched = [self._plan(scout), *finals]  # the batch path plans and runs final passes
         batches = [f.map(f"batch_{f.name()}", "serial", BATCH, [], [], {}) for f in batched]
@@ -285,7 +285,12 @@ class StrideFunctions:
 
     def _all_jacobians(self) -> list[ca.Function]:
         """The final passes' Jacobians, every tier, compiled together (their library)."""
-        return [self._jacobian(_final_pass(self.flow, n)) for n in TIERS]
+        return [self._jacobian(f) for f in self._finals]
+
+    @functools.cached_property
+    def _finals(self) -> list[ca.Function]:
+        """The final pass of every tier, built once for both libraries (on a first run)."""
+        return [_final_pass(self.flow, n) for n in TIERS]
 
     def batch(self, name: str) -> Kernel:
         """The function ``name`` mapped over :data:`BATCH` columns (one stride each)."""
