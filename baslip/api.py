@@ -83,7 +83,9 @@ def run(problem: Problem | str | Path, out: str | Path | None = None, *, jobs: i
         Bad input, checked before anything is solved or written: the problem, an option,
         a run it reads, or an output folder that is busy or holds another problem's run.
     RunError
-        A run that could not start, e.g. a study or branch whose start did not converge.
+        A run that could not start, e.g. a study or branch whose start did not converge,
+        or a study whose worker process ended before finishing its tasks (what was done is
+        kept, for a rerun to resume).
     """
     if progress:
         show_on_stderr()

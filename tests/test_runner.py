@@ -153,3 +153,55 @@ def test_the_rate_is_the_recent_pace_once_slow_tasks_follow_fast_ones():
     assert rate == pytest.approx(1.0)
     assert (1000 + seconds) / (10 + seconds) > 7
     assert Progress("study", 10, quiet=True).rate(0, 0.0) == 0.0
+
+
+UNGUARDED = """
+import sys
+from pathlib import Path
+import baslip
+from baslip.errors import RunError
+
+problem = Path(sys.argv[1])
+try:
+    baslip.run(problem, Path(sys.argv[2]), progress=False)
+except RunError as err:
+    print("RunError:", err)
+    sys.exit(3)
+print("returned")
+"""
+
+
+def test_a_study_whose_workers_die_at_start_is_a_run_error_naming_the_main_guard(tmp_path):
+    """A script that starts a study at its top level, with no ``if __name__ ==
+    "__main__":``: each spawned worker imports the script and dies. The run raises
+    RunError (it does not return an empty result) and says what to do."""
+    problem = tmp_path / "grid.yaml"
+    problem.write_text((ROOT / "problems" / "grid_downward.yaml").read_text().replace(
+        "vary: {ydot: [0.1, 1.0, 0.1], z: [0.3, 0.7, 0.05]}", "vary: {ydot: [0.3, 0.4, 0.1]}"))
+    script = tmp_path / "unguarded.py"
+    script.write_text(UNGUARDED)
+    run = subprocess.run([sys.executable, str(script), str(problem), str(tmp_path / "out")], capture_output=True,
+                         text=True, timeout=300, cwd=tmp_path)
+    assert run.returncode == 3, run.stdout + run.stderr[-2000:]
+    assert "before sending any row" in run.stdout and '__name__ == "__main__"' in run.stdout
+    assert "0 of 2 tasks are done" in run.stdout
+
+
+def _row_then_exit(lane, context, queue) -> None:
+    """A worker that sends its lane's first row and then ends with exit code 7."""
+    queue.put({"task": lane[0]["task"], "value": 1.0, "state": None})
+    os._exit(7)
+
+
+def test_a_worker_that_fails_midway_is_a_failure_with_its_rows_kept(tmp_path):
+    """A lane whose worker process ends early (here: it exits after its first row) makes
+    the run a failure, not a complete result; the rows it sent are kept for a rerun."""
+    from baslip.studies.runner import run_tasks
+
+    table = ResumableCsv(tmp_path / "points.csv", ["task", "value"], ["task"])
+    lanes = [[{"task": 0}, {"task": 1}], [{"task": 2}, {"task": 3}]]
+    report = run_tasks(lanes, _row_then_exit, None, table, "test", quiet=True)
+    assert not report.complete and not report.interrupted
+    assert "exit code 7 before finishing its tasks" in report.worker_failure
+    kept = ResumableCsv(tmp_path / "points.csv", ["task", "value"], ["task"]).done()
+    assert len(kept) == report.ran >= 1

@@ -26,11 +26,15 @@ def study_table(path: Path, columns: list[str], keys: list[str], quiet: bool) ->
 
 
 def run_info(report: RunReport) -> dict:
+    """The run's counts for result.json, with ``worker_failure`` when a worker process
+    ended before finishing its tasks."""
+    failure = {"worker_failure": report.worker_failure} if report.worker_failure else {}
     return {
         "tasks": report.total,
         "done_before_this_run": report.skipped,
         "done_in_this_run": report.ran,
         "complete": report.complete,
+        **failure,
     }
 
 

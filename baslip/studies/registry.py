@@ -39,7 +39,7 @@ from baslip.studies.basin import check_basin, run_basin
 from baslip.studies.common import StudyFailed
 from baslip.studies.controllers import run_controllers
 from baslip.studies.optimal import run_optimal
-from baslip.studies.runner import LANES, Workers
+from baslip.studies.runner import LANES, WorkerDied, Workers
 from baslip.studies.sources import StudyInputError
 from baslip.studies.sweep import check_random, run_random, run_sweep
 
@@ -103,7 +103,9 @@ def run_study(problem: Problem, out_dir: Path, quiet: bool = False, fresh: bool 
     problem there raise :class:`StaleFolder`. ``lanes`` splits a new run's tasks into
     that many warm-started lanes (default :data:`~baslip.studies.runner.LANES`); a resumed
     run keeps its recorded count, and asking for another raises :class:`StaleFolder`.
-    Raises :class:`baslip.files.lock.FolderBusy` if another process is writing into ``out_dir``.
+    Raises :class:`baslip.files.lock.FolderBusy` if another process is writing into ``out_dir``,
+    and :class:`~baslip.studies.runner.WorkerDied` (a ``RunError``) if a worker process
+    ended before finishing its tasks; what was done is written first, for a rerun to resume.
     """
     study = problem.study
     if study is None:
@@ -117,6 +119,10 @@ def run_study(problem: Problem, out_dir: Path, quiet: bool = False, fresh: bool 
         summary = {"name": problem.name, "kind": study.kind, **summary,
                    "wall_time_s": time.perf_counter() - start, "provenance": record}
         write_files_atomically({out_dir / "result.json": json_text(summary)})
+    if "worker_failure" in summary:  # not a result: the run failed, though what it did is kept
+        done = summary["done_before_this_run"] + summary["done_in_this_run"]
+        raise WorkerDied(f"{summary['worker_failure']}; {done} of {summary['tasks']} tasks are done and kept, "
+                         "and a rerun resumes from them")
     return summary
 
 

@@ -220,17 +220,20 @@ def format_value(value) -> str:
 
 @dataclass(frozen=True)
 class RunReport:
-    """How a run went: tasks in total, already done before, run now, and its wall time."""
+    """How a run went: tasks in total, already done before, run now, its wall time,
+    whether it was interrupted (Ctrl-C), and why a worker ended before finishing its
+    lanes ("" if none did)."""
 
     total: int
     skipped: int
     ran: int
     wall_time_s: float
     interrupted: bool
+    worker_failure: str = ""
 
     @property
     def complete(self) -> bool:
-        return not self.interrupted and self.skipped + self.ran == self.total
+        return not self.interrupted and not self.worker_failure and self.skipped + self.ran == self.total
 
 
 def run_tasks(
@@ -261,15 +264,16 @@ def run_tasks(
     todo = [lane for lane in marked if any(not t.get("done") for t in lane)]
     skipped = total - sum(sum(1 for t in lane if not t.get("done")) for lane in todo)
     start = time.perf_counter()
-    ran, interrupted = 0, False
+    ran, interrupted, failure = 0, False, ""
     if todo:
         workers = workers or Workers()
         if workers.scheduler is not None:
-            ran, interrupted = run_lanes_on_dask(todo, worker, context, table, label, quiet, skipped, total, start,
-                                                 workers.scheduler, workers.jobs)
+            ran, interrupted, failure = run_lanes_on_dask(todo, worker, context, table, label, quiet, skipped, total,
+                                                          start, workers.scheduler, workers.jobs)
         else:
-            ran, interrupted = _run_lanes(todo, worker, context, table, label, quiet, skipped, total, start, workers.jobs)
-    report = RunReport(total, skipped, ran, time.perf_counter() - start, interrupted)
+            ran, interrupted, failure = _run_lanes(todo, worker, context, table, label, quiet, skipped, total, start,
+                                                   workers.jobs)
+    report = RunReport(total, skipped, ran, time.perf_counter() - start, interrupted, failure)
     if report.complete:
         table.finish([task for lane in lanes for task in lane])
     return report
@@ -288,7 +292,8 @@ def worker_count(jobs: int | None, lanes: int) -> int:
     return max(1, min(wanted, lanes))
 
 
-def _run_lanes(todo, worker, context, table, label, quiet, skipped, total, start, jobs=None) -> tuple[int, bool]:
+def _run_lanes(todo, worker, context, table, label, quiet, skipped, total, start,
+               jobs=None) -> tuple[int, bool, str]:
     """Run the lanes ``todo`` on spawned worker processes, each sending its rows back on a
     pipe of its own. Pipes, not a multiprocessing queue: they need no semaphores, so no
     resource-tracker process is started that could outlive a killed run."""
@@ -316,10 +321,11 @@ def _run_lanes(todo, worker, context, table, label, quiet, skipped, total, start
         inbox.close()
 
 
-def _collect(next_row, lanes: int, table, progress, skipped: int, start: float, seen: set | None = None):
+def _collect(next_row, lanes: int, table, progress, skipped: int, start: float,
+             seen: set | None = None) -> tuple[int, bool, str]:
     """Write rows as they come until each of ``lanes`` lanes has ended (with a None);
-    return (rows written, interrupted?). With ``seen``, rows whose key is in it (a lane
-    run again) are dropped."""
+    return (rows written, interrupted by Ctrl-C?, why a worker ended early or ""). With
+    ``seen``, rows whose key is in it (a lane run again) are dropped."""
     finished, ran = 0, 0
     try:
         while finished < lanes:
@@ -339,16 +345,17 @@ def _collect(next_row, lanes: int, table, progress, skipped: int, start: float, 
             progress.update(skipped + ran, ran, time.perf_counter() - start)
     except KeyboardInterrupt:
         progress.interrupted(skipped + ran)
-        return ran, True
+        return ran, True, ""
     except WorkerDied as err:
         progress.interrupted(skipped + ran, str(err))
-        return ran, True
+        return ran, False, str(err)
     progress.close()
-    return ran, False
+    return ran, False, ""
 
 
 class WorkerDied(RunError):
-    """A worker process ended without finishing its lane."""
+    """A worker process ended without finishing its lanes: the study stopped short. Its
+    rows so far are kept, and a rerun resumes from them."""
 
 
 class SchedulerError(InputError):
@@ -381,7 +388,7 @@ def check_scheduler(scheduler: str) -> None:
 
 
 def run_lanes_on_dask(todo, worker, context, table, label, quiet, skipped, total, start, scheduler: str,
-                      jobs: int | None) -> tuple[int, bool]:
+                      jobs: int | None) -> tuple[int, bool, str]:
     """Run each lane as one Dask task on the scheduler at ``scheduler`` (or on a
     LocalCluster of ``jobs`` single-threaded worker processes, for ``local``).
 
@@ -464,6 +471,7 @@ class _Inbox:
 
     def __init__(self, readers: list, processes: list, poll: float = 1.0):
         self.readers, self.processes, self.poll = list(readers), processes, poll
+        self._silent = dict(zip(readers, processes))  # workers that have sent nothing yet
 
     def next_row(self):
         """The next row (or WorkerCode, or None) from the workers; raises
@@ -471,13 +479,26 @@ class _Inbox:
         while True:
             for reader in multiprocessing.connection.wait(self.readers, timeout=self.poll):
                 try:
-                    return reader.recv()
+                    message = reader.recv()
                 except EOFError:  # that worker has ended; its exit code says how
                     self.readers.remove(reader)
+                    continue
+                self._silent.pop(reader, None)
+                return message
             dead = [p for p in self.processes if p.exitcode not in (None, 0)]
             if dead or not self.readers:
-                code = dead[0].exitcode if dead else 0
-                raise WorkerDied(f"a worker process ended with exit code {code}")
+                raise WorkerDied(self._death(dead[0] if dead else None))
+
+    def _death(self, process) -> str:
+        code = process.exitcode if process is not None else 0
+        if process is None or process not in self._silent.values():
+            return f"a worker process ended with exit code {code} before finishing its tasks"
+        # The commonest cause: a script that starts a study at its top level. Each spawned
+        # worker imports the script, which starts the study again, and multiprocessing
+        # refuses to start processes from a process still starting up.
+        return (f"a worker process ended with exit code {code} before sending any row (if a script started "
+                f"this run, the run must sit under `if __name__ == \"__main__\":`, because each worker process "
+                f"imports the script)")
 
     def close(self) -> None:
         for reader in self.readers:
