@@ -14,12 +14,12 @@ GAITS = downward upward downward_period2 vpp vpp_human
 # at the thesis's scale and at human scale, the human gait's branch in the pivot and its
 # period-doubling curve, the atlases and the stability-optimal search.
 VPP_STUDIES = vpp_sweep_thesis vpp_sweep_thesis_low vpp_sweep_human vpp_sweep_human_height continuation_vpp_pivot \
-	curve_vpp_pivot atlas_vpp atlas_vpp_human optimal_vpp
+	curve_vpp_pivot curve_vpp_fold atlas_vpp atlas_vpp_human optimal_vpp
 # Atlases of the gait families (long: minutes per cell), and the controllers compared on
 # the most stable upright gait the upright atlas found (its gait copied into the problem),
-# and the stability NLP's cross-check of the upright atlas: from drawn starts, then from
-# the atlas's polished gaits.
-ATLASES = atlas_upright atlas_downward controllers_upright_best optimal_upright_schur
+# and the stability NLP's cross-checks: of the upright atlas (from drawn starts, then from
+# the atlas's polished gaits), and of the VPP descent.
+ATLASES = atlas_upright atlas_downward controllers_upright_best optimal_upright_schur optimal_vpp_schur
 
 .PHONY: studies clean-studies atlases
 

@@ -13,6 +13,9 @@ curves of the BA-SLIP in two parameters, on the shipped problems.
 * Under the VPP law, a period-doubling curve keeps -1 besides the symmetric gaits' structural
   +1, passes through the branch's period doubling, and ends the stable band it bounds at a
   fold-flip point, where a second multiplier crosses +1.
+* Under the VPP law, a fold curve keeps two multipliers at +1 (the structural one and the
+  critical one), and meets the period-doubling curve at the same fold-flip point: two
+  curves, deflated in two ways, locate one point.
 """
 
 import csv
@@ -186,3 +189,28 @@ def test_a_vpp_period_doubling_curve_ends_its_stable_band_at_a_fold_flip(tmp_pat
     for row in along:  # the curve bounds stable gaits on the fast side of the fold-flip only
         if abs(float(row["ydot"]) - fold_flip["ydot"]) > 0.01:
             assert (row["stability_boundary"] == "true") == (float(row["ydot"]) > fold_flip["ydot"])
+
+
+def test_a_vpp_fold_curve_keeps_a_second_multiplier_at_one_and_meets_the_period_doubling_curve(tmp_path):
+    """curve_vpp_fold from the branch's +1 crossing at 3.9 m/s (measured: r_vpp = 0.39616
+    m), over 3.8 to 4.2 m/s: two multipliers within 1e-6 of +1 at every point (measured
+    6e-8), and its fold-flip is curve_vpp_pivot's (committed: r_vpp = 0.2326438 m, ydot =
+    4.001865 m/s), which a curve of the other kind, with the other deflation, located."""
+    summary, branch, curve = run(tmp_path, "curve_vpp_fold", **{"second_range: [3.0, 6.0]": "second_range: [3.8, 4.2]"})
+    (fold,) = [p for p in summary["special_points"] if p["type"] == "fold"]
+    assert 0.3 < fold["r_vpp"] < 0.5
+    assert [r for r in branch if r["special"] == "fold"]
+    pivots = [float(r["r_vpp"]) for r in branch]  # the branch does not turn: r_vpp runs one way along it
+    assert all(np.diff(pivots) > 0) or all(np.diff(pivots) < 0)
+    assert len(curve) > 20
+    for row in curve:
+        near_one = np.sort(np.abs(multipliers(row) - 1))
+        assert near_one[1] < 1e-6
+    (fold_flip,) = summary["curves"]["codimension_two_points"]
+    pd_summary = json.loads((ROOT / "results" / "curve_vpp_pivot" / "result.json").read_text())
+    (pd_fold_flip,) = pd_summary["curves"]["codimension_two_points"]
+    assert fold_flip["type"] == pd_fold_flip["type"] == "fold_flip"
+    assert fold_flip["r_vpp"] == pytest.approx(pd_fold_flip["r_vpp"], abs=1e-5)
+    assert fold_flip["ydot"] == pytest.approx(pd_fold_flip["ydot"], abs=1e-4)
+    minus_one = [m for m in fold_flip["multipliers"] if abs(complex(*m) + 1) < 1e-4]
+    assert len(minus_one) == 1  # the period doubling's multiplier, met there

@@ -358,15 +358,9 @@ CASES += [
     ("vpp bound under pd", dump(put(base("downward"), "bounds.r_vpp", [0.0, 0.1])), "bounds.r_vpp"),
     ("pd axis in a vpp sweep", dump(put(base("vpp_sweep_thesis"), "study.vary", {"Kp": [0.0, 1.0, 0.5]})),
      "study.vary.Kp"),
-    ("stability NLP study under vpp",
-     dump(put(base("optimal_vpp"), "study", {**{k: v for k, v in base("optimal_vpp")["study"].items()
-                                                 if k != "iterations"}, "method": "schur_nlp"})), "study.method"),
     ("pivot controller under pd", dump(put(base(CONTROLS), "study.controllers", ["constant", "pivot"])),
      "study.controllers"),
     ("unknown controller", dump(put(base(CONTROLS), "study.controllers", ["constant", "mpc"])), "study.controllers"),
-    ("stability objective under vpp", dump(put(base("vpp"), "objective", "least_spectral_radius")), "objective"),
-    ("fold curves under vpp", dump(put(base("curve_vpp_pivot"), "continuation.follow", ["period_doubling", "fold"])),
-     "continuation.follow"),
 ]
 
 # --- the file itself ----------------------------------------------------------------------

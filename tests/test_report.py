@@ -195,6 +195,37 @@ def test_the_vpp_descent_claim_compares_each_cell_with_the_atlas_and_says_where_
     assert "At 1 cell the descent ends below the atlas's polished least" in text
 
 
+def test_the_vpp_descent_claim_counts_how_the_stability_nlps_starts_ended(tmp_path):
+    """Each start of the stability NLP's cross-check (optimal_vpp_schur) is counted once:
+    at its cell's descent least, above it, below it, or failed; and the cells where the
+    two searches' least agree are counted."""
+    import shutil
+
+    from baslip.report.vpp import optimal_claims
+
+    for name in ("optimal_vpp", "optimal_vpp_schur", "atlas_vpp"):
+        shutil.copytree(RESULTS / name, tmp_path / name)
+    (text,) = optimal_claims(Evidence(tmp_path))
+    counts = re.search(r"Of its (\d+) starts, (\d+) end at their cell's least, (\d+) above it .*?, (\d+) fail, "
+                       r"and (\d+) end below it", text)
+    assert counts is not None
+    total, *parts = (int(n) for n in counts.groups())
+    assert total == 64 and sum(parts) == total
+    rows = Evidence(tmp_path).rows("optimal_vpp_schur", "points.csv")
+    assert parts[2] == sum(1 for r in rows if r["status"] != "converged")
+    # Lower one verified end below every descent least: it is counted below, not at.
+    for row in rows:
+        if row["status"] == "converged":
+            row["spectral_radius"] = 0.1
+            break
+    from baslip.studies.runner import csv_text
+
+    (tmp_path / "optimal_vpp_schur" / "points.csv").write_text(csv_text(list(rows[0]), rows))
+    (again,) = optimal_claims(Evidence(tmp_path))
+    moved = [int(n) for n in re.search(r"(\d+) end below it", again).groups()]
+    assert moved == [parts[3] + 1] and "0.1000 at ydot" in again  # counted, and named
+
+
 def test_a_folder_of_a_users_own_runs_is_told_plainly_and_beside_the_thesis_comparison(tmp_path):
     """Runs under names the report does not know are told as the command line tells them;
     without any shipped study in the folder there is no thesis comparison at all."""

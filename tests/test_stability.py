@@ -1,11 +1,12 @@
 """Specification of baslip.gait.stability: multipliers, trivial ones labelled and set aside,
-and the symmetry multiplier deflated (moved to 0, the others kept) for the curves."""
+and the symmetry multiplier deflated (moved to 0, the others kept) for the curves: by its
+spectral projector, or by its right eigenvector alone where a second +1 meets it."""
 
 import numpy as np
 import pytest
 
 from baslip import Params
-from baslip.gait.stability import classify, trivial_labels, without_symmetry_multiplier
+from baslip.gait.stability import classify, trivial_labels, without_symmetry_direction, without_symmetry_multiplier
 
 NO_TORQUE = [0.0, 0.0, 0.3, 0.0, 0.1]
 PD = [2.0, 0.5, 0.3, 0.0, 0.1]
@@ -72,3 +73,25 @@ def test_deflation_moves_the_real_multiplier_nearest_one_to_zero_and_keeps_the_o
     A = V @ D @ np.linalg.inv(V)
     mu = np.sort_complex(np.linalg.eigvals(without_symmetry_multiplier(A)))
     assert mu == pytest.approx(np.sort_complex(np.array([0.0, -3.0, 0.6 + 0.7j, 0.6 - 0.7j])), abs=1e-10)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_direction_deflation_moves_an_exact_one_to_zero_and_keeps_the_others(seed):
+    rng = np.random.default_rng(seed)
+    D = np.zeros((4, 4))
+    D[:2, :2], D[2, 2], D[3, 3] = np.array([[0.6, -0.7], [0.7, 0.6]]), 1.0, -3.0
+    V = rng.normal(size=(4, 4))
+    A = V @ D @ np.linalg.inv(V)
+    mu = np.sort_complex(np.linalg.eigvals(without_symmetry_direction(A)))
+    assert mu == pytest.approx(np.sort_complex(np.array([0.0, -3.0, 0.6 + 0.7j, 0.6 - 0.7j])), abs=1e-10)
+
+
+def test_at_a_double_one_the_direction_deflation_keeps_the_second_one():
+    """A Jordan block at +1 (a fold of the symmetric family: the critical multiplier meets
+    the structural one and their eigenvectors merge): one +1 is moved to 0, the other
+    stays, so the fold's matrix A - I is singular there, as it must be."""
+    J = np.array([[1.0, 1.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.5, 0.0], [0.0, 0.0, 0.0, -2.0]])
+    V = np.random.default_rng(3).normal(size=(4, 4))
+    A = V @ J @ np.linalg.inv(V)
+    mu = np.sort_complex(np.linalg.eigvals(without_symmetry_direction(A)))
+    assert mu == pytest.approx(np.sort_complex(np.array([0.0, 1.0, 0.5, -2.0])), abs=1e-6)

@@ -16,8 +16,11 @@ of the solution of the bordered system::
 
 where A is the Jacobian of the map on its dynamic coordinates (no multiplier 1 by
 structure there; see :meth:`baslip.analysis.gaitsystem.FixedPointSystem.dynamic_coordinates`;
-under a law of positions only, VPP, the symmetric gaits' multiplier 1 is deflated to 0,
-:func:`baslip.gait.stability.without_symmetry_multiplier`) and
+under a law of positions only, VPP, the symmetric gaits' multiplier 1 is deflated to 0:
+by its spectral projector for period-doubling and Neimark-Sacker curves,
+:func:`baslip.gait.stability.without_symmetry_multiplier`, and by its right eigenvector
+alone for fold curves, :func:`baslip.gait.stability.without_symmetry_direction`, since
+there the critical multiplier meets it at +1 and the projector is singular) and
 
 * fold: M = A - I (a multiplier at +1);
 * period doubling: M = A + I (a multiplier at -1);
@@ -49,6 +52,7 @@ import casadi as ca
 import numpy as np
 
 from baslip.analysis.continuation import Branch, CorrectionFailed, Point, Settings, continue_branch, join
+from baslip.gait.stability import without_symmetry_direction, without_symmetry_multiplier
 
 #: The curves that can be followed.
 CURVE_TYPES = ("fold", "period_doubling", "neimark_sacker")
@@ -108,10 +112,12 @@ class CurveSystem:
     ``base`` gives the fixed-point equations in two parameters: ``residual(v)`` (n),
     ``jacobian(v)`` (n x (n + 2)), ``multipliers(v)`` and ``map_jacobian(v, shift)``,
     the Jacobian of the map on its dynamic coordinates at the fixed point displaced by
-    ``shift``, and ``normal_forms``, whether that Jacobian's derivatives are the map's own
-    (False where a structural multiplier is deflated from it: the cusp and generalised
-    period-doubling coefficients are then not computed); optionally ``auxiliary``, the
-    indices of unknowns the map does not depend on. v = (w, l1, l2).
+    ``shift``, ``symmetric``, whether that Jacobian has a multiplier 1 by structure (the
+    curve deflates it, see the module docstring), and ``normal_forms``, whether the
+    deflated Jacobian's derivatives are the map's own (False where a structural multiplier
+    is deflated from it: the cusp and generalised period-doubling coefficients are then
+    not computed); optionally ``auxiliary``, the indices of unknowns the map does not
+    depend on. v = (w, l1, l2).
     """
 
     def __init__(self, base, kind: str):
@@ -126,8 +132,16 @@ class CurveSystem:
 
     # -- the defining function --------------------------------------------------------------
 
+    def map_jacobian(self, v: np.ndarray, shift: np.ndarray | None = None) -> np.ndarray:
+        """The base's map Jacobian with a structural multiplier 1 deflated (see the module
+        docstring): the matrix whose multipliers this curve's conditions read."""
+        A = self.base.map_jacobian(v, shift)
+        if not getattr(self.base, "symmetric", False):
+            return A
+        return without_symmetry_direction(A) if self.kind == "fold" else without_symmetry_multiplier(A)
+
     def _matrix(self, v: np.ndarray, shift: np.ndarray | None = None) -> np.ndarray:
-        return defining_matrix(self.kind, self.base.map_jacobian(v, shift))
+        return defining_matrix(self.kind, self.map_jacobian(v, shift))
 
     def _check_size(self, A: np.ndarray) -> None:
         if self.kind == "neimark_sacker" and len(A) < 2:
@@ -162,7 +176,7 @@ class CurveSystem:
     def _defining(self, v: np.ndarray) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
         key = (v.tobytes(), self._version)
         if self._cache is None or self._cache[0] != key:
-            A = self.base.map_jacobian(v)
+            A = self.map_jacobian(v)
             self._check_size(A)
             M = defining_matrix(self.kind, A)
             if self._border is None:
@@ -198,7 +212,7 @@ class CurveSystem:
         """The codimension-two test functions at a point of the curve (which also moves
         the border to this point's null vectors)."""
         A, _, phi, psi = self._defining(v)
-        tests = codim2_tests(self.kind, A, phi, psi, lambda shift: self.base.map_jacobian(v, shift),
+        tests = codim2_tests(self.kind, A, phi, psi, lambda shift: self.map_jacobian(v, shift),
                              self.base.normal_forms)
         self._set_border(defining_matrix(self.kind, A), self._border)  # a new version: g is recomputed
         return tests
@@ -218,7 +232,7 @@ class CurveSystem:
         Neimark-Sacker condition holds for a real pair."""
         if self.kind != "neimark_sacker":
             return self.kind
-        A = self.base.map_jacobian(v)
+        A = self.map_jacobian(v)
         mu = np.linalg.eigvals(A)
         i, _ = critical_pair(mu)
         return "neimark_sacker" if abs(mu[i].imag) > 1e-9 else "neutral_saddle"

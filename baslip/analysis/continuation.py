@@ -14,7 +14,11 @@ then located by regula falsi (Illinois) on the arclength until lambda is known t
   (the product of (mu - 1) over the non-trivial real multipliers changes sign): a
   saddle-node of the map. Without that evidence the point is a ``turning_point``: the
   path turns back in lambda, which happens when lambda is an apex coordinate (the branch
-  folds over in that coordinate) without any multiplier at +1;
+  folds over in that coordinate) without any multiplier at +1. On a branch of symmetric
+  gaits (a system with ``symmetric``: a law of positions only, VPP) a second real
+  multiplier crossing +1 is a ``fold`` whether or not the path turns: the symmetric
+  branch passes straight through it (at 3.9 m/s in r_vpp, human scale), and it bounds
+  stable gaits as a saddle-node does. Turning points are then not reported;
 * ``period_doubling``: det(I + dr/dX) (a multiplier crosses -1);
 * ``neimark_sacker``: the product of (|mu|^2 - 1) over the complex pairs;
 * ``branch_point``: det of the bordered Jacobian [dF/dv; t].
@@ -96,13 +100,17 @@ def tangent_of(jac: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
     return t / np.linalg.norm(t)
 
 
-def test_functions(jac: np.ndarray, tangent: np.ndarray, multipliers: np.ndarray, trivial: list[bool]) -> dict[str, float]:
+def test_functions(jac: np.ndarray, tangent: np.ndarray, multipliers: np.ndarray, trivial: list[bool],
+                   symmetric: bool = False) -> dict[str, float]:
+    """The branch's test functions at a point (see the module docstring); with
+    ``symmetric`` (a law of positions only) the fold's is the +1 crossing itself."""
     nontrivial = np.array([m for m, t in zip(multipliers, trivial) if not t])
     complex_pairs = [m for m in nontrivial if m.imag > 1e-9]
     real = [m.real for m in nontrivial if abs(m.imag) <= 1e-9]
+    multiplier_one = float(np.prod([m - 1.0 for m in real])) if real else math.nan
     return {
-        "fold": float(tangent[-1]),
-        "multiplier_one": float(np.prod([m - 1.0 for m in real])) if real else math.nan,
+        "fold": multiplier_one if symmetric else float(tangent[-1]),
+        "multiplier_one": multiplier_one,
         "period_doubling": float(np.real(np.prod(1.0 + multipliers))),
         "neimark_sacker": float(np.prod([abs(m) ** 2 - 1.0 for m in complex_pairs])) if complex_pairs else math.nan,
         "branch_point": float(np.linalg.det(np.vstack([jac, tangent]))),
@@ -136,7 +144,8 @@ def make_point(system: System, v: np.ndarray, previous_tangent: np.ndarray | Non
     t = tangent_of(jac, previous_tangent)
     multipliers, trivial = system.multipliers(v)
     tests = getattr(system, "test_functions", None)
-    values = tests(v, jac, t) if tests else test_functions(jac, t, multipliers, trivial)
+    values = tests(v, jac, t) if tests else test_functions(jac, t, multipliers, trivial,
+                                                           getattr(system, "symmetric", False))
     return Point(v, t, multipliers, trivial, values)
 
 
@@ -272,6 +281,10 @@ def _crossings(system: System, a: Point, b: Point) -> list[str]:
         x, y = a.tests[kind], b.tests[kind]
         if kind == "neimark_sacker" and a.tests["complex_pairs"] != b.tests["complex_pairs"]:
             continue  # a pair turned real: not a crossing of the unit circle
+        if kind == "fold" and getattr(system, "symmetric", False) and a.tests["complex_pairs"] != b.tests["complex_pairs"]:
+            # A pair meeting at +1 (at r_vpp = 0, where the trunk spins freely) changes the
+            # sign of the product of (mu - 1) without a real multiplier crossing +1.
+            continue
         veto = getattr(system, "crossing_veto", None)
         if veto and veto(kind, a, b):
             continue

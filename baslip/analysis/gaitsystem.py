@@ -25,7 +25,7 @@ from baslip.analysis.continuation import CorrectionFailed
 from baslip.engine.returnmap import ReturnMap, RunnerFell
 from baslip.gait.fixedpoint import VERIFY_EPS, minimal_period
 from baslip.gait.shooting import FixedPointSpec, implied_periodicity
-from baslip.gait.stability import classify, without_symmetry_multiplier
+from baslip.gait.stability import classify
 from baslip.model.dynamics import APEX, PARAMS, Params, apex_energy
 from baslip.model.quantities import NOMINAL
 from baslip.problem.continuation import BranchError, branch_shape, check_branch, check_parameter
@@ -79,9 +79,12 @@ class FixedPointSystem:
         self.design = spec.design
         self.free = [n for n in self.design if n not in spec.fixed and n not in self.parameters]
         self.rows = [n for n in APEX.names if n not in implied_periodicity(spec)]
-        #: Whether map_jacobian's derivatives are the map's own, as the curves' normal-form
+        #: Whether the map has a multiplier 1 by the gaits' symmetry (a law of positions
+        #: only), which a curve deflates from map_jacobian before it looks for its own.
+        self.symmetric = spec.law.positional
+        #: Whether the curves' Jacobian's derivatives are the map's own, as the normal-form
         #: coefficients need: not where a symmetry multiplier is deflated from it.
-        self.normal_forms = not spec.law.positional
+        self.normal_forms = not self.symmetric
         self.energy_row = "energy" in spec.fixed
         self.lam_scales = [self._scale_of(name) for name in self.parameters]
         self.lam_scale = self.lam_scales[0]
@@ -219,8 +222,9 @@ class FixedPointSystem:
     def map_jacobian(self, v: np.ndarray, shift: np.ndarray | None = None) -> np.ndarray:
         """Jacobian of the N-stride map on :meth:`dynamic_coordinates`, at the orbit's
         start displaced by ``shift`` (in those coordinates, physical units) at the same
-        energy and control: the matrix whose multipliers decide the curves, and (through
-        ``shift``) the map's higher derivatives for the normal-form coefficients."""
+        energy and control: the matrix whose multipliers decide the curves (after they
+        deflate a symmetry multiplier, :attr:`symmetric`), and (through ``shift``) the
+        map's higher derivatives for the normal-form coefficients."""
         X, u, params, _ = self.unpack(v)
         names = self.dynamic_coordinates(u, params)
         index = [APEX.index(n) for n in names]
@@ -229,10 +233,7 @@ class FixedPointSystem:
             dr_dX = self._cache[1][3]
         else:
             dr_dX = self._map_jacobians(lifted, u, params)[0]
-        jacobian = dr_dX[index, :] @ self._lift_jacobian(lifted, index, params, len(names) < APEX.size)
-        # A law of positions only has a multiplier 1 by the gaits' symmetry: moved to 0, it
-        # can be no bifurcation's critical multiplier.
-        return without_symmetry_multiplier(jacobian) if self.spec.law.positional else jacobian
+        return dr_dX[index, :] @ self._lift_jacobian(lifted, index, params, len(names) < APEX.size)
 
     def _lift(self, X, index, shift, params, conserved: bool) -> np.ndarray:
         """The apex at dynamic coordinates X[index] + shift: z moves to keep the energy
@@ -332,7 +333,7 @@ class NearestGuessSystem:
         points = self.fixed_points
         self.spec, self.parameter, self.parameters = spec, parameter, points.parameters
         self.lam_scales, self.lam_scale = points.lam_scales, points.lam_scale
-        self.normal_forms = points.normal_forms
+        self.normal_forms, self.symmetric = points.normal_forms, points.symmetric
         self.n_free, self.n_equations = len(points.free), len(points.rows) + points.energy_row
         design = dict(zip(spec.design, spec.start_design()))
         self.target = np.array([design[n] for n in points.free]) / points.scale[: self.n_free]

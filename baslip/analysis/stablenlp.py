@@ -16,15 +16,15 @@ import numpy as np
 
 from baslip.analysis.descent import OptimalGait, random_start
 from baslip.gait.fixedpoint import FixedPointSolver
-from baslip.gait.monodromy import accurate_gain_bounds
+from baslip.gait.monodromy import accurate_control_bounds
 from baslip.gait.shooting import FixedPointSpec
 
 
 def draw_spec(spec: FixedPointSpec, steps: int) -> FixedPointSpec:
-    """``spec`` with the gains' bounds narrowed to where ``steps`` RK4 steps per stance
-    phase are accurate (:func:`baslip.gait.monodromy.accurate_gain_bounds`)."""
+    """``spec`` with the drawn controls' bounds narrowed to where ``steps`` RK4 steps per
+    stance phase are accurate (:func:`baslip.gait.monodromy.accurate_control_bounds`)."""
     narrowed = dict(spec.bounds)
-    for name, (lo, hi) in accurate_gain_bounds(spec.params, steps).items():
+    for name, (lo, hi) in accurate_control_bounds(spec.law, spec.params, steps).items():
         own_lo, own_hi = spec.bounds_of(name)
         narrowed[name] = (max(own_lo, lo), min(own_hi, hi))
     return replace(spec, bounds=narrowed)
@@ -32,8 +32,9 @@ def draw_spec(spec: FixedPointSpec, steps: int) -> FixedPointSpec:
 
 def stable_nlp_from(solver: FixedPointSolver, spec: FixedPointSpec, rng: np.random.Generator,
                     name: str = "problem") -> OptimalGait:
-    """Draw gains where the stability NLP is accurate, solve the gait with them held, and
-    run the stability NLP from that gait (gains free again); the end is verified.
+    """Draw the law's gains (Kp and Kd, or r_vpp) where the stability NLP is accurate,
+    solve the gait with them held, and run the stability NLP from that gait (gains free
+    again); the end is verified.
 
     Parameters
     ----------

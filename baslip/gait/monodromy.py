@@ -27,6 +27,11 @@ With U and T as NLP variables (real and imaginary parts apart) the conditions
 bound every multiplier's modulus by s smoothly, with no eigenvalue solver in the NLP and
 no assumption on how the multipliers pair up. The condition on Im U[0, j] fixes the phase of each
 column of U, which the first two leave free, so the variables are locally unique.
+
+Under a law of positions only (VPP) a symmetric gait has a multiplier 1 that no control
+can move: the first slot of T then holds a multiplier near 1 (:data:`STRUCTURAL_SLACK`)
+and the bound covers the others (:func:`structural_multipliers`). The accuracy limit
+takes the law's hip rates (:meth:`baslip.model.hiplaw.HipLaw.hip_rates`).
 """
 
 from __future__ import annotations
@@ -50,7 +55,7 @@ from baslip.model.dynamics import (
     touchdown_guard,
     touchdown_map,
 )
-from baslip.model.hiplaw import CONTROL, touchdown_angle
+from baslip.model.hiplaw import HipLaw, touchdown_angle
 
 #: Size of the apex map's Jacobian.
 ORDER = APEX.size
@@ -108,10 +113,27 @@ class SchurLayout:
 SCHUR = SchurLayout()
 
 
-def schur_constraints(A, z) -> list[tuple[object, float, float]]:
+#: How near 1 a structural multiplier of the shot stride is held (:func:`schur_constraints`).
+#: The shot stride's RK4 intervals break the symmetry that makes it exactly 1 by their
+#: truncation error (its dr/dX matches the compiled map's to 1e-6 to 6e-3, see
+#: :data:`STEP_RATE_LIMIT`); a bound below 1 - this slack keeps every other multiplier in
+#: the bounded set.
+STRUCTURAL_SLACK = 1e-2
+
+
+def structural_multipliers(law: HipLaw) -> int:
+    """How many multipliers of a gait of ``law`` equal 1 by structure whatever its
+    controls: one, the symmetric family's, under a law of positions only (VPP); none
+    under PD (the torque-free and spin-free cases hold only at fixed controls)."""
+    return 1 if law.positional else 0
+
+
+def schur_constraints(A, z, structural: int = 0) -> list[tuple[object, float, float]]:
     """(expression, lower, upper) triples that hold iff the Schur variables ``z`` are a
     complex Schur form of ``A`` whose eigenvalues all have modulus <= s (see the module
-    docstring). ``A`` is a real ``ORDER x ORDER`` expression."""
+    docstring), except the first ``structural`` ones: these are held within
+    :data:`STRUCTURAL_SLACK` of 1 instead (the multiplier 1 of a symmetric family, which
+    no control can move). ``A`` is a real ``ORDER x ORDER`` expression."""
     U_re, U_im, T_re, T_im, s = SCHUR.unpack(z)
     n = SCHUR.order
     similar_re = ca.mtimes(A, U_re) - (ca.mtimes(U_re, T_re) - ca.mtimes(U_im, T_im))
@@ -120,8 +142,8 @@ def schur_constraints(A, z) -> list[tuple[object, float, float]]:
     gram_im = ca.mtimes(U_re.T, U_im) - ca.mtimes(U_im.T, U_re)  # antisymmetric
     upper = [(i, j) for i in range(n) for j in range(i, n)]
     strictly_upper = [(i, j) for i, j in upper if i < j]
-    moduli = ca.vertcat(*(T_re[j, j] ** 2 + T_im[j, j] ** 2 for j in range(n)))
-    return [
+    moduli = ca.vertcat(*(T_re[j, j] ** 2 + T_im[j, j] ** 2 for j in range(structural, n)))
+    constraints = [
         (ca.vec(similar_re), 0.0, 0.0),
         (ca.vec(similar_im), 0.0, 0.0),
         (ca.vertcat(*(gram_re[i, j] for i, j in upper)), 0.0, 0.0),
@@ -129,21 +151,30 @@ def schur_constraints(A, z) -> list[tuple[object, float, float]]:
         (ca.vec(U_im[0, :]), 0.0, 0.0),  # the phase of each column
         (moduli - s**2, -ca.inf, 0.0),
     ]
+    if structural:
+        near_one = ca.vertcat(*((T_re[j, j] - 1) ** 2 + T_im[j, j] ** 2 for j in range(structural)))
+        constraints.append((near_one, -ca.inf, STRUCTURAL_SLACK**2))
+    return constraints
 
 
-def schur_start(A: np.ndarray, margin: float = 1.01) -> np.ndarray:
+def schur_start(A: np.ndarray, structural: int = 0, margin: float = 1.01) -> np.ndarray:
     """Schur variables for a numeric ``A``: its complex Schur form, from the QR
     factorisation of its eigenvectors (A V = V L, V = Q R gives A Q = Q (R L R^-1), upper
     triangular), each column's phase turned so that its first entry is real, and the bound
-    ``margin`` times the spectral radius."""
+    ``margin`` times the largest modulus. The ``structural`` eigenvalues nearest 1 come
+    first and are left out of the bound (:func:`schur_constraints`)."""
     A = np.asarray(A, dtype=float)
     eigenvalues, V = np.linalg.eig(A)
+    nearest_one = np.argsort(np.abs(eigenvalues - 1.0))[:structural]
+    order = np.concatenate([nearest_one, [k for k in range(len(eigenvalues)) if k not in nearest_one]]).astype(int)
+    eigenvalues, V = eigenvalues[order], V[:, order]
     Q, _ = np.linalg.qr(V.astype(complex))
     first = Q[0, :]
     phase = np.where(np.abs(first) > 0, np.conj(first) / np.where(np.abs(first) > 0, np.abs(first), 1.0), 1.0)
     Q = Q * phase
     T = np.triu(Q.conj().T @ A @ Q)
-    return SCHUR.pack(Q, T, margin * float(np.max(np.abs(eigenvalues))))
+    bounded = np.abs(eigenvalues[structural:])
+    return SCHUR.pack(Q, T, margin * float(np.max(bounded)) if bounded.size else margin)
 
 
 #: Largest h * rate of a shooting interval in the stability NLP, for each of the stance
@@ -155,42 +186,47 @@ def schur_start(A: np.ndarray, margin: float = 1.01) -> np.ndarray:
 STEP_RATE_LIMIT = 0.5
 
 
-def stance_rates(u, p):
+def stance_rates(law: HipLaw, u, p) -> dict:
     """The stance dynamics' rates whose product with the step must stay small [1/s]: the
-    spring's sqrt(k/m), and the hip's damping Kd / I_hip and stiffness sqrt(|Kp| / I_hip)
-    as signed pairs (so that the limit is smooth), I_hip = I + m d^2 the trunk's inertia
-    about the hip. Squared rates for the stiffness, so every entry is smooth."""
+    spring's sqrt(k/m), and each of the law's hip stiffness and damping terms
+    (:meth:`baslip.model.hiplaw.HipLaw.hip_rates`) over I_hip = I + m d^2, the trunk's
+    inertia about the hip. Squared rates for the stiffness and the spring, so that every
+    entry is smooth."""
     m, inertia, k, d = (PARAMS.get(p, name) for name in ("m", "I", "k", "d"))
     inertia_hip = inertia + m * d**2
-    Kp, Kd = CONTROL.get(u, "Kp"), CONTROL.get(u, "Kd")
-    return {"spring_squared": k / m, "damping": Kd / inertia_hip, "negative_damping": -Kd / inertia_hip,
-            "stiffness_squared": Kp / inertia_hip, "negative_stiffness_squared": -Kp / inertia_hip}
+    stiffness, damping = law.hip_rates(u, p)
+    return {"spring_squared": k / m,
+            **{f"damping_{i}": term / inertia_hip for i, term in enumerate(damping)},
+            **{f"stiffness_squared_{i}": term / inertia_hip for i, term in enumerate(stiffness)}}
 
 
-def accuracy_constraints(u, p, step) -> list[tuple[object, float, float]]:
-    """(expression, lower, upper): every rate times the interval ``step`` [s] within
-    :data:`STEP_RATE_LIMIT`."""
+def accuracy_constraints(law: HipLaw, u, p, step) -> list[tuple[object, float, float]]:
+    """(expression, lower, upper): every rate of :func:`stance_rates` times the interval
+    ``step`` [s] within :data:`STEP_RATE_LIMIT`."""
     limit = STEP_RATE_LIMIT
-    rates = stance_rates(u, p)
+    rates = stance_rates(law, u, p)
     return [(step * rates[name] if "squared" not in name else step**2 * rates[name], -ca.inf,
              limit if "squared" not in name else limit**2) for name in rates]
 
 
-def step_rate(u, p, step: float) -> float:
-    """The largest h * rate of a numeric control ``u`` and interval ``step`` [s]: the
-    quantity :data:`STEP_RATE_LIMIT` bounds."""
-    rates = stance_rates(ca.DM(u), ca.DM(p))
+def step_rate(law: HipLaw, u, p, step: float) -> float:
+    """The largest h * rate of a numeric control ``u`` of ``law`` and interval ``step``
+    [s]: the quantity :data:`STEP_RATE_LIMIT` bounds."""
+    rates = stance_rates(law, ca.DM(u), ca.DM(p))
     return max(step * math.sqrt(max(float(value), 0.0)) if "squared" in name else step * float(value)
                for name, value in rates.items())
 
 
-def accurate_gain_bounds(params, steps: int) -> dict[str, tuple[float, float]]:
-    """Bounds on Kp [N m/rad] and Kd [N m s/rad] inside which a stance phase of a quarter
-    spring period, pi/2 sqrt(m/k), in ``steps`` intervals keeps h * rate within
-    :data:`STEP_RATE_LIMIT`: where to draw the stability NLP's starts.
+def accurate_control_bounds(law: HipLaw, params, steps: int) -> dict[str, tuple[float, float]]:
+    """Bounds on the law's drawn controls (Kp [N m/rad] and Kd [N m s/rad] under PD, r_vpp
+    [m] under VPP) inside which a stance phase of a quarter spring period, pi/2 sqrt(m/k),
+    in ``steps`` intervals keeps h * rate within :data:`STEP_RATE_LIMIT`: where to draw
+    the stability NLP's starts.
 
     Parameters
     ----------
+    law
+        The hip law (:class:`baslip.model.hiplaw.HipLaw`).
     params
         The runner's parameters (:class:`baslip.model.dynamics.Params`).
     steps
@@ -198,9 +234,9 @@ def accurate_gain_bounds(params, steps: int) -> dict[str, tuple[float, float]]:
     """
     step = 0.5 * math.pi * math.sqrt(params.m / params.k) / steps
     inertia_hip = params.I + params.m * params.d**2
-    kd = STEP_RATE_LIMIT * inertia_hip / step
-    kp = (STEP_RATE_LIMIT / step) ** 2 * inertia_hip
-    return {"Kp": (-kp, kp), "Kd": (-kd, kd)}
+    damping = STEP_RATE_LIMIT * inertia_hip / step
+    stiffness = (STEP_RATE_LIMIT / step) ** 2 * inertia_hip
+    return law.rate_limited_bounds(stiffness, damping, params)
 
 
 def phase_sensitivity(out, guard, x, t):
@@ -211,9 +247,9 @@ def phase_sensitivity(out, guard, x, t):
     return ca.jacobian(out, x) - ca.mtimes(out_t, ca.jacobian(guard, x)) / guard_t
 
 
-def _descent_function() -> ca.Function:
+def _descent_function(law: HipLaw) -> ca.Function:
     """(X, u, p, t_descent) -> d x_touchdown / d X, the touchdown time following the guard."""
-    X, u, p, t = APEX.sym("X", ca.MX), CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX), ca.MX.sym("t")
+    X, u, p, t = APEX.sym("X", ca.MX), law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX), ca.MX.sym("t")
     theta_td = touchdown_angle(u)
     at_touchdown = ballistic_flight(apex_to_flight(X), t, p)
     guard = touchdown_guard(at_touchdown, theta_td, p)
@@ -221,9 +257,9 @@ def _descent_function() -> ca.Function:
     return ca.Function("descent_sensitivity", [X, u, p, t], [phase_sensitivity(out, guard, X, t)])
 
 
-def _touchdown_function() -> ca.Function:
+def _touchdown_function(law: HipLaw) -> ca.Function:
     """(X, u, p, t_descent) -> the stance state at touchdown."""
-    X, u, p, t = APEX.sym("X", ca.MX), CONTROL.sym("u", ca.MX), PARAMS.sym("p", ca.MX), ca.MX.sym("t")
+    X, u, p, t = APEX.sym("X", ca.MX), law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX), ca.MX.sym("t")
     at_touchdown = touchdown_map(ballistic_flight(apex_to_flight(X), t, p), touchdown_angle(u), p)
     return ca.Function("touchdown_state", [X, u, p, t], [at_touchdown])
 
@@ -275,13 +311,15 @@ class ShotStrideJacobian:
         The NLP's shooting interval, (x0 [stance state], h [s], theta = (u, p)) -> end state.
     nodes
         Shooting intervals per stance phase.
+    law
+        The hip law, whose controls ``u`` are.
     """
 
-    def __init__(self, interval: ca.Function, nodes: int):
+    def __init__(self, interval: ca.Function, nodes: int, law: HipLaw):
         self.nodes = nodes
         self._step = _variational_step(interval)
-        self._descent = _descent_function()
-        self._touchdown = _touchdown_function()
+        self._descent = _descent_function(law)
+        self._touchdown = _touchdown_function(law)
         self._ascent = _ascent_function()
         self._bottom = _guard_gradient(lambda x, p: bottom_guard(x))
         self._liftoff = _guard_gradient(liftoff_guard)

@@ -45,7 +45,14 @@ from baslip.engine.kernels import StanceFlow, stance_clearances
 from baslip.engine.kernels import sources as kernel_sources
 from baslip.engine.returnmap import PHASES, ReturnMap, Stride
 from baslip.gait import monodromy as _monodromy
-from baslip.gait.monodromy import SCHUR, ShotStrideJacobian, accuracy_constraints, schur_constraints, schur_start
+from baslip.gait.monodromy import (
+    SCHUR,
+    ShotStrideJacobian,
+    accuracy_constraints,
+    schur_constraints,
+    schur_start,
+    structural_multipliers,
+)
 from baslip.model import quantities as _quantities
 from baslip.model.dynamics import (
     APEX,
@@ -197,9 +204,6 @@ class ShootingNLP:
             raise ValueError(f"hessian must be one of {HESSIANS}, got {options.hessian!r}")
         if options.spectral_bound and strides != 1:
             raise ValueError(f"the multipliers are bounded for one-stride orbits only, not {strides}")
-        if options.spectral_bound and law is not PD:
-            # Its accuracy constraints bound the PD gains' rates (:mod:`baslip.gait.monodromy`).
-            raise ValueError(f"the multipliers are bounded inside the NLP under hip_law pd only, not {law.name}")
         self.options = options
         self.strides = strides
         self.law = law
@@ -271,13 +275,13 @@ class ShootingNLP:
             lambda: _nlp_functions(w, params, weights, distance, ca.vertcat(*effort), bound, g, self.options.hessian),
             _nlp_sources(), enabled=compile, optimisation=NLP_OPTIMISATION,
         )
-        self._solver = self._nlpsol(self.functions)
+        self._solvers: dict[tuple, ca.Function] = {(): self._nlpsol(self.functions, {})}
 
     def _stability(self, w, X0, u, p, shot, constraints, constrain):
         """The stability NLP's part (:mod:`baslip.gait.monodromy`): the sensitivity nodes
         and their joins, every interval's h * rate within the limit, and the Schur form
         with its bound; returns (the bound s, the new variables)."""
-        self._sensitivity = ShotStrideJacobian(self._interval, self.options.nodes)
+        self._sensitivity = ShotStrideJacobian(self._interval, self.options.nodes, self.law)
         sensitivities = ca.MX.sym("sensitivities", self._sensitivity.size)
         schur = ca.MX.sym("schur", SCHUR.size)
         first_row = sum(c[0].numel() for c in constraints)
@@ -286,9 +290,9 @@ class ShootingNLP:
         durations = shot[0]
         for phase in (1, 2):  # compression and decompression
             step = durations[phase] / (self.options.nodes * self.options.substeps)
-            for expr, lo, hi in accuracy_constraints(u, p, step):
+            for expr, lo, hi in accuracy_constraints(self.law, u, p, step):
                 constrain(expr, lo, hi)
-        for expr, lo, hi in schur_constraints(A, schur):
+        for expr, lo, hi in schur_constraints(A, schur, structural_multipliers(self.law)):
             constrain(expr, lo, hi)
         self._shot_jacobian = ca.Function("shot_stride_jacobian", [w, sensitivities, p], [A])
         return SCHUR.unpack(schur)[-1], ca.vertcat(sensitivities, schur)
@@ -302,11 +306,12 @@ class ShootingNLP:
         sensitivities = w[self._n_orbit : self._n_orbit + self._sensitivity.size]
         return np.asarray(self._shot_jacobian(w[: self._n_orbit], sensitivities, params.vector()))
 
-    def _nlpsol(self, functions: dict[str, ca.Function]) -> ca.Function:
-        """IPOPT over the (compiled) NLP functions; CasADi differentiates nothing itself."""
+    def _nlpsol(self, functions: dict[str, ca.Function], changed: Mapping[str, object]) -> ca.Function:
+        """IPOPT over the (compiled) NLP functions, with the options' IPOPT settings and
+        ``changed`` over them; CasADi differentiates nothing itself."""
         w, params = ca.MX.sym("w", self._n_w), ca.MX.sym("P", functions["nlp_fg"].size1_in(1))
         f, g = functions["nlp_fg"](w, params)
-        ipopt = {"print_level": 0, "sb": "yes", **dict(self.options.ipopt)}
+        ipopt = {"print_level": 0, "sb": "yes", **dict(self.options.ipopt), **dict(changed)}
         # lam_p would need derivatives of the compiled functions that IPOPT never uses.
         options = {"ipopt": ipopt, "print_time": False, "error_on_fail": False, "calc_lam_p": False, "no_nlp_grad": True,
                    "grad_f": functions["nlp_grad_f"], "jac_g": functions["nlp_jac_g"]}
@@ -376,7 +381,7 @@ class ShootingNLP:
         X, u = orbit[: APEX.size], orbit[APEX.size : n_design]
         sensitivities = self._sensitivity.start_values(X, u, p, T, comp, decomp)
         A = np.asarray(self._shot_jacobian(orbit, sensitivities, p))
-        return np.concatenate([orbit, sensitivities, schur_start(A)])
+        return np.concatenate([orbit, sensitivities, schur_start(A, structural_multipliers(self.law))])
 
     def _guess_nodes(self) -> ca.Function:
         """(X, u, p, (t_descent, t_compression, t_decompression)) -> the nodes of both
@@ -393,8 +398,17 @@ class ShootingNLP:
             self._guess_nodes_fn = ca.Function("guess_nodes", [X, u, p, T], [comp, decomp])
         return self._guess_nodes_fn
 
-    def solve(self, spec: FixedPointSpec, w0: np.ndarray | None = None, rmap: ReturnMap | None = None) -> NlpSolution:
-        """Solve the NLP from ``w0`` (default: :meth:`initial_guess`)."""
+    def _solver(self, changed: Mapping[str, object]) -> ca.Function:
+        """IPOPT with ``changed`` over the options' settings, built on first use."""
+        key = tuple(sorted(changed.items()))
+        if key not in self._solvers:
+            self._solvers[key] = self._nlpsol(self.functions, changed)
+        return self._solvers[key]
+
+    def solve(self, spec: FixedPointSpec, w0: np.ndarray | None = None, rmap: ReturnMap | None = None,
+              ipopt: Mapping[str, object] | None = None) -> NlpSolution:
+        """Solve the NLP from ``w0`` (default: :meth:`initial_guess`), with IPOPT's
+        settings ``ipopt`` over the options' (default: theirs)."""
         if spec.strides != self.strides:
             raise ValueError(f"this NLP is built for {self.strides}-stride orbits, not {spec.strides}")
         if spec.law is not self.law:
@@ -417,9 +431,10 @@ class ShootingNLP:
         # CasADi warns on stderr when a trial point gives NaN; IPOPT recovers or reports a
         # failure status, which is what the caller sees.
         with contextlib.redirect_stderr(io.StringIO()):
-            sol = self._solver(x0=w0, p=params, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+            solver = self._solver(ipopt or {})
+            sol = solver(x0=w0, p=params, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
         elapsed = time.perf_counter() - start
-        stats = self._solver.stats()
+        stats = solver.stats()
         w = np.asarray(sol["x"]).ravel()
         n_design = len(self.design)
         return NlpSolution(

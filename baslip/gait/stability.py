@@ -135,6 +135,24 @@ def classify(jacobian: np.ndarray, params: Params, u, law: HipLaw = PD) -> Stabi
     return Stability(np.asarray(jacobian), multipliers, float(radius), bool(radius < 1.0 - STABILITY_MARGIN))
 
 
+def without_symmetry_direction(jacobian: np.ndarray) -> np.ndarray:
+    """``jacobian`` - v v^T, with v the unit vector that A - I maps nearest to zero (its
+    smallest right singular vector): at a symmetric gait of a law of positions only (VPP),
+    where A v = v, the structural multiplier moves to 0 and the others are unchanged
+    (in the basis (v, v's complement) A is block triangular with 1 in the corner).
+
+    Unlike :func:`without_symmetry_multiplier` it needs no left eigenvector, so it stays
+    finite where a second multiplier meets +1 in a Jordan block (a fold of the symmetric
+    family, where the two eigenvectors merge and v is still the smallest singular
+    vector): the deflation of fold curves. Off the gaits (A v != v) the others move by
+    about |A v - v|.
+    """
+    A = np.asarray(jacobian, dtype=float)
+    _, _, vt = np.linalg.svd(A - np.eye(len(A)))
+    v = vt[-1]
+    return A - np.outer(v, v)
+
+
 def without_symmetry_multiplier(jacobian: np.ndarray) -> np.ndarray:
     """``jacobian`` with its real multiplier nearest 1 moved to 0, the others unchanged
     (Wielandt deflation: A - mu P, with P the spectral projector of mu).
@@ -143,7 +161,7 @@ def without_symmetry_multiplier(jacobian: np.ndarray) -> np.ndarray:
     ``symmetry`` one; near the gait (as where a curve's derivatives are differenced) it is
     still the one nearest 1, and the projector changes smoothly with the matrix while mu
     stays simple. A multiplier that crosses +1 there (a fold of the symmetric family)
-    meets it and makes P singular, so fold curves are not followed this way.
+    meets it and makes P singular, so fold curves use :func:`without_symmetry_direction`.
     """
     A = np.asarray(jacobian, dtype=float)
     mu, V = np.linalg.eig(A)

@@ -126,6 +126,35 @@ class HipLaw:
         """
         raise NotImplementedError
 
+    def hip_rates(self, u, p) -> tuple[list, list]:
+        """(stiffness terms [N m/rad], damping terms [N m s/rad]): smooth expressions of the
+        controls whose largest is |d tau / d theta2| (resp. |d tau / d theta2_dot|) over a
+        stance, exactly or as an estimate (see each law), for a limit on the torque's rates
+        inside an NLP (signed pairs, so that a limit on the largest is smooth; empty where
+        the torque has no such rate).
+
+        Parameters
+        ----------
+        u : casadi.SX, casadi.MX or casadi.DM
+            The law's control vector (SI units and radians).
+        p : casadi.SX, casadi.MX or casadi.DM
+            The parameter vector (m, I, k, rho0, d, g).
+        """
+        raise NotImplementedError
+
+    def rate_limited_bounds(self, stiffness: float, damping: float, params) -> dict[str, tuple[float, float]]:
+        """Bounds on the drawn controls (:attr:`drawn`) inside which every term of
+        :meth:`hip_rates` stays within ``stiffness`` [N m/rad] and ``damping`` [N m s/rad].
+
+        Parameters
+        ----------
+        stiffness, damping : float
+            The largest hip stiffness [N m/rad] and damping [N m s/rad] allowed.
+        params : Params
+            The model parameters.
+        """
+        raise NotImplementedError
+
     @property
     def positional(self) -> bool:
         """Whether the torque depends on positions only: the law's gaits then have the
@@ -200,6 +229,31 @@ class PDLaw(HipLaw):
         u = np.asarray(u, dtype=float).T  # entries first
         return np.abs(u[self.controls.index("Kp")]), np.abs(u[self.controls.index("Kd")])
 
+    def hip_rates(self, u, p) -> tuple[list, list]:
+        """([Kp, -Kp], [Kd, -Kd]): the torque's rates are the gains themselves.
+
+        Parameters
+        ----------
+        u : casadi.SX, casadi.MX or casadi.DM
+            The PD controls (Kp, Kd, theta2_des, theta2_dot_des, theta_td).
+        p : casadi.SX, casadi.MX or casadi.DM
+            The parameter vector (unused).
+        """
+        Kp, Kd = self.controls.get(u, "Kp"), self.controls.get(u, "Kd")
+        return [Kp, -Kp], [Kd, -Kd]
+
+    def rate_limited_bounds(self, stiffness: float, damping: float, params) -> dict[str, tuple[float, float]]:
+        """|Kp| <= ``stiffness`` [N m/rad] and |Kd| <= ``damping`` [N m s/rad].
+
+        Parameters
+        ----------
+        stiffness, damping : float
+            The largest hip stiffness [N m/rad] and damping [N m s/rad] allowed.
+        params : Params
+            The model parameters (unused).
+        """
+        return {"Kp": (-stiffness, stiffness), "Kd": (-damping, damping)}
+
 
 @dataclass(frozen=True, eq=False)
 class VPPLaw(HipLaw):
@@ -268,11 +322,47 @@ class VPPLaw(HipLaw):
         p : array_like
             The parameter vector, shape (6,) (m, I, k, rho0, d, g).
         """
-        # The torque is a spring-force fraction of the lever to the pivot: bound the force
-        # by 3 body weights (running's peak) and the lever by |r_vpp| + d.
         r = np.abs(np.asarray(u, dtype=float).T[self.controls.index("r_vpp")])
         m, d, g = (float(p[PARAMS.index(n)]) for n in ("m", "d", "g"))
-        return 3.0 * m * g * (r + d), np.zeros_like(r)
+        return PEAK_FORCE_IN_WEIGHTS * m * g * (r + d), np.zeros_like(r)
+
+    def hip_rates(self, u, p) -> tuple[list, list]:
+        """([3 m g (d + r_vpp), 3 m g (d - r_vpp)], []): the estimate of :meth:`step_rates`
+        as a signed pair, whose larger is 3 m g (|r_vpp| + d); no damping. An estimate, not
+        a bound: along the gaits of problems/vpp.yaml, vpp_human.yaml and eight cells of
+        optimal_vpp, the largest |d tau / d theta2| is 0.35 to 1.6 times it.
+
+        Parameters
+        ----------
+        u : casadi.SX, casadi.MX or casadi.DM
+            The VPP controls (r_vpp [m], theta_td [rad]).
+        p : casadi.SX, casadi.MX or casadi.DM
+            The parameter vector (m, I, k, rho0, d, g).
+        """
+        m, d, g = (PARAMS.get(p, name) for name in ("m", "d", "g"))
+        r = self.controls.get(u, "r_vpp")
+        weight = PEAK_FORCE_IN_WEIGHTS * m * g
+        return [weight * (d + r), weight * (d - r)], []
+
+    def rate_limited_bounds(self, stiffness: float, damping: float, params) -> dict[str, tuple[float, float]]:
+        """|r_vpp| <= ``stiffness`` / (3 m g) - d [m] (an empty range, 0 to 0, when the
+        offset d alone exceeds the stiffness allowed); ``damping`` does not limit the law.
+
+        Parameters
+        ----------
+        stiffness, damping : float
+            The largest hip stiffness [N m/rad] and damping [N m s/rad] allowed.
+        params : Params
+            The model parameters (m, d and g).
+        """
+        reach = max(stiffness / (PEAK_FORCE_IN_WEIGHTS * params.m * params.g) - params.d, 0.0)
+        return {"r_vpp": (-reach, reach)}
+
+
+#: The VPP torque is a spring-force fraction of the lever to the pivot: its stiffness is
+#: estimated with the force bounded by this many body weights (running's peak, about 3)
+#: and the lever by |r_vpp| + d. Only step sizes and the stability NLP's rate bound use it.
+PEAK_FORCE_IN_WEIGHTS = 3.0
 
 
 def _cross(a, b):

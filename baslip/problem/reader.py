@@ -296,20 +296,6 @@ def _check_law(problem: Problem) -> None:
             raise ProblemError(key, f"{name} is not a quantity under hip_law {problem.hip_law.name} "
                                f"(its controls are {controls})")
     _check_adapted_controls(problem)
-    if problem.hip_law is PD:
-        return
-    if problem.objective in STABILITY_OBJECTIVES:
-        raise ProblemError("objective", f"{problem.objective} bounds the multipliers under hip_law pd only, so far")
-    if isinstance(problem.study, Optimal) and problem.study.method == "schur_nlp":
-        # Its accuracy constraints bound the PD gains' rates (:mod:`baslip.gait.monodromy`).
-        raise ProblemError("study.method", f"the stability NLP (schur_nlp) runs under hip_law pd only, so far; under "
-                           f"{problem.hip_law.name}, use method: descent")
-    if problem.continuation is not None and "fold" in problem.continuation.follow and problem.hip_law.positional:
-        # A fold multiplier meets the symmetry multiplier at +1, where the deflation that
-        # removes the latter from the curves' matrices breaks down.
-        raise ProblemError("continuation.follow", f"fold curves are not followed under hip_law "
-                           f"{problem.hip_law.name} (their multiplier +1 meets the symmetric gaits' structural "
-                           f"one); follow period_doubling or neimark_sacker")
 
 
 def _check_adapted_controls(problem: Problem) -> None:

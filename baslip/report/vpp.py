@@ -114,7 +114,28 @@ def _curve_text(ev: Evidence) -> str:
              f"{max(r['ydot'] for r in bounding):.4g} m/s (r_vpp {min(r['r_vpp'] for r in bounding):.4g} to "
              f"{max(r['r_vpp'] for r in bounding):.4g} m)" if bounding else "it bounds no stable gaits")
     return (f" Its period doubling followed in (r_vpp, ydot) over {lo:g} to {hi:g} m/s (curve_vpp_pivot, {len(rows)} "
-            f"verified points, the symmetry multiplier deflated): {where}; {points}.")
+            f"verified points, the symmetry multiplier deflated): {where}; {points}." + _fold_text(ev, summary))
+
+
+def _fold_text(ev: Evidence, period_doubling: dict) -> str:
+    """Where the fold curve of curve_vpp_fold (a second multiplier at +1) bounds stable
+    gaits, and how near its fold-flip is to the period-doubling curve's."""
+    summary = ev.summary("curve_vpp_fold")
+    rows = [r for r in ev.rows("curve_vpp_fold", "curve.csv") if r["type"] == "fold"]
+    if summary is None or not rows:
+        return ""
+    bounding = [r for r in rows if r["stability_boundary"] is True]
+    where = (f"it bounds stable gaits for r_vpp {min(r['r_vpp'] for r in bounding):.4g} to "
+             f"{max(r['r_vpp'] for r in bounding):.4g} m (ydot {max(r['ydot'] for r in bounding):.4g} down to "
+             f"{min(r['ydot'] for r in bounding):.4g} m/s)" if bounding else "it bounds no stable gaits")
+    ours = [p for p in summary["curves"]["codimension_two_points"] if p["type"] == "fold_flip"]
+    theirs = [p for p in period_doubling["curves"]["codimension_two_points"] if p["type"] == "fold_flip"]
+    meeting = (f"; its fold-flip, at r_vpp = {ours[0]['r_vpp']:.6g} m, ydot = {ours[0]['ydot']:.6g} m/s, is the "
+               f"period-doubling curve's to {abs(ours[0]['r_vpp'] - theirs[0]['r_vpp']):.1g} m and "
+               f"{abs(ours[0]['ydot'] - theirs[0]['ydot']):.1g} m/s" if ours and theirs else "")
+    return (f" The fold curve, where a second multiplier crosses +1 (curve_vpp_fold, {len(rows)} verified points, "
+            f"from the branch's crossing at 3.9 m/s, which the symmetric gaits pass without turning): {where}"
+            f"{meeting}.")
 
 
 def optimal_claims(ev: Evidence) -> list[str]:
@@ -125,14 +146,16 @@ def optimal_claims(ev: Evidence) -> list[str]:
     if summary is None or not summary.get("complete"):
         return []
     polished = {c["sweep_ydot"]: c["polished_radius"] for c in ev.rows("atlas_vpp", "cells.csv")}
+    nlp = _least_by_cell(ev.summary(SCHUR_STUDY))
     lines = []
     for cell in summary["least_per_point"]:
         atlas = polished.get(cell["ydot"])
         shown = f"{atlas:.4f}" if isinstance(atlas, float) else "-"
+        by_nlp = nlp.get((cell["ydot"], cell["z"]))
         lines.append(f"| {cell['ydot']:g} | {cell['z']:g} | {cell['spectral_radius']:.4f} | "
-                     f"{'yes' if cell['stable'] else 'no'} | {shown} |")
-    table = ("| ydot [m/s] | z [m] | least radius | stable | atlas_vpp, polished, z free |\n"
-             "|---|---|---|---|---|\n" + "\n".join(lines) + "\n")
+                     f"{'yes' if cell['stable'] else 'no'} | {'-' if by_nlp is None else f'{by_nlp:.4f}'} | {shown} |")
+    table = ("| ydot [m/s] | z [m] | least radius | stable | stability NLP | atlas_vpp, polished, z free |\n"
+             "|---|---|---|---|---|---|\n" + "\n".join(lines) + "\n")
     below = [c for c in summary["least_per_point"] if isinstance(polished.get(c["ydot"]), float)
              and c["spectral_radius"] < polished[c["ydot"]] * (1 - 1e-9)]
     agreement = ("At every cell the descent ends at or above the atlas's polished least at its speed, as it must if "
@@ -146,13 +169,58 @@ def optimal_claims(ev: Evidence) -> list[str]:
         f"optimal_vpp: at each (ydot, z) cell, {summary['starts']} starts with r_vpp drawn over its bounds, each "
         f"descended along the cell's family of gaits (the symmetry multiplier left out), {summary['points']} starts, "
         f"{summary['solved']} verified:\n\n" + table + f"\n{agreement}. The least: {least['spectral_radius']:.4f} at "
-        f"ydot = {least['ydot']:g} m/s, z = {least['z']:g} m, r_vpp = {least['control']['r_vpp']:.4g} m.\n",
+        f"ydot = {least['ydot']:g} m/s, z = {least['z']:g} m, r_vpp = {least['control']['r_vpp']:.4g} m.\n"
+        + _schur_crosscheck(ev, summary),
         "goes further",
         f"The search is local from each start; the claim is as wide as its {len(summary['least_per_point'])} cells "
         f"and their starts. The least gait of every cell stays within {_tilt(summary):.2f} deg of vertical "
         "throughout its stride.",
         ["optimal_vpp/spectral_radius_map.png"],
     )]
+
+
+#: The stability NLP's cross-check of ``optimal_vpp``: the same cells, starts and draws.
+SCHUR_STUDY = "optimal_vpp_schur"
+#: Relative distance within which a stability NLP's end is the descent's least of its cell.
+SAME_RADIUS = 1e-4
+
+
+def _least_by_cell(summary: dict | None) -> dict[tuple, float]:
+    """(ydot, z) -> the least verified radius of a finished optimal study's cell."""
+    if summary is None or not summary.get("complete"):
+        return {}
+    return {(c["ydot"], c["z"]): c["spectral_radius"] for c in summary["least_per_point"]
+            if isinstance(c.get("spectral_radius"), float)}
+
+
+def _schur_crosscheck(ev: Evidence, descent: dict) -> str:
+    """How the stability NLP's starts (:data:`SCHUR_STUDY`) ended against the descent's
+    least of their cells: at it, above it, below it (each named), or failed."""
+    summary = ev.summary(SCHUR_STUDY)
+    if summary is None or not summary.get("complete"):
+        return ""
+    least = _least_by_cell(descent)
+    rows = ev.rows(SCHUR_STUDY, "points.csv")
+    at, above, below, failed = 0, 0, [], 0
+    for row in rows:
+        best = least.get((row["sweep_ydot"], row["sweep_z"]))
+        if row["status"] != "converged" or best is None:
+            failed += 1
+        elif abs(row["spectral_radius"] - best) <= SAME_RADIUS * best:
+            at += 1
+        elif row["spectral_radius"] > best:
+            above += 1
+        else:
+            below.append(row)
+    cells = sum(1 for key, value in _least_by_cell(summary).items()
+                if key in least and abs(value - least[key]) <= SAME_RADIUS * least[key])
+    named = "; ".join(f"{r['spectral_radius']:.4f} at ydot = {r['sweep_ydot']:g} m/s, z = {r['sweep_z']:g} m, "
+                      f"r_vpp = {r['r_vpp']:.2g} m" for r in below)
+    return (f"\nThe stability NLP ({SCHUR_STUDY}: the same cells, starts and draws; every multiplier but the "
+            f"symmetry one bounded by a Schur form): its least equals the descent's (to {SAME_RADIUS:g}) at {cells} of "
+            f"{len(least)} cells. Of its {len(rows)} starts, {at} end at their cell's least, {above} above it (at "
+            f"other minima of its bound, or at IPOPT's acceptable level), {failed} fail, and {len(below)} end below it"
+            + (f" ({named})" if below else "") + ".\n")
 
 
 def atlas_claims(ev: Evidence) -> list[str]:

@@ -118,7 +118,7 @@ def _describe(base, kind: str, number: int, n: int, point: Point) -> str:
 def _row(number: int, curve: CurveSystem, point: Point) -> dict:
     base = curve.base
     X, u, params, _ = base.unpack(point.v)
-    A = base.map_jacobian(point.v)
+    A = curve.map_jacobian(point.v)
     row = {"curve": number, "type": curve.on_curve(point.v), **APEX.to_dict(X), **base.spec.law.control_dict(u),
            "energy": base.energy(X, params)}
     row.update(base.values(point.v))  # both parameters (the energy, if it is one, as continued)
