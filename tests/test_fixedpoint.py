@@ -177,3 +177,13 @@ def test_the_symmetry_multiplier_is_one_and_the_others_decide_the_radius(vpp_hum
     assert abs(symmetric - 1.0) <= 1e-7
     others = max(abs(m.value) for m in multipliers if m.label is None)
     assert vpp_human.spectral_radius == pytest.approx(others) and vpp_human.stable == (others < 1 - 1e-6)
+
+
+def test_a_point_of_another_hip_law_is_refused_not_polished(solver, vpp_human):
+    """verify_point of the (PD) solver refuses a VPP problem's point: its controls would be
+    read in the wrong layout."""
+    from baslip.gait.from_problem import fixed_point_spec
+
+    spec = fixed_point_spec(load_problem("problems/vpp_human.yaml"))
+    with pytest.raises(ValueError, match="built for hip law pd, not vpp"):
+        solver.verify_point(spec, vpp_human.X, vpp_human.u)

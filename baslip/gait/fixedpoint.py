@@ -420,6 +420,8 @@ class FixedPointSolver:
         FixedPointResult
             The polished and verified point, or a result whose status says why not.
         """
+        if spec.law is not self.law:
+            raise ValueError(f"this solver is built for hip law {self.law.name}, not {spec.law.name}")
         start = time.perf_counter()
         X, u = np.asarray(X, dtype=float), np.asarray(u, dtype=float)
         given = NlpSolution(X, u, np.full(len(PHASES), np.nan), "not run (point given)", 0, 0.0)

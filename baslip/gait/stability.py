@@ -98,7 +98,8 @@ def trivial_labels(params: Params, u, law: HipLaw = PD) -> list[str]:
     spin = ["spin", "spin"] if law.spin_free(control, params) else []
     if law.positional:
         return spin + ["symmetry"]
-    return spin + ["energy"] if law.torque_free(control) else []
+    # Under PD the trunk spins freely only without torque, so spin is empty otherwise.
+    return (spin + ["energy"]) if law.torque_free(control) else []
 
 
 def classify(jacobian: np.ndarray, params: Params, u, law: HipLaw = PD) -> Stability:

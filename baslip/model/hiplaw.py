@@ -112,7 +112,7 @@ class HipLaw:
         """
         return self.torque_free(values) and params.d == 0.0
 
-    def step_rates(self, u, p) -> tuple[float, float]:
+    def step_rates(self, u, p) -> tuple[np.ndarray, np.ndarray]:
         """(hip stiffness [N m/rad], hip damping [N m s/rad]): upper estimates of
         |d tau / d theta2| and |d tau / d theta2_dot| for the integrator's first step size
         (the accuracy checks do not rely on them); ``u`` may hold rows of many controls.
@@ -216,7 +216,7 @@ class PDLaw(HipLaw):
         """
         return values.get("Kp") == 0.0 and values.get("Kd") == 0.0
 
-    def step_rates(self, u, p) -> tuple[float, float]:
+    def step_rates(self, u, p) -> tuple[np.ndarray, np.ndarray]:
         """(|Kp| [N m/rad], |Kd| [N m s/rad]), exactly the torque's rates.
 
         Parameters
@@ -311,7 +311,7 @@ class VPPLaw(HipLaw):
         """
         return values.get("r_vpp") == 0.0  # the force points at the CoM
 
-    def step_rates(self, u, p) -> tuple[float, float]:
+    def step_rates(self, u, p) -> tuple[np.ndarray, np.ndarray]:
         """(3 m g (|r_vpp| + d) [N m/rad], 0 [N m s/rad]): the hip stiffness estimated from
         a force of 3 body weights on the lever to the pivot; no damping.
 
