@@ -563,6 +563,7 @@ def _stable_nlp_rank(sol: NlpSolution) -> tuple[bool, float]:
     bound = sol.spectral_bound if sol.spectral_bound is not None and math.isfinite(sol.spectral_bound) else math.inf
     return sol.return_status not in ACCEPTED_IPOPT, bound
 
+
 #: Relative distance below which two apexes of an orbit count as the same.
 SAME_APEX = 1e-8
 

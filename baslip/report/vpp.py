@@ -219,7 +219,8 @@ def _schur_crosscheck(ev: Evidence, descent: dict) -> str:
     return (f"\nThe stability NLP ({SCHUR_STUDY}: the same cells, starts and draws; every multiplier but the "
             f"symmetry one bounded by a Schur form): its least equals the descent's (to {SAME_RADIUS:g}) at {cells} of "
             f"{len(least)} cells. Of its {len(rows)} starts, {at} end at their cell's least, {above} above it (at "
-            f"other minima of its bound, or at IPOPT's acceptable level), {failed} fail, and {len(below)} end below it"
+            f"other minima of its bound, or at IPOPT's acceptable level), {failed} fail, and {len(below)} "
+            f"end{'s' if len(below) == 1 else ''} below it"
             + (f" ({named})" if below else "") + ".\n")
 
 
