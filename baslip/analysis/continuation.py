@@ -281,10 +281,6 @@ def _crossings(system: System, a: Point, b: Point) -> list[str]:
         x, y = a.tests[kind], b.tests[kind]
         if kind == "neimark_sacker" and a.tests["complex_pairs"] != b.tests["complex_pairs"]:
             continue  # a pair turned real: not a crossing of the unit circle
-        if kind == "fold" and getattr(system, "symmetric", False) and a.tests["complex_pairs"] != b.tests["complex_pairs"]:
-            # A pair meeting at +1 (at r_vpp = 0, where the trunk spins freely) changes the
-            # sign of the product of (mu - 1) without a real multiplier crossing +1.
-            continue
         veto = getattr(system, "crossing_veto", None)
         if veto and veto(kind, a, b):
             continue

@@ -21,7 +21,7 @@ from dataclasses import replace
 import casadi as ca
 import numpy as np
 
-from baslip.analysis.continuation import CorrectionFailed
+from baslip.analysis.continuation import CorrectionFailed, Point
 from baslip.engine.returnmap import ReturnMap, RunnerFell
 from baslip.gait.fixedpoint import VERIFY_EPS, minimal_period
 from baslip.gait.shooting import FixedPointSpec, implied_periodicity
@@ -218,6 +218,13 @@ class FixedPointSystem:
         if not law.torque_free(law.control_dict(u)):
             return APEX.names
         return ("ydot", "theta_h", "theta_h_dot") if params.d != 0.0 else ("ydot",)
+
+    def crossing_veto(self, kind: str, a: Point, b: Point) -> bool:
+        """Sign changes between branch points ``a`` and ``b`` that are no ``kind`` point: on
+        symmetric gaits, a fold (:func:`baslip.analysis.continuation.test_functions`) whose
+        count of complex pairs changes, a pair meeting at +1 (at r_vpp = 0, where the trunk
+        spins freely) rather than a real multiplier crossing it."""
+        return kind == "fold" and self.symmetric and a.tests["complex_pairs"] != b.tests["complex_pairs"]
 
     def map_jacobian(self, v: np.ndarray, shift: np.ndarray | None = None) -> np.ndarray:
         """Jacobian of the N-stride map on :meth:`dynamic_coordinates`, at the orbit's
@@ -422,6 +429,9 @@ class NearestGuessSystem:
 
     def map_jacobian(self, v: np.ndarray, shift: np.ndarray | None = None) -> np.ndarray:
         return self.fixed_points.map_jacobian(self._inner(v), shift)
+
+    def crossing_veto(self, kind: str, a: Point, b: Point) -> bool:
+        return self.fixed_points.crossing_veto(kind, a, b)
 
     def verification_failure(self, v: np.ndarray, verify_map: ReturnMap) -> str | None:
         """As :meth:`FixedPointSystem.verification_failure`, and inside the bounds."""
