@@ -15,9 +15,9 @@ import pytest
 from test_slip_limit import slip_apex_map, slip_fixed_point  # an independent SLIP (tests/ is on sys.path)
 
 from baslip.analysis.continuation import Settings, continue_branch, switch_branch
-from baslip.analysis.gaitsystem import FixedPointSystem
+from baslip.analysis.gaitsystem import FixedPointSystem, NearestGuessSystem, branch_system
 from baslip.gait.fixedpoint import minimal_period
-from baslip.gait.from_problem import fixed_point_spec
+from baslip.gait.from_problem import fixed_point_spec, solver_for
 from baslip.gait.shooting import FixedPointSpec
 from baslip.problem.continuation import BranchError, check_branch
 from baslip.problem.reader import load_problem
@@ -185,3 +185,40 @@ def test_the_period_doubling_is_a_branch_point_of_the_two_stride_equations(slip_
     run = continue_branch(doubled, branch.points[0].v, +1, Settings(step=0.05, lam_range=(0.0, end)))
     assert [p.special for p in run.special] == ["branch_point"]
     assert abs(doubled.unpack(run.special[0].v)[3] - system.unpack(pd.v)[3]) < 1e-6
+
+
+@pytest.mark.parametrize("name", ["continuation_slip_attack", "curve_downward_boundary", "curve_vpp_fold"])
+def test_second_derivatives_agree_with_differences_of_the_ad_jacobians(name):
+    """The exact second derivatives (Hessian-vector products of the compiled stride) that
+    curves and the nearest-guess family use, against central differences of the AD
+    Jacobians: in the SLIP limit (energy conserved, so the map's coordinates are lifted
+    onto the energy; an energy row), at a hanging PD gait with its gains free, and at a
+    symmetric VPP gait. The Hessian of a weighted residual is symmetric."""
+    problem = load_problem(f"problems/{name}.yaml")
+    solver = solver_for(problem)
+    spec = fixed_point_spec(problem)
+    start = solver.solve(spec)
+    assert start.converged, start.message
+    system = branch_system(spec, problem.continuation.parameter, solver.residual_map, solver.jacobian_map,
+                           second=problem.continuation.second)
+    points = system.fixed_points if isinstance(system, NearestGuessSystem) else system
+    v = points.pack(start.X, start.u, *(points.start_value(n) for n in points.parameters))
+    rng = np.random.default_rng(5)
+    h = 1e-6
+
+    def differenced(matrix_at, j):
+        step = np.zeros(len(v))
+        step[j] = h
+        return (matrix_at(v + step) - matrix_at(v - step)) / (2 * h)
+
+    k = len(points.map_jacobian(v))
+    seed = rng.normal(size=(k, k))
+    exact = points.map_jacobian_gradient(v, seed)
+    reference = np.array([np.sum(seed * differenced(points.map_jacobian, j)) for j in range(len(v))])
+    assert np.linalg.norm(exact - reference) <= 1e-5 * np.linalg.norm(reference)
+
+    weights = rng.normal(size=len(points.residual(v)))
+    hessian = points.residual_hessian(v, weights, range(len(v)))
+    reference = np.column_stack([weights @ differenced(points.jacobian, j) for j in range(len(v))])
+    assert np.linalg.norm(hessian - reference) <= 1e-5 * np.linalg.norm(reference)
+    assert np.allclose(hessian, hessian.T, rtol=0, atol=1e-9 * np.abs(hessian).max())

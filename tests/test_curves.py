@@ -7,7 +7,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from baslip.analysis.bifurcation import CurveSystem, SmoothMap, bialternate, trace_curve
+from baslip.analysis.bifurcation import CurveSystem, SmoothMap, bialternate, defining_matrix, defining_seed, trace_curve
 from baslip.analysis.continuation import Settings
 
 
@@ -43,6 +43,35 @@ def test_bialternate_product_has_the_pairwise_products_as_eigenvalues():
     products = sorted((mu[i] * mu[j] for i in range(4) for j in range(i)), key=lambda z: (z.real, z.imag))
     found = sorted(np.linalg.eigvals(bialternate(A)), key=lambda z: (z.real, z.imag))
     assert np.allclose(found, products, atol=1e-10)
+
+
+@pytest.mark.parametrize("kind, a, b", [("fold", -0.12, 0.3), ("period_doubling", 0.3675, 0.3),
+                                         ("neimark_sacker", 0.5, -1.0)])
+def test_the_test_functions_gradient_is_that_of_differences_of_the_residual(kind, a, b):
+    """The curve's last Jacobian row, from the seed on the map Jacobian and the map's own
+    second derivatives, against central differences of g: near each Henon curve."""
+    curve = CurveSystem(HENON, kind)
+    v = np.array([*henon_fixed_point(a, b), a, b]) + 1e-3
+    jacobian = curve.jacobian(v)
+    h = 1e-6
+    differenced = np.array([(curve.residual(v + h * e)[-1] - curve.residual(v - h * e)[-1]) / (2 * h)
+                            for e in np.eye(len(v))])
+    assert np.allclose(jacobian[-1], differenced, rtol=1e-7, atol=1e-8)
+
+
+def test_a_seed_of_a_quadratic_defining_matrix_is_exact_with_a_unit_step():
+    """The bialternate product is quadratic in A, so the central difference with a unit step
+    is its derivative: it agrees with small steps, which carry truncation error only."""
+    rng = np.random.default_rng(2)
+    A, phi, psi = rng.normal(size=(4, 4)), rng.normal(size=6), rng.normal(size=6)
+    matrix = lambda R: defining_matrix("neimark_sacker", R)  # noqa: E731
+    exact = defining_seed(matrix, A, phi, psi, linear=True)
+    small = np.empty_like(A)
+    for index in np.ndindex(*A.shape):
+        shift = np.zeros_like(A)
+        shift[index] = 1e-5
+        small[index] = psi @ (matrix(A + shift) - matrix(A - shift)) @ phi / 2e-5
+    assert np.allclose(exact, small, rtol=1e-7, atol=1e-9)
 
 
 def test_henon_period_doubling_curve_and_its_1_2_resonance():

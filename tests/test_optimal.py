@@ -24,14 +24,8 @@ import numpy as np
 import pytest
 
 from baslip import Params
-from baslip.analysis.descent import (
-    SURROGATE_POWER,
-    NoSecondDerivatives,
-    StabilityDescent,
-    optimise_from,
-    random_start,
-    surrogate,
-)
+from baslip.analysis.descent import SURROGATE_POWER, StabilityDescent, optimise_from, random_start, surrogate
+from baslip.engine.returnmap import NoSecondDerivatives
 from baslip.gait.from_problem import fixed_point_spec, shooting_options
 from baslip.gait.polish import eps
 from baslip.problem.reader import load_problem

@@ -1,7 +1,8 @@
 """Specification of baslip.engine.returnmap: the event-located apex return map r(X, u).
 
 Checked against closed forms (vertical hopping), invariants (energy without torque,
-mirror symmetry), finite differences of the tight map, and the named ways to fall.
+mirror symmetry), finite differences of the tight map (first derivatives) and of its AD
+Jacobian (second derivatives), and the named ways to fall.
 """
 
 import math
@@ -10,8 +11,8 @@ import numpy as np
 import pytest
 
 from baslip import Fall, Params, ReturnMap, Tolerances
-from baslip.engine.returnmap import RunnerFell
-from baslip.model.dynamics import build_model
+from baslip.engine.returnmap import NoSecondDerivatives, RunnerFell, param_vector
+from baslip.model.dynamics import APEX, build_model
 
 MODEL = build_model()
 
@@ -191,3 +192,34 @@ def test_multi_stride_jacobians_match_central_differences_of_two_strides(tight_m
             plus[which], minus[which] = base + shift, base - shift
             column = (twice(*plus) - twice(*minus)) / (2 * shift[j])
             np.testing.assert_allclose(jac[:, j], column, rtol=1e-5, atol=1e-5, err_msg=f"column {j} of input {which}")
+
+
+def test_hessian_vector_products_match_differences_of_the_ad_jacobian(tight_map, params, running_point):
+    """H S, with H the Hessian of w . r in z = (X, u, p) by AD (reverse over forward mode),
+    against central differences of the AD Jacobian's w-weighted rows along S; and H is
+    symmetric, a . H b = b . H a, as second derivatives are."""
+    X, u = running_point
+    p = param_vector(params)
+    z = np.concatenate([X, u, p])
+    rng = np.random.default_rng(3)
+    w = rng.normal(size=APEX.size)
+    S = rng.normal(size=(len(z), 3)) * np.maximum(np.abs(z), 0.1)[:, None]  # each input moved on its own scale
+    product = tight_map.hessian_vectors(X, u, params, w, S)
+
+    def weighted_gradient(point):
+        jacobians = tight_map.all_jacobians(point[: APEX.size], point[APEX.size : APEX.size + u.size],
+                                            point[APEX.size + u.size :])
+        return np.hstack(jacobians).T @ w
+
+    h = 1e-6
+    for k in range(S.shape[1]):
+        differenced = (weighted_gradient(z + h * S[:, k]) - weighted_gradient(z - h * S[:, k])) / (2 * h)
+        assert np.linalg.norm(product[:, k] - differenced) <= 1e-5 * np.linalg.norm(differenced)
+    assert S[:, 0] @ product[:, 1] == pytest.approx(S[:, 1] @ product[:, 0], rel=1e-10)
+
+
+def test_an_event_map_has_no_second_derivatives(params, running_point):
+    X, u = running_point
+    with pytest.raises(NoSecondDerivatives):
+        ReturnMap(Tolerances(1e-12, 1e-12), plugin="erk").hessian_vectors(X, u, params, np.ones(APEX.size),
+                                                                           np.ones((APEX.size + u.size + 6, 1)))

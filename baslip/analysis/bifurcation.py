@@ -32,9 +32,11 @@ there the critical multiplier meets it at +1 and the projector is singular) and
 g vanishes exactly where M is singular; b and c, the singular vectors of M at the last
 point, keep the bordered matrix regular there. g itself comes from the algorithmic
 Jacobian A, so the curve is located to Newton's tolerance. Its gradient is
-dg/dv = -psi^T (dM/dv) phi (psi from the transposed system), where dM/dv, a second
-derivative of the map, is a central difference of the algorithmic Jacobian: it only
-steers Newton and the tangent, and does not move the points.
+dg/dv = -psi^T (dM/dv) phi (psi from the transposed system). M is algebra on the
+base's map Jacobian R (A = R, or R deflated), so psi^T dM phi = <S, dR> for a seed S
+(:func:`defining_seed`), and the base turns <S, dR/dv> into exact second derivatives
+of the map (``map_jacobian_gradient``: for a gait, Hessian-vector products of the
+compiled stride, :meth:`baslip.analysis.gaitsystem.FixedPointSystem.map_jacobian_gradient`).
 
 Codimension-two points are zeros of the test functions of :data:`CODIM2_TESTS`, located
 by regula falsi along the curve. The normal-form coefficients of the cusp and of the
@@ -64,8 +66,9 @@ CODIM2_TESTS = {
     "neimark_sacker": ("resonance_1_1", "resonance_1_2", "resonance_1_3", "resonance_1_4", "fold_neimark_sacker"),
 }
 
-#: Step of the central differences of the Jacobian for dg/dv (scaled unknowns).
-DIFFERENCE_STEP = 1e-6
+#: Step of the central differences on the map Jacobian's entries that linearise a
+#: symmetry deflation for :func:`defining_seed` (algebra on a k x k matrix only).
+DEFLATION_STEP = 1e-6
 #: Steps along unit null vectors for the map's second (B) and third (C) derivatives.
 SECOND_DERIVATIVE_STEP = 1e-4
 THIRD_DERIVATIVE_STEP = 1e-3
@@ -92,6 +95,22 @@ def defining_matrix(kind: str, A: np.ndarray) -> np.ndarray:
     return product - np.eye(len(product))
 
 
+def defining_seed(matrix_of: Callable[[np.ndarray], np.ndarray], R: np.ndarray, phi: np.ndarray, psi: np.ndarray,
+                  linear: bool) -> np.ndarray:
+    """S with psi^T dM phi = <S, dR>, for M = ``matrix_of(R)``: the derivative of the
+    scalar psi^T M(R) phi in each entry of R, by central differences on R alone. Where M
+    is a polynomial of degree two or less in R (``linear``: the fold's A - I, the period
+    doubling's A + I, the bialternate product's A (.) A - I) the difference with a unit
+    step is exact; through a deflation it takes :data:`DEFLATION_STEP`."""
+    step = 1.0 if linear else DEFLATION_STEP * max(1.0, float(np.max(np.abs(R))))
+    seed = np.empty_like(R)
+    for index in np.ndindex(*R.shape):
+        shift = np.zeros_like(R)
+        shift[index] = step
+        seed[index] = psi @ (matrix_of(R + shift) - matrix_of(R - shift)) @ phi / (2 * step)
+    return seed
+
+
 def critical_pair(multipliers: np.ndarray) -> tuple[int, int]:
     """Indices of the two multipliers whose product is nearest 1 (on a Neimark-Sacker
     curve, the pair on the unit circle)."""
@@ -112,12 +131,12 @@ class CurveSystem:
     ``base`` gives the fixed-point equations in two parameters: ``residual(v)`` (n),
     ``jacobian(v)`` (n x (n + 2)), ``multipliers(v)`` and ``map_jacobian(v, shift)``,
     the Jacobian of the map on its dynamic coordinates at the fixed point displaced by
-    ``shift``, ``symmetric``, whether that Jacobian has a multiplier 1 by structure (the
-    curve deflates it, see the module docstring), and ``normal_forms``, whether the
+    ``shift``, ``map_jacobian_gradient(v, seed)``, the gradient in v of <seed,
+    map_jacobian(v)>, ``symmetric``, whether that Jacobian has a multiplier 1 by structure
+    (the curve deflates it, see the module docstring), and ``normal_forms``, whether the
     deflated Jacobian's derivatives are the map's own (False where a structural multiplier
     is deflated from it: the cusp and generalised period-doubling coefficients are then
-    not computed); optionally ``auxiliary``, the indices of unknowns the map does not
-    depend on. v = (w, l1, l2).
+    not computed). v = (w, l1, l2).
     """
 
     def __init__(self, base, kind: str):
@@ -135,13 +154,12 @@ class CurveSystem:
     def map_jacobian(self, v: np.ndarray, shift: np.ndarray | None = None) -> np.ndarray:
         """The base's map Jacobian with a structural multiplier 1 deflated (see the module
         docstring): the matrix whose multipliers this curve's conditions read."""
-        A = self.base.map_jacobian(v, shift)
-        if not getattr(self.base, "symmetric", False):
-            return A
-        return without_symmetry_direction(A) if self.kind == "fold" else without_symmetry_multiplier(A)
+        return self._deflated(self.base.map_jacobian(v, shift))
 
-    def _matrix(self, v: np.ndarray, shift: np.ndarray | None = None) -> np.ndarray:
-        return defining_matrix(self.kind, self.map_jacobian(v, shift))
+    def _deflated(self, R: np.ndarray) -> np.ndarray:
+        if not getattr(self.base, "symmetric", False):
+            return R
+        return without_symmetry_direction(R) if self.kind == "fold" else without_symmetry_multiplier(R)
 
     def _check_size(self, A: np.ndarray) -> None:
         if self.kind == "neimark_sacker" and len(A) < 2:
@@ -191,16 +209,9 @@ class CurveSystem:
 
     def jacobian(self, v: np.ndarray) -> np.ndarray:
         _, _, phi, psi = self._defining(v)
-        gradient = np.zeros(len(v))
-        # Unknowns the map does not depend on (a base's Lagrange multipliers) are skipped.
-        skipped = set(getattr(self.base, "auxiliary", ()))
-        for j in range(len(v)):
-            if j in skipped:
-                continue
-            step = np.zeros(len(v))
-            step[j] = DIFFERENCE_STEP
-            dM = (self._matrix(v + step) - self._matrix(v - step)) / (2 * DIFFERENCE_STEP)
-            gradient[j] = -psi @ dM @ phi
+        seed = defining_seed(lambda R: defining_matrix(self.kind, self._deflated(R)), self.base.map_jacobian(v),
+                             phi, psi, linear=not getattr(self.base, "symmetric", False))
+        gradient = -self.base.map_jacobian_gradient(v, seed)
         return np.vstack([self.base.jacobian(v), gradient])
 
     def multipliers(self, v: np.ndarray):
@@ -381,7 +392,10 @@ class SmoothMap:
         y = f(x, p)
         self.size = f.size1_in(0)
         self._f = ca.Function("f", [x, p], [y])
-        self._jac = ca.Function("J", [x, p], [ca.jacobian(y, x), ca.jacobian(y, p)])
+        by_x = ca.jacobian(y, x)
+        self._jac = ca.Function("J", [x, p], [by_x, ca.jacobian(y, p)])
+        seed = ca.SX.sym("seed", self.size, self.size)
+        self._jac_gradient = ca.Function("dJ", [x, p, seed], [ca.gradient(ca.dot(seed, by_x), ca.vertcat(x, p))])
 
     def _split(self, v):
         return np.asarray(v[: self.size], dtype=float), np.asarray(v[self.size :], dtype=float)
@@ -398,6 +412,10 @@ class SmoothMap:
     def map_jacobian(self, v: np.ndarray, shift: np.ndarray | None = None) -> np.ndarray:
         x, p = self._split(v)
         return np.asarray(self._jac(x if shift is None else x + shift, p)[0])
+
+    def map_jacobian_gradient(self, v: np.ndarray, seed: np.ndarray) -> np.ndarray:
+        x, p = self._split(v)
+        return np.asarray(self._jac_gradient(x, p, seed)).ravel()
 
     def multipliers(self, v: np.ndarray):
         mu = np.linalg.eigvals(self.map_jacobian(v))

@@ -41,6 +41,8 @@ from baslip.errors import RunError
 SPECIAL_TYPES = ("fold", "period_doubling", "neimark_sacker", "branch_point")
 LOCATE_TOLERANCE = 1e-7  # on lambda (scaled units)
 LOCATE_MAX_NEWTON = 60
+#: A Newton step shorter than this (scaled) keeps the Jacobian for the next one.
+CHORD_STEP = 1e-6
 
 
 class CorrectionFailed(RunError):
@@ -119,12 +121,17 @@ def test_functions(jac: np.ndarray, tangent: np.ndarray, multipliers: np.ndarray
 
 
 def correct(system: System, v_pred: np.ndarray, tangent: np.ndarray, settings: Settings) -> tuple[np.ndarray, int]:
-    """Newton on the bordered system from ``v_pred``; returns the point and iterations."""
-    v = v_pred.copy()
+    """Newton on the bordered system from ``v_pred``; returns the point and iterations.
+
+    After a step shorter than :data:`CHORD_STEP` the Jacobian is kept (a chord step):
+    there Newton has converged to about the square of that step, and the step that
+    confirms it (below 1e-10) is as short with the Jacobian of the last iterate."""
+    v, dv, jac = v_pred.copy(), np.full(len(v_pred), np.inf), None
     for iteration in range(1, settings.max_newton + 1):
         f = system.residual(v)
         g = np.concatenate([f, [np.dot(tangent, v - v_pred)]])
-        jac = np.vstack([system.jacobian(v), tangent])
+        if jac is None or np.linalg.norm(dv) >= CHORD_STEP:
+            jac = np.vstack([system.jacobian(v), tangent])
         try:
             dv = np.linalg.solve(jac, -g)
         except np.linalg.LinAlgError:

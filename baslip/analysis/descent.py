@@ -43,8 +43,7 @@ from baslip.engine.codegen import compile_kernels, library_name
 from baslip.engine.kernels import multiplier_gradient_function
 from baslip.engine.kernels import sources as stride_sources
 from baslip.engine.outcome import precheck
-from baslip.engine.returnmap import ReturnMap, RunnerFell, param_vector
-from baslip.errors import RunError
+from baslip.engine.returnmap import NoSecondDerivatives, ReturnMap, RunnerFell, param_vector
 from baslip.gait.fixedpoint import FixedPointResult, FixedPointSolver
 from baslip.gait.polish import Polish, eps, movable_quantities
 from baslip.gait.shooting import FixedPointSpec
@@ -68,10 +67,6 @@ GRADIENT_TOLERANCE = 1e-7
 STEP_TOLERANCE = 1e-9
 #: The compass search's steps (scaled units) and trial budget.
 COMPASS = CompassSettings(first_step=0.05, largest_step=0.4, last_step=1e-6, trials=600)
-
-
-class NoSecondDerivatives(RunError):
-    """The compiled engine cannot vouch for this stride, so it has no second derivatives."""
 
 
 def surrogate(dr_dX: np.ndarray, trivial: np.ndarray | None = None, q: int = SURROGATE_POWER) -> tuple[float, np.ndarray]:

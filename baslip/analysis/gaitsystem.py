@@ -22,7 +22,7 @@ import casadi as ca
 import numpy as np
 
 from baslip.analysis.continuation import CorrectionFailed, Point
-from baslip.engine.returnmap import ReturnMap, RunnerFell
+from baslip.engine.returnmap import NoSecondDerivatives, ReturnMap, RunnerFell
 from baslip.gait.fixedpoint import VERIFY_EPS, minimal_period
 from baslip.gait.shooting import FixedPointSpec, implied_periodicity
 from baslip.gait.stability import classify
@@ -33,20 +33,25 @@ from baslip.problem.continuation import BranchError, branch_shape, check_branch,
 #: A phase lasting less than this fraction of its flight (descent) or stance (compression,
 #: decompression) counts as grazing: the branch is about to lose or gain an event.
 GRAZING_FRACTION = 0.02
+#: Step (scaled unknowns) of the central differences that stand in for second
+#: derivatives where the stride has none (orbits of several strides; strides the
+#: compiled engine cannot vouch for).
+CURVATURE_STEP = 1e-6
 
 
 def branch_system(spec: FixedPointSpec, parameter: str, residual_map: ReturnMap, jacobian_map: ReturnMap,
-                  second: str | None = None):
+                  second: str | None = None, exact: bool = True):
     """The continuation system of the problem's fixed points: :class:`FixedPointSystem`
     when the equations fix the free quantities, :class:`NearestGuessSystem` when the
-    problem leaves more free and its objective picks among them."""
+    problem leaves more free and its objective picks among them. ``exact=False`` takes
+    second derivatives as differences of the AD Jacobian (for cross-checks and benchmarks)."""
     _check(spec, parameter, "continuation.parameter", square=True)
     if second is not None:
         _check(spec, second, "continuation.second", square=True)
     free, equations = branch_shape(spec.fixed, spec.params, spec.law)
     if len(free) == equations:
-        return FixedPointSystem(spec, parameter, residual_map, jacobian_map, second)
-    return NearestGuessSystem(spec, parameter, residual_map, jacobian_map, second)
+        return FixedPointSystem(spec, parameter, residual_map, jacobian_map, second, exact=exact)
+    return NearestGuessSystem(spec, parameter, residual_map, jacobian_map, second, exact=exact)
 
 
 def _check(spec: FixedPointSpec, parameter: str, key: str, square: bool) -> None:
@@ -64,16 +69,19 @@ class FixedPointSystem:
     With a ``second`` parameter, v = (free design quantities, lambda_1, lambda_2): the
     fixed points then form a surface, on which a bifurcation curve is one more equation
     (:mod:`baslip.analysis.bifurcation`). The Jacobian has one column per parameter.
+
+    Second derivatives (:meth:`residual_hessian`, :meth:`map_jacobian_gradient`) are
+    algorithmic; with ``exact=False``, central differences of the AD Jacobian.
     """
 
     def __init__(self, spec: FixedPointSpec, parameter: str, residual_map: ReturnMap, jacobian_map: ReturnMap,
-                 second: str | None = None, square: bool = True):
+                 second: str | None = None, square: bool = True, exact: bool = True):
         _check(spec, parameter, "continuation.parameter", square)
         if second is not None:
             if second == parameter:
                 raise BranchError("continuation.second", f"the second parameter must differ from the first ({parameter})")
             _check(spec, second, "continuation.second", square)
-        self.spec, self.parameter = spec, parameter
+        self.spec, self.parameter, self.exact = spec, parameter, exact
         self.parameters = (parameter,) if second is None else (parameter, second)
         self.residual_map, self.jacobian_map = residual_map, jacobian_map
         self.design = spec.design
@@ -93,6 +101,13 @@ class FixedPointSystem:
         energy = apex_energy(X, p)
         self._energy = ca.Function("E", [X, p], [energy])
         self._energy_gradient = ca.Function("dE", [X, p], [ca.gradient(energy, X), ca.gradient(energy, p)])
+        self._energy_hessian = ca.Function("d2E", [X, p], [ca.hessian(energy, ca.vertcat(X, p))[0]])
+        # The lift's share of a curve's second derivatives (see map_jacobian_gradient): the
+        # gradient in (X, p) of -c . dE/dX / (dE/dz), the z row of the lift contracted with c.
+        c = APEX.sym("c")
+        by_X = ca.gradient(energy, X)
+        lifted = -ca.dot(c, by_X) / APEX.get(by_X, "z")
+        self._lift_gradient = ca.Function("dlift", [X, p, c], [ca.gradient(lifted, ca.vertcat(X, p))])
         self._cache: tuple[bytes, tuple] | None = None
 
     def _scale_of(self, name: str) -> float:
@@ -236,10 +251,7 @@ class FixedPointSystem:
         names = self.dynamic_coordinates(u, params)
         index = [APEX.index(n) for n in names]
         lifted = self._lift(X, index, shift, params, len(names) < APEX.size)
-        if shift is None and self._cache is not None and v.tobytes() == self._cache[0]:
-            dr_dX = self._cache[1][3]
-        else:
-            dr_dX = self._map_jacobians(lifted, u, params)[0]
+        dr_dX = self._jacobians(v)[3] if shift is None else self._map_jacobians(lifted, u, params)[0]
         return dr_dX[index, :] @ self._lift_jacobian(lifted, index, params, len(names) < APEX.size)
 
     def _lift(self, X, index, shift, params, conserved: bool) -> np.ndarray:
@@ -263,6 +275,95 @@ class FixedPointSystem:
             z = APEX.index("z")
             lift[z, :] -= gradient[index] / gradient[z]
         return lift
+
+    # -- second derivatives, for curves and the nearest-guess family ----------------------
+
+    def residual_hessian(self, v: np.ndarray, weights: np.ndarray, columns) -> np.ndarray:
+        """d^2 (weights . F) / dv dv[columns], scaled: len(v) x len(columns).
+
+        Exact for one-stride orbits: the stride's Hessian-vector products
+        (:meth:`baslip.engine.returnmap.ReturnMap.hessian_vectors`, one per column) and the
+        apex energy's Hessian. Orbits of several strides, and strides the compiled engine
+        cannot vouch for, take central differences of :meth:`jacobian` instead.
+        """
+        columns = list(columns)
+        X, u, params, _ = self.unpack(v)
+        to_z = self._to_z()
+        w = np.zeros(APEX.size)
+        w[[APEX.index(n) for n in self.rows]] = weights[: len(self.rows)]
+        try:
+            product = self._hessian_vectors(X, u, params, w, to_z[:, columns])
+        except NoSecondDerivatives:
+            return np.column_stack([weights @ self._differenced(self.jacobian, v, j) for j in columns])
+        if self.energy_row:
+            by_X_p = np.asarray(self._energy_hessian(X, params.vector()))
+            energy = np.zeros((len(to_z), len(to_z)))
+            at = np.r_[: APEX.size, len(to_z) - PARAMS.size : len(to_z)]
+            energy[np.ix_(at, at)] = by_X_p
+            product = product + weights[-1] * energy @ to_z[:, columns]
+        return to_z.T @ product
+
+    def map_jacobian_gradient(self, v: np.ndarray, seed: np.ndarray) -> np.ndarray:
+        """The gradient in v (scaled) of <seed, map_jacobian(v)>, seed k x k on
+        :meth:`dynamic_coordinates`: the derivative that a bifurcation curve's test
+        function needs. Exact as :meth:`residual_hessian` is (with the same fallback).
+
+        map_jacobian = P J L, with J = dr/dX, P the rows of the dynamic coordinates and L
+        the lift (which moves z to keep the energy where it is conserved). So the seed on J
+        is P^T seed L^T, a sum of at most four outer products a b^T, each one
+        Hessian-vector product of a . r along (b, 0, 0); L's own dependence on X and p is
+        the energy's algebra.
+        """
+        X, u, params, _ = self.unpack(v)
+        names = self.dynamic_coordinates(u, params)
+        index = [APEX.index(n) for n in names]
+        conserved = len(names) < APEX.size
+        on_J = np.zeros((APEX.size, APEX.size))
+        on_J[index, :] = seed @ self._lift_jacobian(X, index, params, conserved).T
+        left, sizes, right = np.linalg.svd(on_J)
+        kept = sizes > 1e-14 * max(sizes[0], 1e-300)
+        directions = np.zeros((len(self.design) + PARAMS.size, int(kept.sum())))
+        directions[: APEX.size] = right[kept].T
+        try:
+            gradient = self._hessian_vectors(X, u, params, left[:, kept] * sizes[kept], directions).sum(axis=1)
+        except NoSecondDerivatives:
+            return np.array([np.sum(seed * self._differenced(self.map_jacobian, v, j)) for j in range(len(v))])
+        if conserved:
+            contracted = self._jacobians(v)[3][index, :].T @ seed  # <seed, P J L> = <contracted, L>
+            c = np.zeros(APEX.size)
+            c[index] = contracted[APEX.index("z")]
+            by_X_p = np.asarray(self._lift_gradient(X, params.vector(), c)).ravel()
+            gradient[: APEX.size] += by_X_p[: APEX.size]
+            gradient[-PARAMS.size :] += by_X_p[APEX.size :]
+        return self._to_z().T @ gradient
+
+    def _hessian_vectors(self, X, u, params, W, S) -> np.ndarray:
+        """The jacobian map's :meth:`ReturnMap.hessian_vectors`; NoSecondDerivatives for
+        orbits of several strides, or where differences were asked for."""
+        if self.spec.strides != 1 or not self.exact:
+            raise NoSecondDerivatives("second derivatives are differenced (orbits of several strides, or asked)")
+        try:
+            return self.jacobian_map.hessian_vectors(X, u, params, W, S)
+        except RunnerFell as err:
+            raise CorrectionFailed(f"the runner falls ({err.fall.value})") from None
+
+    def _to_z(self) -> np.ndarray:
+        """dz/dv: the stride's inputs z = (X, u, p) per scaled unknown (an apex energy
+        parameter moves none of them)."""
+        to_z = np.zeros((len(self.design) + PARAMS.size, len(self.scale)))
+        for j, name in enumerate([*self.free, *self.parameters]):
+            if name in PARAMS.names:
+                to_z[len(self.design) + PARAMS.index(name), j] = self.scale[j]
+            elif name != "energy":
+                to_z[self.design.index(name), j] = self.scale[j]
+        return to_z
+
+    @staticmethod
+    def _differenced(matrix_at, v: np.ndarray, j: int) -> np.ndarray:
+        """d matrix_at(v) / dv_j by central differences (step :data:`CURVATURE_STEP`)."""
+        step = np.zeros(len(v))
+        step[j] = CURVATURE_STEP
+        return (matrix_at(v + step) - matrix_at(v - step)) / (2 * CURVATURE_STEP)
 
     def verification_failure(self, v: np.ndarray, verify_map: ReturnMap) -> str | None:
         """Why ``v`` is not a verified orbit of its period, or None if it is.
@@ -309,11 +410,6 @@ class FixedPointSystem:
         return np.array([m.value for m in stability.multipliers]), [m.trivial for m in stability.multipliers]
 
 
-#: Step of the central differences of the constraint Jacobian that give the Lagrangian's
-#: curvature in :class:`NearestGuessSystem` (scaled unknowns).
-CURVATURE_STEP = 1e-6
-
-
 class NearestGuessSystem:
     """The family of fixed points that the ``nearest_guess`` objective picks.
 
@@ -326,8 +422,8 @@ class NearestGuessSystem:
 
     (w the free quantities scaled by :data:`baslip.model.quantities.NOMINAL`, g the guess, mu
     the Lagrange multipliers), which this system follows: v = (w, mu, parameters). The
-    first rows and all derivatives of F are algorithmic; the Lagrangian's curvature
-    d(dF/dw^T mu)/dv is a central difference of them (it steers Newton, not the points).
+    first rows and all derivatives of F are algorithmic, the Lagrangian's curvature
+    d(dF/dw^T mu)/dv included (:meth:`FixedPointSystem.residual_hessian`).
     Bounds are not part of the conditions: a point outside them is refused.
 
     The fixed point itself, its multipliers and its verification are those of the
@@ -335,8 +431,9 @@ class NearestGuessSystem:
     """
 
     def __init__(self, spec: FixedPointSpec, parameter: str, residual_map: ReturnMap, jacobian_map: ReturnMap,
-                 second: str | None = None):
-        self.fixed_points = FixedPointSystem(spec, parameter, residual_map, jacobian_map, second, square=False)
+                 second: str | None = None, exact: bool = True):
+        self.fixed_points = FixedPointSystem(spec, parameter, residual_map, jacobian_map, second, square=False,
+                                             exact=exact)
         points = self.fixed_points
         self.spec, self.parameter, self.parameters = spec, parameter, points.parameters
         self.lam_scales, self.lam_scale = points.lam_scales, points.lam_scale
@@ -347,8 +444,6 @@ class NearestGuessSystem:
         # v holds mu / multiplier_scale, set by pack so that mu moves no faster along the
         # family than the rest: arclength steps then advance the parameters.
         self.multiplier_scale = 1.0
-        #: The unknowns that are Lagrange multipliers: the map does not depend on them.
-        self.auxiliary = tuple(range(self.n_free, self.n_free + self.n_equations))
 
     def _inner(self, v: np.ndarray) -> np.ndarray:
         """The fixed-point unknowns (w, parameters) of ``v``."""
@@ -412,13 +507,9 @@ class NearestGuessSystem:
         inner, mu = self._inner(v), self._multipliers_of(v)
         J = self.fixed_points.jacobian(inner)
         n, m = self.n_free, self.n_equations
-        curvature = np.empty((n, len(inner)))
-        for j in range(len(inner)):
-            step = np.zeros(len(inner))
-            step[j] = CURVATURE_STEP
-            ahead = self.fixed_points.jacobian(inner + step)[:, :n].T @ mu
-            behind = self.fixed_points.jacobian(inner - step)[:, :n].T @ mu
-            curvature[:, j] = (ahead - behind) / (2 * CURVATURE_STEP)
+        # d(dF/dw^T mu)/dv: the rows of the Hessian of mu . F that belong to w, which by
+        # its symmetry are its columns, transposed.
+        curvature = self.fixed_points.residual_hessian(inner, mu, range(n)).T
         curvature[:, :n] += 2 * np.eye(n)
         top = np.hstack([J[:, :n], np.zeros((m, m)), J[:, n:]])
         bottom = np.hstack([curvature[:, :n], self.multiplier_scale * J[:, :n].T, curvature[:, n:]])
@@ -429,6 +520,12 @@ class NearestGuessSystem:
 
     def map_jacobian(self, v: np.ndarray, shift: np.ndarray | None = None) -> np.ndarray:
         return self.fixed_points.map_jacobian(self._inner(v), shift)
+
+    def map_jacobian_gradient(self, v: np.ndarray, seed: np.ndarray) -> np.ndarray:
+        """As :meth:`FixedPointSystem.map_jacobian_gradient`; the map does not depend on
+        the Lagrange multipliers."""
+        inner = self.fixed_points.map_jacobian_gradient(self._inner(v), seed)
+        return np.concatenate([inner[: self.n_free], np.zeros(self.n_equations), inner[self.n_free :]])
 
     def crossing_veto(self, kind: str, a: Point, b: Point) -> bool:
         return self.fixed_points.crossing_veto(kind, a, b)

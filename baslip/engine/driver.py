@@ -17,6 +17,7 @@ or fewer, and its Jacobian, about ten passes' worth, then costs as much less.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -127,6 +128,32 @@ class CompiledEngine:
         # The verdict of the value pass: a Richardson-accepted pass alone would ask to refine.
         # Its own event guesses: a pass taken again from its durations has new ones.
         return self.functions.jacobian(n)(X, u, p, guesses)[0], verdict
+
+    def stride_hessian_vectors(self, X, u, p, t_guess, W, S) -> np.ndarray | None:
+        """Column k: H_k S[:, k], with H_k the Hessian of W[:, k] . r in (X, u, p), at the
+        pass :meth:`stride_jacobian` differentiates, the columns shared among the threads;
+        None where there is no such pass."""
+        settled = self.settled_pass(X, u, p, t_guess)
+        if settled is None:
+            return None
+        n, guesses = settled
+        columns = self._in_lanes(list(range(S.shape[1])), lambda lane, k: self.functions.hessian_vector(n, lane)(
+            X, u, p, guesses, W[:, k], S[:, k])[0])
+        return np.column_stack([np.asarray(column, dtype=float).ravel() for column in columns])
+
+    def _in_lanes(self, items: list, call) -> list:
+        """[call(lane, item) for item in items], the items split among the lanes of the
+        second derivatives' kernels in contiguous runs (results in order)."""
+        lanes = min(self.functions.hessian_lanes, len(items))
+        bounds = np.linspace(0, len(items), lanes + 1).round().astype(int)
+
+        def lane(k: int) -> list:
+            return [call(k, item) for item in items[bounds[k] : bounds[k + 1]]]
+
+        if lanes == 1:
+            return lane(0)
+        with ThreadPoolExecutor(lanes) as pool:
+            return [result for part in pool.map(lane, range(lanes)) for result in part]
 
     def settled_pass(self, X, u, p, t_guess) -> tuple[int, np.ndarray] | None:
         """(step count, guesses) of the final pass that :meth:`stride` accepts for a clean

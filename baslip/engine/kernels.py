@@ -43,7 +43,7 @@ from baslip.engine import codegen as _codegen
 from baslip.engine import dop853 as flow
 from baslip.engine import outcome as _outcome_module
 from baslip.engine.background import KernelsLater
-from baslip.engine.codegen import compile_kernels, library_name, module_files
+from baslip.engine.codegen import compile_kernels, compiling, library_name, module_files
 from baslip.engine.native import Kernel
 from baslip.engine.outcome import COLLAPSE_FRACTION
 from baslip.model import dynamics as _dynamics
@@ -204,6 +204,16 @@ class StanceFlow:
 #: hanging gait 1.299 ms against 1.262 ms (best of 5 runs of 200, both in one process):
 #: 3 % slower, for a first run that no longer waits for the longest compile.
 JACOBIAN_OPTIMISATION = "-O1"
+#: gcc's optimisation level of the second derivatives' library (every tier's Hessian-vector
+#: product, 3.96 MB of C). Measured on the 2-core machine: 28.6 s at -O1 against 37.3 s at
+#: -O3, and a product at a gait of curve_downward_boundary 4.17 ms against 3.90 ms (one
+#: process, 100 calls each): 7 % slower, for a compile that a curve waits for. (Blocks of
+#: four directions in forward over reverse mode cost half as much a direction, but tripled
+#: the compile, to 93 s, and saved a fifth of a nearest-guess curve's second derivatives.)
+HESSIAN_OPTIMISATION = "-O1"
+#: Threads that share a batch of Hessian-vector products, each with its own copy of the
+#: kernels (a kernel's work memory serves one call at a time); one in the virtual machine.
+HESSIAN_LANES = 2
 
 
 class StrideFunctions:
@@ -231,6 +241,7 @@ class StrideFunctions:
                                          enabled=compile)
         self.scout = self.functions["stance_scout"]
         self.plan = self.functions["stance_plan"]
+        self._compile = compile
 
     def final(self, n: int) -> Kernel:
         """(X, u, p, guesses) -> (apex, durations, diagnostics) with ``n`` steps a phase."""
@@ -239,6 +250,26 @@ class StrideFunctions:
     def jacobian(self, n: int) -> Kernel:
         """(X, u, p, guesses) -> (dr/d(X, u, p) 4 x (4 + controls + 6), apex, durations, diagnostics)."""
         return self._jacobians.get()[f"stride_jacobian_{n}"]
+
+    def hessian_vector(self, n: int, lane: int = 0) -> Kernel:
+        """(X, u, p, guesses, w, s) -> H s, with H the Hessian of w . apex in (X, u, p):
+        second derivatives of the final pass of ``n`` steps a phase, the copy of thread
+        ``lane`` (below :attr:`hessian_lanes`). Their library is compiled on first use
+        (about 30 s on a first run, then cached): only runs that ask for exact second
+        derivatives (curves, nearest-guess branches) wait for it."""
+        return self._hessians[lane][f"hessian_vector_{n}"]
+
+    @property
+    def hessian_lanes(self) -> int:
+        """How many threads may call :meth:`hessian_vector` at once, one per lane."""
+        return len(self._hessians)
+
+    @functools.cached_property
+    def _hessians(self) -> list[dict[str, Kernel]]:
+        lanes = HESSIAN_LANES if compiling(self._compile) else 1
+        return [compile_kernels(library_name("baslip_stride_hessians", self.law), _hessian_names(),
+                                lambda: [hessian_vector_function(f) for f in self._finals], sources(),
+                                optimisation=HESSIAN_OPTIMISATION, enabled=self._compile) for _ in range(lanes)]
 
     def _scout(self) -> ca.Function:
         """(x0, h, theta) -> the M + 1 nodes from x0 (columns), their rates xdot, and each
@@ -368,6 +399,20 @@ def multiplier_gradient_function(stance: StanceFlow, n: int) -> ca.Function:
                        ["X", "u", "p", "guesses", "G"], ["gradient"])
 
 
+def hessian_vector_function(final: ca.Function) -> ca.Function:
+    """(X, u, p, guesses, w, s) -> H s for the final pass ``final``, H the Hessian of the
+    scalar w . apex in z = (X, u, p): the gradient of w . (d apex/dz s), reverse over
+    forward mode. By H's symmetry, H s is also the gradient in z of w . (d apex/dz) s,
+    the directional derivative of a Jacobian: one product gives a whole row of second
+    derivatives. ``w`` has the apex's size, ``s`` that of z."""
+    X, u, p, guesses = final.mx_in()
+    z = ca.vertcat(X, u, p)
+    w, s = ca.MX.sym("w", APEX.size), ca.MX.sym("s", z.shape[0])
+    directional = ca.jtimes(final(X, u, p, guesses)[0], z, s)
+    return ca.Function(final.name().replace("stride", "hessian_vector"), [X, u, p, guesses, w, s],
+                       [ca.gradient(ca.dot(w, directional), z)], ["X", "u", "p", "guesses", "w", "s"], ["Hs"])
+
+
 def _touchdown_time(X, u, p, t_guess, law: HipLaw):
     """The touchdown time [s]: Newton on the closed-form foot height from a converged guess,
     so that its derivative is the implicit-function-theorem one."""
@@ -487,6 +532,11 @@ def _jacobian_names() -> list[str]:
     """Names of the final passes' Jacobians, in the order :meth:`StrideFunctions._all_jacobians`
     builds them."""
     return [f"stride_jacobian_{n}" for n in TIERS]
+
+
+def _hessian_names() -> list[str]:
+    """Names of the final passes' Hessian-vector products, one per tier."""
+    return [f"hessian_vector_{n}" for n in TIERS]
 
 
 def sources() -> list[pathlib.Path]:

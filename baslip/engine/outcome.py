@@ -139,6 +139,10 @@ class RunnerFell(RunError):
         self.fall = fall
 
 
+class NoSecondDerivatives(RunError):
+    """The compiled engine cannot vouch for this stride, so it has no second derivatives."""
+
+
 def touchdown_guess(X, u, p) -> float | None:
     """First zero of the foot height after apex, bracketed then refined to round-off [s].
 

@@ -25,6 +25,7 @@ from baslip.engine.outcome import (  # noqa: F401  (re-exported: the public name
     COLLAPSE_FRACTION,
     PHASES,
     Fall,
+    NoSecondDerivatives,
     RunnerFell,
     Simulation,
     Stride,
@@ -178,6 +179,48 @@ class ReturnMap:
             raise RunnerFell(outcome.fall)
         assert outcome.apex is not None and jac is not None  # a stride that did not fall has both
         return jac[:, : APEX.size + self.law.controls.size + (PARAMS.size if with_parameters else 0)], outcome.apex
+
+    def hessian_vectors(self, X, u, params, W, S) -> np.ndarray:
+        """Second derivatives of one stride: column k is H_k S[:, k], with H_k the Hessian of
+        the scalar W[:, k] . r in z = (X, u, p), by algorithmic differentiation of the
+        compiled stride (reverse over forward mode, through the event times), the columns
+        shared between two threads.
+
+        Parameters
+        ----------
+        X : array_like
+            The apex, shape (4,).
+        u : array_like
+            The control vector, shape (controls,).
+        params : Params or array_like
+            The model parameters, or their vector, shape (6,).
+        W : array_like
+            Weights of the next apex's coordinates, shape (4, K), or (4,) for every
+            column, in their inverse units.
+        S : array_like
+            Directions in z, shape (4 + controls + 6, K), in z's units.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (4 + controls + 6, K). By the Hessians' symmetry, column k is also the
+            gradient in z of W[:, k] . (dr/dz S[:, k]); so with S along X, the columns'
+            sum is the gradient of <G, dr/dX> for G = sum_k W[:, k] S[:, k]^T. Raises
+            :class:`RunnerFell` if the stride falls and :class:`NoSecondDerivatives` where
+            the compiled engine cannot vouch for it (or this map is an event map), as its
+            Jacobian then comes from another integrator.
+        """
+        X, u, p = vec(X), vec(u), param_vector(params)
+        fallen, t_guess = precheck(X, u, p)
+        if fallen is not None:
+            assert fallen.fall is not None
+            raise RunnerFell(fallen.fall)
+        S = np.asarray(S, dtype=float).reshape(len(X) + len(u) + len(p), -1)
+        W = np.broadcast_to(np.asarray(W, dtype=float).reshape(APEX.size, -1), (APEX.size, S.shape[1]))
+        product = None if self._compiled is None else self._compiled.stride_hessian_vectors(X, u, p, t_guess, W, S)
+        if product is None:
+            raise NoSecondDerivatives("the compiled engine cannot vouch for this stride")
+        return product
 
     # -- Jacobians of r^n ------------------------------------------------------------
 
