@@ -83,7 +83,7 @@ def test_multiplier_derivatives_match_finite_differences(downward):
     """d phi / d(X, u) through the AD second derivatives, against central differences of
     phi of the AD Jacobian dr/dX (the point need not be a fixed point for this)."""
     problem, solver, spec, X, u = downward
-    descent = StabilityDescent(solver.residual_map, compile=False)
+    descent = StabilityDescent(solver.residual_map)
     _, phi, gradient = descent.evaluate(spec, X, u)
     z = np.concatenate([X, u])
 
@@ -100,7 +100,7 @@ def test_multiplier_derivatives_match_finite_differences(downward):
 
 def test_a_descent_lowers_the_radius_and_ends_on_a_verified_fixed_point(downward):
     problem, solver, spec, X, u = downward
-    descent = StabilityDescent(solver.residual_map, max_iterations=8, compile=False)
+    descent = StabilityDescent(solver.residual_map, max_iterations=8)
     found = descent.run(spec, X, u)
     radii = [s.spectral_radius for s in found.steps]
     assert radii[-1] < radii[0] - 0.1  # 0.899 -> below 0.8 in a few steps (measured: 0.65 at the end)
@@ -116,7 +116,7 @@ def test_after_its_iterations_the_descent_goes_on_by_compass_search_and_says_so(
     """The quasi-Newton budget spent, the compass search on the radius takes over from
     where it stopped: each of its points lowers the radius, and the stop names both."""
     problem, solver, spec, X, u = downward
-    found = StabilityDescent(solver.residual_map, max_iterations=3, compile=False).run(spec, X, u)
+    found = StabilityDescent(solver.residual_map, max_iterations=3).run(spec, X, u)
     assert found.stop_reason.startswith("reached 3 iterations; compass search on the spectral radius")
     compass = [s.spectral_radius for s in found.steps[4:]]
     assert compass and compass == sorted(compass, reverse=True)
@@ -128,7 +128,7 @@ def test_without_second_derivatives_the_descent_is_a_compass_search_on_the_radiu
     derivatives), the descent still lowers the radius, by the compass search alone, on
     fixed points."""
     problem, solver, spec, X, u = downward
-    descent = StabilityDescent(solver.residual_map, compile=False)
+    descent = StabilityDescent(solver.residual_map)
 
     def no_second_derivatives(*args):
         raise NoSecondDerivatives("the compiled engine cannot vouch for this stride")
@@ -155,7 +155,7 @@ def test_random_starts_span_the_gain_range_repeatably():
 
 def test_a_failed_start_is_reported_not_descended(downward):
     problem, solver, spec, X, u = downward
-    descent = StabilityDescent(solver.residual_map, compile=False)
+    descent = StabilityDescent(solver.residual_map)
     gait = optimise_from(solver, descent, spec, {"Kp": 900.0, "Kd": -90.0})
     assert not gait.start.converged and gait.descent is None and gait.end is None
     assert gait.note.startswith("no starting fixed point")
@@ -175,7 +175,7 @@ def test_under_vpp_the_descent_ends_where_a_scan_of_the_family_finds_the_least_r
     base = fixed_point_spec(problem)
     spec = replace(base, fixed={n: v for n, v in base.fixed.items() if n != "r_vpp"},
                    bounds={**base.bounds, "r_vpp": (-0.05, 0.3)})
-    gait = optimise_from(solver, StabilityDescent(solver.residual_map, compile=False), spec, {"r_vpp": 0.02})
+    gait = optimise_from(solver, StabilityDescent(solver.residual_map), spec, {"r_vpp": 0.02})
     assert gait.start.spectral_radius == pytest.approx(4.626, abs=1e-3)
     assert gait.end.converged and gait.end.residual <= 1e-10
     assert [m.label for m in gait.end.stability.multipliers].count("symmetry") == 1

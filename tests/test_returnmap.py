@@ -218,6 +218,27 @@ def test_hessian_vector_products_match_differences_of_the_ad_jacobian(tight_map,
     assert S[:, 0] @ product[:, 1] == pytest.approx(S[:, 1] @ product[:, 0], rel=1e-10)
 
 
+def test_the_gradient_of_a_seeded_jacobian_matches_its_differences(tight_map, params, running_point):
+    """grad_z <G, dr/dX> for a full seed G (the Jacobian's forward directions, one reverse
+    sweep) against central differences of <G, dr/dX> along random directions of z = (X, u, p)."""
+    X, u = running_point
+    z = np.concatenate([X, u, param_vector(params)])
+    rng = np.random.default_rng(4)
+    G = rng.normal(size=(APEX.size, APEX.size))
+    gradient = tight_map.jacobian_gradient(X, u, params, G)
+
+    def seeded(point):
+        dr_dX = tight_map.all_jacobians(point[: APEX.size], point[APEX.size : APEX.size + u.size],
+                                        point[APEX.size + u.size :])[0]
+        return float(np.sum(G * dr_dX))
+
+    h = 1e-6
+    for _ in range(3):
+        s = rng.normal(size=len(z)) * np.maximum(np.abs(z), 0.1)
+        differenced = (seeded(z + h * s) - seeded(z - h * s)) / (2 * h)
+        assert gradient @ s == pytest.approx(differenced, rel=1e-5)
+
+
 def test_an_event_map_has_no_second_derivatives(params, running_point):
     X, u = running_point
     with pytest.raises(NoSecondDerivatives):

@@ -17,9 +17,9 @@ the bound independent of the size of rho, which spans 0.1 to 1e3 here.)
 **Gradient.** An eigenvalue's derivative is dmu_i = u_i dA v_i, with v_i the right
 eigenvector and u_i the matching row of V^-1 (the left eigenvector with u_i v_i = 1). So
 dphi = <G, dA> for a real 4 x 4 seed G (:func:`surrogate`), and the gradient of phi in
-(X, u) is the gradient of <G, dr/dX (X, u)>: one reverse sweep through the AD Jacobian of
-the compiled stride, i.e. exact second derivatives of the map
-(:meth:`baslip.engine.kernels.StrideFunctions.multiplier_gradient`).
+(X, u) is the gradient of <G, dr/dX (X, u)>: one reverse sweep through the AD Jacobian
+of the compiled stride, i.e. exact second derivatives of the map
+(:meth:`baslip.engine.returnmap.ReturnMap.jacobian_gradient`).
 
 **Descent.** The manifold is charted by some of its free quantities, chosen so that the
 equations can be solved well for the others (greedy column pivoting of their Jacobian).
@@ -39,11 +39,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from baslip.analysis.compass import CompassSettings, compass_search
-from baslip.engine.codegen import compile_kernels, library_name
-from baslip.engine.kernels import multiplier_gradient_function
-from baslip.engine.kernels import sources as stride_sources
-from baslip.engine.outcome import precheck
-from baslip.engine.returnmap import NoSecondDerivatives, ReturnMap, RunnerFell, param_vector
+from baslip.engine.returnmap import NoSecondDerivatives, ReturnMap, RunnerFell
 from baslip.gait.fixedpoint import FixedPointResult, FixedPointSolver
 from baslip.gait.polish import Polish, eps, movable_quantities
 from baslip.gait.shooting import FixedPointSpec
@@ -117,15 +113,14 @@ class Descent:
 class StabilityDescent:
     """Quasi-Newton descent of the multipliers' surrogate on the fixed-point manifold."""
 
-    def __init__(self, rmap: ReturnMap, max_iterations: int = 60, compile: bool | None = None):
-        """``compile``: compile the second-derivative kernels (one library per step count,
-        about a minute each the first time on a machine, then cached); False keeps them
-        in CasADi's virtual machine (about 0.13 s a call instead of 9 ms)."""
-        self.rmap, self.max_iterations, self.compile = rmap, max_iterations, compile
+    def __init__(self, rmap: ReturnMap, max_iterations: int = 60):
+        """``rmap``: the compiled map whose strides, Jacobians and second derivatives the
+        descent takes (:meth:`~baslip.engine.returnmap.ReturnMap.jacobian_gradient`: a
+        library of the map's, compiled on first use, about 80 s, then cached)."""
+        self.rmap, self.max_iterations = rmap, max_iterations
         self.polish = Polish(rmap, rmap)
         # Scaled units of the design quantities of the map's hip law.
         self.scale = np.array([NOMINAL[n] for n in design_names(rmap.law)])
-        self._kernels: dict[int, object] = {}
 
     # -- the objective ---------------------------------------------------------------------
 
@@ -139,24 +134,7 @@ class StabilityDescent:
 
     def gradient(self, X, u, spec: FixedPointSpec, G: np.ndarray) -> np.ndarray:
         """The gradient of <G, dr/dX> in (X, u), by AD second derivatives of the stride."""
-        X, u, p = np.asarray(X, float), np.asarray(u, float), param_vector(spec.params)
-        fallen, t_guess = precheck(X, u, p)
-        engine = self.rmap.compiled_engine
-        settled = None if fallen is not None or engine is None else engine.settled_pass(X, u, p, t_guess)
-        if settled is None:
-            raise NoSecondDerivatives("the compiled engine cannot vouch for this stride")
-        n, guesses = settled
-        return np.asarray(self._kernel(engine, n)(X, u, p, guesses, G)[0], dtype=float).ravel()
-
-    def _kernel(self, engine, n: int):
-        if n not in self._kernels:
-            name = f"multiplier_gradient_{n}"
-            # The library holds one law's second derivatives: the law is in its name.
-            kernels = compile_kernels(library_name(f"baslip_curvature_{n}", self.rmap.law), [name],
-                                      lambda: [multiplier_gradient_function(engine.functions.flow, n)],
-                                      stride_sources(), enabled=self.compile)
-            self._kernels[n] = kernels[name]
-        return self._kernels[n]
+        return self.rmap.jacobian_gradient(X, u, spec.params, G)[: NX + self.rmap.law.controls.size]
 
     # -- the descent -----------------------------------------------------------------------
 

@@ -292,7 +292,7 @@ class FixedPointSystem:
         w = np.zeros(APEX.size)
         w[[APEX.index(n) for n in self.rows]] = weights[: len(self.rows)]
         try:
-            product = self._hessian_vectors(X, u, params, w, to_z[:, columns])
+            product = self._second_derivatives(self.jacobian_map.hessian_vectors, X, u, params, w, to_z[:, columns])
         except NoSecondDerivatives:
             return np.column_stack([weights @ self._differenced(self.jacobian, v, j) for j in columns])
         if self.energy_row:
@@ -310,9 +310,9 @@ class FixedPointSystem:
 
         map_jacobian = P J L, with J = dr/dX, P the rows of the dynamic coordinates and L
         the lift (which moves z to keep the energy where it is conserved). So the seed on J
-        is P^T seed L^T, a sum of at most four outer products a b^T, each one
-        Hessian-vector product of a . r along (b, 0, 0); L's own dependence on X and p is
-        the energy's algebra.
+        is P^T seed L^T, one reverse sweep through the stride's AD Jacobian
+        (:meth:`baslip.engine.returnmap.ReturnMap.jacobian_gradient`); L's own dependence
+        on X and p is the energy's algebra.
         """
         X, u, params, _ = self.unpack(v)
         names = self.dynamic_coordinates(u, params)
@@ -320,12 +320,8 @@ class FixedPointSystem:
         conserved = len(names) < APEX.size
         on_J = np.zeros((APEX.size, APEX.size))
         on_J[index, :] = seed @ self._lift_jacobian(X, index, params, conserved).T
-        left, sizes, right = np.linalg.svd(on_J)
-        kept = sizes > 1e-14 * max(sizes[0], 1e-300)
-        directions = np.zeros((len(self.design) + PARAMS.size, int(kept.sum())))
-        directions[: APEX.size] = right[kept].T
         try:
-            gradient = self._hessian_vectors(X, u, params, left[:, kept] * sizes[kept], directions).sum(axis=1)
+            gradient = self._second_derivatives(self.jacobian_map.jacobian_gradient, X, u, params, on_J)
         except NoSecondDerivatives:
             return np.array([np.sum(seed * self._differenced(self.map_jacobian, v, j)) for j in range(len(v))])
         if conserved:
@@ -337,13 +333,14 @@ class FixedPointSystem:
             gradient[-PARAMS.size :] += by_X_p[APEX.size :]
         return self._to_z().T @ gradient
 
-    def _hessian_vectors(self, X, u, params, W, S) -> np.ndarray:
-        """The jacobian map's :meth:`ReturnMap.hessian_vectors`; NoSecondDerivatives for
-        orbits of several strides, or where differences were asked for."""
+    def _second_derivatives(self, of_the_map, *args) -> np.ndarray:
+        """``of_the_map(*args)``: the jacobian map's :meth:`ReturnMap.hessian_vectors` or
+        :meth:`ReturnMap.jacobian_gradient`; NoSecondDerivatives for orbits of several
+        strides, or where differences were asked for."""
         if self.spec.strides != 1 or not self.exact:
             raise NoSecondDerivatives("second derivatives are differenced (orbits of several strides, or asked)")
         try:
-            return self.jacobian_map.hessian_vectors(X, u, params, W, S)
+            return of_the_map(*args)
         except RunnerFell as err:
             raise CorrectionFailed(f"the runner falls ({err.fall.value})") from None
 

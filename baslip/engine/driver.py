@@ -141,6 +141,15 @@ class CompiledEngine:
             X, u, p, guesses, W[:, k], S[:, k])[0])
         return np.column_stack([np.asarray(column, dtype=float).ravel() for column in columns])
 
+    def stride_jacobian_gradient(self, X, u, p, t_guess, G) -> np.ndarray | None:
+        """The gradient in (X, u, p) of sum(G * dr/dX) at the pass :meth:`stride_jacobian`
+        differentiates; None where there is no such pass."""
+        settled = self.settled_pass(X, u, p, t_guess)
+        if settled is None:
+            return None
+        n, guesses = settled
+        return np.asarray(self.functions.jacobian_gradient(n)(X, u, p, guesses, G)[0], dtype=float).ravel()
+
     def _in_lanes(self, items: list, call) -> list:
         """[call(lane, item) for item in items], the items split among the lanes of the
         second derivatives' kernels in contiguous runs (results in order)."""

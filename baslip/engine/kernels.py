@@ -204,12 +204,14 @@ class StanceFlow:
 #: hanging gait 1.299 ms against 1.262 ms (best of 5 runs of 200, both in one process):
 #: 3 % slower, for a first run that no longer waits for the longest compile.
 JACOBIAN_OPTIMISATION = "-O1"
-#: gcc's optimisation level of the second derivatives' library (every tier's Hessian-vector
-#: product, 3.96 MB of C). Measured on the 2-core machine: 28.6 s at -O1 against 37.3 s at
-#: -O3, and a product at a gait of curve_downward_boundary 4.17 ms against 3.90 ms (one
-#: process, 100 calls each): 7 % slower, for a compile that a curve waits for. (Blocks of
-#: four directions in forward over reverse mode cost half as much a direction, but tripled
-#: the compile, to 93 s, and saved a fifth of a nearest-guess curve's second derivatives.)
+#: gcc's optimisation level of the second derivatives' library. Measured on the 2-core
+#: machine with the Hessian-vector products alone (3.96 MB of C): 28.6 s at -O1 against
+#: 37.3 s at -O3, and a product at a gait of curve_downward_boundary 4.17 ms against
+#: 3.90 ms (one process, 100 calls each): 7 % slower, for a compile that a run waits for.
+#: With the seeded Jacobian gradients the library takes 76 s at -O1 (PD), once for every
+#: step count, where the descent compiled a library of about 70 s for each one it met.
+#: (Blocks of four directions in forward over reverse mode cost half as much a direction,
+#: but tripled the products' compile and saved a fifth of a nearest-guess curve's time.)
 HESSIAN_OPTIMISATION = "-O1"
 #: Threads that share a batch of Hessian-vector products, each with its own copy of the
 #: kernels (a kernel's work memory serves one call at a time); one in the virtual machine.
@@ -255,9 +257,15 @@ class StrideFunctions:
         """(X, u, p, guesses, w, s) -> H s, with H the Hessian of w . apex in (X, u, p):
         second derivatives of the final pass of ``n`` steps a phase, the copy of thread
         ``lane`` (below :attr:`hessian_lanes`). Their library is compiled on first use
-        (about 30 s on a first run, then cached): only runs that ask for exact second
-        derivatives (curves, nearest-guess branches) wait for it."""
+        (about 80 s on a first run, then cached): only runs that ask for exact second
+        derivatives (curves, nearest-guess branches, the optimal search) wait for it."""
         return self._hessians[lane][f"hessian_vector_{n}"]
+
+    def jacobian_gradient(self, n: int) -> Kernel:
+        """(X, u, p, guesses, G) -> the gradient in (X, u, p) of sum(G * d apex/dX), G 4 x 4:
+        second derivatives of the final pass of ``n`` steps a phase (the library of
+        :meth:`hessian_vector`, lane 0)."""
+        return self._hessians[0][f"jacobian_gradient_{n}"]
 
     @property
     def hessian_lanes(self) -> int:
@@ -268,8 +276,13 @@ class StrideFunctions:
     def _hessians(self) -> list[dict[str, Kernel]]:
         lanes = HESSIAN_LANES if compiling(self._compile) else 1
         return [compile_kernels(library_name("baslip_stride_hessians", self.law), _hessian_names(),
-                                lambda: [hessian_vector_function(f) for f in self._finals], sources(),
-                                optimisation=HESSIAN_OPTIMISATION, enabled=self._compile) for _ in range(lanes)]
+                                self._all_second_derivatives, sources(), optimisation=HESSIAN_OPTIMISATION,
+                                enabled=self._compile) for _ in range(lanes)]
+
+    def _all_second_derivatives(self) -> list[ca.Function]:
+        """Every tier's Hessian-vector product and seeded Jacobian gradient, in the order
+        of :func:`_hessian_names`."""
+        return [kernel(f) for kernel in (hessian_vector_function, jacobian_gradient_function) for f in self._finals]
 
     def _scout(self) -> ca.Function:
         """(x0, h, theta) -> the M + 1 nodes from x0 (columns), their rates xdot, and each
@@ -386,19 +399,6 @@ def _final_pass(stance: StanceFlow, n: int) -> ca.Function:
     )
 
 
-def multiplier_gradient_function(stance: StanceFlow, n: int) -> ca.Function:
-    """(X, u, p, guesses, G) -> the gradient in (X, u) of sum(G * dr/dX), with ``n`` steps a
-    phase: second derivatives of the final pass (reverse over forward mode), for the
-    sensitivities of the multipliers. G is a 4 x 4 seed."""
-    final = _final_pass(stance, n)
-    X, u, p, guesses = final.mx_in()
-    seed = ca.MX.sym("G", APEX.size, APEX.size)
-    dr_dX = ca.jacobian(final(X, u, p, guesses)[0], X)
-    gradient = ca.gradient(ca.dot(seed, dr_dX), ca.vertcat(X, u))
-    return ca.Function(f"multiplier_gradient_{n}", [X, u, p, guesses, seed], [gradient],
-                       ["X", "u", "p", "guesses", "G"], ["gradient"])
-
-
 def hessian_vector_function(final: ca.Function) -> ca.Function:
     """(X, u, p, guesses, w, s) -> H s for the final pass ``final``, H the Hessian of the
     scalar w . apex in z = (X, u, p): the gradient of w . (d apex/dz s), reverse over
@@ -411,6 +411,18 @@ def hessian_vector_function(final: ca.Function) -> ca.Function:
     directional = ca.jtimes(final(X, u, p, guesses)[0], z, s)
     return ca.Function(final.name().replace("stride", "hessian_vector"), [X, u, p, guesses, w, s],
                        [ca.gradient(ca.dot(w, directional), z)], ["X", "u", "p", "guesses", "w", "s"], ["Hs"])
+
+
+def jacobian_gradient_function(final: ca.Function) -> ca.Function:
+    """(X, u, p, guesses, G) -> the gradient in z = (X, u, p) of sum(G * d apex/dX) for the
+    final pass ``final``, G a 4 x 4 seed: the Jacobian's four forward directions, then one
+    reverse sweep (the sensitivities of the multipliers, and of a curve's test function)."""
+    X, u, p, guesses = final.mx_in()
+    seed = ca.MX.sym("G", APEX.size, APEX.size)
+    dr_dX = ca.jacobian(final(X, u, p, guesses)[0], X)
+    return ca.Function(final.name().replace("stride", "jacobian_gradient"), [X, u, p, guesses, seed],
+                       [ca.gradient(ca.dot(seed, dr_dX), ca.vertcat(X, u, p))],
+                       ["X", "u", "p", "guesses", "G"], ["gradient"])
 
 
 def _touchdown_time(X, u, p, t_guess, law: HipLaw):
@@ -535,8 +547,9 @@ def _jacobian_names() -> list[str]:
 
 
 def _hessian_names() -> list[str]:
-    """Names of the final passes' Hessian-vector products, one per tier."""
-    return [f"hessian_vector_{n}" for n in TIERS]
+    """Names of the final passes' Hessian-vector products and seeded Jacobian gradients,
+    one of each per tier."""
+    return [f"{kind}_{n}" for kind in ("hessian_vector", "jacobian_gradient") for n in TIERS]
 
 
 def sources() -> list[pathlib.Path]:

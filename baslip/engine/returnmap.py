@@ -204,20 +204,45 @@ class ReturnMap:
         -------
         numpy.ndarray
             Shape (4 + controls + 6, K). By the Hessians' symmetry, column k is also the
-            gradient in z of W[:, k] . (dr/dz S[:, k]); so with S along X, the columns'
-            sum is the gradient of <G, dr/dX> for G = sum_k W[:, k] S[:, k]^T. Raises
+            gradient in z of W[:, k] . (dr/dz S[:, k]). Raises
             :class:`RunnerFell` if the stride falls and :class:`NoSecondDerivatives` where
             the compiled engine cannot vouch for it (or this map is an event map), as its
             Jacobian then comes from another integrator.
         """
+        S = np.asarray(S, dtype=float).reshape(APEX.size + self.law.controls.size + PARAMS.size, -1)
+        W = np.broadcast_to(np.asarray(W, dtype=float).reshape(APEX.size, -1), (APEX.size, S.shape[1]))
+        return self._second_derivatives(lambda engine, X, u, p, t_guess: engine.stride_hessian_vectors(
+            X, u, p, t_guess, W, S), X, u, params)
+
+    def jacobian_gradient(self, X, u, params, G) -> np.ndarray:
+        """The gradient in z = (X, u, p) of <G, dr/dX> = sum(G * dr/dX) for a 4 x 4 seed G:
+        second derivatives of one stride (the Jacobian's forward directions, then one
+        reverse sweep, through the event times).
+
+        Parameters
+        ----------
+        X, u, params
+            As :meth:`hessian_vectors`.
+        G : array_like
+            The seed, shape (4, 4), in the units of X over r's rows.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (4 + controls + 6,); raises as :meth:`hessian_vectors`.
+        """
+        return self._second_derivatives(lambda engine, X, u, p, t_guess: engine.stride_jacobian_gradient(
+            X, u, p, t_guess, np.asarray(G, dtype=float)), X, u, params)
+
+    def _second_derivatives(self, of_the_engine, X, u, params):
+        """``of_the_engine(engine, X, u, p, t_guess)`` on the compiled engine, or the
+        exceptions :meth:`hessian_vectors` names."""
         X, u, p = vec(X), vec(u), param_vector(params)
         fallen, t_guess = precheck(X, u, p)
         if fallen is not None:
             assert fallen.fall is not None
             raise RunnerFell(fallen.fall)
-        S = np.asarray(S, dtype=float).reshape(len(X) + len(u) + len(p), -1)
-        W = np.broadcast_to(np.asarray(W, dtype=float).reshape(APEX.size, -1), (APEX.size, S.shape[1]))
-        product = None if self._compiled is None else self._compiled.stride_hessian_vectors(X, u, p, t_guess, W, S)
+        product = None if self._compiled is None else of_the_engine(self._compiled, X, u, p, t_guess)
         if product is None:
             raise NoSecondDerivatives("the compiled engine cannot vouch for this stride")
         return product
