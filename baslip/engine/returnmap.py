@@ -43,6 +43,9 @@ from baslip.model.hiplaw import PD, HipLaw
 COMPILED_TIGHTEST = 1e-12
 #: Plugin name of the compiled engine.
 COMPILED = "compiled"
+#: The most terms of a seed that :meth:`ReturnMap.jacobian_gradient` takes as
+#: Hessian-vector products (one round on two threads); fuller seeds take one seeded sweep.
+PARALLEL_TERMS = 2
 
 if TYPE_CHECKING:
     from baslip.engine.batch import BatchEngine
@@ -216,8 +219,12 @@ class ReturnMap:
 
     def jacobian_gradient(self, X, u, params, G) -> np.ndarray:
         """The gradient in z = (X, u, p) of <G, dr/dX> = sum(G * dr/dX) for a 4 x 4 seed G:
-        second derivatives of one stride (the Jacobian's forward directions, then one
-        reverse sweep, through the event times).
+        second derivatives of one stride, through the event times. A seed of rank one or
+        two (a fold's or period doubling's psi phi^T) takes one Hessian-vector product a
+        term, the terms s_k a_k b_k^T of its singular value decomposition in parallel
+        threads (H(s_k a_k . r) along (b_k, 0, 0)); a fuller one the Jacobian's four
+        forward directions and one reverse sweep, a single call that costs about two
+        products (and leaves the other core to a second worker).
 
         Parameters
         ----------
@@ -231,8 +238,15 @@ class ReturnMap:
         numpy.ndarray
             Shape (4 + controls + 6,); raises as :meth:`hessian_vectors`.
         """
-        return self._second_derivatives(lambda engine, X, u, p, t_guess: engine.stride_jacobian_gradient(
-            X, u, p, t_guess, np.asarray(G, dtype=float)), X, u, params)
+        G = np.asarray(G, dtype=float)
+        left, sizes, right = np.linalg.svd(G)
+        kept = sizes > 1e-14 * max(sizes[0], 1e-300)
+        if kept.sum() > PARALLEL_TERMS:
+            return self._second_derivatives(lambda engine, X, u, p, t_guess: engine.stride_jacobian_gradient(
+                X, u, p, t_guess, G), X, u, params)
+        directions = np.zeros((APEX.size + self.law.controls.size + PARAMS.size, int(kept.sum())))
+        directions[: APEX.size] = right[kept].T
+        return self.hessian_vectors(X, u, params, left[:, kept] * sizes[kept], directions).sum(axis=1)
 
     def _second_derivatives(self, of_the_engine, X, u, params):
         """``of_the_engine(engine, X, u, p, t_guess)`` on the compiled engine, or the
