@@ -220,23 +220,31 @@ def test_hessian_vector_products_match_differences_of_the_ad_jacobian(tight_map,
 
 def test_the_gradient_of_a_seeded_jacobian_matches_its_differences(tight_map, params, running_point):
     """grad_z <G, dr/dX> for a full seed G (the Jacobian's forward directions, one reverse
-    sweep) against central differences of <G, dr/dX> along random directions of z = (X, u, p)."""
+    sweep) and a rank-one seed (one Hessian-vector product) against central differences of
+    <G, dr/dX> along random directions of z = (X, u, p); a zero seed has a zero gradient."""
     X, u = running_point
     z = np.concatenate([X, u, param_vector(params)])
     rng = np.random.default_rng(4)
     G = rng.normal(size=(APEX.size, APEX.size))
     gradient = tight_map.jacobian_gradient(X, u, params, G)
 
-    def seeded(point):
+    def seeded_by(seed, point):
         dr_dX = tight_map.all_jacobians(point[: APEX.size], point[APEX.size : APEX.size + u.size],
                                         point[APEX.size + u.size :])[0]
-        return float(np.sum(G * dr_dX))
+        return float(np.sum(seed * dr_dX))
+
+    def seeded(point):
+        return seeded_by(G, point)
 
     h = 1e-6
     for _ in range(3):
         s = rng.normal(size=len(z)) * np.maximum(np.abs(z), 0.1)
         differenced = (seeded(z + h * s) - seeded(z - h * s)) / (2 * h)
         assert gradient @ s == pytest.approx(differenced, rel=1e-5)
+    rank_one = np.outer(G[:, 0], G[0])  # a rank-one seed takes the Hessian-vector route
+    differenced = (seeded_by(rank_one, z + h * s) - seeded_by(rank_one, z - h * s)) / (2 * h)
+    assert tight_map.jacobian_gradient(X, u, params, rank_one) @ s == pytest.approx(differenced, rel=1e-5)
+    assert not np.any(tight_map.jacobian_gradient(X, u, params, np.zeros((APEX.size, APEX.size))))
 
 
 def test_an_event_map_has_no_second_derivatives(params, running_point):

@@ -214,6 +214,8 @@ class ReturnMap:
         """
         S = np.asarray(S, dtype=float).reshape(APEX.size + self.law.controls.size + PARAMS.size, -1)
         W = np.broadcast_to(np.asarray(W, dtype=float).reshape(APEX.size, -1), (APEX.size, S.shape[1]))
+        if not S.shape[1]:  # no directions: nothing to evaluate
+            return np.zeros((len(S), 0))
         return self._second_derivatives(lambda engine, X, u, p, t_guess: engine.stride_hessian_vectors(
             X, u, p, t_guess, W, S), X, u, params)
 
@@ -240,7 +242,7 @@ class ReturnMap:
         """
         G = np.asarray(G, dtype=float)
         left, sizes, right = np.linalg.svd(G)
-        kept = sizes > 1e-14 * max(sizes[0], 1e-300)
+        kept = sizes > 1e-14 * sizes[0] if sizes[0] > 0 else np.zeros(len(sizes), dtype=bool)  # a zero seed keeps none
         if kept.sum() > PARALLEL_TERMS:
             return self._second_derivatives(lambda engine, X, u, p, t_guess: engine.stride_jacobian_gradient(
                 X, u, p, t_guess, G), X, u, params)
