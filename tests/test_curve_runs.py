@@ -198,8 +198,8 @@ def test_a_vpp_period_doubling_curve_ends_its_stable_band_at_a_fold_flip(tmp_pat
 def test_a_vpp_fold_curve_keeps_a_second_multiplier_at_one_and_meets_the_period_doubling_curve(tmp_path):
     """curve_vpp_fold from the branch's +1 crossing at 3.9 m/s (measured: r_vpp = 0.39616
     m), over 3.8 to 4.2 m/s: two multipliers within 1e-6 of +1 at every point (measured
-    6e-8), and its fold-flip is curve_vpp_pivot's (committed: r_vpp = 0.2326438 m, ydot =
-    4.001865 m/s), which a curve of the other kind, with the other deflation, located."""
+    6e-8), and its fold-flip is curve_vpp_pivot's (committed: r_vpp = 0.232644 m, ydot =
+    4.001857 m/s), which a curve of the other kind, with the other deflation, located."""
     summary, branch, curve = run(tmp_path, "curve_vpp_fold", **{"second_range: [3.0, 6.0]": "second_range: [3.8, 4.2]"})
     (fold,) = [p for p in summary["special_points"] if p["type"] == "fold"]
     assert 0.3 < fold["r_vpp"] < 0.5
@@ -222,8 +222,8 @@ def test_a_vpp_fold_curve_keeps_a_second_multiplier_at_one_and_meets_the_period_
 
 def test_exact_and_differenced_second_derivatives_trace_the_same_curve(solver):
     """From a point of the committed Neimark-Sacker curve of the hanging gaits, the curve
-    traced with exact second derivatives (Hessian-vector products of the compiled stride)
-    and with central differences of the AD Jacobian takes the same steps to the same
+    traced with exact second derivatives (AD of the compiled stride's Jacobian) and with
+    central differences of the AD Jacobian takes the same steps to the same
     points, to 1e-8 in scaled units: the derivatives steer Newton and do not move points."""
     problem = load_problem(ROOT / "problems" / "curve_downward_neimark_sacker.yaml")
     spec = problem.continuation
