@@ -65,7 +65,7 @@ def test_a_seed_of_a_quadratic_defining_matrix_is_exact_with_a_unit_step():
     rng = np.random.default_rng(2)
     A, phi, psi = rng.normal(size=(4, 4)), rng.normal(size=6), rng.normal(size=6)
     matrix = lambda R: defining_matrix("neimark_sacker", R)  # noqa: E731
-    exact = defining_seed(matrix, A, phi, psi, linear=True)
+    exact = defining_seed(matrix, A, phi, psi, quadratic=True)
     small = np.empty_like(A)
     for index in np.ndindex(*A.shape):
         shift = np.zeros_like(A)

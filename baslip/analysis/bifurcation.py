@@ -96,13 +96,13 @@ def defining_matrix(kind: str, A: np.ndarray) -> np.ndarray:
 
 
 def defining_seed(matrix_of: Callable[[np.ndarray], np.ndarray], R: np.ndarray, phi: np.ndarray, psi: np.ndarray,
-                  linear: bool) -> np.ndarray:
+                  quadratic: bool) -> np.ndarray:
     """S with psi^T dM phi = <S, dR>, for M = ``matrix_of(R)``: the derivative of the
     scalar psi^T M(R) phi in each entry of R, by central differences on R alone. Where M
-    is a polynomial of degree two or less in R (``linear``: the fold's A - I, the period
+    is a polynomial of degree two or less in R (``quadratic``: the fold's A - I, the period
     doubling's A + I, the bialternate product's A (.) A - I) the difference with a unit
     step is exact; through a deflation it takes :data:`DEFLATION_STEP`."""
-    step = 1.0 if linear else DEFLATION_STEP * max(1.0, float(np.max(np.abs(R))))
+    step = 1.0 if quadratic else DEFLATION_STEP * max(1.0, float(np.max(np.abs(R))))
     seed = np.empty_like(R)
     for index in np.ndindex(*R.shape):
         shift = np.zeros_like(R)
@@ -210,7 +210,7 @@ class CurveSystem:
     def jacobian(self, v: np.ndarray) -> np.ndarray:
         _, _, phi, psi = self._defining(v)
         seed = defining_seed(lambda R: defining_matrix(self.kind, self._deflated(R)), self.base.map_jacobian(v),
-                             phi, psi, linear=not getattr(self.base, "symmetric", False))
+                             phi, psi, quadratic=not getattr(self.base, "symmetric", False))
         gradient = -self.base.map_jacobian_gradient(v, seed)
         return np.vstack([self.base.jacobian(v), gradient])
 
