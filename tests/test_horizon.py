@@ -3,6 +3,9 @@
 * Two strides reach what one cannot: at the upright gait (dr/du of practical rank 3) the
   best one-stride control leaves a residual, the two-stride plan brings X_2 onto the gait.
 * The plan's first control is applied and the runner converges.
+* The search has two starts (the last plan's tail, the feedback's plan); when the descent
+  from the nearer one ends short of the gait, the other is searched too and the better end
+  kept.
 """
 
 import json
@@ -38,3 +41,21 @@ def test_the_horizon_brings_a_perturbed_upright_runner_back(tight_map):
     controller = RecedingHorizon(tight_map, Params(), X, u, horizon=2, fixed=(3,), K=K)
     run = run_closed_loop(tight_map, Params(), controller, X + np.array([1e-4, 1e-3, 1e-3, 1e-2]), X, 30)
     assert run.outcome == "converged" and run.strides_to_converge <= 6
+
+
+def test_when_the_nearer_start_ends_short_the_other_start_is_searched_too():
+    """At the thesis-scale VPP gait, from the first start of the controllers study's
+    smallest box, the search from the feedback's plan (the nearer start) ends at a plan
+    that never returns the runner; the search from the plan's tail brings it back."""
+    from baslip.engine.outcome import Tolerances
+    from baslip.engine.returnmap import ReturnMap
+    from baslip.model.hiplaw import VPP
+
+    X, u = gait("vpp")
+    K = np.array(json.loads((ROOT / "results" / "controllers_vpp" / "result.json").read_text())["feedback"]["K"])
+    vpp_map = ReturnMap(Tolerances(1e-12, 1e-12), law=VPP)
+    start = X + np.array([2.3643249401e-05, 0.009009273926519, -0.007116807745607, 0.044864944713724])
+    controller = RecedingHorizon(vpp_map, Params(), X, u, horizon=2, lower=np.array([-0.1, -np.inf]),
+                                 upper=np.array([0.2, np.inf]), K=K)
+    run = run_closed_loop(vpp_map, Params(), controller, start, X, 30)
+    assert run.outcome == "converged"

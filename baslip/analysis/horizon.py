@@ -7,10 +7,12 @@ the free entries of u_1 .. u_N, scaled by the controls' nominal sizes; the resid
 X_N - X*, scaled by the apex's. Each step is Levenberg-Marquardt with the chained AD
 Jacobians dX_N/du_k = A_{N-1} ... A_{k+1} B_k. The warm start at the next apex is the
 tail of the plan followed by u*: where the plan reached X*, its tail still does (X* is a
-fixed point under u*), so the search starts on target. The search starts from the better
-of that tail and, given a feedback gain K, the plan that u* + K (X - X*)
-would follow from X (at a highly unstable gait the constant plan falls within N strides,
-and there is no Jacobian to start from). It stops when X_N is within
+fixed point under u*), so the search starts on target. Given a feedback gain K, the
+search has a second start: the plan that u* + K (X - X*) would follow from X (at a highly
+unstable gait the constant plan falls within N strides, and there is no Jacobian to start
+from). It descends from the start that misses X* less, and from the other only when that
+descent ends short of :data:`HORIZON_EPS`; the better end is kept (from the nearer start
+alone, a descent can end at a plan that never returns). A descent stops when X_N is within
 :data:`HORIZON_EPS` of X* or a step gains less than 1 %. Controls are kept inside their
 bounds. Apexes and controls are SI units and radians.
 """
@@ -76,11 +78,27 @@ class RecedingHorizon:
         """The first control of the plan solved from apex ``X``, and the eps its X_N leaves."""
         X = np.asarray(X, dtype=float)
         starts = [self.plan] + ([] if self.K is None else [self._feedback_plan(X)])
-        start = min(starts, key=lambda p: self._miss(X, p)[0]) if len(starts) > 1 else starts[0]
-        linearised = self._linearised(X, start)
-        if linearised is None:
+        starts.sort(key=lambda p: self._miss(X, p)[0])
+        best = None
+        for start in starts:  # the nearer start first; the other only if its end misses
+            found = self._descend(X, start)
+            if found is not None and (best is None or found[1] < best[1]):
+                best = found
+            if best is not None and best[1] <= HORIZON_EPS:
+                break
+        if best is None:
             self.plan = np.tile(self.u_star, (self.horizon, 1))
             return self.u_star.copy(), np.inf
+        plan, miss = best
+        self.plan = np.vstack([plan[1:], self.u_star])  # the warm start of the next apex: the plan's tail
+        return plan[0], miss
+
+    def _descend(self, X: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, float] | None:
+        """Levenberg-Marquardt on the plan from ``start``: (the plan it ends at, the eps of
+        its X_N), or None when the start itself falls within the horizon."""
+        linearised = self._linearised(X, start)
+        if linearised is None:
+            return None
         plan, value, jacobian = linearised
         damping = 1e-6
         for step_number in range(self.steps):
@@ -106,8 +124,7 @@ class RecedingHorizon:
                 damping *= 10
             if not improved or stalled:
                 break
-        self.plan = np.vstack([plan[1:], self.u_star])  # the warm start of the next apex: the plan's tail
-        return plan[0], value[0]
+        return plan, value[0]
 
     def _feedback_plan(self, X: np.ndarray) -> np.ndarray:
         """The controls u* + K (X_k - X*) along the strides they lead to from ``X`` (u*
