@@ -56,7 +56,8 @@ def run(problem: Problem | str | Path, out: str | Path | None = None, *, jobs: i
         writes, resuming what is there. Without it nothing is written and nothing is
         resumed.
     jobs : int, optional
-        Worker processes for a study (default one per core); answers do not depend on it.
+        Worker processes for a study, or for a continuation's curves (default one per
+        core); answers do not depend on it.
     lanes : int, optional
         A new study's warm-started lanes (default 2); recorded, and the answers follow it.
     scheduler : str, optional
@@ -151,7 +152,7 @@ def _run_into(problem: Problem, out: Path, sources: Path, *, jobs, lanes, schedu
         with hold(out):
             clear_run(out)
     if problem.continuation is not None:
-        run_continuation(problem, out, quiet)
+        run_continuation(problem, out, quiet, jobs)
         return open_results(out)
     return solve_and_write(problem, out, quiet)
 

@@ -18,6 +18,8 @@ curves of the BA-SLIP in two parameters, on the shipped problems.
   curves, deflated in two ways, locate one point.
 * Exact second derivatives and central differences of the AD Jacobian steer Newton to the
   same curve points.
+* The curves' halves are traced on both cores, each from its first point alone: one worker
+  process or two give the same curve.csv, byte for byte.
 """
 
 import csv
@@ -143,6 +145,18 @@ def test_generalised_period_doubling_is_where_born_two_stride_orbits_change_stab
         assert born
         signs.append({float(np.sign(min(multipliers(r), key=lambda m: abs(m - 1)).real - 1)) for r in born})
     assert signs == [{1.0}, {-1.0}]
+
+
+def test_one_worker_or_two_trace_the_same_curves(tmp_path):
+    narrow = {"second_range: [1424.8, 2224.8]": f"second_range: [{SEYFARTH_ENERGY}, 1790.0]"}
+    texts = []
+    for jobs in (1, 2):
+        folder = tmp_path / f"jobs{jobs}"
+        folder.mkdir()
+        _, out = run_problem(folder, "curve_slip_band", jobs=jobs, **narrow)
+        texts.append((out / "curve.csv").read_text())
+    assert texts[0] == texts[1]
+    assert len(texts[0].splitlines()) > 6
 
 
 def test_a_curve_asked_for_but_not_found_is_a_failure(tmp_path, capsys):

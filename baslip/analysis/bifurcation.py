@@ -345,25 +345,47 @@ def onto_curve(curve: CurveSystem, v: np.ndarray, settings: Settings) -> np.ndar
     raise CorrectionFailed("no point of the curve near the start")
 
 
+#: The signs of the second parameter's direction in which a curve is traced from its
+#: start: first towards decreasing, then increasing values.
+CURVE_DIRECTIONS = (-1.0, 1.0)
+
+
+def curve_start(curve: CurveSystem, v: np.ndarray, settings: Settings,
+                accept: Callable[[np.ndarray], str | None] = lambda v: None) -> np.ndarray:
+    """The curve's first point: ``v`` (a point near the curve) corrected onto it, and
+    accepted by ``accept``; raises :class:`CorrectionFailed` otherwise."""
+    start = onto_curve(curve, v, settings)
+    veto = accept(start)
+    if veto:
+        raise CorrectionFailed(f"the curve's first point: {veto}")
+    return start
+
+
+def trace_half(curve: CurveSystem, start: np.ndarray, sign: float, settings: Settings,
+               accept: Callable[[np.ndarray], str | None] = lambda v: None,
+               progress: Callable[[int, Point], None] = lambda n, p: None,
+               explain: Callable[[Branch], str] = lambda b: b.stop_reason) -> Branch:
+    """The curve from its first point ``start`` one way: towards decreasing (``sign`` < 0)
+    or increasing second parameter. The half is traced on a fresh copy of ``curve``, its
+    border set afresh at ``start``, so that it depends on ``start`` alone: the two halves
+    can be traced in either order, or at once in two processes, with the same points."""
+    direction = np.zeros(len(start))
+    direction[-1] = sign
+    half = continue_branch(CurveSystem(curve.base, curve.kind), start, direction, settings, accept=accept,
+                           progress=progress)
+    half.stop_reason = explain(half)
+    return half
+
+
 def trace_curve(curve: CurveSystem, v: np.ndarray, settings: Settings,
                 accept: Callable[[np.ndarray], str | None] = lambda v: None,
                 progress: Callable[[int, Point], None] = lambda n, p: None,
                 explain: Callable[[Branch], str] = lambda b: b.stop_reason) -> Branch:
     """The curve through ``v`` (a point near it) traced both ways within the settings'
-    ranges: first towards decreasing, then increasing second parameter, joined.
-    ``accept`` may veto points (e.g. not verified); ``explain`` words each end's stop."""
-    start = onto_curve(curve, v, settings)
-    veto = accept(start)
-    if veto:
-        raise CorrectionFailed(f"the curve's first point: {veto}")
-    down = np.zeros(len(v))
-    down[-1] = -1.0
-    ends = []
-    for direction in (down, -down):
-        end = continue_branch(curve, start, direction, settings, accept=accept, progress=progress)
-        end.stop_reason = explain(end)
-        ends.append(end)
-    return join(*ends)
+    ranges (:data:`CURVE_DIRECTIONS`), joined. ``accept`` may veto points (e.g. not
+    verified); ``explain`` words each end's stop."""
+    start = curve_start(curve, v, settings, accept)
+    return join(*(trace_half(curve, start, sign, settings, accept, progress, explain) for sign in CURVE_DIRECTIONS))
 
 
 def stability_boundary(kind: str, A: np.ndarray) -> bool:

@@ -56,8 +56,9 @@ def _parser(prog: str = "python -m baslip.solve") -> argparse.ArgumentParser:
     talk.add_argument("--verbose", action="store_true",
                       help="also print IPOPT's iterations (of a single solve, or of a branch's start)")
     parser.add_argument("--jobs", type=_positive, metavar="N",
-                        help="worker processes for a study (default: one per core, at most one per lane; "
-                             "the answers do not depend on it); with --scheduler local, the LocalCluster's workers")
+                        help="worker processes for a study, or for a continuation's curves (default: one per core, at "
+                             "most one per lane; the answers do not depend on it); with --scheduler local, the "
+                             "LocalCluster's workers")
     parser.add_argument("--lanes", type=_positive, metavar="N",
                         help="split a new study into N lanes of warm-started tasks (default 2), so that up to N "
                              "workers run at once; recorded in result.json and kept when the run resumes. "
@@ -129,7 +130,7 @@ def _run(problem, args, out_dir: Path) -> int:
         if args.fresh:
             clear_folder(out_dir)
         if problem.continuation is not None:
-            return _run_continuation(problem, out_dir, args.quiet)
+            return _run_continuation(problem, out_dir, args.quiet, args.jobs)
         return _solve_and_write(problem, out_dir, args.quiet)
     except InputError as err:  # found only once running: a busy or stale folder, a lost scheduler
         print(refusal(err, args.problem), file=sys.stderr)
@@ -169,10 +170,10 @@ def _run_study(problem, out_dir: Path, quiet: bool, fresh: bool, jobs: int | Non
     return EXIT_OK
 
 
-def _run_continuation(problem, out_dir: Path, quiet: bool) -> int:
+def _run_continuation(problem, out_dir: Path, quiet: bool, jobs: int | None = None) -> int:
     from baslip.studies.branch import run_continuation
 
-    summary = run_continuation(problem, out_dir, quiet)
+    summary = run_continuation(problem, out_dir, quiet, jobs)
     if not quiet:
         print(run_summary_text(summary))
         from baslip.viz.figures import figure_file

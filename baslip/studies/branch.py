@@ -46,15 +46,17 @@ class BranchStartFailed(RunError):
     """The starting fixed point did not converge."""
 
 
-def run_continuation(problem, out_dir: Path, quiet: bool = False) -> dict:
+def run_continuation(problem, out_dir: Path, quiet: bool = False, jobs: int | None = None) -> dict:
     """Trace the problem's branches, write branch.csv, result.json and diagram.png to
-    ``out_dir`` together, and return the summary that result.json holds. Raises
-    :class:`baslip.files.lock.FolderBusy` if another process is writing into ``out_dir``."""
+    ``out_dir`` together, and return the summary that result.json holds. Curves are
+    traced on ``jobs`` worker processes (default: one per core; the points do not depend
+    on it). Raises :class:`baslip.files.lock.FolderBusy` if another process is writing
+    into ``out_dir``."""
     with hold(out_dir), recording_code() as code:
-        return _run_continuation(problem, out_dir, quiet, code)
+        return _run_continuation(problem, out_dir, quiet, code, jobs)
 
 
-def _run_continuation(problem, out_dir: Path, quiet: bool, code: dict[str, str]) -> dict:
+def _run_continuation(problem, out_dir: Path, quiet: bool, code: dict[str, str], jobs: int | None) -> dict:
     from baslip.analysis.gaitsystem import branch_system
     from baslip.files.provenance import provenance
     from baslip.gait.from_problem import fixed_point_spec, solve_start, solver_for
@@ -99,7 +101,7 @@ def _run_continuation(problem, out_dir: Path, quiet: bool, code: dict[str, str])
     curves = None
     if spec.second is not None:
 
-        curve_rows, curves = follow_curves(problem, traced[0], solver, quiet)
+        curve_rows, curves = follow_curves(problem, traced[0], solver, quiet, jobs)
         figure = io.BytesIO()
         plots.curve_diagram(curve_rows, spec.parameter, spec.second, figure, problem=problem_title(problem),
                             params=problem.params, branch=rows)

@@ -19,11 +19,14 @@ from dataclasses import replace
 
 import numpy as np
 
-from baslip.analysis.bifurcation import CurveSystem, stability_boundary, trace_curve
-from baslip.analysis.continuation import Branch, CorrectionFailed, Point, Settings
+from baslip.analysis.bifurcation import CURVE_DIRECTIONS, CurveSystem, curve_start, stability_boundary, trace_half
+from baslip.analysis.continuation import Branch, CorrectionFailed, Point, Settings, join
+from baslip.analysis.gaitsystem import branch_system
 from baslip.diagnostics import end_progress_line
+from baslip.gait.from_problem import fixed_point_spec, solver_for
 from baslip.model.dynamics import APEX
 from baslip.model.quantities import quantity_text
+from baslip.studies.processes import map_in_processes
 from baslip.studies.traced import TracedBranch, named_stop, point_record, points_csv, progress_lines
 
 #: Largest step along a curve (scaled units): small enough that the drawn polyline, and
@@ -33,41 +36,43 @@ CURVE_MAX_STEP = 0.25
 SAME_CURVE = 1e-3
 
 
-def follow_curves(problem, branch: TracedBranch, solver, quiet: bool) -> tuple[list[dict], dict]:
+def follow_curves(problem, branch: TracedBranch, solver, quiet: bool, jobs: int | None = None) -> tuple[list[dict], dict]:
     """Trace the curves that ``problem.continuation`` asks for from ``branch``; return
-    the rows of curve.csv and the curves' summary."""
-    from baslip.analysis.gaitsystem import branch_system
-    from baslip.gait.from_problem import fixed_point_spec
+    the rows of curve.csv and the curves' summary.
 
+    Each curve's first point is found here; its two halves are then traced at once on
+    the cores (``jobs`` worker processes, default one per core), each half from its first
+    point alone, so the points do not depend on how many run at once. A start that lies
+    on a curve traced from an earlier start is skipped (its halves are traced, then
+    dropped)."""
     spec = problem.continuation
-    base = branch_system(replace(fixed_point_spec(problem), strides=branch.strides), spec.parameter,
-                         solver.residual_map, solver.jacobian_map, second=spec.second)
-    first_scale, second_scale = base.lam_scales
-    settings = Settings(step=spec.step, max_step=CURVE_MAX_STEP, max_points=spec.max_points,
-                        lam_range=(spec.second_lo / second_scale, spec.second_hi / second_scale),
-                        other_ranges=((-2, spec.lo / first_scale, spec.hi / first_scale),))
+    base, settings = _curve_setup(problem, branch.strides, solver)
     second_start = base.start_value(spec.second)
-    traced: list[tuple[int, CurveSystem, Branch, dict]] = []
-    skipped, failed = [], []
+    starts, failed = [], []
     for kind, point in _starts(branch, spec):
         X, u, _, first_value = branch.system.unpack(point.v)
         origin = {"type": kind, spec.parameter: first_value, spec.second: second_start}
-        v = base.pack(X, u, first_value, second_start)
+        packed = (X, u, first_value, second_start)
+        v = base.pack(*packed)
+        try:
+            start = curve_start(CurveSystem(base, kind), v, settings, _verified(base, solver))
+        except CorrectionFailed as err:
+            failed.append({**origin, "reason": str(err)})
+            continue
+        starts.append((kind, v, packed, start, origin))
+    halves = map_in_processes(_half_tracer, [(n, kind, packed, start, sign)
+                                             for n, (kind, _, packed, start, _) in enumerate(starts)
+                                             for sign in CURVE_DIRECTIONS],
+                              (problem, branch.strides, quiet), jobs)
+    end_progress_line()
+    traced: list[tuple[int, CurveSystem, Branch, dict]] = []
+    skipped = []
+    for n, (kind, v, _, _, origin) in enumerate(starts):
         on = _on_traced(v, kind, traced)
         if on is not None:
             skipped.append({**origin, "on_curve": on})
             continue
-        curve = CurveSystem(base, kind)
-        number = len(traced)
-        progress = progress_lines(lambda n, p, k=kind, c=number: _describe(base, k, c, n, p), quiet)
-        try:
-            points = trace_curve(curve, v, settings, accept=lambda w: base.verification_failure(w, solver.verify_map),
-                                 progress=progress, explain=lambda b: named_stop(base, b))
-        except CorrectionFailed as err:
-            failed.append({**origin, "reason": str(err)})
-            continue
-        traced.append((number, curve, points, origin))
-        end_progress_line()
+        traced.append((len(traced), CurveSystem(base, kind), join(*halves[2 * n : 2 * n + 2]), origin))
     rows = [_row(number, curve, point) for number, curve, points, _ in traced for point in points.points]
     summary = {
         "second": spec.second,
@@ -81,6 +86,44 @@ def follow_curves(problem, branch: TracedBranch, solver, quiet: bool) -> tuple[l
                                    if r["special"]],
     }
     return rows, summary
+
+
+def _curve_setup(problem, strides: int, solver):
+    """(the base system of the curves, with both parameters free; their settings)."""
+    spec = problem.continuation
+    base = branch_system(replace(fixed_point_spec(problem), strides=strides), spec.parameter,
+                         solver.residual_map, solver.jacobian_map, second=spec.second)
+    first_scale, second_scale = base.lam_scales
+    settings = Settings(step=spec.step, max_step=CURVE_MAX_STEP, max_points=spec.max_points,
+                        lam_range=(spec.second_lo / second_scale, spec.second_hi / second_scale),
+                        other_ranges=((-2, spec.lo / first_scale, spec.hi / first_scale),))
+    return base, settings
+
+
+def _verified(base, solver):
+    """The veto of curve points: the independent re-simulation's failure, if any."""
+    return lambda w: base.verification_failure(w, solver.verify_map)
+
+
+def _half_tracer(context):
+    """A worker's tracer of curve halves (see :func:`follow_curves`): it builds the solver
+    and the curves' base system once, and traces each half it is given, (curve number,
+    type, (apex, control, both parameters) of the branch point it starts from, the
+    curve's first point, sign), to a Branch."""
+    problem, strides, quiet = context
+    solver = solver_for(problem)
+    base, settings = _curve_setup(problem, strides, solver)
+
+    def trace(item) -> Branch:
+        number, kind, packed, start, sign = item
+        # Packing sets the scale of the nearest-guess family's multipliers, as it was set
+        # when the curve's first point was found.
+        base.pack(*packed)
+        progress = progress_lines(lambda n, p: _describe(base, kind, number, n, p), quiet)
+        return trace_half(CurveSystem(base, kind), start, sign, settings, accept=_verified(base, solver),
+                          progress=progress, explain=lambda b: named_stop(base, b))
+
+    return trace
 
 
 def _starts(branch: TracedBranch, spec) -> list[tuple[str, Point]]:

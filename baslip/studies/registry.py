@@ -39,7 +39,8 @@ from baslip.studies.basin import check_basin, run_basin
 from baslip.studies.common import StudyFailed
 from baslip.studies.controllers import run_controllers
 from baslip.studies.optimal import run_optimal
-from baslip.studies.runner import LANES, WorkerDied, Workers
+from baslip.studies.processes import WorkerDied
+from baslip.studies.runner import LANES, Workers
 from baslip.studies.sources import StudyInputError
 from baslip.studies.sweep import check_random, run_random, run_sweep
 
@@ -104,7 +105,7 @@ def run_study(problem: Problem, out_dir: Path, quiet: bool = False, fresh: bool 
     that many warm-started lanes (default :data:`~baslip.studies.runner.LANES`); a resumed
     run keeps its recorded count, and asking for another raises :class:`StaleFolder`.
     Raises :class:`baslip.files.lock.FolderBusy` if another process is writing into ``out_dir``,
-    and :class:`~baslip.studies.runner.WorkerDied` (a ``RunError``) if a worker process
+    and :class:`~baslip.studies.processes.WorkerDied` (a ``RunError``) if a worker process
     ended before finishing its tasks; what was done is written first, for a rerun to resume.
     """
     study = problem.study

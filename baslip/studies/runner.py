@@ -22,10 +22,7 @@ from __future__ import annotations
 import csv
 import io
 import json
-import multiprocessing
-import multiprocessing.connection
 import os
-import pickle
 import signal
 import sys
 import time
@@ -37,11 +34,19 @@ from typing import Any
 
 import numpy as np
 
-from baslip.children import run_pickled
 from baslip.diagnostics import IN_PLACE, end_progress_line, logger
 from baslip.engine.codegen import leave_notices_to_parent, note_code, recording_code
-from baslip.errors import InputError, RunError
+from baslip.errors import InputError
 from baslip.files.atomic import write_files_atomically
+from baslip.studies.processes import (
+    Inbox,
+    Reporting,
+    WorkerCode,
+    WorkerDied,
+    start_workers,
+    stop_workers,
+    worker_count,
+)
 
 _log = logger(__name__)
 
@@ -285,40 +290,20 @@ def _marked(task: dict, key, done: set, states: dict) -> dict:
     return {**task, "done": True, "state": states.get(key)}
 
 
-def worker_count(jobs: int | None, lanes: int) -> int:
-    """Worker processes for ``lanes`` lanes: ``jobs`` if given, else one per core; never
-    more than the lanes."""
-    wanted = jobs if jobs is not None else (os.cpu_count() or 1)
-    return max(1, min(wanted, lanes))
-
-
 def _run_lanes(todo, worker, context, table, label, quiet, skipped, total, start,
                jobs=None) -> tuple[int, bool, str]:
     """Run the lanes ``todo`` on spawned worker processes, each sending its rows back on a
     pipe of its own. Pipes, not a multiprocessing queue: they need no semaphores, so no
     resource-tracker process is started that could outlive a killed run."""
-    ctx = multiprocessing.get_context("spawn")
     count = worker_count(jobs, len(todo))
     shares = [todo[k::count] for k in range(count)]  # lanes dealt out in turn
-    pipes = [ctx.Pipe(duplex=False) for _ in shares]
-    # The work travels pickled, and is unpickled (its modules imported) only after the
-    # worker has asked to die with this process: see baslip.children.run_pickled.
-    processes = [ctx.Process(target=run_pickled, args=(pickle.dumps((_worker_main, (worker, share, context))), sender),
-                             daemon=True) for share, (_, sender) in zip(shares, pipes)]
     progress = Progress(label, total, quiet)
-    for process in processes:
-        process.start()
-    for _, sender in pipes:
-        sender.close()  # this process only reads; a worker's end closes when it ends
-    inbox = _Inbox([reader for reader, _ in pipes], processes)
+    processes, readers = start_workers(_worker_main, [(worker, share, context) for share in shares])
+    inbox = Inbox(readers, processes)
     try:
         return _collect(inbox.next_row, len(todo), table, progress, skipped, start)
     finally:
-        for process in processes:
-            if process.is_alive():
-                process.terminate()
-            process.join(timeout=5)
-        inbox.close()
+        stop_workers(processes, inbox)
 
 
 def _collect(next_row, lanes: int, table, progress, skipped: int, start: float,
@@ -351,11 +336,6 @@ def _collect(next_row, lanes: int, table, progress, skipped: int, start: float,
         return ran, False, str(err)
     progress.close()
     return ran, False, ""
-
-
-class WorkerDied(RunError):
-    """A worker process ended without finishing its lanes: the study stopped short. Its
-    rows so far are kept, and a rerun resumes from them."""
 
 
 class SchedulerError(InputError):
@@ -439,70 +419,7 @@ def _lane_on_dask(worker, lane, context, queue) -> None:
     """A Dask task: one lane, rows onto the Dask queue, then what ran, then None."""
     leave_notices_to_parent()
     with recording_code() as used:
-        worker(lane, context, _Reporting(queue.put, used))
-
-
-@dataclass(frozen=True)
-class WorkerCode:
-    """What the libraries of a worker ran on (see :func:`baslip.engine.codegen.recording_code`),
-    sent before the first row that follows a library's loading."""
-
-    routes: dict[str, str]
-
-
-class _Reporting:
-    """The queue a worker function puts its rows on: rows go to ``send`` as they are,
-    each after a :class:`WorkerCode` if the worker has loaded libraries since the last,
-    so that the parent records (and tells the user) what ran as soon as it is known."""
-
-    def __init__(self, send: Callable[[object], None], used: dict[str, str]):
-        self._send, self._used = send, used
-        self._sent: dict[str, str] = {}
-
-    def put(self, item) -> None:
-        if self._used != self._sent:
-            self._sent = dict(self._used)
-            self._send(WorkerCode(self._sent))
-        self._send(item)
-
-
-class _Inbox:
-    """The reading ends of the workers' pipes: the next message from any worker."""
-
-    def __init__(self, readers: list, processes: list, poll: float = 1.0):
-        self.readers, self.processes, self.poll = list(readers), processes, poll
-        self._silent = dict(zip(readers, processes))  # workers that have sent nothing yet
-
-    def next_row(self):
-        """The next row (or WorkerCode, or None) from the workers; raises
-        :class:`WorkerDied` if one ended before finishing its lanes."""
-        while True:
-            for reader in multiprocessing.connection.wait(self.readers, timeout=self.poll):
-                try:
-                    message = reader.recv()
-                except EOFError:  # that worker has ended; its exit code says how
-                    self.readers.remove(reader)
-                    continue
-                self._silent.pop(reader, None)
-                return message
-            dead = [p for p in self.processes if p.exitcode not in (None, 0)]
-            if dead or not self.readers:
-                raise WorkerDied(self._death(dead[0] if dead else None))
-
-    def _death(self, process) -> str:
-        code = process.exitcode if process is not None else 0
-        if process is None or process not in self._silent.values():
-            return f"a worker process ended with exit code {code} before finishing its tasks"
-        # The commonest cause: a script that starts a study at its top level. Each spawned
-        # worker imports the script, which starts the study again, and multiprocessing
-        # refuses to start processes from a process still starting up.
-        return (f"a worker process ended with exit code {code} before sending any row (if a script started "
-                f"this run, the run must sit under `if __name__ == \"__main__\":`, because each worker process "
-                f"imports the script)")
-
-    def close(self) -> None:
-        for reader in self.readers:
-            reader.close()
+        worker(lane, context, Reporting(queue.put, used))
 
 
 def _worker_main(worker, lanes, context, connection) -> None:
@@ -512,7 +429,7 @@ def _worker_main(worker, lanes, context, connection) -> None:
     leave_notices_to_parent()
     with recording_code() as used:
         for lane in lanes:
-            worker(lane, context, _Reporting(connection.send, used))
+            worker(lane, context, Reporting(connection.send, used))
 
 
 def split_lanes(tasks: Sequence[dict], n: int = LANES) -> list[list[dict]]:

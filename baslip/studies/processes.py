@@ -1,0 +1,219 @@
+"""Worker processes: starting them, hearing from them, and a map over both cores.
+
+Two ways of spreading work over the cores rest on this module:
+
+* the resumable study runner (:mod:`baslip.studies.runner`), whose workers take fixed
+  lanes of tasks and send one CSV row per task;
+* :func:`map_in_processes`, for work that is not a table of rows: a few long, independent
+  items (the two directions of each bifurcation curve, the probes of a bisection), handed
+  out one at a time to whichever worker is free, the results returned in item order.
+
+Workers are spawned (a fresh interpreter: CasADi's objects are not shared across a fork),
+talk over pipes (no semaphores, so no resource-tracker process can outlive a killed run),
+and die with the process that started them (:mod:`baslip.children`). Each reports the
+code its libraries ran on (:class:`WorkerCode`) before the first message that follows a
+library's loading, so the parent's provenance record holds it.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import multiprocessing.connection
+import os
+import pickle
+import signal
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from multiprocessing.connection import Connection
+from typing import Any, cast
+
+from baslip.children import keep_to_cores, run_pickled
+from baslip.engine.codegen import leave_notices_to_parent, note_code, recording_code
+from baslip.errors import RunError
+
+
+class WorkerDied(RunError):
+    """A worker process ended without finishing its work: the run stopped short. A study's
+    rows so far are kept, and a rerun resumes from them."""
+
+
+@dataclass(frozen=True)
+class WorkerCode:
+    """What the libraries of a worker ran on (see :func:`baslip.engine.codegen.recording_code`),
+    sent before the first row that follows a library's loading."""
+
+    routes: dict[str, str]
+
+
+def worker_count(jobs: int | None, lanes: int) -> int:
+    """Worker processes for ``lanes`` lanes (or items): ``jobs`` if given, else one per
+    core; never more than the lanes."""
+    wanted = jobs if jobs is not None else (os.cpu_count() or 1)
+    return max(1, min(wanted, lanes))
+
+
+class Reporting:
+    """The queue a worker function puts its rows on: rows go to ``send`` as they are,
+    each after a :class:`WorkerCode` if the worker has loaded libraries since the last,
+    so that the parent records (and tells the user) what ran as soon as it is known."""
+
+    def __init__(self, send: Callable[[object], None], used: dict[str, str]):
+        self._send, self._used = send, used
+        self._sent: dict[str, str] = {}
+
+    def put(self, item) -> None:
+        if self._used != self._sent:
+            self._sent = dict(self._used)
+            self._send(WorkerCode(self._sent))
+        self._send(item)
+
+
+def core_shares(count: int) -> list[set[int] | None]:
+    """The cores each of ``count`` workers is kept to: this process's cores dealt out in
+    contiguous shares, or one each in turn when there are more workers than cores (None
+    where the system reports no affinity). A worker's own threads (the second
+    derivatives' lanes) then share its cores instead of competing for the others'."""
+    try:
+        cores = sorted(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return [None] * count
+    if count >= len(cores):
+        return [{cores[k % len(cores)]} for k in range(count)]
+    bounds = [round(k * len(cores) / count) for k in range(count + 1)]
+    return [set(cores[bounds[k] : bounds[k + 1]]) for k in range(count)]
+
+
+def start_workers(main: Callable, arguments: Sequence[tuple], duplex: bool = False) -> tuple[list, list]:
+    """Spawn one worker per entry of ``arguments``, each kept to its share of the cores
+    (:func:`core_shares`), running ``main(*entry, connection)``; return (processes, this
+    process's ends of their pipes). Without ``duplex`` the pipes only carry messages from
+    the workers."""
+    ctx = multiprocessing.get_context("spawn")
+    pipes = [ctx.Pipe(duplex=duplex) for _ in arguments]
+    # The work travels pickled, and is unpickled (its modules imported) only after the
+    # worker has asked to die with this process: see baslip.children.run_pickled.
+    processes = [ctx.Process(target=run_pickled, args=(pickle.dumps((_on_cores, (cores, main, *entry))), theirs),
+                             daemon=True)
+                 for entry, cores, (_, theirs) in zip(arguments, core_shares(len(arguments)), pipes)]
+    for process in processes:
+        process.start()
+    for _, theirs in pipes:
+        theirs.close()  # a worker's end closes when it ends
+    return processes, [ours for ours, _ in pipes]
+
+
+def _on_cores(cores: set[int] | None, main: Callable, *arguments) -> None:
+    """A worker's entry: keep to ``cores``, then run ``main(*arguments)``."""
+    keep_to_cores(cores)
+    main(*arguments)
+
+
+def stop_workers(processes: list, inbox: Inbox) -> None:
+    """End the workers that are still running and close their pipes."""
+    for process in processes:
+        if process.is_alive():
+            process.terminate()
+        process.join(timeout=5)
+    inbox.close()
+
+
+class Inbox:
+    """The reading ends of the workers' pipes: the next message from any worker."""
+
+    def __init__(self, readers: list, processes: list, poll: float = 1.0):
+        self.readers, self.processes, self.poll = list(readers), processes, poll
+        self._silent = dict(zip(readers, processes))  # workers that have sent nothing yet
+
+    def next_row(self):
+        """The next row (or WorkerCode, or None) from the workers; raises
+        :class:`WorkerDied` if one ended before finishing its lanes."""
+        return self.next_message()[1]
+
+    def next_message(self) -> tuple[Any, object]:
+        """(the pipe it came on, the next message from any worker); raises
+        :class:`WorkerDied` if one ended before finishing its work."""
+        while True:
+            # wait() gives back the readers it was given: connections.
+            ready = cast("list[Connection]", multiprocessing.connection.wait(self.readers, timeout=self.poll))
+            for reader in ready:
+                try:
+                    message = reader.recv()
+                except EOFError:  # that worker has ended; its exit code says how
+                    self.readers.remove(reader)
+                    continue
+                self._silent.pop(reader, None)
+                return reader, message
+            dead = [p for p in self.processes if p.exitcode not in (None, 0)]
+            if dead or not self.readers:
+                raise WorkerDied(self._death(dead[0] if dead else None))
+
+    def _death(self, process) -> str:
+        code = process.exitcode if process is not None else 0
+        if process is None or process not in self._silent.values():
+            return f"a worker process ended with exit code {code} before finishing its tasks"
+        # The commonest cause: a script that starts a study at its top level. Each spawned
+        # worker imports the script, which starts the study again, and multiprocessing
+        # refuses to start processes from a process still starting up.
+        return (f"a worker process ended with exit code {code} before sending any row (if a script started "
+                f"this run, the run must sit under `if __name__ == \"__main__\":`, because each worker process "
+                f"imports the script)")
+
+    def close(self) -> None:
+        for reader in self.readers:
+            reader.close()
+
+
+def map_in_processes(make_task: Callable[[Any], Callable[[Any], Any]], items: Sequence, context: Any = None,
+                     jobs: int | None = None) -> list:
+    """``[task(item) for item in items]`` with ``task = make_task(context)``, the items
+    handed out one at a time to worker processes (one per core, or ``jobs``, never more
+    than the items) as each becomes free.
+
+    ``make_task`` runs once per worker (so what it builds, such as a solver, is built once
+    there) and must be a module-level function; items, context and results travel
+    pickled. With one worker the map runs in this process. The results are the same
+    either way, provided a task's result depends on its item alone (a task must start
+    from no state that an earlier task left).
+
+    Raises
+    ------
+    WorkerDied
+        If a worker ends before returning all its results (an exception in a task ends its
+        worker, with the traceback on stderr).
+    """
+    items = list(items)
+    count = worker_count(jobs, len(items))
+    if count <= 1:
+        task = make_task(context)
+        return [task(item) for item in items]
+    processes, pipes = start_workers(_map_worker, [(make_task, context)] * count, duplex=True)
+    inbox = Inbox(pipes, processes)
+    results: dict[int, Any] = {}
+    pending = iter(enumerate(items))
+    try:
+        for pipe in pipes:
+            pipe.send(next(pending, None))
+        while len(results) < len(items):
+            pipe, message = inbox.next_message()
+            if isinstance(message, WorkerCode):
+                note_code(message.routes)
+                continue
+            index, result = cast("tuple[int, Any]", message)
+            results[index] = result
+            pipe.send(next(pending, None))  # the next item, or None: no more
+    finally:
+        stop_workers(processes, inbox)
+    return [results[k] for k in range(len(items))]
+
+
+def _map_worker(make_task, context, connection) -> None:
+    """A worker of :func:`map_in_processes`: build the task, then answer each item sent
+    ((index, item)) with (index, result) until None comes."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent stops the workers itself
+    leave_notices_to_parent()
+    with recording_code() as used:
+        reporting = Reporting(connection.send, used)
+        task = make_task(context)
+        while (job := connection.recv()) is not None:
+            index, item = job
+            reporting.put((index, task(item)))
