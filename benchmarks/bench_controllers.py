@@ -79,7 +79,7 @@ def main() -> None:
         costs = []
         for start in starts[:40]:
             controller = RecedingHorizon(rmap, problem.params, gait.X, gait.u, 2, held, bounds[:, 0], bounds[:, 1],
-                                         K=choice.K)
+                                         K=choice.K, family=context["settle"])
             began = time.perf_counter()
             run = run_closed_loop(rmap, problem.params, controller, start, gait.X, 30)
             costs.append(1e3 * (time.perf_counter() - began) / max(len(run.controls), 1))

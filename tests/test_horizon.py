@@ -5,7 +5,7 @@
 * The plan's first control is applied and the runner converges.
 * The search has two starts (the last plan's tail, the feedback's plan); when the descent
   from the nearer one ends short of the gait, the other is searched too and the better end
-  kept.
+  kept. On a family of gaits the tail's end is kept unless the other reaches the gait.
 """
 
 import json
@@ -18,6 +18,8 @@ from baslip.analysis.feedback import CONTROL_SCALE, ResolvedControl, lqr_gain, r
 from baslip.analysis.horizon import HORIZON_EPS, RecedingHorizon
 
 ROOT = Path(__file__).resolve().parents[1]
+#: Sample 24 of the 1x box of results/controllers_vpp, from the thesis-scale VPP gait.
+START = np.array([-0.000788157526585, 0.002663198920731, -0.002391514602269, 0.022529393807624])
 
 
 def gait(name):
@@ -59,3 +61,24 @@ def test_when_the_nearer_start_ends_short_the_other_start_is_searched_too():
                                  upper=np.array([0.2, np.inf]), K=K)
     run = run_closed_loop(vpp_map, Params(), controller, start, X, 30)
     assert run.outcome == "converged"
+
+
+def test_on_a_family_of_gaits_the_tail_is_kept_unless_the_other_start_reaches_the_gait():
+    """At the thesis-scale VPP gait (a neutral multiplier: a family of symmetric gaits),
+    from a start of the controllers study's 1x box (sample 24), the end that misses less leaves the runner hopping
+    near the gait without returning within 100 strides; continuing the last plan brings it
+    back onto the family."""
+    from baslip.engine.outcome import Tolerances
+    from baslip.engine.returnmap import ReturnMap
+    from baslip.model.hiplaw import VPP
+
+    X, u = gait("vpp")
+    K = np.array(json.loads((ROOT / "results" / "controllers_vpp" / "result.json").read_text())["feedback"]["K"])
+    vpp_map = ReturnMap(Tolerances(1e-12, 1e-12), law=VPP)
+    start = X + START
+    outcomes = []
+    for family in (False, True):
+        controller = RecedingHorizon(vpp_map, Params(), X, u, horizon=2, lower=np.array([-0.1, -np.inf]),
+                                     upper=np.array([0.2, np.inf]), K=K, family=family)
+        outcomes.append(run_closed_loop(vpp_map, Params(), controller, start, X, 100, settle=True).outcome)
+    assert outcomes[0] == "bounded" and outcomes[1] in ("converged", "settled")

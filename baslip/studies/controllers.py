@@ -114,7 +114,7 @@ def make_controller(name: str, context: dict, rmap: ReturnMap):
     if name in LINEAR:
         return LinearFeedback(X, u, context["gains"][name], context["lower"], context["upper"])
     if name == "horizon":  # the tuned feedback's plan is its search's second start
-        return RecedingHorizon(rmap, params, X, u, context["horizon"], fixed=context["held"],
+        return RecedingHorizon(rmap, params, X, u, context["horizon"], fixed=context["held"], family=context["settle"],
                                K=context["gains"]["feedback"], **bounds)
     return ResolvedControl(rmap, params, X, u, context["criterion"], fixed=context["held"], **bounds)
 
