@@ -3,12 +3,15 @@
 * The map returns ``task(item)`` in item order, whatever worker ran each item, and the
   same results with one worker (in this process) as with two.
 * Each worker builds its task once and is handed items as it becomes free.
+* With ``enough``, the map ends at the shortest leading run of results that is enough,
+  whichever worker finished first.
 * A worker that fails ends the map with :class:`WorkerDied`, not a hang.
 * Workers are kept to their share of the cores, so that their own threads do not compete
   with each other's: two workers on two cores see one core each.
 """
 
 import os
+import time
 
 import pytest
 
@@ -54,6 +57,24 @@ def test_more_workers_than_cores_share_single_cores_in_turn():
     shares = core_shares(CORES + 1)
     assert all(len(share) == 1 for share in shares)
     assert shares[0] == shares[-1]
+
+
+def sleeper(_context):
+    """A task that takes longer for later items, and far longer for item 5."""
+
+    def task(x):
+        time.sleep(30.0 if x == 5 else 0.05 * x)
+        return x
+
+    return task
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_enough_ends_the_map_at_the_shortest_leading_run_that_is_enough(jobs):
+    started = time.perf_counter()
+    results = map_in_processes(sleeper, list(range(8)), None, jobs=jobs, enough=lambda run: run[-1] >= 3)
+    assert results == [0, 1, 2, 3]
+    assert time.perf_counter() - started < 20  # item 5, if started, was stopped
 
 
 def test_a_failing_task_ends_the_map_with_worker_died(capfd):

@@ -14,6 +14,7 @@ import pytest
 
 from baslip.problem.reader import ProblemError, load_problem, parse_problem
 from baslip.problem.study import Sweep
+from baslip.studies.adaptive import bisected_factor
 from baslip.studies.registry import StaleFolder, run_study
 from baslip.studies.runner import ResumableCsv
 from baslip.studies.sweep import RESULT_COLUMNS, interpolated_radius, radius_grid, sweep_tasks
@@ -163,6 +164,45 @@ def test_basin_study_on_a_finished_grid(tiny_grid):
     assert list(rows[0]) == ["point", "sweep_ydot", "sweep_z", "outcome", "strides_run", "final_eps"]
     assert {r["outcome"] for r in rows} <= {"converged", "fell", "bounded"}
     assert json.loads((basin_out / "result.json").read_text())["complete"]
+
+
+def one_at_a_time(recovered) -> tuple[float | None, set[float]]:
+    """The largest recovered factor as a search asking one factor at a time finds it
+    (doubling from 1 to 64, then 4 bisection steps), and the factors it asks."""
+    asked = set()
+
+    def ask(s):
+        asked.add(s)
+        return recovered(s)
+
+    if not ask(1.0):
+        return None, asked
+    low, high = 1.0, 2.0
+    while high <= 64.0 and ask(high):
+        low, high = high, 2 * high
+    if high <= 64.0:
+        for _ in range(4):
+            middle = (low + high) / 2
+            low, high = (middle, high) if ask(middle) else (low, middle)
+    return low, asked
+
+
+@pytest.mark.parametrize("threshold", [0.5, 1.0, 3.3, 4.25, 4.2, 31.0, 64.0, 100.0])
+def test_the_batched_bisection_finds_what_one_probe_at_a_time_finds(threshold):
+    """The probes of the largest recovered perturbation run several at a time; they include
+    every factor the one-at-a-time search asks, and give its answer."""
+    asked = set()
+
+    def recovered_at(factors, to_first_failure):
+        answers = [s <= threshold for s in factors]
+        if to_first_failure and False in answers:
+            answers = answers[: answers.index(False) + 1]
+        asked.update(factors[: len(answers)])
+        return answers
+
+    found = bisected_factor(recovered_at)
+    factor, needed = one_at_a_time(lambda s: s <= threshold)
+    assert found["factor"] == factor and needed <= asked
 
 
 def adaptive_problem(tmp_path, strides: int, frozen: int, criterion: str = "thesis") -> Path:

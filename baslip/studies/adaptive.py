@@ -14,24 +14,31 @@ starts from the last row's control, as it would have.
 
 Finally the largest perturbation that is still recovered is found by bisection on a
 factor s of ``perturbation``: recovered means the re-solved runner is still hopping after
-``probe_strides`` strides from X* + s * perturbation.
+``probe_strides`` strides from X* + s * perturbation. The probes run on both cores, several
+factors at once, and ask every factor that one probe at a time would (so the answer is the
+same).
 """
 
 from __future__ import annotations
 
+import math
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from baslip.analysis.feedback import ResolvedControl
 from baslip.diagnostics import logger
+from baslip.engine.outcome import Tolerances
+from baslip.engine.returnmap import ReturnMap
 from baslip.gait.polish import eps
 from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import PD, HipLaw
 from baslip.problem.reader import Problem
 from baslip.problem.study import Adaptive
 from baslip.studies.common import StudyFailed, study_table
+from baslip.studies.processes import map_in_processes
 from baslip.studies.runner import ResumableCsv, Workers
 from baslip.viz.adaptive import adaptive_figures
 from baslip.viz.labels import problem_title
@@ -92,14 +99,40 @@ def run_adaptive(controller: ResolvedControl, X0, params, strides: int, frozen_s
     return summarise(table.rows, failure)
 
 
-def largest_recovered(controller_for, rmap, params, X_star, perturbation: np.ndarray, probe_strides: int) -> dict:
-    """The largest factor s (bisection, :data:`BISECTIONS` steps) for which the runner
-    started at X* + s * perturbation is still hopping after ``probe_strides`` re-solved
-    strides; ``controller_for()`` gives a fresh controller."""
+def largest_recovered(context: dict, jobs: int | None = None) -> dict:
+    """The largest factor s (doubling from 1 to :data:`LARGEST_FACTOR`, then
+    :data:`BISECTIONS` bisection steps) for which the runner started at X* + s *
+    perturbation is still hopping after ``probe_strides`` re-solved strides.
+
+    ``context`` holds what a probe needs: the gait as :func:`resolved_control` reads it,
+    its hip ``law``, the ``perturbation`` and ``probe_strides``. The probes run on ``jobs``
+    worker processes (default one per core), each from a fresh controller, so the answer
+    does not depend on how many run at once.
+    """
+    perturbation = np.asarray(context["perturbation"], dtype=float)
+    found = bisected_factor(lambda factors, to_first_failure: map_in_processes(
+        _prober, factors, context, jobs, enough=(lambda answers: not answers[-1]) if to_first_failure else None))
+    return {**found, "probe_strides": context["probe_strides"],
+            "perturbation": None if found["factor"] is None else (found["factor"] * perturbation).tolist()}
+
+
+def resolved_control(rmap: ReturnMap, gait: dict) -> ResolvedControl:
+    """A fresh re-solving controller on ``rmap`` for ``gait`` (its params, X_star, u_star,
+    criterion, fixed controls and their lower and upper bounds)."""
+    return ResolvedControl(rmap, gait["params"], gait["X_star"], gait["u_star"], gait["criterion"],
+                           fixed=gait["fixed"], lower=gait["lower"], upper=gait["upper"])
+
+
+def _prober(context: dict):
+    """A worker's probe: factor s -> whether the re-solved runner started at X* + s *
+    perturbation still hops after probe_strides strides."""
+    rmap = ReturnMap(Tolerances(1e-12, 1e-12), law=context["law"])
+    X_star, params = np.asarray(context["X_star"], dtype=float), context["params"]
 
     def recovered(s: float) -> bool:
-        controller, X = controller_for(), X_star + s * perturbation
-        for _ in range(probe_strides):
+        controller = resolved_control(rmap, context)
+        X = X_star + s * np.asarray(context["perturbation"], dtype=float)
+        for _ in range(context["probe_strides"]):
             u, _ = controller.control(X)
             stride = rmap.stride(X, u, params)
             if not stride.ok:
@@ -107,23 +140,33 @@ def largest_recovered(controller_for, rmap, params, X_star, perturbation: np.nda
             X = stride.apex
         return True
 
-    found = _bisect(recovered)
-    return {**found, "probe_strides": probe_strides,
-            "perturbation": None if found["factor"] is None else (found["factor"] * perturbation).tolist()}
+    return recovered
 
 
-def _bisect(recovered) -> dict:
-    """The largest factor for which ``recovered`` holds: doubling from 1, then bisection."""
-    if not recovered(1.0):
+def bisected_factor(recovered_at: Callable[[list[float], bool], list[bool]]) -> dict:
+    """The largest factor for which the runner is recovered: doubling from 1, then
+    bisection. ``recovered_at(factors, to_first_failure)`` answers for several factors at
+    once (for the leading ones up to the first not recovered, with ``to_first_failure``):
+    the doublings together, then rounds of a midpoint and both next midpoints (two steps
+    a round). These include every factor that one probe at a time would try, so the
+    answer is the same."""
+    doublings = [2.0**k for k in range(round(math.log2(LARGEST_FACTOR)) + 1)]
+    answers = recovered_at(doublings, True)
+    if not answers[0]:
         return {"factor": None, "note": "the perturbation itself is not recovered"}
-    low, high = 1.0, 2.0
-    while high <= LARGEST_FACTOR and recovered(high):
-        low, high = high, 2 * high
-    if high > LARGEST_FACTOR:
-        return {"factor": low, "note": f"recovered up to the largest factor tried, {low:g}"}
-    for _ in range(BISECTIONS):
+    failed = [k for k, ok in enumerate(answers) if not ok]
+    if not failed:  # answers has every doubling
+        return {"factor": LARGEST_FACTOR, "note": f"recovered up to the largest factor tried, {LARGEST_FACTOR:g}"}
+    low, high = doublings[failed[0] - 1], doublings[failed[0]]
+    steps = BISECTIONS
+    while steps:
         middle = (low + high) / 2
-        low, high = (middle, high) if recovered(middle) else (low, middle)
+        round_factors = [middle] if steps == 1 else [middle, (low + middle) / 2, (middle + high) / 2]
+        known = dict(zip(round_factors, recovered_at(round_factors, False)))
+        for _ in range(min(steps, 2)):
+            middle = (low + high) / 2  # the same sums as round_factors', so the same floats
+            low, high = (middle, high) if known[middle] else (low, middle)
+            steps -= 1
     return {"factor": low, "first_not_recovered": high,
             "note": f"recovered at {low:.4g} times the perturbation, not at {high:.4g}"}
 
@@ -182,7 +225,9 @@ def _run_frozen(rmap, last_adaptive, last_frozen, params, frozen_strides: int, t
 
 
 def run_adaptive_study(problem: Problem, study: Adaptive, out_dir: Path, sources: Path, quiet: bool, lanes: int, workers: Workers) -> dict:
-    """Per-stride re-optimised control from a perturbed apex (one lane; ``lanes`` and ``workers`` unused)."""
+    """Per-stride re-optimised control from a perturbed apex: the run itself in one lane
+    (``lanes`` unused), the probes of the largest recovered perturbation on ``workers.jobs``
+    worker processes (default one per core)."""
     from baslip.gait.from_problem import fixed_point_spec, solve_start, solver_for
 
     solver = solver_for(problem)
@@ -194,19 +239,20 @@ def run_adaptive_study(problem: Problem, study: Adaptive, out_dir: Path, sources
     bounds = np.array([spec.bounds_of(n) for n in names])
     held = tuple(i for i, n in enumerate(names) if n in problem.fix)
 
-    def controller():
-        return ResolvedControl(solver.residual_map, problem.params, result.X, result.u, study.criterion,
-                               fixed=held, lower=bounds[:, 0], upper=bounds[:, 1])
+    gait = {"law": problem.hip_law, "params": problem.params, "X_star": result.X, "u_star": result.u,
+            "criterion": study.criterion, "fixed": held, "lower": bounds[:, 0], "upper": bounds[:, 1]}
 
     offset = np.array([dict(study.perturbation).get(n, 0.0) for n in APEX.names])
     table = study_table(out_dir / "strides.csv", stride_columns(problem.hip_law), ["phase", "n"], quiet)
-    summary = run_adaptive(controller(), result.X + offset, problem.params, study.strides, study.frozen_strides, table, quiet)
+    summary = run_adaptive(resolved_control(solver.residual_map, gait), result.X + offset, problem.params,
+                           study.strides, study.frozen_strides, table, quiet)
     adaptive_figures(table.rows, out_dir, problem=problem_title(problem))
     recovery = None
     if offset.any():
         if not quiet:
             _log.info(f"{problem.name}: bisecting the largest recovered perturbation...")
-        recovery = largest_recovered(controller, solver.residual_map, problem.params, result.X, offset, study.probe_strides)
+        recovery = largest_recovered({**gait, "perturbation": offset, "probe_strides": study.probe_strides},
+                                     workers.jobs)
     return {
         "start": {"apex": result.apex, "control": result.control, "spectral_radius": result.spectral_radius},
         "perturbation": dict(study.perturbation),

@@ -164,10 +164,14 @@ class Inbox:
 
 
 def map_in_processes(make_task: Callable[[Any], Callable[[Any], Any]], items: Sequence, context: Any = None,
-                     jobs: int | None = None) -> list:
+                     jobs: int | None = None, enough: Callable[[list], bool] | None = None) -> list:
     """``[task(item) for item in items]`` with ``task = make_task(context)``, the items
     handed out one at a time to worker processes (one per core, or ``jobs``, never more
     than the items) as each becomes free.
+
+    With ``enough``, the map ends early: it returns the results of the shortest leading
+    run of items for which ``enough(those results)`` holds (the workers still busy with
+    later items are stopped), whatever order the results came in.
 
     ``make_task`` runs once per worker (so what it builds, such as a solver, is built once
     there) and must be a module-level function; items, context and results travel
@@ -183,17 +187,22 @@ def map_in_processes(make_task: Callable[[Any], Callable[[Any], Any]], items: Se
     """
     items = list(items)
     count = worker_count(jobs, len(items))
+    results: dict[int, Any] = {}
+    done = _LeadingRun(results, len(items), enough)
     if count <= 1:
         task = make_task(context)
-        return [task(item) for item in items]
+        for index, item in enumerate(items):
+            results[index] = task(item)
+            if done.complete():
+                break
+        return done.results()
     processes, pipes = start_workers(_map_worker, [(make_task, context)] * count, duplex=True)
     inbox = Inbox(pipes, processes)
-    results: dict[int, Any] = {}
     pending = iter(enumerate(items))
     try:
         for pipe in pipes:
             pipe.send(next(pending, None))
-        while len(results) < len(items):
+        while not done.complete():
             pipe, message = inbox.next_message()
             if isinstance(message, WorkerCode):
                 note_code(message.routes)
@@ -203,7 +212,27 @@ def map_in_processes(make_task: Callable[[Any], Callable[[Any], Any]], items: Se
             pipe.send(next(pending, None))  # the next item, or None: no more
     finally:
         stop_workers(processes, inbox)
-    return [results[k] for k in range(len(items))]
+    return done.results()
+
+
+class _LeadingRun:
+    """The results of a map so far, read as their longest leading run (items 0, 1, ...
+    all answered): complete when that run is every item, or ``enough`` holds for it."""
+
+    def __init__(self, results: dict[int, Any], total: int, enough: Callable[[list], bool] | None):
+        self._results, self._total, self._enough = results, total, enough
+        self._length, self._ended = 0, False
+
+    def complete(self) -> bool:
+        while not self._ended and self._length in self._results:
+            self._length += 1
+            # Checked at each length in turn: the shortest run that is enough, however
+            # the results arrived.
+            self._ended = self._enough is not None and self._enough(self.results())
+        return self._ended or self._length == self._total
+
+    def results(self) -> list:
+        return [self._results[k] for k in range(self._length)]
 
 
 def _map_worker(make_task, context, connection) -> None:
