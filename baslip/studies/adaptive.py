@@ -135,7 +135,7 @@ def _prober(context: dict):
         for _ in range(context["probe_strides"]):
             u, _ = controller.control(X)
             stride = rmap.stride(X, u, params)
-            if not stride.ok:
+            if not stride.ok or stride.apex is None:
                 return False
             X = stride.apex
         return True
