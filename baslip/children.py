@@ -63,23 +63,6 @@ def run_pickled(payload: bytes, *extra) -> None:
     function(*arguments, *extra)
 
 
-def usable_cores() -> int:
-    """The cores this process may run on: its CPU affinity where the system reports one
-    (a study's worker is kept to its share of the cores), else every core."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not Linux
-        return os.cpu_count() or 1
-
-
-def keep_to_cores(cores: set[int] | None) -> None:
-    """Run this process (and the threads it starts from now on) on ``cores`` only, where
-    the system allows it; None leaves it as it is."""
-    if cores:
-        with contextlib.suppress(AttributeError, OSError):
-            os.sched_setaffinity(0, cores)
-
-
 def compiler_preexec(parent_pid: int):
     """A ``preexec_fn`` for a compiler's shell wrapper: SIGTERM when the parent ends."""
     return lambda: ask_for_death_signal(signal.SIGTERM, parent_pid)

@@ -6,8 +6,6 @@
 * With ``enough``, the map ends at the shortest leading run of results that is enough,
   whichever worker finished first.
 * A worker that fails ends the map with :class:`WorkerDied`, not a hang.
-* Workers are kept to their share of the cores, so that their own threads do not compete
-  with each other's: two workers on two cores see one core each.
 """
 
 import os
@@ -15,15 +13,12 @@ import time
 
 import pytest
 
-from baslip.children import usable_cores
-from baslip.studies.processes import WorkerDied, core_shares, map_in_processes
-
-CORES = len(os.sched_getaffinity(0))
+from baslip.studies.processes import WorkerDied, map_in_processes
 
 
 def squarer(offset):
-    """A task that says which process ran it and on how many cores."""
-    return lambda x: (x * x + offset, os.getpid(), usable_cores())
+    """A task that says which process ran it."""
+    return lambda x: (x * x + offset, os.getpid())
 
 
 def failing(_context):
@@ -41,22 +36,7 @@ def test_results_come_in_item_order_and_do_not_depend_on_the_worker_count():
     two = map_in_processes(squarer, items, 5, jobs=2)
     assert [r[0] for r in one] == [r[0] for r in two] == [x * x + 5 for x in items]
     assert {r[1] for r in one} == {os.getpid()}
-    if CORES >= 2:
-        assert len({r[1] for r in two}) == 2 and os.getpid() not in {r[1] for r in two}
-
-
-@pytest.mark.skipif(CORES < 2, reason="needs two cores")
-def test_two_workers_on_two_cores_are_kept_to_one_core_each():
-    shares = core_shares(2)
-    assert all(len(share) >= 1 for share in shares) and not shares[0] & shares[1]
-    results = map_in_processes(squarer, [1, 2, 3, 4], 0, jobs=2)
-    assert {r[2] for r in results} == {len(shares[0]), len(shares[1])}
-
-
-def test_more_workers_than_cores_share_single_cores_in_turn():
-    shares = core_shares(CORES + 1)
-    assert all(len(share) == 1 for share in shares)
-    assert shares[0] == shares[-1]
+    assert len({r[1] for r in two}) == 2 and os.getpid() not in {r[1] for r in two}
 
 
 def sleeper(_context):

@@ -22,7 +22,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from baslip.children import usable_cores
 from baslip.engine.dop853 import DOP853
 from baslip.engine.kernels import (
     CLEARANCES,
@@ -153,9 +152,8 @@ class CompiledEngine:
 
     def _in_lanes(self, items: list, call) -> list:
         """[call(lane, item) for item in items], the items split among the lanes of the
-        second derivatives' kernels in contiguous runs (results in order), no more lanes
-        than this process has cores (a study's worker is kept to its share)."""
-        lanes = min(self.functions.hessian_lanes, usable_cores(), len(items))
+        second derivatives' kernels in contiguous runs (results in order)."""
+        lanes = min(self.functions.hessian_lanes, len(items))
         bounds = np.linspace(0, len(items), lanes + 1).round().astype(int)
 
         def lane(k: int) -> list:

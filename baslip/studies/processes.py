@@ -10,7 +10,10 @@ Two ways of spreading work over the cores rest on this module:
 
 Workers are spawned (a fresh interpreter: CasADi's objects are not shared across a fork),
 talk over pipes (no semaphores, so no resource-tracker process can outlive a killed run),
-and die with the process that started them (:mod:`baslip.children`). Each reports the
+and die with the process that started them (:mod:`baslip.children`). They are not kept
+to cores of their own: a worker's threads may then use a core the other leaves idle. (Kept
+to one core each, `optimal_upright` took 300 s instead of 257 s, and one of its 108 cells
+ended at another local optimum, so its answers depended on the worker count.) Each reports the
 code its libraries ran on (:class:`WorkerCode`) before the first message that follows a
 library's loading, so the parent's provenance record holds it.
 """
@@ -27,7 +30,7 @@ from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from typing import Any, cast
 
-from baslip.children import keep_to_cores, run_pickled
+from baslip.children import run_pickled
 from baslip.engine.codegen import leave_notices_to_parent, note_code, recording_code
 from baslip.errors import RunError
 
@@ -68,44 +71,21 @@ class Reporting:
         self._send(item)
 
 
-def core_shares(count: int) -> list[set[int] | None]:
-    """The cores each of ``count`` workers is kept to: this process's cores dealt out in
-    contiguous shares, or one each in turn when there are more workers than cores (None
-    where the system reports no affinity). A worker's own threads (the second
-    derivatives' lanes) then share its cores instead of competing for the others'."""
-    try:
-        cores = sorted(os.sched_getaffinity(0))
-    except AttributeError:  # not Linux
-        return [None] * count
-    if count >= len(cores):
-        return [{cores[k % len(cores)]} for k in range(count)]
-    bounds = [round(k * len(cores) / count) for k in range(count + 1)]
-    return [set(cores[bounds[k] : bounds[k + 1]]) for k in range(count)]
-
-
 def start_workers(main: Callable, arguments: Sequence[tuple], duplex: bool = False) -> tuple[list, list]:
-    """Spawn one worker per entry of ``arguments``, each kept to its share of the cores
-    (:func:`core_shares`), running ``main(*entry, connection)``; return (processes, this
-    process's ends of their pipes). Without ``duplex`` the pipes only carry messages from
-    the workers."""
+    """Spawn one worker per entry of ``arguments``, running ``main(*entry, connection)``;
+    return (processes, this process's ends of their pipes). Without ``duplex`` the pipes
+    only carry messages from the workers."""
     ctx = multiprocessing.get_context("spawn")
     pipes = [ctx.Pipe(duplex=duplex) for _ in arguments]
     # The work travels pickled, and is unpickled (its modules imported) only after the
     # worker has asked to die with this process: see baslip.children.run_pickled.
-    processes = [ctx.Process(target=run_pickled, args=(pickle.dumps((_on_cores, (cores, main, *entry))), theirs),
-                             daemon=True)
-                 for entry, cores, (_, theirs) in zip(arguments, core_shares(len(arguments)), pipes)]
+    processes = [ctx.Process(target=run_pickled, args=(pickle.dumps((main, entry)), theirs), daemon=True)
+                 for entry, (_, theirs) in zip(arguments, pipes)]
     for process in processes:
         process.start()
     for _, theirs in pipes:
         theirs.close()  # a worker's end closes when it ends
     return processes, [ours for ours, _ in pipes]
-
-
-def _on_cores(cores: set[int] | None, main: Callable, *arguments) -> None:
-    """A worker's entry: keep to ``cores``, then run ``main(*arguments)``."""
-    keep_to_cores(cores)
-    main(*arguments)
 
 
 def stop_workers(processes: list, inbox: Inbox) -> None:
