@@ -188,21 +188,26 @@ def one_at_a_time(recovered) -> tuple[float | None, set[float]]:
 
 
 @pytest.mark.parametrize("threshold", [0.5, 1.0, 3.3, 4.25, 4.2, 31.0, 64.0, 100.0])
-def test_the_batched_bisection_finds_what_one_probe_at_a_time_finds(threshold):
-    """The probes of the largest recovered perturbation run several at a time; they include
-    every factor the one-at-a-time search asks, and give its answer."""
+def test_the_doublings_at_once_find_what_one_probe_at_a_time_finds(threshold):
+    """The doublings of the largest recovered perturbation are probed at once, up to the
+    first not recovered; the search asks the factors the one-at-a-time search asks, and
+    gives its answer."""
     asked = set()
 
-    def recovered_at(factors, to_first_failure):
+    def doublings_at(factors):
         answers = [s <= threshold for s in factors]
-        if to_first_failure and False in answers:
+        if False in answers:
             answers = answers[: answers.index(False) + 1]
         asked.update(factors[: len(answers)])
         return answers
 
-    found = bisected_factor(recovered_at)
+    def recovered(s):
+        asked.add(s)
+        return s <= threshold
+
+    found = bisected_factor(doublings_at, recovered)
     factor, needed = one_at_a_time(lambda s: s <= threshold)
-    assert found["factor"] == factor and needed <= asked
+    assert found["factor"] == factor and asked == needed
 
 
 def adaptive_problem(tmp_path, strides: int, frozen: int, criterion: str = "thesis") -> Path:

@@ -14,9 +14,9 @@ starts from the last row's control, as it would have.
 
 Finally the largest perturbation that is still recovered is found by bisection on a
 factor s of ``perturbation``: recovered means the re-solved runner is still hopping after
-``probe_strides`` strides from X* + s * perturbation. The probes run on both cores, several
-factors at once, and ask every factor that one probe at a time would (so the answer is the
-same).
+``probe_strides`` strides from X* + s * perturbation. The doublings' probes run on both
+cores at once, stopped at the first factor not recovered, so the factors asked, and the
+answer, are those of one probe at a time.
 """
 
 from __future__ import annotations
@@ -105,13 +105,15 @@ def largest_recovered(context: dict, jobs: int | None = None) -> dict:
     perturbation is still hopping after ``probe_strides`` re-solved strides.
 
     ``context`` holds what a probe needs: the gait as :func:`resolved_control` reads it,
-    its hip ``law``, the ``perturbation`` and ``probe_strides``. The probes run on ``jobs``
-    worker processes (default one per core), each from a fresh controller, so the answer
-    does not depend on how many run at once.
+    its hip ``law``, the ``perturbation`` and ``probe_strides``. The doublings' probes run at
+    once on ``jobs`` worker processes (default one per core), the bisection's here, each
+    from a fresh controller, so the answer does not depend on how many run at once.
     """
     perturbation = np.asarray(context["perturbation"], dtype=float)
-    found = bisected_factor(lambda factors, to_first_failure: map_in_processes(
-        _prober, factors, context, jobs, enough=(lambda answers: not answers[-1]) if to_first_failure else None))
+    found = bisected_factor(
+        lambda factors: map_in_processes(_prober, factors, context, jobs, enough=lambda answers: not answers[-1]),
+        # Each bisection step needs the one before: in this process, with no workers to start.
+        _prober(context))
     return {**found, "probe_strides": context["probe_strides"],
             "perturbation": None if found["factor"] is None else (found["factor"] * perturbation).tolist()}
 
@@ -143,30 +145,23 @@ def _prober(context: dict):
     return recovered
 
 
-def bisected_factor(recovered_at: Callable[[list[float], bool], list[bool]]) -> dict:
+def bisected_factor(doublings_at: Callable[[list[float]], list[bool]], recovered: Callable[[float], bool]) -> dict:
     """The largest factor for which the runner is recovered: doubling from 1, then
-    bisection. ``recovered_at(factors, to_first_failure)`` answers for several factors at
-    once (for the leading ones up to the first not recovered, with ``to_first_failure``):
-    the doublings together, then rounds of a midpoint and both next midpoints (two steps
-    a round). These include every factor that one probe at a time would try, so the
+    bisection. ``doublings_at(factors)`` answers for the leading factors up to the first
+    not recovered, all at once (so on both cores); ``recovered(s)`` answers one bisection
+    step at a time. The factors asked are those one probe at a time would ask, so the
     answer is the same."""
     doublings = [2.0**k for k in range(round(math.log2(LARGEST_FACTOR)) + 1)]
-    answers = recovered_at(doublings, True)
+    answers = doublings_at(doublings)
     if not answers[0]:
         return {"factor": None, "note": "the perturbation itself is not recovered"}
-    failed = [k for k, ok in enumerate(answers) if not ok]
-    if not failed:  # answers has every doubling
+    if all(answers) and len(answers) == len(doublings):
         return {"factor": LARGEST_FACTOR, "note": f"recovered up to the largest factor tried, {LARGEST_FACTOR:g}"}
-    low, high = doublings[failed[0] - 1], doublings[failed[0]]
-    steps = BISECTIONS
-    while steps:
+    failure = answers.index(False)
+    low, high = doublings[failure - 1], doublings[failure]
+    for _ in range(BISECTIONS):
         middle = (low + high) / 2
-        round_factors = [middle] if steps == 1 else [middle, (low + middle) / 2, (middle + high) / 2]
-        known = dict(zip(round_factors, recovered_at(round_factors, False)))
-        for _ in range(min(steps, 2)):
-            middle = (low + high) / 2  # the same sums as round_factors', so the same floats
-            low, high = (middle, high) if known[middle] else (low, middle)
-            steps -= 1
+        low, high = (middle, high) if recovered(middle) else (low, middle)
     return {"factor": low, "first_not_recovered": high,
             "note": f"recovered at {low:.4g} times the perturbation, not at {high:.4g}"}
 
