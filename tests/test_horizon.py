@@ -12,14 +12,20 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from baslip import Params
 from baslip.analysis.feedback import CONTROL_SCALE, ResolvedControl, lqr_gain, run_closed_loop
 from baslip.analysis.horizon import HORIZON_EPS, RecedingHorizon
+from baslip.engine.outcome import Tolerances
+from baslip.engine.returnmap import ReturnMap
+from baslip.model.hiplaw import VPP
 
 ROOT = Path(__file__).resolve().parents[1]
-#: Sample 24 of the 1x box of results/controllers_vpp, from the thesis-scale VPP gait.
-START = np.array([-0.000788157526585, 0.002663198920731, -0.002391514602269, 0.022529393807624])
+#: Samples 0 and 24 of the 1x box of results/controllers_vpp: apex offsets from the
+#: thesis-scale VPP gait (m, rad, m/s, rad/s).
+FIRST_START = np.array([2.3643249401e-05, 0.009009273926519, -0.007116807745607, 0.044864944713724])
+SAMPLE_24 = np.array([-0.000788157526585, 0.002663198920731, -0.002391514602269, 0.022529393807624])
 
 
 def gait(name):
@@ -45,40 +51,36 @@ def test_the_horizon_brings_a_perturbed_upright_runner_back(tight_map):
     assert run.outcome == "converged" and run.strides_to_converge <= 6
 
 
-def test_when_the_nearer_start_ends_short_the_other_start_is_searched_too():
+@pytest.fixture(scope="module")
+def vpp_gait():
+    """The thesis-scale VPP gait (apex, control), its controller study's tuned feedback
+    gain, and a map under the VPP law."""
+    X, u = gait("vpp")
+    K = np.array(json.loads((ROOT / "results" / "controllers_vpp" / "result.json").read_text())["feedback"]["K"])
+    return X, u, K, ReturnMap(Tolerances(1e-12, 1e-12), law=VPP)
+
+
+def vpp_horizon(vpp_gait, family: bool = False) -> RecedingHorizon:
+    X, u, K, vpp_map = vpp_gait
+    return RecedingHorizon(vpp_map, Params(), X, u, horizon=2, lower=np.array([-0.1, -np.inf]),
+                           upper=np.array([0.2, np.inf]), K=K, family=family)
+
+
+def test_when_the_nearer_start_ends_short_the_other_start_is_searched_too(vpp_gait):
     """At the thesis-scale VPP gait, from the first start of the controllers study's
     smallest box, the search from the feedback's plan (the nearer start) ends at a plan
     that never returns the runner; the search from the plan's tail brings it back."""
-    from baslip.engine.outcome import Tolerances
-    from baslip.engine.returnmap import ReturnMap
-    from baslip.model.hiplaw import VPP
-
-    X, u = gait("vpp")
-    K = np.array(json.loads((ROOT / "results" / "controllers_vpp" / "result.json").read_text())["feedback"]["K"])
-    vpp_map = ReturnMap(Tolerances(1e-12, 1e-12), law=VPP)
-    start = X + np.array([2.3643249401e-05, 0.009009273926519, -0.007116807745607, 0.044864944713724])
-    controller = RecedingHorizon(vpp_map, Params(), X, u, horizon=2, lower=np.array([-0.1, -np.inf]),
-                                 upper=np.array([0.2, np.inf]), K=K)
-    run = run_closed_loop(vpp_map, Params(), controller, start, X, 30)
+    X, _, _, vpp_map = vpp_gait
+    run = run_closed_loop(vpp_map, Params(), vpp_horizon(vpp_gait), X + FIRST_START, X, 30)
     assert run.outcome == "converged"
 
 
-def test_on_a_family_of_gaits_the_tail_is_kept_unless_the_other_start_reaches_the_gait():
+def test_on_a_family_of_gaits_the_tail_is_kept_unless_the_other_start_reaches_the_gait(vpp_gait):
     """At the thesis-scale VPP gait (a neutral multiplier: a family of symmetric gaits),
-    from a start of the controllers study's 1x box (sample 24), the end that misses less leaves the runner hopping
-    near the gait without returning within 100 strides; continuing the last plan brings it
-    back onto the family."""
-    from baslip.engine.outcome import Tolerances
-    from baslip.engine.returnmap import ReturnMap
-    from baslip.model.hiplaw import VPP
-
-    X, u = gait("vpp")
-    K = np.array(json.loads((ROOT / "results" / "controllers_vpp" / "result.json").read_text())["feedback"]["K"])
-    vpp_map = ReturnMap(Tolerances(1e-12, 1e-12), law=VPP)
-    start = X + START
-    outcomes = []
-    for family in (False, True):
-        controller = RecedingHorizon(vpp_map, Params(), X, u, horizon=2, lower=np.array([-0.1, -np.inf]),
-                                     upper=np.array([0.2, np.inf]), K=K, family=family)
-        outcomes.append(run_closed_loop(vpp_map, Params(), controller, start, X, 100, settle=True).outcome)
+    from sample 24 of the controllers study's 1x box, the end that misses less leaves the
+    runner hopping near the gait without returning within 100 strides; continuing the last
+    plan brings it back onto the family."""
+    X, _, _, vpp_map = vpp_gait
+    outcomes = [run_closed_loop(vpp_map, Params(), vpp_horizon(vpp_gait, family), X + SAMPLE_24, X, 100,
+                                settle=True).outcome for family in (False, True)]
     assert outcomes[0] == "bounded" and outcomes[1] in ("converged", "settled")
