@@ -99,7 +99,7 @@ def run_adaptive(controller: ResolvedControl, X0, params, strides: int, frozen_s
     return summarise(table.rows, failure)
 
 
-def largest_recovered(context: dict, jobs: int | None = None) -> dict:
+def largest_recovered(context: dict, rmap: ReturnMap, jobs: int | None = None) -> dict:
     """The largest factor s (doubling from 1 to :data:`LARGEST_FACTOR`, then
     :data:`BISECTIONS` bisection steps) for which the runner started at X* + s *
     perturbation is still hopping after ``probe_strides`` re-solved strides.
@@ -112,8 +112,8 @@ def largest_recovered(context: dict, jobs: int | None = None) -> dict:
     perturbation = np.asarray(context["perturbation"], dtype=float)
     found = bisected_factor(
         lambda factors: map_in_processes(_prober, factors, context, jobs, enough=lambda answers: not answers[-1]),
-        # Each bisection step needs the one before: in this process, with no workers to start.
-        _prober(context))
+        # Each bisection step needs the one before: in this process, on its map ``rmap``.
+        probe_on(rmap, context))
     return {**found, "probe_strides": context["probe_strides"],
             "perturbation": None if found["factor"] is None else (found["factor"] * perturbation).tolist()}
 
@@ -126,9 +126,14 @@ def resolved_control(rmap: ReturnMap, gait: dict) -> ResolvedControl:
 
 
 def _prober(context: dict):
-    """A worker's probe: factor s -> whether the re-solved runner started at X* + s *
-    perturbation still hops after probe_strides strides."""
-    rmap = ReturnMap(Tolerances(1e-12, 1e-12), law=context["law"])
+    """A worker's probe (:func:`probe_on` a map of its own)."""
+    return probe_on(ReturnMap(Tolerances(1e-12, 1e-12), law=context["law"]), context)
+
+
+def probe_on(rmap: ReturnMap, context: dict):
+    """The probe on ``rmap`` (the 1e-12 map of the gait's law): factor s -> whether the
+    re-solved runner started at X* + s * perturbation still hops after probe_strides
+    strides."""
     X_star, params = np.asarray(context["X_star"], dtype=float), context["params"]
 
     def recovered(s: float) -> bool:
@@ -247,7 +252,7 @@ def run_adaptive_study(problem: Problem, study: Adaptive, out_dir: Path, sources
         if not quiet:
             _log.info(f"{problem.name}: bisecting the largest recovered perturbation...")
         recovery = largest_recovered({**gait, "perturbation": offset, "probe_strides": study.probe_strides},
-                                     workers.jobs)
+                                     solver.residual_map, workers.jobs)
     return {
         "start": {"apex": result.apex, "control": result.control, "spectral_radius": result.spectral_radius},
         "perturbation": dict(study.perturbation),
