@@ -1,7 +1,7 @@
 """Specification of the atlas algorithm (:mod:`baslip.analysis.atlas`) on manifolds whose
 answers are known: a circle, a sphere, a torus and the 3-sphere are covered whole, with
 their length, area or volume, and no holes; a domain boundary stops the covering with its
-reason; separate pieces are found as pieces, and a seed on a covered piece joins it; all
+reason, and is recorded even where a neighbour's ball reaching past it closed the way; separate pieces are found as pieces, and a seed on a covered piece joins it; all
 pieces grow together, best-first, so that a chart limit reaches every seed's piece; a
 chart limit leaves the atlas marked incomplete; a ball whose tangent space has turned away
 does not close a chart's directions; the chart graph's local minima of a function are one
@@ -139,6 +139,35 @@ def test_a_domain_boundary_stops_the_covering_and_says_why():
     assert abs(sum(atlas.areas) / (2 * math.pi * 1.5) - 1) < 0.03
     points = on_sphere(3, 4000, np.random.default_rng(3))
     assert holes(atlas, points[points[:, 2] < 0.45]) == 0
+
+
+def edge_without_record(atlas, edge: np.ndarray) -> int:
+    """How many points of the domain's ``edge`` (on the manifold) lie in the ball of no
+    chart that has a boundary recorded."""
+    recorded = sorted({b.chart for b in atlas.boundaries})
+    if not recorded:
+        return len(edge)
+    centres = np.array([atlas.charts[i].center for i in recorded])
+    radii = np.array([atlas.charts[i].radius for i in recorded])
+    distance = np.linalg.norm(edge[:, None, :] - centres[None], axis=2)
+    return int(np.sum(~np.any(distance < radii[None], axis=1)))
+
+
+def test_an_edge_hidden_in_a_neighbours_ball_is_still_recorded():
+    """Large balls reach past the cap, so a neighbour closes a chart's direction that
+    points past it without a step being tried there; the edge is recorded all the same:
+    both ends of the capped circle, and every point of the capped sphere's rim, lie in
+    the ball of a chart with a boundary row."""
+    settings = AtlasSettings(radius=0.2, max_radius=1.0, min_radius=0.01)
+    arc = cover(Sphere(2, cap=0.5), [np.array([0.0, -1.0])], 1, settings)
+    ends = np.array([[math.sqrt(0.75), 0.5], [-math.sqrt(0.75), 0.5]])
+    assert edge_without_record(arc, ends) == 0
+    assert {b.reason for b in arc.boundaries} == {"above the cap"} and {b.kind for b in arc.boundaries} == {"domain"}
+    cap = cover(Sphere(3, cap=0.5), [np.array([1.0, 0.0, 0.0])], 2, settings)
+    turn = np.linspace(0, 2 * np.pi, 400, endpoint=False)
+    rim = np.column_stack([math.sqrt(0.75) * np.cos(turn), math.sqrt(0.75) * np.sin(turn), np.full(400, 0.5)])
+    assert edge_without_record(cap, rim) == 0
+    assert cap.complete and all(b.point[-1] > 0.5 for b in cap.boundaries)
 
 
 def test_separate_pieces_are_found_and_a_seed_on_a_covered_piece_joins_it():

@@ -30,7 +30,9 @@ describe for COCO's ``atlas_kd``, simplified where baslip's dimensions (k = 1 to
   lose rank, or the projection onto the tangent space folds), the corrector (Newton
   diverging or not converging, the tangent turning too fast at the least step) or the
   chart limit. Only the first two are edges of the manifold: an atlas with a boundary of
-  the other two kinds is not complete, and says so.
+  the other two kinds is not complete, and says so. A direction that a neighbour's ball
+  closed, but whose boundary point lies outside the domain, is recorded as an edge of the
+  domain too: a ball reaching past the edge would otherwise hide that edge from the table.
 * **Pieces.** All seeds are projected first: a seed that lies in an earlier seed's ball
   belongs to that chart's piece; any other starts a new piece. Then all pieces grow
   together from one best-first queue (so that the most interesting parts near every
@@ -247,6 +249,7 @@ class _Growth:
         self.parent_piece: list[int] = []  # union-find over pieces
         self.piece_of: list[int] = []
         self.boundaries: list[Boundary] = []
+        self.closed_by_neighbour: list[tuple[int, int]] = []  # (chart, direction), in the order closed
         self.seeds_taken = 0  # all of them by the time the pieces grow (see cover)
 
     # -- pieces ----------------------------------------------------------------------------
@@ -311,6 +314,7 @@ class _Growth:
             for n in aligned:
                 if np.linalg.norm(point - self.centers[n]) < self.charts[n].radius:
                     self.open[j][d] = False
+                    self.closed_by_neighbour.append((j, int(d)))
                     break
 
     def grow(self, firsts: Sequence[int]) -> None:
@@ -367,6 +371,26 @@ class _Growth:
         self.boundaries.append(Boundary(chart.index, self.directions[d].copy(), target, reason, kind))
         return None
 
+    def record_edges_past_neighbours(self) -> None:
+        """Record, as edges of the domain, the directions that a neighbour's ball closed
+        although their boundary points lie outside the domain: there the manifold leaves
+        the domain within the chart's radius, and no step was taken that would have said
+        so (a ball reaching past the edge would otherwise hide it from the table). A chart
+        that has an edge recorded already, by a step or by an earlier such direction (in
+        the order they were closed), gets no second row: one row per chart the edge
+        passes through is enough to place it, and keeps the table the size of the edge."""
+        if not self.closed_by_neighbour:
+            return
+        points = np.array([self.boundary_point(self.charts[j], d) for j, d in self.closed_by_neighbour])
+        inside = np.asarray(domain_test(self.system)(points), dtype=bool)
+        recorded = {b.chart for b in self.boundaries if b.kind == "domain"}
+        for (j, d), point, held in zip(self.closed_by_neighbour, points, inside):
+            if held or j in recorded:
+                continue
+            reason = self.system.outside(point) or "outside the domain"
+            self.boundaries.append(Boundary(j, self.directions[d].copy(), point, reason, "domain"))
+            recorded.add(j)
+
     def close_at_limit(self) -> bool:
         """Record every still-open direction as stopped by the chart limit; whether any was."""
         stopped = False
@@ -417,6 +441,7 @@ def cover(system: ManifoldSystem, seeds: Iterable[np.ndarray | None], k: int,
     growth.grow([o.chart for o in outcomes if o.outcome == "new piece" and o.chart is not None])
     if progress is not None:
         progress(len(growth.charts), growth.seeds_taken)
+    growth.record_edges_past_neighbours()
     growth.close_at_limit()
     complete = not any(b.kind in ("corrector", "limit") for b in growth.boundaries)
     roots = [growth.root(p) for p in growth.piece_of]
