@@ -4,13 +4,16 @@
 
 For each curve problem (by default the five shipped ``curve_*`` problems), starts on the
 first point of its committed ``results/<name>/curve.csv`` and traces that curve both ways,
-up to ``--points`` points each way, twice in one process: first with the second derivatives as
-central differences of the AD Jacobian (the baseline, as before exact ones existed), then
-with the exact ones (Hessian-vector products of the compiled stride). Every point is
-verified by the independent re-simulation, as in the study. Prints the wall time per
-point of each, their ratio, the Jacobians of the extended system per point, and how far
-apart the two traces lie (the largest difference of matching points, scaled units, where
-both took the same steps).
+up to ``--points`` points each way, three times in one process: with the second
+derivatives as central differences of the AD Jacobian (the baseline, as before exact ones
+existed); with the exact ones (Hessian-vector products of the compiled stride) and a
+fresh Jacobian at every Newton step until the step is short (the corrector before the
+updated one); and with the exact ones and the corrector that updates the last point's
+Jacobian by Broyden's formula (as the study runs). Every point is verified by the
+independent re-simulation, as in the study. Prints the points of each, the wall time per
+point of each, the ratios of the first two to the third, the Jacobians of the extended
+system per point of the last two, and how far apart the first and third traces lie (the
+largest difference of matching points, scaled units, where both took the same steps).
 """
 
 from __future__ import annotations
@@ -35,14 +38,24 @@ CURVES = ("curve_downward_boundary", "curve_downward_neimark_sacker", "curve_sli
           "curve_vpp_pivot")
 
 
-class Counted(CurveSystem):
-    """A curve whose Jacobian calls are counted."""
+class FreshNewton(CurveSystem):
+    """A curve whose corrector takes Newton steps with fresh Jacobians (before the updated
+    corrector): the baseline of the corrector's gain."""
 
-    jacobians = 0
+    costly_jacobian = False
 
-    def jacobian(self, v):
-        self.jacobians += 1
-        return super().jacobian(v)
+
+def counted(base) -> dict:
+    """Count the calls of ``base.jacobian``: one per Jacobian of the extended system."""
+    calls = {"jacobians": 0}
+    original = base.jacobian
+
+    def jacobian(v):
+        calls["jacobians"] += 1
+        return original(v)
+
+    base.jacobian = jacobian
+    return calls
 
 
 def first_point(name: str) -> dict:
@@ -50,8 +63,9 @@ def first_point(name: str) -> dict:
         return next(csv.DictReader(handle))
 
 
-def trace(name: str, points: int, exact: bool):
-    """(seconds, points traced, Jacobians, the traced unknowns) of one curve of ``name``."""
+def trace(name: str, points: int, exact: bool, updated: bool = True):
+    """(seconds, points traced, Jacobians, the traced unknowns) of one curve of ``name``:
+    with exact or differenced second derivatives, and the updated or fresh-Newton corrector."""
     problem = load_problem(ROOT / "problems" / f"{name}.yaml")
     solver = solver_for(problem)
     spec = problem.continuation
@@ -65,13 +79,13 @@ def trace(name: str, points: int, exact: bool):
     settings = Settings(step=spec.step, max_step=CURVE_MAX_STEP, max_points=points,
                         lam_range=(spec.second_lo / second_scale, spec.second_hi / second_scale),
                         other_ranges=((-2, spec.lo / base.lam_scales[0], spec.hi / base.lam_scales[0]),))
-    curve = Counted(base, row["type"])
+    curve = (CurveSystem if updated else FreshNewton)(base, row["type"])
     curve.jacobian(v)  # the libraries are loaded (or compiled) before the clock starts
-    curve.jacobians = 0
+    calls = counted(base)
     start = time.perf_counter()
     branch = trace_curve(curve, v, settings, accept=lambda w: base.verification_failure(w, solver.verify_map))
     seconds = time.perf_counter() - start
-    return seconds, len(branch.points), curve.jacobians, np.array([p.v for p in branch.points])
+    return seconds, len(branch.points), calls["jacobians"], np.array([p.v for p in branch.points])
 
 
 def main() -> None:
@@ -79,15 +93,18 @@ def main() -> None:
     parser.add_argument("problems", nargs="*", default=CURVES)
     parser.add_argument("--points", type=int, default=40, help="points at most each way (default 40)")
     args = parser.parse_args()
-    print(f"{'curve':32} {'points':>6} {'differenced':>12} {'exact':>9} {'ratio':>6} {'Jac/pt':>7} {'apart':>8}")
+    print(f"{'curve':32} {'points':>9} {'differenced':>12} {'exact, Newton':>14} {'exact':>9} {'ratios':>11} "
+          f"{'Jac/pt':>11} {'apart':>8}")
     for name in args.problems:
         old_s, old_n, _, old_v = trace(name, args.points, exact=False)
+        fresh_s, fresh_n, fresh_jacobians, _ = trace(name, args.points, exact=True, updated=False)
         new_s, new_n, jacobians, new_v = trace(name, args.points, exact=True)
         apart = f"{np.max(np.abs(old_v - new_v)):8.1e}" if old_v.shape == new_v.shape else "-"
-        old_ms, new_ms = 1e3 * old_s / old_n, 1e3 * new_s / new_n
-        counts = f"{new_n}" if new_n == old_n else f"{old_n}/{new_n}"
-        print(f"{name:32} {counts:>6} {old_ms:9.1f} ms {new_ms:6.1f} ms {old_ms / new_ms:5.1f}x "
-              f"{jacobians / new_n:7.1f} {apart:>8}", flush=True)
+        old_ms, fresh_ms, new_ms = 1e3 * old_s / old_n, 1e3 * fresh_s / fresh_n, 1e3 * new_s / new_n
+        counts = f"{old_n}/{fresh_n}/{new_n}"
+        print(f"{name:32} {counts:>9} {old_ms:9.1f} ms {fresh_ms:11.1f} ms {new_ms:6.1f} ms "
+              f"{old_ms / new_ms:4.1f}x {fresh_ms / new_ms:4.1f}x {fresh_jacobians / fresh_n:5.1f} {jacobians / new_n:5.1f} "
+              f"{apart:>8}", flush=True)
 
 
 if __name__ == "__main__":

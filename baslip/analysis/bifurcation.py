@@ -139,6 +139,11 @@ class CurveSystem:
     not computed). v = (w, l1, l2).
     """
 
+    #: Its Jacobian needs the map's second derivatives, many times a residual's cost: the
+    #: continuation's corrector updates the last point's instead (see
+    #: :func:`baslip.analysis.continuation.correct_updated`).
+    costly_jacobian = True
+
     def __init__(self, base, kind: str):
         if kind not in CURVE_TYPES:
             raise ValueError(f"unknown curve {kind!r}; expected one of {', '.join(CURVE_TYPES)}")
@@ -371,7 +376,7 @@ def trace_half(curve: CurveSystem, start: np.ndarray, sign: float, settings: Set
     can be traced in either order, or at once in two processes, with the same points."""
     direction = np.zeros(len(start))
     direction[-1] = sign
-    half = continue_branch(CurveSystem(curve.base, curve.kind), start, direction, settings, accept=accept,
+    half = continue_branch(type(curve)(curve.base, curve.kind), start, direction, settings, accept=accept,
                            progress=progress)
     half.stop_reason = explain(half)
     return half

@@ -36,6 +36,7 @@ from typing import Protocol
 
 import numpy as np
 
+from baslip.analysis.corrector import broyden_update
 from baslip.errors import RunError
 
 SPECIAL_TYPES = ("fold", "period_doubling", "neimark_sacker", "branch_point")
@@ -43,6 +44,12 @@ LOCATE_TOLERANCE = 1e-7  # on lambda (scaled units)
 LOCATE_MAX_NEWTON = 60
 #: A Newton step shorter than this (scaled) keeps the Jacobian for the next one.
 CHORD_STEP = 1e-6
+#: :func:`correct_updated`: a step with an updated Jacobian must leave at most this
+#: fraction of the residual, or the Jacobian is refreshed at the iterate; its steps at
+#: most; and the steps of a correction that counts as easy.
+UPDATED_RATE = 0.25
+UPDATED_STEPS = 24
+EASY_UPDATED_STEPS = 6
 
 
 class CorrectionFailed(RunError):
@@ -81,6 +88,9 @@ class Point:
     trivial: list[bool]
     tests: dict[str, float]
     special: str = ""
+    #: dF/dv at the point, kept for the next corrector of a system whose Jacobian is
+    #: costly (see :func:`correct_updated`).
+    jacobian: np.ndarray | None = field(default=None, repr=False, compare=False)
 
 
 @dataclass
@@ -144,6 +154,43 @@ def correct(system: System, v_pred: np.ndarray, tangent: np.ndarray, settings: S
     raise CorrectionFailed("Newton did not converge")
 
 
+def correct_updated(system: System, v_pred: np.ndarray, tangent: np.ndarray, jacobian: np.ndarray,
+                    settings: Settings) -> tuple[np.ndarray, bool]:
+    """Newton on the bordered system from ``v_pred``, starting with ``jacobian`` (dF/dv at
+    a point nearby, such as the last point of the branch) and updating it by Broyden's
+    formula after every step, so that residuals, not Jacobians, do most of the work. A
+    step that does not cut the residual to :data:`UPDATED_RATE` of what it was is taken
+    again with the Jacobian at the iterate. Converged as :func:`correct` is: a step below
+    1e-10 and |F| within the tolerance.
+
+    Returns the point and whether the correction was easy (no Jacobian was needed, in at
+    most :data:`EASY_UPDATED_STEPS` steps): the step control grows the step after an easy
+    one.
+    """
+    v = v_pred.copy()
+    matrix = np.vstack([jacobian, tangent])
+    bordered = np.concatenate([system.residual(v), [0.0]])
+    fresh, refreshes = False, 0
+    for step in range(1, UPDATED_STEPS + 1):
+        try:
+            dv = np.linalg.solve(matrix, -bordered)
+        except np.linalg.LinAlgError:
+            raise CorrectionFailed("singular Newton matrix") from None
+        trial = v + dv
+        f = system.residual(trial)
+        if np.linalg.norm(dv) < 1e-10 and np.linalg.norm(f) <= settings.tolerance:
+            return trial, refreshes == 0 and step <= EASY_UPDATED_STEPS
+        at_trial = np.concatenate([f, [np.dot(tangent, trial - v_pred)]])
+        if not fresh and np.linalg.norm(at_trial) > UPDATED_RATE * np.linalg.norm(bordered):
+            if refreshes == settings.max_newton:
+                break
+            matrix, fresh, refreshes = np.vstack([system.jacobian(v), tangent]), True, refreshes + 1
+            continue
+        matrix = broyden_update(matrix, dv, at_trial - bordered)
+        v, bordered, fresh = trial, at_trial, False
+    raise CorrectionFailed("Newton did not converge")
+
+
 def make_point(system: System, v: np.ndarray, previous_tangent: np.ndarray | None) -> Point:
     """The point at the solution ``v``, with its tangent and test functions (the
     system's own, if it defines ``test_functions``, else those of a branch)."""
@@ -153,7 +200,7 @@ def make_point(system: System, v: np.ndarray, previous_tangent: np.ndarray | Non
     tests = getattr(system, "test_functions", None)
     values = tests(v, jac, t) if tests else test_functions(jac, t, multipliers, trivial,
                                                            getattr(system, "symmetric", False))
-    return Point(v, t, multipliers, trivial, values)
+    return Point(v, t, multipliers, trivial, values, jacobian=jac)
 
 
 def special_types(system: System) -> tuple[str, ...]:
@@ -201,7 +248,7 @@ def continue_branch(
             return branch
         here = branch.points[-1]
         try:
-            v, iterations = correct(system, here.v + h * here.tangent, here.tangent, settings)
+            v, easy = _correct_from(system, here, here.v + h * here.tangent, here.tangent, settings)
             point = make_point(system, v, here.tangent)
         except CorrectionFailed as err:
             if h / 2 < settings.min_step:
@@ -229,7 +276,19 @@ def continue_branch(
         if outside:
             branch.stop_reason = "end of range"
             return branch
-        h = min(h * 1.5, settings.max_step) if iterations <= 3 else max(h * 0.7, settings.min_step)
+        h = min(h * 1.5, settings.max_step) if easy else max(h * 0.7, settings.min_step)
+
+
+def _correct_from(system: System, near: Point, start: np.ndarray, tangent: np.ndarray,
+                  settings: Settings) -> tuple[np.ndarray, bool]:
+    """The corrector from ``start`` with the hyperplane of ``tangent``, and whether it was
+    easy: :func:`correct_updated` from ``near``'s Jacobian where the system's Jacobian is
+    costly (``costly_jacobian``, as a curve's second derivatives are), else
+    :func:`correct` (easy in at most 3 iterations)."""
+    if getattr(system, "costly_jacobian", False) and near.jacobian is not None:
+        return correct_updated(system, start, tangent, near.jacobian, settings)
+    v, iterations = correct(system, start, tangent, settings)
+    return v, iterations <= 3
 
 
 def _on_bound(system: System, here: Point, beyond: Point, index: int, bound: float, settings: Settings,
@@ -321,7 +380,7 @@ def locate(system: System, a: Point, b: Point, kind: str, settings: Settings) ->
         s_near, near = min(known, key=lambda k: abs(k[0] - s))
         start = near.v + (s - s_near) / np.dot(near.tangent, a.tangent) * near.tangent
         try:
-            v, _ = correct(system, start, a.tangent, settings)
+            v, _ = _correct_from(system, near, start, a.tangent, settings)
         except CorrectionFailed:
             break
         best = make_point(system, v, a.tangent)
