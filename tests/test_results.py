@@ -2,6 +2,7 @@
 figures come back by the names of the files the run wrote, and show themselves."""
 
 import math
+import re
 
 import pytest
 from runs import ROOT
@@ -73,7 +74,10 @@ def test_summaries_show_angles_in_degrees_and_other_values_with_their_units():
     band = open_results(RESULTS / "curve_slip_band").summary()
     assert "period_doubling at theta_td = 21.1464 deg" in band and "fold at theta_td = 23.6945 deg" in band
     pivot = open_results(RESULTS / "curve_vpp_pivot").summary()
-    assert "fold-flip at r_vpp = 0.232644 m, ydot = 4.001857 m/s" in pivot
+    # The fold-flip is located to the regula falsi's 1e-5 in arclength: its digits past
+    # the fifth move with the corrector's steps, its units do not.
+    found = re.search(r"fold-flip at r_vpp = (\S+) m, ydot = (\S+) m/s", pivot)
+    assert found and abs(float(found[1]) - 0.23264) < 1e-5 and abs(float(found[2]) - 4.00186) < 1e-5
 
 
 def test_a_folder_without_results_is_a_clear_error(tmp_path):

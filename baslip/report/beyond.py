@@ -120,11 +120,22 @@ def _curve(rows: list[dict], kind: str) -> list[dict]:
 
 
 def _interpolate(rows: list[dict], along: str, value: float, wanted: str) -> float:
-    """``wanted`` where the curve (rows in order) passes ``along`` = value, linearly."""
-    for a, b in zip(rows[:-1], rows[1:]):
-        if min(a[along], b[along]) <= value <= max(a[along], b[along]) and a[along] != b[along]:
-            t = (value - a[along]) / (b[along] - a[along])
+    """``wanted`` where the curve (rows in order) passes ``along`` = value: quadratic in the
+    point index through the crossing segment and its nearer neighbour (so that a curve
+    turning in ``along`` is followed), linear where there is no third point."""
+    for i, (a, b) in enumerate(zip(rows[:-1], rows[1:])):
+        if not (min(a[along], b[along]) <= value <= max(a[along], b[along]) and a[along] != b[along]):
+            continue
+        t = (value - a[along]) / (b[along] - a[along])
+        first = i - 1 if i > 0 and (t < 0.5 or i + 2 >= len(rows)) else i
+        if first + 2 >= len(rows):
             return a[wanted] + t * (b[wanted] - a[wanted])
+        three = rows[first:first + 3]
+        index = np.arange(3.0)
+        shape = np.polyfit(index, [r[along] for r in three], 2) - np.array([0.0, 0.0, value])
+        roots = [r.real for r in np.roots(shape) if abs(r.imag) < 1e-12 and i - first <= r.real <= i - first + 1]
+        at = roots[0] if roots else i - first + t
+        return float(np.polyval(np.polyfit(index, [r[wanted] for r in three], 2), at))
     return math.nan
 
 
