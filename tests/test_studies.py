@@ -7,17 +7,28 @@ the rows already there, and a row cut short by a kill is dropped and redone.
 import csv
 import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from baslip.problem.reader import ProblemError, load_problem, parse_problem
+from baslip.gait.fixedpoint import SolverReport
 from baslip.problem.study import Sweep
+from baslip.status import Status
 from baslip.studies.adaptive import bisected_factor
 from baslip.studies.registry import StaleFolder, run_study
 from baslip.studies.runner import ResumableCsv
-from baslip.studies.sweep import RESULT_COLUMNS, interpolated_radius, radius_grid, sweep_tasks
+from baslip.studies.sweep import (
+    RESULT_COLUMNS,
+    WARM_STARTS,
+    handed_on,
+    interpolated_radius,
+    radius_grid,
+    solved_from,
+    sweep_tasks,
+)
 
 GRID = """\
 name: tiny_grid
@@ -474,3 +485,52 @@ def test_every_study_kind_is_registered_and_fresh_clears_its_tables():
 
     assert set(KINDS) == set(STUDY_KINDS)
     assert set(DATA_FILES) <= set(RUN_FILES) and "controllers.csv" in DATA_FILES
+
+
+@dataclass(frozen=True)
+class Answer:
+    """A stand-in for a fixed-point result: the start it came from, its status and time."""
+
+    w0: float | None
+    status: Status
+    solver: SolverReport
+
+    @property
+    def converged(self) -> bool:
+        return self.status == Status.CONVERGED
+
+
+class ScriptedSolver:
+    """Answers each start with the status ``outcomes`` gives it (1 s a solve)."""
+
+    def __init__(self, outcomes: dict):
+        self.outcomes, self.starts = outcomes, []
+
+    def solve(self, spec, name, w0=None):
+        start = None if w0 is None else float(w0[0])
+        self.starts.append(start)
+        return Answer(start, self.outcomes[start], SolverReport("Solve_Succeeded", 10, 1.0))
+
+
+def test_a_lane_hands_on_its_latest_converged_points_newest_first():
+    warm: list = []
+    for state in ([1.0], None, [2.0], [3.0], None, [4.0]):
+        warm = handed_on(warm, state)
+    assert [w[0] for w in warm] == [4.0, 3.0, 2.0][:WARM_STARTS]
+
+
+def test_an_unverified_answer_is_solved_again_from_the_warm_starts_before_it():
+    """Where IPOPT's answer from the latest warm start is not verified, the point is solved
+    from the ones before until one is verified, and the answer carries every try's time;
+    a failed solve is not tried again (IPOPT gave up, at up to seconds a try)."""
+    warm = [np.array([3.0]), np.array([2.0]), np.array([1.0])]
+    solver = ScriptedSolver({3.0: Status.NOT_VERIFIED, 2.0: Status.NOT_VERIFIED, 1.0: Status.CONVERGED})
+    answer = solved_from(solver, None, "lane", warm)
+    assert answer.converged and answer.w0 == 1.0 and answer.solver.time_s == 3.0 and solver.starts == [3.0, 2.0, 1.0]
+    never = ScriptedSolver({3.0: Status.NOT_VERIFIED, 2.0: Status.FAILED, 1.0: Status.NOT_VERIFIED})
+    kept = solved_from(never, None, "lane", warm)
+    assert kept.w0 == 3.0 and kept.status == Status.NOT_VERIFIED and kept.solver.time_s == 3.0
+    failed = ScriptedSolver({3.0: Status.FAILED})
+    assert solved_from(failed, None, "lane", warm).status == Status.FAILED and failed.starts == [3.0]
+    fresh = ScriptedSolver({None: Status.CONVERGED})
+    assert solved_from(fresh, None, "lane", []).converged and fresh.starts == [None]
