@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from baslip.problem.reader import ProblemError, load_problem, parse_problem
 from baslip.gait.fixedpoint import SolverReport
+from baslip.problem.reader import ProblemError, load_problem, parse_problem
 from baslip.problem.study import Sweep
 from baslip.status import Status
 from baslip.studies.adaptive import bisected_factor
