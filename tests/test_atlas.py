@@ -1,10 +1,11 @@
 """Specification of the atlas algorithm (:mod:`baslip.analysis.atlas`) on manifolds whose
 answers are known: a circle, a sphere, a torus and the 3-sphere are covered whole, with
 their length, area or volume, and no holes; a domain boundary stops the covering with its
-reason, and is recorded even where a neighbour's ball reaching past it closed the way; separate pieces are found as pieces, and a seed on a covered piece joins it; all
-pieces grow together, best-first, so that a chart limit reaches every seed's piece; a
-chart limit leaves the atlas marked incomplete; a ball whose tangent space has turned away
-does not close a chart's directions; the chart graph's local minima of a function are one
+reason, and is recorded even where a neighbour's ball reaching past it closed the way;
+separate pieces are found as pieces, and a seed on a covered piece joins it; all pieces
+grow together, best-first, so that a chart limit reaches every seed's piece; a chart
+limit leaves the atlas marked incomplete; a ball whose tangent space has turned away does
+not close a chart's directions; the chart graph's local minima of a function are one
 chart in each of its valleys."""
 
 import math
