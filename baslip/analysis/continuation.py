@@ -57,6 +57,14 @@ class CorrectionFailed(RunError):
 
 
 class System(Protocol):
+    """The equations F(v) = 0 a branch follows (v: the unknowns, the parameter last).
+
+    A system may also set ``costly_jacobian`` (True where its Jacobian costs many
+    residuals, as a curve's does: the corrector then updates the last point's, see
+    :func:`correct_updated`), and define ``test_functions``, ``special_types``,
+    ``parameter_count``, ``crossing_veto`` and ``symmetric``, read where they are used.
+    """
+
     def residual(self, v: np.ndarray) -> np.ndarray: ...
     def jacobian(self, v: np.ndarray) -> np.ndarray: ...  # n x (n + 1)
     def multipliers(self, v: np.ndarray) -> tuple[np.ndarray, list[bool]]: ...  # values, trivial?

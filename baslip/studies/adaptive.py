@@ -135,10 +135,11 @@ def probe_on(rmap: ReturnMap, context: dict):
     re-solved runner started at X* + s * perturbation still hops after probe_strides
     strides."""
     X_star, params = np.asarray(context["X_star"], dtype=float), context["params"]
+    perturbation = np.asarray(context["perturbation"], dtype=float)
 
     def recovered(s: float) -> bool:
         controller = resolved_control(rmap, context)
-        X = X_star + s * np.asarray(context["perturbation"], dtype=float)
+        X = X_star + s * perturbation
         for _ in range(context["probe_strides"]):
             u, _ = controller.control(X)
             stride = rmap.stride(X, u, params)
