@@ -187,3 +187,15 @@ def test_a_point_of_another_hip_law_is_refused_not_polished(solver, vpp_human):
     spec = fixed_point_spec(load_problem("problems/vpp_human.yaml"))
     with pytest.raises(ValueError, match="built for hip law pd, not vpp"):
         solver.verify_point(spec, vpp_human.X, vpp_human.u)
+
+
+def test_a_point_a_hair_past_a_bound_is_verified_on_it(solver, downward):
+    """IPOPT may return a quantity it holds on a bound about 1e-8 past it: such a point is
+    put on the bound, polished from there and verified, not refused."""
+    theta_h = downward.apex["theta_h"]
+    spec = FixedPointSpec(Params(), fixed={"z": 0.4, "ydot": 0.5}, guess=DOWNWARD_GUESS,
+                          bounds={"theta_h": (-math.pi, theta_h - 5e-9)})
+    result = solver.verify_point(spec, downward.X, downward.u)
+    assert result.status == "converged", result.message
+    assert result.apex["theta_h"] == theta_h - 5e-9 and recheck(result) <= 1e-10
+

@@ -54,3 +54,27 @@ def test_within_bounds_it_takes_no_stride_outside_them(recorded):
     assert all(tight[0] <= c[0] <= tight[1] for c in bounded.controls)
     assert within(spec_with(tight), np.concatenate([X, u]))
     assert note in ("", " (polish stopped: no step within the bounds)")
+
+
+def test_a_quantity_returned_a_hair_past_its_bound_is_put_on_it(recorded):
+    """IPOPT returns a quantity it holds on a bound up to about 1e-8 past it. The free
+    polish keeps it there (the verification would refuse it); the polish in bounds puts
+    it on the bound and solves the rest of the point from there."""
+    spec = spec_with((-100.0, GAIT_U[0] - 5e-8))
+    free_X, free_u, _, _ = Polish(recorded, recorded).run(spec, GAIT_X, GAIT_U)
+    assert not within(spec, np.concatenate([free_X, free_u]))
+    X, u, _, note = Polish(recorded, recorded).run_in_bounds(spec, GAIT_X, GAIT_U)
+    assert note == "" and u[0] == spec.bounds["Kp"][1]
+    assert eps(recorded.stride(X, u, Params()).apex, X) <= POLISH_EPS
+
+
+def test_a_step_that_would_leave_a_bound_holds_the_quantity_on_it(recorded):
+    """Kp within 1e-4 N m/rad of the gait's and a start 0.2 rad/s off in spin: the free
+    polish ends outside that band; in bounds, Kp is held on the edge it would cross and
+    the family of fixed points is followed along it, to a fixed point of the compiled map."""
+    start_X, tight = GAIT_X + [0, 0, 0, 0.2], (GAIT_U[0] - 1e-4, GAIT_U[0] + 1e-4)
+    free_X, free_u, _, _ = Polish(recorded, recorded).run(spec_with(tight), start_X, GAIT_U)
+    assert not within(spec_with(tight), np.concatenate([free_X, free_u]))
+    X, u, _, note = Polish(recorded, recorded).run_in_bounds(spec_with(tight), start_X, GAIT_U)
+    assert note == "" and u[0] in tight
+    assert eps(recorded.stride(X, u, Params()).apex, X) <= POLISH_EPS

@@ -428,7 +428,7 @@ class FixedPointSolver:
         return self._polish_and_verify(spec, name, given, start)
 
     def _polish_and_verify(self, spec: FixedPointSpec, name: str, sol: NlpSolution, start: float) -> FixedPointResult:
-        X, u, iterations, note = self._polish.run(spec, sol.X, sol.u)
+        X, u, iterations, note = self._polish.run_in_bounds(spec, sol.X, sol.u)
         check = self.verify_map.simulate(X, u, spec.params, spec.strides)
         if check.fall is not None:
             return self._result(spec, name, Status.NOT_VERIFIED, f"re-simulation falls: {check.fall.value}", sol, start, X, u, iterations)

@@ -27,6 +27,10 @@ POLISH_BACKTRACKS = 8
 POLISH_GROWTH = 10.0
 #: Relative singular-value cutoff of the step (rank-deficient fixed-point equations).
 POLISH_RCOND = 1e-9
+#: How far past (or short of) a bound IPOPT may return a quantity that it holds on the
+#: bound, relative to max(1, |bound|): its ``bound_relax_factor`` is 1e-8, and the
+#: interior point stops up to as far inside.
+BOUND_RELAXATION = 1e-7
 
 
 def eps(apex_next, X) -> float:
@@ -44,7 +48,21 @@ class Polish:
         self._energy = ca.Function("apex_energy", [X, p], [apex_energy(X, p)])
         self._energy_gradient = ca.Function("energy_gradient", [X, p], [ca.gradient(apex_energy(X, p), X)])
 
-    def run(self, spec: FixedPointSpec, X, u, within_bounds: bool = False) -> tuple[np.ndarray, np.ndarray, int, str]:
+    def run_in_bounds(self, spec: FixedPointSpec, X, u) -> tuple[np.ndarray, np.ndarray, int, str]:
+        """:meth:`run`, and if its point leaves the problem's bounds, :meth:`run` again
+        from (X, u) holding each quantity on the bound it would leave.
+
+        The free polish comes first because it moves least (its steps are of minimum
+        norm); a point it takes past a bound would be refused by the verification, while
+        the family of fixed points often goes on along the bound.
+        """
+        X_free, u_free, iterations, note = self.run(spec, X, u)
+        if within(spec, np.concatenate([X_free, u_free])):
+            return X_free, u_free, iterations, note
+        return self.run(spec, X, u, hold_bounds=True)
+
+    def run(self, spec: FixedPointSpec, X, u, within_bounds: bool = False,
+            hold_bounds: bool = False) -> tuple[np.ndarray, np.ndarray, int, str]:
         """(X, u, iterations, note): the polished point, and a note (with a leading space)
         when the polish stopped before eps <= :data:`POLISH_EPS`.
 
@@ -54,16 +72,22 @@ class Polish:
         falls quadratically, so smaller growth is accepted. With ``within_bounds``, a step
         that leaves the problem's bounds is halved too, before any stride is taken there
         (for callers that refuse such points anyway: an iterate at Kp = 1e6 N m/rad costs
-        seconds a stride).
+        seconds a stride). With ``hold_bounds``, free quantities within IPOPT's relaxation
+        of a bound, or past it, start on it, and a quantity that a step would take past its bound is put on
+        it and held there for the remaining steps.
         """
         design = np.concatenate([X, u])
         # IPOPT relaxes bounds by ~1e-8, so fixed quantities come back slightly off: reset them.
         for i, name in enumerate(spec.design):
             if name in spec.fixed:
                 design[i] = spec.fixed[name]
+        lower, upper = np.array([spec.bounds_of(n) for n in spec.design]).T
+        if hold_bounds:
+            free = np.array([name not in spec.fixed for name in spec.design])
+            design[free] = np.clip(onto_bounds(spec, design), lower, upper)[free]
         movable = movable_quantities(spec, design)
         energy_target = self.energy_target(spec, design[: APEX.size])
-        scale = np.array([NOMINAL[n] for n in spec.design])[movable]
+        nominal = np.array([NOMINAL[n] for n in spec.design])
         nx = APEX.size
         rows, fall = self._rows(spec, design, energy_target)
         if fall is not None:
@@ -74,12 +98,16 @@ class Polish:
                 return X, u, iteration, ""
             if iteration == POLISH_MAX_ITER or not movable.any():
                 break
+            scale = nominal[movable]
             step = np.linalg.lstsq(self.equations_jacobian(spec, X, u, energy_target)[:, movable] * scale, -rows,
                                    rcond=POLISH_RCOND)[0]
             fall, outside = None, False
             for _ in range(POLISH_BACKTRACKS + 1):
                 trial = design.copy()
                 trial[movable] += step * scale
+                leaving = movable & ((trial < lower) | (trial > upper))
+                if hold_bounds:
+                    trial = np.clip(trial, lower, upper)
                 outside = within_bounds and not within(spec, trial)
                 if not outside:
                     trial_rows, fall = self._rows(spec, trial, energy_target)
@@ -91,6 +119,8 @@ class Polish:
                           f"a fall: {fall.value}" if fall is not None else "no step reduces the residual")
                 return X, u, iteration, f" (polish stopped: {reason})"
             design, rows = trial, trial_rows
+            if hold_bounds:
+                movable &= ~leaving
         return design[:nx], design[nx:], POLISH_MAX_ITER, f" (polish reached {POLISH_MAX_ITER} iterations)"
 
     def energy(self, X, params) -> float:
@@ -132,6 +162,17 @@ def within(spec: FixedPointSpec, design: np.ndarray) -> bool:
     """Whether every design quantity lies within its bounds (the problem's, inside the
     physical ones)."""
     return all(lo <= value <= hi for value, (lo, hi) in zip(design, map(spec.bounds_of, spec.design)))
+
+
+def onto_bounds(spec: FixedPointSpec, design: np.ndarray) -> np.ndarray:
+    """``design`` with every quantity within :data:`BOUND_RELAXATION` of a bound (either
+    side, relative to max(1, |bound|)) put exactly on it."""
+    design = design.copy()
+    for i, name in enumerate(spec.design):
+        for bound in spec.bounds_of(name):
+            if np.isfinite(bound) and abs(design[i] - bound) <= BOUND_RELAXATION * max(1.0, abs(bound)):
+                design[i] = bound
+    return design
 
 
 def movable_quantities(spec: FixedPointSpec, design: np.ndarray) -> np.ndarray:
