@@ -12,6 +12,7 @@ import pytest
 from baslip import Fall, Params, ReturnMap, Tolerances
 from baslip.engine.driver import (
     RICHARDSON_SAFETY,
+    bottom_missed,
     first_tiers,
     first_tiers_many,
     hermite_root,
@@ -148,6 +149,36 @@ def test_a_pass_whose_event_newton_is_unsettled_is_taken_again_from_its_own_dura
     assert compiled.fallbacks == before
     assert relative_gap(ours.apex, reference.stride(X, u, PARAMS).apex) <= 1e-12
     # The Jacobian is that of the pass taken again (its own event guesses), not of the first.
+    for a, b in zip(jacobians, reference.all_jacobians(X, u, PARAMS)):
+        assert np.max(np.abs(a - b) / np.maximum(1.0, np.abs(b))) <= 1e-8
+
+
+#: Points of a stability descent at (0.3 m/s, 0.35 m) under Kp = 25 to 31 N m/rad with the
+#: trunk spinning back at 3.1 to 3.7 rad/s: rho turns back up for a moment early in
+#: compression, between two nodes of the scout, which finds only the later bottom.
+DOUBLE_BOTTOM = [([0.35, 1.1213, 0.3, -3.2622], [27.7463, 0.1484, 3.2585, 0.0, 0.2704]),
+                 ([0.35, 1.0864, 0.3, -3.6523], [31.107, 0.1608, 3.294, 0.0, 0.2842]),
+                 ([0.35, 1.1486, 0.3, -3.1367], [25.086, 0.1231, 3.2388, 0.0, 0.2632])]
+
+
+@pytest.mark.parametrize("X, u", DOUBLE_BOTTOM)
+def test_a_bottom_the_scout_missed_is_found_by_a_finer_scout(compiled, reference, X, u):
+    """The first plan's final pass sees rhodot >= 0 in compression, so it cannot vouch for
+    the stride, at any step count; a scout in finer steps finds the first bottom, and the
+    engine vouches for the stride and its Jacobian (no event-map fallback), with the
+    reference's phase durations and within the tolerance of its apex."""
+    engine, p = compiled.compiled_engine, PARAMS.vector()
+    X, u = np.array(X), np.array(u)
+    lowest, start, guesses = engine._plan(X, u, p, precheck(X, u, p)[1])
+    diagnostics = engine.functions.final(TIERS[start])(X, u, p, guesses)[2]
+    assert bottom_missed(np.asarray(diagnostics).ravel())
+    before = compiled.fallbacks
+    ours, theirs = compiled.stride(X, u, PARAMS), reference.stride(X, u, PARAMS)
+    jacobians = compiled.all_jacobians(X, u, PARAMS)
+    assert compiled.fallbacks == before
+    assert relative_gap(ours.apex, theirs.apex) <= 1e-12
+    for phase, duration in theirs.durations.items():
+        assert ours.durations[phase] == pytest.approx(duration, abs=1e-9)
     for a, b in zip(jacobians, reference.all_jacobians(X, u, PARAMS)):
         assert np.max(np.abs(a - b) / np.maximum(1.0, np.abs(b))) <= 1e-8
 

@@ -47,6 +47,11 @@ _CLEARANCE_FALLS = {
 NEWTON_CONVERGED = 1e-13
 #: Times the scout starts again with a quarter of its step after its state blows up.
 SCOUT_REFINEMENTS = 2
+#: Divisors of the scout's step, tried in turn while a final pass finds that rho turned
+#: back up before the bottom the scout had found (a brief rise between two of its nodes,
+#: which a hip torque against a fast-spinning trunk can cause): the pass's own durations
+#: carry that same bottom, so only a finer scout finds the first one.
+FINER_SCOUTS = (4, 16)
 #: The event must end the phase within this many grid steps of the grid's end.
 LAST_STEP_RANGE = (0.0, 2.0)
 #: Scout steps per spring half-period pi sqrt(m/k), at most, and the scout's largest
@@ -110,19 +115,17 @@ class CompiledEngine:
 
     def stride(self, X, u, p, t_guess) -> Stride | None:
         """The stride from apex ``X`` (which passed the pre-checks), or None."""
-        plan = self._plan(X, u, p, t_guess)
-        if not isinstance(plan, tuple):
-            return plan
-        return self._final(X, u, p, *plan)[1]
+        settled = self._settle(X, u, p, t_guess)
+        return settled[1] if isinstance(settled, tuple) else settled
 
     def stride_jacobian(self, X, u, p, t_guess) -> tuple[np.ndarray | None, Stride] | None:
         """(dr/d(X, u, p) as 4 x (4 + controls + 6), the stride), the Jacobian None after a fall; or None.
 
         The step count is settled by value passes, which cost a fraction of a Jacobian."""
-        plan = self._plan(X, u, p, t_guess)
-        if not isinstance(plan, tuple):
-            return None if plan is None else (None, plan)
-        n, verdict, guesses = self._final(X, u, p, *plan)
+        settled = self._settle(X, u, p, t_guess)
+        if not isinstance(settled, tuple):
+            return None if settled is None else (None, settled)
+        n, verdict, guesses = settled
         if verdict is None or not verdict.ok:
             return None if verdict is None else (None, verdict)
         # The verdict of the value pass: a Richardson-accepted pass alone would ask to refine.
@@ -167,21 +170,36 @@ class CompiledEngine:
     def settled_pass(self, X, u, p, t_guess) -> tuple[int, np.ndarray] | None:
         """(step count, guesses) of the final pass that :meth:`stride` accepts for a clean
         stride, to evaluate other functions of that same pass; None if there is none."""
-        plan = self._plan(X, u, p, t_guess)
-        if not isinstance(plan, tuple):
+        settled = self._settle(X, u, p, t_guess)
+        if not isinstance(settled, tuple):
             return None
-        n, verdict, guesses = self._final(X, u, p, *plan)
+        n, verdict, guesses = settled
         return None if verdict is None or not verdict.ok else (n, guesses)
 
     # -- pieces ----------------------------------------------------------------------
 
-    def _final(self, X, u, p, lowest: int, start: int, guesses) -> tuple[int, Stride | None, np.ndarray]:
+    def _settle(self, X, u, p, t_guess) -> tuple[int, Stride | None, np.ndarray] | Stride | None:
+        """The scout and the final passes: a fall found in planning, None, or :meth:`_final`'s
+        (step count, verdict, guesses). Where the final pass finds that the scout missed
+        the first bottom of the stance, the scout is run again in finer steps
+        (:data:`FINER_SCOUTS`) and the final passes follow its plan."""
+        for finer in (1, *FINER_SCOUTS):
+            plan = self._plan(X, u, p, t_guess, finer)
+            if not isinstance(plan, tuple):
+                return plan
+            n, verdict, guesses, missed = self._final(X, u, p, *plan)
+            if verdict is not None or not missed:
+                break
+        return n, verdict, guesses
+
+    def _final(self, X, u, p, lowest: int, start: int, guesses) -> tuple[int, Stride | None, np.ndarray, bool]:
         """The final pass at the first step count whose error estimate is within the
         tolerance, from ``TIERS[start]`` up; the Richardson estimate compares it with the
         last pass at a lower count, or with one at the count below (if not below
         ``TIERS[lowest]``, the least stable one). Returns (step count, verdict, the event
-        guesses of that pass), so that other functions of the same pass (its Jacobian)
-        start from the same guesses."""
+        guesses of that pass, whether an unsure pass saw rho turn back up before its
+        bottom), so that other functions of the same pass (its Jacobian) start from the
+        same guesses."""
         i, coarse, regridded = start, None, False
         while i < len(TIERS):
             n = TIERS[i]
@@ -195,7 +213,7 @@ class CompiledEngine:
                 guesses, regridded, coarse = np.asarray(durations[:3], dtype=float), True, None
                 continue
             if not isinstance(verdict, str):  # the one string verdict is "refine"
-                return n, verdict, guesses
+                return n, verdict, guesses, verdict is None and bottom_missed(diagnostics)
             result = np.concatenate([apex, durations])
             if coarse is None and i > lowest:
                 below = TIERS[i - 1]
@@ -204,23 +222,24 @@ class CompiledEngine:
             if error <= self.tolerance:
                 accepted = stride_of_verdict(ACCEPTED, apex, durations, error)
                 assert isinstance(accepted, Stride)
-                return n, accepted, guesses
+                return n, accepted, guesses, False
             i, coarse = next_tier(i, error, self.tolerance), (n, result)
-        return TIERS[-1], None, guesses
+        return TIERS[-1], None, guesses, False
 
-    def _plan(self, X, u, p, t_guess):
-        """Touchdown checks and the scout: a fall, None, or the indices in TIERS of the least
-        stable and the first step count, and the final pass's guesses. One compiled call
-        covers a stance that one scout call brackets cleanly; the others take
-        :meth:`_scout`."""
+    def _plan(self, X, u, p, t_guess, finer: int = 1):
+        """Touchdown checks and the scout, in steps ``finer`` times smaller than usual: a
+        fall, None, or the indices in TIERS of the least stable and the first step count,
+        and the final pass's guesses. One compiled call covers a stance that one scout
+        call brackets cleanly; the others take :meth:`_scout`."""
         rate = stiffness_rate(X, u, p, self.law)
-        h = scout_step(p, rate)
+        h = scout_step(p, rate) / finer
         x_td, com_height, clean, bottom, liftoff, error = self.functions.plan(X, u, p, t_guess, h)
         x_td = x_td.ravel()
         fall = touchdown_fall(x_td, float(com_height[0, 0]), t_guess)
         if fall is not None:
             return fall
         descent = {"descent": float(t_guess)}
+        scouted: Scouted | Fall | None
         if clean[0, 0]:
             scouted = Scouted(float(bottom[0, 0]), float(liftoff[0, 0]), rate, h, float(error[0, 0]))
         else:
@@ -391,6 +410,12 @@ def _unsettled(d, durations):
     clear = np.logical_and.reduce([d[f"{name}_min"] > 0.0 for name in CLEARANCES] + [d["zdot_lo"] > 0.0])
     positive = np.logical_and(np.isfinite(durations).all(axis=0), (durations[:3] > 0.0).all(axis=0))
     return np.logical_not(np.logical_and(on_grid, converged)) & clear & positive
+
+
+def bottom_missed(diagnostics) -> bool:
+    """Whether a final pass saw rho turn back up (rhodot >= 0) in its compression phase:
+    the bottom it was planned to end on is not the stance's first."""
+    return bool(DIAGNOSTICS.to_dict(diagnostics)["rhodot_max_compression"] >= 0.0)
 
 
 def stride_of_verdict(code: int, apex, durations, error: float) -> Stride | str | None:
