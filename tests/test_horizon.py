@@ -6,6 +6,7 @@
 * The search has two starts (the last plan's tail, the feedback's plan); when the descent
   from the nearer one ends short of the gait, the other is searched too and the better end
   kept. On a family of gaits the tail's end is kept unless the other reaches the gait.
+* A plan that already reaches the gait costs value strides only.
 """
 
 import json
@@ -84,3 +85,27 @@ def test_on_a_family_of_gaits_the_tail_is_kept_unless_the_other_start_reaches_th
     outcomes = [run_closed_loop(vpp_map, Params(), vpp_horizon(vpp_gait, family), X + SAMPLE_24, X, 100,
                                 settle=True).outcome for family in (False, True)]
     assert outcomes[0] == "bounded" and outcomes[1] in ("converged", "settled")
+
+
+class CountingMap(ReturnMap):
+    """The 1e-12 map, counting the strides it differentiates."""
+
+    def __init__(self):
+        super().__init__(Tolerances(1e-12, 1e-12))
+        self.linearised = 0
+
+    def linearised_stride(self, X, u, params):
+        self.linearised += 1
+        return super().linearised_stride(X, u, params)
+
+
+def test_a_plan_that_already_reaches_the_gait_costs_no_jacobian():
+    """On the gait, the plan u*, u* brings X_N onto it: the apex's control is u*, found by
+    value strides alone; one apex off the gait needs the plan's Jacobian."""
+    X, u = gait("upward")
+    counting = CountingMap()
+    controller = RecedingHorizon(counting, Params(), X, u, horizon=2, fixed=(3,))
+    control, miss = controller.control(X)
+    assert miss <= HORIZON_EPS and np.array_equal(control, u) and counting.linearised == 0
+    assert controller.control(X + np.array([1e-5, 1e-4, 1e-4, 1e-3]))[1] <= HORIZON_EPS
+    assert counting.linearised >= 2

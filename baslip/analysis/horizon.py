@@ -7,7 +7,8 @@ the free entries of u_1 .. u_N, scaled by the controls' nominal sizes; the resid
 X_N - X*, scaled by the apex's. Each step is Levenberg-Marquardt with the chained AD
 Jacobians dX_N/du_k = A_{N-1} ... A_{k+1} B_k. The warm start at the next apex is the
 tail of the plan followed by u*: where the plan reached X*, its tail still does (X* is a
-fixed point under u*), so the search starts on target. Given a feedback gain K, the
+fixed point under u*), so the search starts on target. Each start's miss is taken by value
+strides first, and a start already within :data:`HORIZON_EPS` is kept without a Jacobian. Given a feedback gain K, the
 search has a second start: the plan that u* + K (X - X*) would follow from X (at a highly
 unstable gait the constant plan falls within N strides, and there is no Jacobian to start
 from). It descends from the start that misses X* less, and from the other only when that
@@ -87,11 +88,14 @@ class RecedingHorizon:
         """The first control of the plan solved from apex ``X``, and the eps its X_N leaves."""
         X = np.asarray(X, dtype=float)
         starts = [self.plan] + ([] if self.K is None else [self._feedback_plan(X)])
+        misses = [self._miss(X, start) for start in starts]
+        order = list(range(len(starts)))
         if not self.family:
-            starts.sort(key=lambda start: self._miss(X, start)[0])
+            order.sort(key=lambda k: misses[k][0])
         best = None
-        for start in starts:  # the first start's descent, and the other's if that ends short
-            found = self._descend(X, start)
+        for k in order:  # the first start's descent, and the other's if that ends short
+            start = starts[k]
+            found = self._descend(X, start, misses[k])
             if found is not None and (best is None or self._preferred(found, best, start is self.plan)):
                 best = found
             if best is not None and best[1] <= HORIZON_EPS:
@@ -111,9 +115,15 @@ class RecedingHorizon:
             return found[1] <= HORIZON_EPS
         return found[1] < best[1]
 
-    def _descend(self, X: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, float] | None:
-        """Levenberg-Marquardt on the plan from ``start``: (the plan it ends at, the eps of
-        its X_N), or None when the start itself falls within the horizon."""
+    def _descend(self, X: np.ndarray, start: np.ndarray, miss: tuple[float, np.ndarray]) -> tuple[np.ndarray, float] | None:
+        """Levenberg-Marquardt on the plan from ``start``, whose :meth:`_miss` is ``miss``:
+        (the plan it ends at, the eps of its X_N), or None when the start itself falls
+        within the horizon. A start already within :data:`HORIZON_EPS` is its own end, and
+        costs no Jacobian (near the gait, every apex's)."""
+        if not np.isfinite(miss[0]):
+            return None
+        if miss[0] <= HORIZON_EPS:
+            return start, miss[0]
         linearised = self._linearised(X, start)
         if linearised is None:
             return None
