@@ -198,4 +198,3 @@ def test_a_point_a_hair_past_a_bound_is_verified_on_it(solver, downward):
     result = solver.verify_point(spec, downward.X, downward.u)
     assert result.status == "converged", result.message
     assert result.apex["theta_h"] == theta_h - 5e-9 and recheck(result) <= 1e-10
-

@@ -6,8 +6,8 @@
   stride, match finite differences of the AD Jacobian's eigenvalues.
 * A descent never ends above where it started, every point it accepts is a fixed point,
   and its end point passes the solver's independent verification.
-* After its quasi-Newton iterations, a compass search on the radius goes on, and the
-  stop reason says so.
+* After its quasi-Newton iterations, or where the surrogate is stationary, a compass
+  search on the radius goes on, and the stop reason says so.
 * Where the start has no second derivatives, a compass search on the radius alone still
   lowers it, on fixed points.
 * Starts draw gains over their whole range, repeatably.
@@ -26,7 +26,7 @@ import pytest
 from baslip import Params
 from baslip.analysis.descent import SURROGATE_POWER, StabilityDescent, optimise_from, random_start, surrogate
 from baslip.engine.returnmap import NoSecondDerivatives
-from baslip.gait.from_problem import fixed_point_spec, shooting_options
+from baslip.gait.from_problem import fixed_point_spec, shooting_options, solver_for
 from baslip.gait.polish import eps
 from baslip.problem.reader import load_problem
 
@@ -121,6 +121,25 @@ def test_after_its_iterations_the_descent_goes_on_by_compass_search_and_says_so(
     compass = [s.spectral_radius for s in found.steps[4:]]
     assert compass and compass == sorted(compass, reverse=True)
     assert compass[0] < found.steps[3].spectral_radius
+
+
+#: The end of the atlas's upright descent at (0.7 m/s, 0.35 m) in results/atlas_upright
+#: of 2026-12-05 (radius 1.33395): the surrogate's reduced gradient vanishes there, at a
+#: kink of the radius where its leading multipliers coalesce.
+KINK_X = [0.35, 1.187224290970209, 0.7, -8.20094644379246]
+KINK_U = [54.93710293691826, 0.5054885874329418, 4.539668064504438, 0.0, 0.3840180761591707]
+
+
+def test_where_the_surrogate_is_stationary_the_compass_search_goes_on():
+    """Stationary for the surrogate is not a minimum of the radius: from the kink, the
+    compass search lowers it (to 1.3286, measured), on fixed points, and says so."""
+    problem = load_problem(ROOT / "problems" / "atlas_upright.yaml")
+    spec = replace(fixed_point_spec(problem), fixed={"theta2_dot_des": 0.0, "ydot": 0.7, "z": 0.35})
+    solver = solver_for(problem)
+    found = StabilityDescent(solver.residual_map, max_iterations=400).run(spec, np.array(KINK_X), np.array(KINK_U))
+    assert found.stop_reason.startswith("stationary: reduced gradient below tolerance; compass search")
+    assert found.best.spectral_radius < found.steps[0].spectral_radius * (1 - 2e-3)
+    assert eps(solver.residual_map(found.best.X, found.best.u, Params()), found.best.X) <= 1e-12
 
 
 def test_without_second_derivatives_the_descent_is_a_compass_search_on_the_radius(downward, monkeypatch):

@@ -145,8 +145,8 @@ class StabilityDescent:
         follow from the fixed-point equations (the polish with the chart held). On the
         chart, phi is an ordinary function whose gradient comes by the implicit-function
         theorem, and BFGS with a backtracking (Armijo) line search minimises it. When no
-        step lowers phi, or after ``max_iterations``, a compass search on the spectral
-        radius itself goes on (:meth:`_pattern_search`). Where the
+        step lowers phi, its reduced gradient vanishes, or after ``max_iterations``, a
+        compass search on the spectral radius itself goes on (:meth:`_pattern_search`). Where the
         start has no second derivatives (the compiled engine cannot vouch for its stride,
         as at gaits whose trunk swings far and fast), the compass search is all there is.
         """
@@ -176,7 +176,11 @@ class StabilityDescent:
             fresh_chart = False
             norm = float(np.linalg.norm(reduced))
             if norm < GRADIENT_TOLERANCE:
-                return Descent(tuple(steps), "stationary: reduced gradient below tolerance", norm, evaluations)
+                # Stationary for the surrogate, which need not be a minimum of rho (at a
+                # kink where multipliers coalesce): the compass search on rho goes on.
+                found, searched, compass = self._pattern_search(spec, design, radius)
+                return Descent(tuple(steps + found), f"stationary: reduced gradient below tolerance; {compass}",
+                               norm, evaluations + searched)
             direction = -inverse_hessian @ reduced
             if direction @ reduced >= 0:
                 inverse_hessian, direction = np.eye(chart.size), -reduced

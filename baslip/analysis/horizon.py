@@ -8,10 +8,10 @@ X_N - X*, scaled by the apex's. Each step is Levenberg-Marquardt with the chaine
 Jacobians dX_N/du_k = A_{N-1} ... A_{k+1} B_k. The warm start at the next apex is the
 tail of the plan followed by u*: where the plan reached X*, its tail still does (X* is a
 fixed point under u*), so the search starts on target. Each start's miss is taken by value
-strides first, and a start already within :data:`HORIZON_EPS` is kept without a Jacobian. Given a feedback gain K, the
-search has a second start: the plan that u* + K (X - X*) would follow from X (at a highly
-unstable gait the constant plan falls within N strides, and there is no Jacobian to start
-from). It descends from the start that misses X* less, and from the other only when that
+strides first, and a start already within :data:`HORIZON_EPS` is kept without a Jacobian.
+Given a feedback gain K, the search has a second start: the plan that u* + K (X - X*)
+would follow from X (at a highly unstable gait the constant plan falls within N strides,
+and there is no Jacobian to start from). It descends from the start that misses X* less, and from the other only when that
 descent ends short of :data:`HORIZON_EPS`; the better end is kept (from the nearer start
 alone, a descent can end at a plan that never returns). On a family of gaits (a neutral
 multiplier) no plan of N strides removes the miss along the family, both descents end

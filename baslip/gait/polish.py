@@ -73,8 +73,8 @@ class Polish:
         that leaves the problem's bounds is halved too, before any stride is taken there
         (for callers that refuse such points anyway: an iterate at Kp = 1e6 N m/rad costs
         seconds a stride). With ``hold_bounds``, free quantities within IPOPT's relaxation
-        of a bound, or past it, start on it, and a quantity that a step would take past its bound is put on
-        it and held there for the remaining steps.
+        of a bound, or past it, start on it, and a quantity that a step would take past
+        its bound is put on it and held there for the remaining steps.
         """
         design = np.concatenate([X, u])
         # IPOPT relaxes bounds by ~1e-8, so fixed quantities come back slightly off: reset them.
