@@ -146,8 +146,8 @@ class StabilityDescent:
         chart, phi is an ordinary function whose gradient comes by the implicit-function
         theorem, and BFGS with a backtracking (Armijo) line search minimises it. When no
         step lowers phi, its reduced gradient vanishes, or after ``max_iterations``, a
-        compass search on the spectral radius itself goes on (:meth:`_pattern_search`). Where the
-        start has no second derivatives (the compiled engine cannot vouch for its stride,
+        compass search on the spectral radius itself goes on (:meth:`_pattern_search`).
+        Where the start has no second derivatives (the compiled engine cannot vouch for its stride,
         as at gaits whose trunk swings far and fast), the compass search is all there is.
         """
         if spec.strides != 1:
@@ -178,9 +178,8 @@ class StabilityDescent:
             if norm < GRADIENT_TOLERANCE:
                 # Stationary for the surrogate, which need not be a minimum of rho (at a
                 # kink where multipliers coalesce): the compass search on rho goes on.
-                found, searched, compass = self._pattern_search(spec, design, radius)
-                return Descent(tuple(steps + found), f"stationary: reduced gradient below tolerance; {compass}",
-                               norm, evaluations + searched)
+                return self._compass_after(spec, steps, "stationary: reduced gradient below tolerance; ", norm,
+                                           evaluations)
             direction = -inverse_hessian @ reduced
             if direction @ reduced >= 0:
                 inverse_hessian, direction = np.eye(chart.size), -reduced
@@ -205,14 +204,19 @@ class StabilityDescent:
             if np.max(np.abs(s)) < STEP_TOLERANCE:
                 break
         else:
-            found, searched, compass = self._pattern_search(spec, design, radius)
-            return Descent(tuple(steps + found), f"reached {self.max_iterations} iterations; {compass}", norm,
-                           evaluations + searched)
+            return self._compass_after(spec, steps, f"reached {self.max_iterations} iterations; ", norm, evaluations)
         # The surrogate stopped falling: typically where two multipliers of nearly equal
         # modulus coalesce, a kink of rho that a gradient cannot cross. A compass search on
         # rho itself goes on from there.
-        found, searched, compass = self._pattern_search(spec, design, radius)
-        return Descent(tuple(steps + found), compass, norm, evaluations + searched)
+        return self._compass_after(spec, steps, "", norm, evaluations)
+
+    def _compass_after(self, spec: FixedPointSpec, steps: list[DescentStep], why: str, norm: float,
+                       evaluations: int) -> Descent:
+        """The descent ``steps`` followed by the compass search on the radius from the last
+        of them, its stop reason after ``why``."""
+        last = steps[-1]
+        found, searched, compass = self._pattern_search(spec, np.concatenate([last.X, last.u]), last.spectral_radius)
+        return Descent(tuple(steps + found), f"{why}{compass}", norm, evaluations + searched)
 
     def _compass_only(self, spec: FixedPointSpec, design) -> Descent:
         """The descent where the start has no second derivatives (the compiled engine

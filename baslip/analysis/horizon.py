@@ -88,14 +88,12 @@ class RecedingHorizon:
         """The first control of the plan solved from apex ``X``, and the eps its X_N leaves."""
         X = np.asarray(X, dtype=float)
         starts = [self.plan] + ([] if self.K is None else [self._feedback_plan(X)])
-        misses = [self._miss(X, start) for start in starts]
-        order = list(range(len(starts)))
+        candidates = [(start, self._miss(X, start)) for start in starts]
         if not self.family:
-            order.sort(key=lambda k: misses[k][0])
+            candidates.sort(key=lambda candidate: candidate[1][0])
         best = None
-        for k in order:  # the first start's descent, and the other's if that ends short
-            start = starts[k]
-            found = self._descend(X, start, misses[k])
+        for start, miss in candidates:  # the first start's descent, and the other's if that ends short
+            found = self._descend(X, start, miss)
             if found is not None and (best is None or self._preferred(found, best, start is self.plan)):
                 best = found
             if best is not None and best[1] <= HORIZON_EPS:
@@ -103,9 +101,9 @@ class RecedingHorizon:
         if best is None:
             self.plan = np.tile(self.u_star, (self.horizon, 1))
             return self.u_star.copy(), np.inf
-        plan, miss = best
+        plan, eps_reached = best
         self.plan = np.vstack([plan[1:], self.u_star])  # the warm start of the next apex: the plan's tail
-        return plan[0], miss
+        return plan[0], eps_reached
 
     def _preferred(self, found: tuple[np.ndarray, float], best: tuple[np.ndarray, float], from_tail: bool) -> bool:
         """Whether the end ``found`` replaces ``best`` (the end of the descent before it):

@@ -105,8 +105,8 @@ class Polish:
             for _ in range(POLISH_BACKTRACKS + 1):
                 trial = design.copy()
                 trial[movable] += step * scale
-                leaving = movable & ((trial < lower) | (trial > upper))
                 if hold_bounds:
+                    leaving = movable & ((trial < lower) | (trial > upper))
                     trial = np.clip(trial, lower, upper)
                 outside = within_bounds and not within(spec, trial)
                 if not outside:
