@@ -47,10 +47,12 @@ _CLEARANCE_FALLS = {
 NEWTON_CONVERGED = 1e-13
 #: Times the scout starts again with a quarter of its step after its state blows up.
 SCOUT_REFINEMENTS = 2
-#: Divisors of the scout's step, tried in turn while a final pass finds that rho turned
-#: back up before the bottom the scout had found (a brief rise between two of its nodes,
-#: which a hip torque against a fast-spinning trunk can cause): the pass's own durations
-#: carry that same bottom, so only a finer scout finds the first one.
+#: Divisors of the scout's step, tried in turn while the final passes cannot vouch for
+#: the events the scout planned: rho may turn back up before the bottom the scout found
+#: (a brief rise between two of its nodes, which a hip torque against a fast-spinning
+#: trunk can cause), or a stiff hip (Kd / I in the thousands per second) leaves the
+#: scout's coarse steps far from the liftoff. The passes' own durations carry the same
+#: wrong events, so only a finer scout finds them.
 FINER_SCOUTS = (4, 16)
 #: The event must end the phase within this many grid steps of the grid's end.
 LAST_STEP_RANGE = (0.0, 2.0)
@@ -180,15 +182,17 @@ class CompiledEngine:
 
     def _settle(self, X, u, p, t_guess) -> tuple[int, Stride | None, np.ndarray] | Stride | None:
         """The scout and the final passes: a fall found in planning, None, or :meth:`_final`'s
-        (step count, verdict, guesses). Where the final pass finds that the scout missed
-        the first bottom of the stance, the scout is run again in finer steps
-        (:data:`FINER_SCOUTS`) and the final passes follow its plan."""
+        (step count, verdict, guesses). Where the final passes cannot vouch for the events
+        the scout planned, the scout is run again in finer steps (:data:`FINER_SCOUTS`) and
+        the final passes follow its plan. Where they only run out of step counts, with
+        clean events but an error estimate above the tolerance, a finer scout would plan
+        the same passes, and none is run."""
         for finer in (1, *FINER_SCOUTS):
             plan = self._plan(X, u, p, t_guess, finer)
             if not isinstance(plan, tuple):
                 return plan
-            n, verdict, guesses, missed = self._final(X, u, p, *plan)
-            if verdict is not None or not missed:
+            n, verdict, guesses, unsure = self._final(X, u, p, *plan)
+            if verdict is not None or not unsure:
                 break
         return n, verdict, guesses
 
@@ -213,7 +217,7 @@ class CompiledEngine:
                 guesses, regridded, coarse = np.asarray(durations[:3], dtype=float), True, None
                 continue
             if not isinstance(verdict, str):  # the one string verdict is "refine"
-                return n, verdict, guesses, verdict is None and bottom_missed(diagnostics)
+                return n, verdict, guesses, verdict is None
             result = np.concatenate([apex, durations])
             if coarse is None and i > lowest:
                 below = TIERS[i - 1]
@@ -410,12 +414,6 @@ def _unsettled(d, durations):
     clear = np.logical_and.reduce([d[f"{name}_min"] > 0.0 for name in CLEARANCES] + [d["zdot_lo"] > 0.0])
     positive = np.logical_and(np.isfinite(durations).all(axis=0), (durations[:3] > 0.0).all(axis=0))
     return np.logical_not(np.logical_and(on_grid, converged)) & clear & positive
-
-
-def bottom_missed(diagnostics) -> bool:
-    """Whether a final pass saw rho turn back up (rhodot >= 0) in its compression phase:
-    the bottom it was planned to end on is not the stance's first."""
-    return bool(DIAGNOSTICS.to_dict(diagnostics)["rhodot_max_compression"] >= 0.0)
 
 
 def stride_of_verdict(code: int, apex, durations, error: float) -> Stride | str | None:
