@@ -246,6 +246,7 @@ class _Growth:
         self.centers: list[np.ndarray] = []
         self.open: list[np.ndarray] = []  # per chart: which directions are still open
         self.neighbours: list[set[int]] = []
+        self.alignment: dict[tuple[int, int], bool] = {}  # (chart, neighbour): see aligned
         self.parent_piece: list[int] = []  # union-find over pieces
         self.piece_of: list[int] = []
         self.boundaries: list[Boundary] = []
@@ -307,15 +308,26 @@ class _Growth:
         ``max_turn`` of its own. Where two sheets of the manifold pass close in the ambient
         space, their balls overlap too, and would otherwise close each other's directions."""
         chart = self.charts[j]
-        aligned = [n for n in self.neighbours[j]
-                   if turn_angle(chart.tangent, self.charts[n].tangent) <= COVER_TURN * self.settings.max_turn]
-        for d in np.nonzero(self.open[j])[0]:
-            point = self.boundary_point(chart, d)
-            for n in aligned:
-                if np.linalg.norm(point - self.centers[n]) < self.charts[n].radius:
-                    self.open[j][d] = False
-                    self.closed_by_neighbour.append((j, int(d)))
-                    break
+        aligned = [n for n in self.neighbours[j] if self.aligned(j, n)]
+        open_directions = np.nonzero(self.open[j])[0]
+        if not aligned or not open_directions.size:
+            return
+        points = np.array([self.boundary_point(chart, d) for d in open_directions])
+        centers = np.array([self.centers[n] for n in aligned])
+        radii = np.array([self.charts[n].radius for n in aligned])
+        gaps = np.sqrt(np.sum((points[:, None, :] - centers[None, :, :]) ** 2, axis=2))
+        for d in open_directions[(gaps < radii).any(axis=1)]:
+            self.open[j][d] = False
+            self.closed_by_neighbour.append((j, int(d)))
+
+    def aligned(self, j: int, n: int) -> bool:
+        """Whether neighbour ``n``'s tangent space is within :data:`COVER_TURN` times
+        ``max_turn`` of chart ``j``'s: computed once a pair, since every chart added
+        closes the directions of all its neighbours again."""
+        if (j, n) not in self.alignment:
+            turn = turn_angle(self.charts[j].tangent, self.charts[n].tangent)
+            self.alignment[j, n] = turn <= COVER_TURN * self.settings.max_turn
+        return self.alignment[j, n]
 
     def grow(self, firsts: Sequence[int]) -> None:
         """Grow the pieces of the charts ``firsts`` together until no direction is open (or
