@@ -27,8 +27,6 @@ from baslip.gait.fixedpoint import FixedPointResult
 from baslip.gait.from_problem import solve_problem, solver_for
 from baslip.problem.reader import Problem, load_problem
 from baslip.results import RunResults, open_results, read_into_memory
-from baslip.studies.branch import run_continuation
-from baslip.studies.registry import check_study_inputs, run_study
 from baslip.studies.runner import check_scheduler
 
 _log = logger(__name__)
@@ -117,6 +115,10 @@ def check_run(problem: Problem, out: Path | None, sources: Path, scheduler: str 
         The first check that fails, naming its key or option.
     """
     if problem.study is not None:
+        # Here, not at the top: a single gait's run then never loads the studies' modules
+        # and their figures' matplotlib (a third of a warm run's start-up).
+        from baslip.studies.registry import check_study_inputs
+
         check_study_inputs(problem, sources)
     if scheduler is not None:
         if problem.study is None:
@@ -145,6 +147,9 @@ def _place(folder: Path | None, name: str) -> Iterator[Path]:
 
 def _run_into(problem: Problem, out: Path, sources: Path, *, jobs, lanes, scheduler, fresh: bool,
               quiet: bool) -> FixedPointResult | RunResults:
+    from baslip.studies.branch import run_continuation  # as in check_run: only for the runs that need them
+    from baslip.studies.registry import run_study
+
     if problem.study is not None:
         run_study(problem, out, quiet, fresh, jobs, scheduler, lanes, sources=sources)
         return open_results(out)

@@ -107,6 +107,8 @@ def main(argv: list[str] | None = None, prog: str = "python -m baslip.solve") ->
     except InputError as err:
         print(refusal(err, args.problem), file=sys.stderr)
         return EXIT_BAD_INPUT
+    if problem.study is None and problem.continuation is None:
+        return _run(problem, args, out_dir)  # a gait draws no figures: no matplotlib to load
     import matplotlib
 
     with matplotlib.rc_context({"savefig.format": args.format}):  # for this run's figures only
