@@ -34,6 +34,7 @@ from baslip.engine.kernels import (
     stiffness_rate,
 )
 from baslip.engine.outcome import PHASES, STANCE_HORIZON_HALF_PERIODS, Fall, Stride
+from baslip.engine.recent import MISSING, RecentSettles, settle_key
 from baslip.model.dynamics import PARAMS, STANCE
 from baslip.model.hiplaw import PD, HipLaw
 
@@ -114,6 +115,7 @@ class CompiledEngine:
         self.tolerance = tolerance
         self.law = law
         self.functions = StrideFunctions(law, compile) if functions is None else functions
+        self.recent = RecentSettles()  # a Jacobian after a value at the same point settles once
 
     def stride(self, X, u, p, t_guess) -> Stride | None:
         """The stride from apex ``X`` (which passed the pre-checks), or None."""
@@ -181,6 +183,15 @@ class CompiledEngine:
     # -- pieces ----------------------------------------------------------------------
 
     def _settle(self, X, u, p, t_guess) -> tuple[int, Stride | None, np.ndarray] | Stride | None:
+        """:meth:`_settle_afresh`, or its answer for the same inputs among the last few."""
+        key = settle_key(X, u, p, t_guess)
+        settled = self.recent.get(key)
+        if settled is MISSING:
+            settled = self._settle_afresh(X, u, p, t_guess)
+            self.recent.put(key, settled)
+        return settled  # type: ignore[return-value]
+
+    def _settle_afresh(self, X, u, p, t_guess) -> tuple[int, Stride | None, np.ndarray] | Stride | None:
         """The scout and the final passes: a fall found in planning, None, or :meth:`_final`'s
         (step count, verdict, guesses). Where the final passes cannot vouch for the events
         the scout planned, the scout is run again in finer steps (:data:`FINER_SCOUTS`) and

@@ -1,0 +1,64 @@
+"""A bounded memo of an engine's recently settled strides.
+
+Every Newton, Gauss-Newton and Levenberg-Marquardt loop over the return map evaluates a
+point and then differentiates it there: the polish, the atlas's corrector, the descents,
+the re-solving controllers. The compiled engine's Jacobian starts with the same value
+passes that settled the stride's step count, so without a memo that work is done twice.
+The passes are deterministic, so an answer taken from the memo is the one the engine
+would compute again, bit for bit; what it hands out is a copy, so that no caller can
+change another's numbers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from baslip.engine.outcome import Stride
+
+#: Strides remembered: a receding horizon of N strides evaluates N of them before it
+#: differentiates the first, and rejected trial plans come in between.
+RECENT_STRIDES = 8
+#: What :meth:`RecentSettles.get` returns for a stride it does not hold (None is an answer).
+MISSING = object()
+
+
+def settle_key(X: np.ndarray, u: np.ndarray, p: np.ndarray, t_guess: float) -> bytes:
+    """The exact inputs of a stride, as one key: apex, controls, parameters and the
+    touchdown time guess [s] the engine starts from."""
+    return np.concatenate([X, u, p, [t_guess]]).astype(float).tobytes()
+
+
+class RecentSettles:
+    """The last :data:`RECENT_STRIDES` settled strides of one engine, oldest forgotten first.
+
+    An entry is whatever the engine's settling returned: a fall found in planning (a
+    :class:`Stride`), None, or (step count, verdict, event guesses).
+    """
+
+    def __init__(self, size: int = RECENT_STRIDES):
+        self.size = size
+        self._entries: dict[bytes, object] = {}
+
+    def get(self, key: bytes) -> object:
+        """A copy of the entry for ``key``, or :data:`MISSING`."""
+        entry = self._entries.get(key, MISSING)
+        return entry if entry is MISSING else _copied(entry)
+
+    def put(self, key: bytes, settled: object) -> None:
+        """Remember a copy of ``settled`` under ``key``, forgetting the oldest entry if full."""
+        self._entries.pop(key, None)
+        if len(self._entries) >= self.size:
+            del self._entries[next(iter(self._entries))]
+        self._entries[key] = _copied(settled)
+
+
+def _copied(settled: object) -> object:
+    if isinstance(settled, Stride):
+        return replace(settled, apex=None if settled.apex is None else settled.apex.copy(),
+                       durations=dict(settled.durations))
+    if isinstance(settled, tuple):
+        n, verdict, guesses = settled
+        return n, _copied(verdict), np.array(guesses, dtype=float)
+    return settled

@@ -1,0 +1,70 @@
+"""Specification of baslip.engine.recent: the engine remembers its last few settled
+strides, so that a Jacobian taken where a value was just taken settles the stride once,
+with the very numbers a fresh engine computes, and no caller can change another's."""
+
+import numpy as np
+
+from baslip import Params, ReturnMap, Tolerances
+from baslip.engine.outcome import Stride
+from baslip.engine.recent import MISSING, RECENT_STRIDES, RecentSettles, settle_key
+
+PARAMS = Params()
+X_GAIT = np.array([0.4, -1.5657, 0.5, 0.164274])  # near the shipped downward gait
+U_GAIT = np.array([-0.751879, 1.50002, -0.05246, 1.42038, 0.11471])
+
+
+def key(i: int) -> bytes:
+    return settle_key(np.full(4, float(i)), np.zeros(5), np.ones(6), 0.2)
+
+
+def test_an_entry_comes_back_as_a_copy_the_caller_cannot_change_for_others():
+    recent = RecentSettles()
+    stride = Stride(np.array([0.4, 0.1, 0.5, 0.2]), {"descent": 0.2})
+    recent.put(key(0), (24, stride, np.array([0.2, 0.05, 0.05])))
+    first = recent.get(key(0))
+    first[1].apex[0] = -1.0
+    first[1].durations["descent"] = -1.0
+    first[2][0] = -1.0
+    stride.apex[1] = -1.0  # the caller's own object, changed after it was remembered
+    again = recent.get(key(0))
+    assert again[0] == 24
+    assert np.array_equal(again[1].apex, [0.4, 0.1, 0.5, 0.2]) and again[1].durations == {"descent": 0.2}
+    assert np.array_equal(again[2], [0.2, 0.05, 0.05])
+
+
+def test_none_is_an_answer_and_missing_is_not():
+    recent = RecentSettles()
+    recent.put(key(0), None)
+    assert recent.get(key(0)) is None
+    assert recent.get(key(1)) is MISSING
+
+
+def test_the_oldest_entry_is_forgotten_first():
+    recent = RecentSettles()
+    for i in range(RECENT_STRIDES + 1):
+        recent.put(key(i), i)
+    assert recent.get(key(0)) is MISSING
+    assert [recent.get(key(i)) for i in range(1, RECENT_STRIDES + 1)] == list(range(1, RECENT_STRIDES + 1))
+
+
+def test_the_key_tells_apart_strides_that_differ_in_the_last_bit():
+    X = X_GAIT.copy()
+    nudged = X.copy()
+    nudged[3] = np.nextafter(nudged[3], 1.0)
+    assert settle_key(X, U_GAIT, PARAMS.vector(), 0.2) != settle_key(nudged, U_GAIT, PARAMS.vector(), 0.2)
+    assert settle_key(X, U_GAIT, PARAMS.vector(), 0.2) != settle_key(X, U_GAIT, PARAMS.vector(), np.nextafter(0.2, 1))
+
+
+def test_a_jacobian_after_a_value_at_the_same_point_settles_once_with_a_fresh_engines_numbers():
+    rmap, fresh = ReturnMap(Tolerances(1e-12, 1e-12)), ReturnMap(Tolerances(1e-12, 1e-12))
+    engine = rmap.compiled_engine
+    passes = []
+    final = engine.functions.final
+    engine.functions.final = lambda n: passes.append(n) or final(n)
+    value = rmap.stride(X_GAIT, U_GAIT, PARAMS)
+    settled = len(passes)
+    A, B = rmap.jacobians(X_GAIT, U_GAIT, PARAMS)
+    assert settled > 0 and len(passes) == settled  # no value pass again for the Jacobian
+    A_fresh, B_fresh = fresh.jacobians(X_GAIT, U_GAIT, PARAMS)
+    assert np.array_equal(A, A_fresh) and np.array_equal(B, B_fresh)
+    assert np.array_equal(value.apex, fresh.stride(X_GAIT, U_GAIT, PARAMS).apex)
