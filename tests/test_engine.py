@@ -152,6 +152,21 @@ def test_a_pass_whose_event_newton_is_unsettled_is_taken_again_from_its_own_dura
         assert np.max(np.abs(a - b) / np.maximum(1.0, np.abs(b))) <= 1e-8
 
 
+def assert_vouched_as_the_reference(compiled, reference, X, u):
+    """The engine vouches for the stride and its Jacobian (no event-map fallback), with
+    the reference's phase durations, its apex within the tolerance and its Jacobians
+    within 1e-8."""
+    before = compiled.fallbacks
+    ours, theirs = compiled.stride(X, u, PARAMS), reference.stride(X, u, PARAMS)
+    jacobians = compiled.all_jacobians(X, u, PARAMS)
+    assert compiled.fallbacks == before
+    assert relative_gap(ours.apex, theirs.apex) <= 1e-12
+    for phase, duration in theirs.durations.items():
+        assert ours.durations[phase] == pytest.approx(duration, abs=1e-9)
+    for a, b in zip(jacobians, reference.all_jacobians(X, u, PARAMS)):
+        assert np.max(np.abs(a - b) / np.maximum(1.0, np.abs(b))) <= 1e-8
+
+
 #: Points of a stability descent at (0.3 m/s, 0.35 m) under Kp = 25 to 31 N m/rad with the
 #: trunk spinning back at 3.1 to 3.7 rad/s: rho turns back up for a moment early in
 #: compression, between two nodes of the scout, which finds only the later bottom.
@@ -171,15 +186,7 @@ def test_a_bottom_the_scout_missed_is_found_by_a_finer_scout(compiled, reference
     lowest, start, guesses = engine._plan(X, u, p, precheck(X, u, p)[1])
     diagnostics = engine.functions.final(TIERS[start])(X, u, p, guesses)[2]
     assert DIAGNOSTICS.to_dict(np.asarray(diagnostics).ravel())["rhodot_max_compression"] >= 0.0
-    before = compiled.fallbacks
-    ours, theirs = compiled.stride(X, u, PARAMS), reference.stride(X, u, PARAMS)
-    jacobians = compiled.all_jacobians(X, u, PARAMS)
-    assert compiled.fallbacks == before
-    assert relative_gap(ours.apex, theirs.apex) <= 1e-12
-    for phase, duration in theirs.durations.items():
-        assert ours.durations[phase] == pytest.approx(duration, abs=1e-9)
-    for a, b in zip(jacobians, reference.all_jacobians(X, u, PARAMS)):
-        assert np.max(np.abs(a - b) / np.maximum(1.0, np.abs(b))) <= 1e-8
+    assert_vouched_as_the_reference(compiled, reference, X, u)
 
 
 #: Apexes of the re-solved runner 32 times the tracking study's perturbation from the
@@ -202,15 +209,7 @@ def test_events_the_scout_left_rough_are_found_by_a_finer_scout(compiled, refere
     X, u = np.array(X), np.array(u)
     lowest, start, guesses = engine._plan(X, u, p, precheck(X, u, p)[1])
     assert not np.all(np.isfinite(engine.functions.final(TIERS[start])(X, u, p, guesses)[1]))
-    before = compiled.fallbacks
-    ours, theirs = compiled.stride(X, u, PARAMS), reference.stride(X, u, PARAMS)
-    jacobians = compiled.all_jacobians(X, u, PARAMS)
-    assert compiled.fallbacks == before
-    assert relative_gap(ours.apex, theirs.apex) <= 1e-12
-    for phase, duration in theirs.durations.items():
-        assert ours.durations[phase] == pytest.approx(duration, abs=1e-9)
-    for a, b in zip(jacobians, reference.all_jacobians(X, u, PARAMS)):
-        assert np.max(np.abs(a - b) / np.maximum(1.0, np.abs(b))) <= 1e-8
+    assert_vouched_as_the_reference(compiled, reference, X, u)
 
 
 @pytest.mark.parametrize("Kd", [5.0, 30.0, 100.0])
