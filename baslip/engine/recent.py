@@ -6,7 +6,8 @@ the re-solving controllers. The compiled engine's Jacobian starts with the same 
 passes that settled the stride's step count, so without a memo that work is done twice.
 The passes are deterministic, so an answer taken from the memo is the one the engine
 would compute again, bit for bit; what it hands out is a copy, so that no caller can
-change another's numbers.
+change another's numbers. Like its kernels' work memory, an engine's memo serves one
+thread at a time (each lane of a batch has an engine of its own).
 """
 
 from __future__ import annotations
@@ -35,9 +36,16 @@ class RecentSettles:
 
     An entry is whatever the engine's settling returned: a fall found in planning (a
     :class:`Stride`), None, or (step count, verdict, event guesses).
+
+    Parameters
+    ----------
+    size : int
+        Strides remembered, at least 1.
     """
 
     def __init__(self, size: int = RECENT_STRIDES):
+        if size < 1:
+            raise ValueError(f"a memo remembers at least 1 stride, not {size}")
         self.size = size
         self._entries: dict[bytes, object] = {}
 
@@ -55,6 +63,7 @@ class RecentSettles:
 
 
 def _copied(settled: object) -> object:
+    """A copy of a settled stride whose arrays and durations are its own."""
     if isinstance(settled, Stride):
         return replace(settled, apex=None if settled.apex is None else settled.apex.copy(),
                        durations=dict(settled.durations))
