@@ -147,8 +147,9 @@ class StabilityDescent:
         theorem, and BFGS with a backtracking (Armijo) line search minimises it. When no
         step lowers phi, its reduced gradient vanishes, or after ``max_iterations``, a
         compass search on the spectral radius itself goes on (:meth:`_pattern_search`).
-        Where the start has no second derivatives (the compiled engine cannot vouch for its stride,
-        as at gaits whose trunk swings far and fast), the compass search is all there is.
+        Where the start has no second derivatives (the compiled engine cannot vouch for its
+        stride, as at gaits whose trunk swings far and fast), the compass search is all
+        there is.
         """
         if spec.strides != 1:
             raise ValueError("the stability descent handles one-stride gaits")
