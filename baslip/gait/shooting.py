@@ -45,6 +45,7 @@ from baslip.engine.kernels import StanceFlow, stance_clearances
 from baslip.engine.kernels import sources as kernel_sources
 from baslip.engine.returnmap import PHASES, ReturnMap, Stride
 from baslip.gait import monodromy as _monodromy
+from baslip.gait.ipopt_threads import pin_ipopt_threads
 from baslip.gait.monodromy import (
     SCHUR,
     ShotStrideJacobian,
@@ -432,6 +433,7 @@ class ShootingNLP:
         # failure status, which is what the caller sees.
         with contextlib.redirect_stderr(io.StringIO()):
             solver = self._solver(ipopt or {})
+            pin_ipopt_threads()  # the same iterates on every machine (see the module)
             sol = solver(x0=w0, p=params, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
         elapsed = time.perf_counter() - start
         stats = solver.stats()
