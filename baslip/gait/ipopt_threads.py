@@ -38,10 +38,13 @@ def openblas_files() -> tuple[str, ...]:
 
 def loaded_openblas() -> list[ctypes.CDLL]:
     """The copies of CasADi's OpenBLAS loaded in this process, as libraries to call."""
-    loaded = []
+    loaded: list[ctypes.CDLL] = []
+    no_load = getattr(os, "RTLD_NOLOAD", None)  # POSIX only; elsewhere nothing is told
+    if no_load is None:
+        return loaded
     for library in openblas_files():
         try:
-            handle = ctypes.CDLL(library, mode=os.RTLD_NOLOAD)  # only a copy already loaded
+            handle = ctypes.CDLL(library, mode=no_load)  # only a copy already loaded
         except OSError:
             continue
         if hasattr(handle, "openblas_set_num_threads"):
