@@ -175,6 +175,24 @@ def test_the_short_upright_answer_counts_what_the_committed_atlases_hold():
     assert text.count("\n- **") == 3  # one bullet per law of control
 
 
+def test_the_short_upright_answer_never_states_a_least_radius_above_a_gait_the_report_holds():
+    """The least radius upright throughout is the least of the atlas's cells and of the
+    committed multi-start and stability-NLP searches; a search's is named with its cell."""
+    from baslip.report.answer import UPRIGHT_SEARCHES, upright_answer
+
+    evidence = Evidence(RESULTS)
+    cells = evidence.rows("atlas_upright", "cells.csv")
+    atlas = min(c[k] for c in cells for k in ("least_radius_upright_throughout", "polished_upright_throughout_radius")
+                if isinstance(c[k], float))
+    searched = [evidence.summary(name)["least_upright_throughout"] for name in UPRIGHT_SEARCHES]
+    best = min(searched, key=lambda gait: gait["spectral_radius"])
+    text = upright_answer(evidence).split("Upright throughout the stride")[1]
+    least = min(atlas, best["spectral_radius"])
+    assert f"least radius {least:.3f}" in text
+    if best["spectral_radius"] < atlas:
+        assert f"at ydot = {best['ydot']:g} m/s, z = {best['z']:g} m; the atlas's own least is {atlas:.3f}" in text
+
+
 def test_the_vpp_descent_claim_compares_each_cell_with_the_atlas_and_says_where_it_went_lower(tmp_path):
     """Each optimal_vpp cell is set beside atlas_vpp's polished least at its speed (whose
     family, z free, holds the cell's); a cell below it is named as the atlas's miss."""
