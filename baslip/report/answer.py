@@ -41,8 +41,12 @@ def _pd(ev: Evidence) -> str:
                                                c.get("polished_radius") or math.inf) < 1)
     searched_apex, searched_throughout = (_searched_least(ev, key)
                                           for key in ("least_upright_at_apex", "least_upright_throughout"))
-    at_apex = (f"yes: a stable gait in {stable_cells} of the {len(cells)} (ydot, z) cells of `atlas_upright`"
-               if apex < 1 else f"no stable gait in its {len(cells)} (ydot, z) cells")
+    if apex < 1:
+        at_apex = f"yes: a stable gait in {stable_cells} of the {len(cells)} (ydot, z) cells of `atlas_upright`"
+    elif searched_apex[0] < 1:
+        at_apex = f"yes, by `{searched_apex[1]}`: none in the {len(cells)} (ydot, z) cells of `atlas_upright`"
+    else:
+        at_apex = f"no stable gait in its {len(cells)} (ydot, z) cells"
     at_apex_radius = _least_text(apex, searched_apex)
     throughout_found = "yes" if min(throughout, searched_throughout[0]) < 1 else "none found"
     whole = sum(1 for c in cells if c["complete"] is True)
