@@ -3,6 +3,7 @@ that a solve's iterates do not depend on how many cores the machine has."""
 
 import os
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,15 +13,16 @@ from baslip.gait import shooting
 from baslip.gait.from_problem import fixed_point_spec, solver_for
 from baslip.gait.ipopt_threads import loaded_openblas
 
+ROOT = Path(__file__).resolve().parents[1]
 #: A body_angle_scan point where the exact-Hessian NLP struggles from the guess: inertia
 #: corrections up to 1e16, then 300 iterations without converging. On the 2-core machine
-#: its last iterate on 2 threads was 1.4 away from the one on 1 thread in theta_h_dot.
+#: its last iterate on 2 threads was 1.4 rad/s away from the one on 1 thread in theta_h_dot.
 STRUGGLING_THETA_H = -2.356194490192
 
 
 @pytest.fixture(scope="module")
 def scan():
-    problem = load_problem("problems/body_angle_scan.yaml")
+    problem = load_problem(ROOT / "problems" / "body_angle_scan.yaml")
     return solver_for(problem), fixed_point_spec(problem)
 
 
