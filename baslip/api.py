@@ -147,16 +147,18 @@ def _place(folder: Path | None, name: str) -> Iterator[Path]:
 
 def _run_into(problem: Problem, out: Path, sources: Path, *, jobs, lanes, scheduler, fresh: bool,
               quiet: bool) -> FixedPointResult | RunResults:
-    from baslip.studies.branch import run_continuation  # as in check_run: only for the runs that need them
-    from baslip.studies.registry import run_study
-
+    # The studies' modules are imported where a run needs them, as in check_run.
     if problem.study is not None:
+        from baslip.studies.registry import run_study
+
         run_study(problem, out, quiet, fresh, jobs, scheduler, lanes, sources=sources)
         return open_results(out)
     if fresh:
         with hold(out):
             clear_run(out)
     if problem.continuation is not None:
+        from baslip.studies.branch import run_continuation
+
         run_continuation(problem, out, quiet, jobs)
         return open_results(out)
     return solve_and_write(problem, out, quiet)
