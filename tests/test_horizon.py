@@ -27,10 +27,10 @@ from baslip.engine.returnmap import ReturnMap
 from baslip.model.hiplaw import VPP
 
 ROOT = Path(__file__).resolve().parents[1]
-#: Sample 24 of the 1x box of results/controllers_vpp: an apex offset from the
-#: thesis-scale VPP gait (m, rad, m/s, rad/s).
 #: An apex offset in the 1x box of results/controllers_upright (m, rad, m/s, rad/s).
 UPRIGHT_START = np.array([2.7392e-04, -4.60427e-03, -9.18053e-03, -4.834724e-02])
+#: Sample 24 of the 1x box of results/controllers_vpp: an apex offset from the
+#: thesis-scale VPP gait (m, rad, m/s, rad/s).
 SAMPLE_24 = np.array([-0.000788157526585, 0.002663198920731, -0.002391514602269, 0.022529393807624])
 
 
