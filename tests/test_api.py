@@ -164,16 +164,8 @@ def test_a_branch_over_a_curve_run_of_another_problem_is_refused(tmp_path):
     assert "curve.csv" not in files_in(out) and "curve" not in result.tables
 
 
-def test_a_gait_run_from_python_loads_neither_the_studies_nor_matplotlib(tmp_path):
+def test_a_gait_run_from_python_loads_neither_the_studies_nor_matplotlib(tmp_path, heavy_modules_after):
     """``baslip.run`` of a single gait stays clear of the study modules and matplotlib, as
     the command's does (``test_solve.py``): they are imported only by the runs that use them."""
-    import subprocess
-    import sys
-
-    root = Path(__file__).resolve().parents[1]
-    script = ("import sys; import baslip; "
-              f"result = baslip.run('problems/downward.yaml', {str(tmp_path / 'downward')!r}); "
-              "print(type(result).__name__, sorted(m for m in ('matplotlib', 'baslip.studies.registry', "
-              "'baslip.studies.branch', 'baslip.viz.figures') if m in sys.modules))")
-    proc = subprocess.run([sys.executable, "-c", script], cwd=root, capture_output=True, text=True, timeout=600)
-    assert proc.stdout.split("\n")[-2] == "FixedPointResult []", proc.stdout + proc.stderr
+    statement = f"import baslip; result = type(baslip.run('problems/downward.yaml', {str(tmp_path / 'downward')!r})).__name__"
+    assert heavy_modules_after(statement) == ("FixedPointResult", [])
