@@ -242,3 +242,19 @@ def test_a_sweep_step_below_the_rounding_of_its_values_is_refused():
     assert caught.value.key == "study.vary.z" and "finer than the 1e-12" in str(caught.value)
     fine = {"kind": "sweep", "vary": {"z": [0.4, 0.40000000001, 1e-12]}}
     assert len(parse_problem(with_(study=fine)).study.axes[0].values) == 11
+
+
+def test_each_re_solving_controller_runs_its_own_number_of_starts():
+    """``solve_samples``: one count for both re-solves, or one each (a missing one runs
+    ``samples``), never more than ``samples``; the batched controllers run ``samples``."""
+    study = {"kind": "controllers", "perturbation": {"z": 0.001}, "samples": 400}
+
+    def starts(solve_samples):
+        parsed = parse_problem(with_(study={**study, "solve_samples": solve_samples})).study
+        return [parsed.starts(name) for name in ("constant", "feedback", "horizon", "resolve")]
+
+    assert starts(None) == [400, 400, 400, 400]
+    assert starts(50) == [400, 400, 50, 50]
+    assert starts({"horizon": 300}) == [400, 400, 300, 400]
+    assert starts({"horizon": 300, "resolve": 20}) == [400, 400, 300, 20]
+    assert starts({"horizon": 1000}) == [400, 400, 400, 400]

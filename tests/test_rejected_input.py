@@ -335,6 +335,10 @@ for axis in ("z", "theta_h", "ydot", "theta_h_dot"):
     CASES += study_cases(CONTROLS, "controllers", f"lqr_scale.{axis}", {"zero": 0, "negative": -0.1, "nan": math.nan})
 CASES += study_cases(CONTROLS, "controllers", "lqr_scale", {"speed": {"speed": 1.0}}, names="study.lqr_scale.speed")
 CASES += study_cases(CONTROLS, "controllers", "criterion", {"number": 2, "null": None})
+CASES += study_cases(CONTROLS, "controllers", "solve_samples", {"zero": 0, "float": 2.5, "text": "x", "list": [10]})
+CASES += study_cases(CONTROLS, "controllers", "solve_samples.horizon", {"zero": 0, "text": "x", "huge": 10**9})
+CASES += study_cases(CONTROLS, "controllers", "solve_samples", {"batched": {"feedback": 10}},
+                     names="study.solve_samples.feedback")
 CASES += study_cases(CONTROLS, "controllers", "extra", {"any": 1})
 # Source files that are not what a finished run writes (a directory, a FIFO, a row with a
 # cell too many or too few), for a random region, a basin source and a traced boundary.

@@ -161,6 +161,19 @@ def test_a_controller_that_keeps_most_starts_up_without_returning_is_named_so():
     assert _kept_up(summary) == [("constant", 1.0)]
 
 
+def test_the_starts_of_each_re_solving_controller_are_stated_per_gait_where_the_gaits_differ():
+    from baslip.report.controllers import _re_solve_starts
+
+    def ran(horizon: int, resolve: int) -> dict:
+        return {"basins": {"horizon": {"per_box": [{"samples": horizon}]}, "resolve": {"per_box": [{"samples": resolve}]}}}
+
+    same = {"controllers_upright": ran(1000, 100), "controllers_downward": ran(1000, 100)}
+    assert _re_solve_starts(same) == "the receding horizon from 1000, the one-stride re-solve from 100"
+    mixed = {"controllers_upright": ran(4000, 100), "controllers_downward": ran(1000, 100)}
+    assert _re_solve_starts(mixed) == ("the receding horizon from 4000 (upright (shipped, PD)), 1000 (hanging (PD)), "
+                                       "the one-stride re-solve from 100")
+
+
 def test_the_short_upright_answer_counts_what_the_committed_atlases_hold():
     from baslip.report.answer import upright_answer
 

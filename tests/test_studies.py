@@ -380,12 +380,13 @@ def test_an_adaptive_study_under_vpp_resolves_the_pivot_and_touchdown_angle_and_
 
 def test_a_controllers_study_compares_four_controllers_on_the_same_starts_box_by_box(tmp_path, monkeypatch):
     """In CasADi's virtual machine, so that nothing is compiled: two boxes of the hanging
-    gait, four perturbed starts each for the batched controllers and two for the
-    re-solves. The LQR weights are given (lqr_scale), so that no pilot sample runs in the
+    gait, four perturbed starts each for the batched controllers, three for the horizon
+    and two for the one-stride re-solve (the first of the same draws). The LQR weights are given (lqr_scale), so that no pilot sample runs in the
     virtual machine; the feedback stabilises the linearised loop."""
     monkeypatch.setenv("BASLIP_NO_COMPILE", "1")
     text = (Path(__file__).resolve().parents[1] / "problems" / "controllers_downward.yaml").read_text()
-    text = (text.replace("samples: 4000", "samples: 4").replace("solve_samples: 100", "solve_samples: 2")
+    text = (text.replace("samples: 4000", "samples: 4")
+            .replace("solve_samples: {horizon: 1000, resolve: 100}", "solve_samples: {horizon: 3, resolve: 2}")
             .replace("boxes: [1, 2, 4, 8, 16]", "boxes: [1, 4]").replace("strides: 100", "strides: 6")
             + "  lqr_scale: {z: 0.01, theta_h: 0.1, ydot: 0.1, theta_h_dot: 1.0}\n")
     problem_path = tmp_path / "controllers.yaml"
@@ -399,8 +400,8 @@ def test_a_controllers_study_compares_four_controllers_on_the_same_starts_box_by
     counts = {}
     for r in rows:
         counts[(r["controller"], float(r["box"]))] = counts.get((r["controller"], float(r["box"])), 0) + 1
-    assert counts == {(c, b): (4 if c in ("constant", "feedback") else 2) for c in ("constant", "feedback", "horizon", "resolve")
-                      for b in (1.0, 4.0)}
+    starts_of = {"constant": 4, "feedback": 4, "horizon": 3, "resolve": 2}
+    assert counts == {(c, b): starts_of[c] for c in starts_of for b in (1.0, 4.0)}
     starts = {}
     for r in rows:  # the same perturbed start for every controller, 4 times larger in the larger box
         starts.setdefault((float(r["box"]), r["sample"]), set()).add(
@@ -435,7 +436,8 @@ def test_the_pivot_feedback_moves_the_vpp_pivot_alone_and_brings_back_starts_the
     from baslip.gait.from_problem import solve_start, solver_for
 
     text = (Path(__file__).resolve().parents[1] / "problems" / "controllers_vpp.yaml").read_text()
-    text = (text.replace("samples: 4000", "samples: 6").replace("solve_samples: 100", "solve_samples: 1")
+    text = (text.replace("samples: 4000", "samples: 6")
+            .replace("solve_samples: {horizon: 1000, resolve: 100}", "solve_samples: 1")
             .replace("boxes: [1, 2, 4, 8, 16]", "boxes: [1]").replace("strides: 100", "strides: 40")
             .replace("controllers: [constant, feedback, pivot, horizon, resolve]", "controllers: [constant, pivot]")
             + "  lqr_scale: {z: 0.01, theta_h: 0.01, ydot: 0.01, theta_h_dot: 0.1}\n")

@@ -136,8 +136,15 @@ class Controllers:
     boxes: tuple[float, ...] = (1.0,)  # multiples of the perturbation's half-widths: one basin box each
     controllers: tuple[str, ...] = ("constant", "feedback", "horizon", "resolve")  # some of CONTROLLER_KINDS
     horizon: int = 2  # strides planned by the receding-horizon re-solve
-    solve_samples: int | None = None  # starts per box for the two re-solving controllers (default: samples)
+    # Starts per box of each re-solving controller (horizon, resolve) that runs fewer than
+    # ``samples``: a re-solve costs Jacobian strides at every apex, a batched run a few values.
+    solve_samples: tuple[tuple[str, int], ...] = ()
     kind: str = "controllers"
+
+    def starts(self, controller: str) -> int:
+        """Starts per box of ``controller``: ``samples``, or fewer for a re-solving one
+        given its own count in ``solve_samples`` (the first of the same draws)."""
+        return min(dict(self.solve_samples).get(controller, self.samples), self.samples)
 
 
 Study = Sweep | RandomSample | Basin | Adaptive | Optimal | Controllers | Atlas
@@ -229,8 +236,7 @@ def parse_study(data) -> Study:
             boxes=_boxes(data.get("boxes", [1.0])),
             controllers=_controller_names(data.get("controllers", list(Controllers.controllers))),
             horizon=_integer(data.get("horizon", 2), "study.horizon", 1, 8),
-            solve_samples=None if data.get("solve_samples") is None else _integer(
-                data.get("solve_samples"), "study.solve_samples", 1, 100000),
+            solve_samples=_solve_samples(data.get("solve_samples")),
         )
     return Adaptive(
         strides=_integer(data.get("strides", 2048), "study.strides", 1, 1000000),
@@ -313,6 +319,8 @@ def _method(value) -> str:
 
 #: The controllers a ``controllers`` study can compare.
 CONTROLLER_KINDS = ("constant", "feedback", "pivot", "horizon", "resolve")
+#: The controllers that solve for their controls at every apex (``solve_samples``).
+RESOLVING = ("horizon", "resolve")
 #: The controllers that adapt only some controls at every apex, and those controls (the
 #: hip law must have them): ``pivot`` moves the virtual pivot alone (Sharbafi et al. 2013).
 ADAPTED_CONTROLS = {"pivot": ("r_vpp",)}
@@ -333,6 +341,23 @@ def _controller_names(value) -> tuple[str, ...]:
     if not names or any(n not in CONTROLLER_KINDS for n in names) or len(set(names)) != len(names):
         raise StudyError("study.controllers", f"expected some of {', '.join(CONTROLLER_KINDS)}, got {excerpt(value)}")
     return tuple(names)
+
+
+def _solve_samples(value) -> tuple[tuple[str, int], ...]:
+    """Starts per box of the re-solving controllers: one integer for both, or a mapping
+    from ``horizon`` and ``resolve`` to their own counts (a missing one runs ``samples``)."""
+    key = "study.solve_samples"
+    if value is None:
+        return ()
+    if not isinstance(value, dict):
+        return tuple((name, _integer(value, key, 1, 100000)) for name in RESOLVING)
+    pairs = []
+    for name, count in value.items():
+        if isinstance(name, NonScalarKey) or name not in RESOLVING:
+            raise StudyError(f"{key}.{clip(str(name))}",
+                             f"not a re-solving controller (expected {' or '.join(RESOLVING)})")
+        pairs.append((name, _integer(count, f"{key}.{name}", 1, 100000)))
+    return tuple(pairs)
 
 
 def _criterion(value) -> str:

@@ -43,8 +43,7 @@ def controller_claims(ev: Evidence) -> list[str]:
         f"its own, see its problem file), run for at most {first['strides']} strides. Each cell is the share that "
         f"returned (converged within {first['tolerance']:g}, eq. 4.1, or, at a VPP gait, settled on a neighbouring "
         "gait of its family) with its Wilson 95 % interval; constant, feedback and pivot from "
-        f"{first['basins']['constant']['per_box'][0]['samples']} starts a box, the two re-solves from "
-        f"{first['basins'].get('horizon', first['basins']['constant'])['per_box'][0]['samples']}.\n\n"
+        f"{first['basins']['constant']['per_box'][0]['samples']} starts a box, {_re_solve_starts(runs)}.\n\n"
         + header + "\n" + "\n".join(rows) + f"\n\nThe best controller of each gait (the largest 90 % box, then "
         f"the most returned in the largest box, then the least cost): {best}.{kept_text}\n\nThe feedback chosen: "
         f"{feedback}.\n",
@@ -103,6 +102,21 @@ def _best_text(summary: dict) -> str:
     largest, last = basin["largest_90_box"], basin["per_box"][-1]
     box = "no box with 90 % returned" if largest is None else f"90 % or more returned up to the {largest:g}x box"
     return f"{name} ({box}; {last['returned_fraction']:.0%} in the {last['box']:g}x box)"
+
+
+def _re_solve_starts(runs: dict) -> str:
+    """How many starts a box each re-solving controller ran, over the comparisons ``runs``
+    (they run fewer than the batched ones: each apex costs them Jacobian strides); where
+    the gaits differ, the count of each gait."""
+    parts = []
+    for name, text in {"horizon": "the receding horizon", "resolve": "the one-stride re-solve"}.items():
+        counts = {gait: summary["basins"][name]["per_box"][0]["samples"] for gait, summary in runs.items()
+                  if name in summary["basins"]}
+        if len(set(counts.values())) == 1:
+            parts.append(f"{text} from {next(iter(counts.values()))}")
+        elif counts:
+            parts.append(f"{text} from " + ", ".join(f"{n} ({CONTROLLER_GAITS[gait]})" for gait, n in counts.items()))
+    return ", ".join(parts) if parts else "no re-solving controller"
 
 
 def _kept_up(summary: dict) -> list[tuple[str, float]]:

@@ -18,7 +18,7 @@ runs for at most ``strides`` strides (:mod:`baslip.analysis.feedback`):
   or tracking).
 
 ``constant``, ``feedback`` and ``pivot`` run ``samples`` starts a box, in lockstep through the batched
-engine; the two re-solving controllers run ``solve_samples`` (the first of the same draws).
+engine; the two re-solving controllers run their ``solve_samples`` (the first of the same draws).
 A run has *converged* once an apex is within ``tolerance`` (eq. 4.1) of X*. At a gait with
 a structural multiplier 1 (the symmetry of a VPP gait, energy without torque), whose
 direction no control reaches at first order, a run whose apex repeats to ``tolerance``
@@ -87,14 +87,12 @@ def box_deltas(study: Controllers) -> dict[float, np.ndarray]:
 
 def controller_tasks(study: Controllers) -> list[dict]:
     """Every (controller, box, sample) with its perturbation."""
-    solving = study.solve_samples or study.samples
     tasks = []
     for box, deltas in box_deltas(study).items():
         for name in study.controllers:
-            count = study.samples if name in BATCHED else min(solving, study.samples)
             tasks += [{"controller": name, "box": box, "sample": k,
                        **{f"d_{n}": round(float(v), 15) for n, v in zip(APEX.names, delta)}}
-                      for k, delta in enumerate(deltas[:count])]
+                      for k, delta in enumerate(deltas[: study.starts(name)])]
     return tasks
 
 
