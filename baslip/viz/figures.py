@@ -509,21 +509,23 @@ _NOMINAL_APEX = {"z": 0.1, "theta_h": 0.1, "ydot": 0.1, "theta_h_dot": 1.0}
 def basin_figure(basins: dict, title: str, out_dir: Path | None) -> Path | None:
     """The share of starts each controller brings back (to the gait, or onto its family)
     against the box size (a multiple of the perturbation's half-widths), with 95 %
-    intervals; the 90 % line dashed."""
-    fig, ax = plt.subplots(figsize=(6.0, 3.8))
+    intervals, and each controller's starts a box in the legend; the 90 % line dashed."""
+    fig, ax = plt.subplots(figsize=(8.8, 3.8))
     for k, (name, basin) in enumerate(basins.items()):
         boxes = np.array([b["box"] for b in basin["per_box"]]) * (1 + 0.03 * (k - 1.5))  # spread the bars
         share = np.array([b["returned_fraction"] or 0.0 for b in basin["per_box"]])
         low, high = (np.array([b["ci95"][i] for b in basin["per_box"]]) for i in (0, 1))
         spread = [np.maximum(share - low, 0.0), np.maximum(high - share, 0.0)]  # round-off can cross zero
-        ax.errorbar(boxes, share, yerr=spread, marker="o", ms=4, capsize=3, label=CONTROLLER_NAMES.get(name, name))
+        # The re-solving controllers run fewer starts than the batched ones: the legend says how many.
+        label = f"{CONTROLLER_NAMES.get(name, name)}; {basin['per_box'][0]['samples']:,} starts a box"
+        ax.errorbar(boxes, share, yerr=spread, marker="o", ms=4, capsize=3, label=label)
     ax.axhline(0.9, color="0.5", ls="--", lw=0.8)
     ax.set_xscale("log", base=2)
     ax.set_ylim(-0.02, 1.02)
     ax.set_xlabel("box half-widths [multiples of the study's perturbation]")
     ax.set_ylabel("share of starts that return")
     ax.set_title("share of starts that return, by box size (95 % intervals)", fontsize=10)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0))  # beside the axes: never over a curve
     return _save(fig, _in(out_dir, "basins.png"), problem=title)
 
 
