@@ -63,7 +63,8 @@ def _row(name: str, summary: dict, controller: str, basin: dict) -> str:
     cells = []
     for b in basin["per_box"]:
         share, (lo, hi) = b["returned_fraction"], b["ci95"]
-        cells.append("-" if share is None else f"{share:.0%} ({lo:.0%}-{hi:.0%})")
+        # One decimal: from 1,000 starts a whole percent would show 89.8 % as the 90 % it misses.
+        cells.append("-" if share is None else f"{share:.1%} ({lo:.1%}-{hi:.1%})")
     largest = basin["largest_90_box"]
     median = _median_cost(basin)
     cost = f"{median:.2f} ms" if math.isfinite(median) else "-"
