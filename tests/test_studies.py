@@ -381,8 +381,9 @@ def test_an_adaptive_study_under_vpp_resolves_the_pivot_and_touchdown_angle_and_
 def test_a_controllers_study_compares_four_controllers_on_the_same_starts_box_by_box(tmp_path, monkeypatch):
     """In CasADi's virtual machine, so that nothing is compiled: two boxes of the hanging
     gait, four perturbed starts each for the batched controllers, three for the horizon
-    and two for the one-stride re-solve (the first of the same draws). The LQR weights are given (lqr_scale), so that no pilot sample runs in the
-    virtual machine; the feedback stabilises the linearised loop."""
+    and two for the one-stride re-solve (the first of the same draws). The LQR weights
+    are given (lqr_scale), so that no pilot sample runs in the virtual machine; the
+    feedback stabilises the linearised loop."""
     monkeypatch.setenv("BASLIP_NO_COMPILE", "1")
     text = (Path(__file__).resolve().parents[1] / "problems" / "controllers_downward.yaml").read_text()
     text = (text.replace("samples: 4000", "samples: 4")
