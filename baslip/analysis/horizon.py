@@ -2,31 +2,32 @@
 so that the apex after N strides is the gait's, and the first of them is applied.
 
 With dr/du of practical rank 3 (upright PD gaits) one stride cannot correct every apex
-direction; two strides reach the fourth through the first stride's dr/dX. The unknowns are
-the free entries of u_1 .. u_N, scaled by the controls' nominal sizes; the residual is
-X_N - X*, scaled by the apex's. Each step is Levenberg-Marquardt with the chained AD
-Jacobians dX_N/du_k = A_{N-1} ... A_{k+1} B_k, its damping set by Nielsen's rule, and bent
-by geodesic acceleration (Transtrum and Sethna, 2012): at upright gaits the miss lies in a
-curved valley (dX_N/du has singular values 1e5 apart), along which plain damped steps gain
-about 10 % each and stop short; the acceleration, from one more value pass, follows it.
-Measured at the shipped upright gait from 20 starts of the 1x box: the plans reached
-X* (eps <= 1e-10) at 98 % of apexes, not 21 %, and the runs returned in 2.1 strides, not
-9.5. The warm start at the next apex is the tail of the plan followed by u*: where the plan reached X*, its tail still does (X* is a fixed
-point under u*), so the search starts on target. Each start's miss is taken by value
-strides first, and a start already within :data:`HORIZON_EPS` is kept without a Jacobian.
-Given a feedback gain K, the search has a second start: the plan that u* + K (X - X*)
-would follow from X (at a highly unstable gait the constant plan falls within N strides,
-and there is no Jacobian to start from). It descends from the start that misses X* less,
-and from the other only when that descent ends short of :data:`HORIZON_EPS`; the better
-end is kept (from the nearer start alone, a descent can end at a plan that never returns).
-On a family of gaits (a neutral multiplier) no plan of N strides removes the miss along
-the family, both descents end short at floors that it sets, and the plan that continues
-the last one does better: there the tail is searched first and kept unless the other
-start's end reaches the target (measured on the thesis-scale VPP gait with damped steps
-alone, 30 starts per box: 83 % returned in the 1x and 4x boxes, against 63 % and 47 %
-keeping the end that misses less; with the acceleration all of every box returns). A descent stops when X_N is within :data:`HORIZON_EPS` of X* or a step gains less
-than 1 %. Controls are kept inside their bounds. Apexes and controls are SI units and
-radians.
+direction; two strides reach the fourth through the first stride's dr/dX. The unknowns
+are the free entries of u_1 .. u_N, scaled by the controls' nominal sizes; the residual
+is X_N - X*, scaled by the apex's. Each step is Levenberg-Marquardt with the chained AD
+Jacobians dX_N/du_k = A_{N-1} ... A_{k+1} B_k, its damping set by Nielsen's rule, and
+bent by geodesic acceleration (Transtrum and Sethna, 2012): at upright gaits the miss
+lies in a curved valley (dX_N/du has singular values 1e5 apart), along which plain
+damped steps gain about 10 % each and stop short; the acceleration, from one more value
+pass, follows it. Measured at the shipped upright gait from 20 starts of the 1x box: the
+plans reached X* (eps <= 1e-10) at 98 % of apexes, not 21 %, and the runs returned in
+2.1 strides, not 9.5. The warm start at the next apex is the tail of the plan followed
+by u*: where the plan reached X*, its tail still does (X* is a fixed point under u*), so
+the search starts on target. Each start's miss is taken by value strides first, and a
+start already within :data:`HORIZON_EPS` is kept without a Jacobian. Given a feedback
+gain K, the search has a second start: the plan that u* + K (X - X*) would follow from X
+(at a highly unstable gait the constant plan falls within N strides, and there is no
+Jacobian to start from). It descends from the start that misses X* less, and from the
+other only when that descent ends short of :data:`HORIZON_EPS`; the better end is kept
+(from the nearer start alone, a descent can end at a plan that never returns). On a
+family of gaits (a neutral multiplier) no plan of N strides removes the miss along the
+family, both descents end short at floors that it sets, and the plan that continues the
+last one does better: there the tail is searched first and kept unless the other start's
+end reaches the target (measured on the thesis-scale VPP gait with damped steps alone,
+30 starts per box: 83 % returned in the 1x and 4x boxes, against 63 % and 47 % keeping
+the end that misses less; with the acceleration all of every box returns). A descent
+stops when X_N is within :data:`HORIZON_EPS` of X* or a step gains less than 1 %.
+Controls are kept inside their bounds. Apexes and controls are SI units and radians.
 """
 
 from __future__ import annotations

@@ -102,7 +102,7 @@ def _best_text(summary: dict) -> str:
     basin = summary["basins"][name]
     largest, last = basin["largest_90_box"], basin["per_box"][-1]
     box = "no box with 90 % returned" if largest is None else f"90 % or more returned up to the {largest:g}x box"
-    return f"{name} ({box}; {last['returned_fraction']:.0%} in the {last['box']:g}x box)"
+    return f"{name} ({box}; {last['returned_fraction']:.1%} in the {last['box']:g}x box)"
 
 
 def _re_solve_starts(runs: dict) -> str:
