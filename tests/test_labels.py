@@ -20,7 +20,8 @@ def test_the_controller_panels_are_titled_in_words():
     assert titles and all(title in CONTROLLER_NAMES.values() for title in titles)
     legend = [text.get_text() for text in figures["basins"].axes[0].get_legend().get_texts()]
     assert "pivot feedback (r_vpp only); 4,000 starts a box" in legend and not any(t.startswith("pivot;") for t in legend)
-    assert "receding-horizon re-solve; 1,000 starts a box" in legend  # the re-solves run fewer, and say so
+    assert "receding-horizon re-solve; 4,000 starts a box" in legend
+    assert "one-stride re-solve; 100 starts a box" in legend  # a controller that runs fewer starts says so
 
 
 def test_every_figure_of_a_run_is_titled_with_its_problem_law_and_body():
