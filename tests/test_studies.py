@@ -442,6 +442,7 @@ def test_the_pivot_feedback_moves_the_vpp_pivot_alone_and_brings_back_starts_the
             .replace("boxes: [1, 2, 4, 8, 16]", "boxes: [1]").replace("strides: 100", "strides: 40")
             .replace("controllers: [constant, feedback, pivot, horizon, resolve]", "controllers: [constant, pivot]")
             + "  lqr_scale: {z: 0.01, theta_h: 0.01, ydot: 0.01, theta_h_dot: 0.1}\n")
+    assert "solve_samples: 1 " in text and "controllers: [constant, pivot]" in text  # the shipped file still reads so
     problem_path = tmp_path / "pivot.yaml"
     problem_path.write_text(text)
     problem = load_problem(problem_path)
