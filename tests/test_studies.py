@@ -403,6 +403,7 @@ def test_a_controllers_study_compares_four_controllers_on_the_same_starts_box_by
         counts[(r["controller"], float(r["box"]))] = counts.get((r["controller"], float(r["box"])), 0) + 1
     starts_of = {"constant": 4, "feedback": 4, "horizon": 3, "resolve": 2}
     assert counts == {(c, b): starts_of[c] for c in starts_of for b in (1.0, 4.0)}
+    assert all(float(r["ms_per_stride"]) == float(f"{float(r['ms_per_stride']):.3g}") > 0 for r in rows)  # a measurement's digits
     starts = {}
     for r in rows:  # the same perturbed start for every controller, 4 times larger in the larger box
         starts.setdefault((float(r["box"]), r["sample"]), set()).add(
