@@ -7,6 +7,7 @@ the rows already there, and a row cut short by a kill is dropped and redone.
 import csv
 import json
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -14,7 +15,7 @@ import numpy as np
 import pytest
 
 from baslip.gait.fixedpoint import SolverReport
-from baslip.problem.reader import ProblemError, load_problem, parse_problem
+from baslip.problem.reader import Problem, ProblemError, load_problem, parse_problem
 from baslip.problem.study import Sweep
 from baslip.status import Status
 from baslip.studies.adaptive import bisected_factor
@@ -386,10 +387,11 @@ def test_a_controllers_study_compares_four_controllers_on_the_same_starts_box_by
     feedback stabilises the linearised loop."""
     monkeypatch.setenv("BASLIP_NO_COMPILE", "1")
     text = (Path(__file__).resolve().parents[1] / "problems" / "controllers_downward.yaml").read_text()
-    text = (text.replace("samples: 4000", "samples: 4")
-            .replace("solve_samples: {horizon: 1000, resolve: 100}", "solve_samples: {horizon: 3, resolve: 2}")
+    text = (re.sub(r"solve_samples: \{horizon: \d+, resolve: \d+\}", "solve_samples: {horizon: 3, resolve: 2}", text)
+            .replace("samples: 4000", "samples: 4")
             .replace("boxes: [1, 2, 4, 8, 16]", "boxes: [1, 4]").replace("strides: 100", "strides: 6")
             + "  lqr_scale: {z: 0.01, theta_h: 0.1, ydot: 0.1, theta_h_dot: 1.0}\n")
+    assert "{horizon: 3, resolve: 2}" in text and "boxes: [1, 4]" in text  # the shipped file still reads so
     problem_path = tmp_path / "controllers.yaml"
     problem_path.write_text(text)
     out = tmp_path / "results" / "controllers"
@@ -427,6 +429,28 @@ def test_a_controllers_study_compares_four_controllers_on_the_same_starts_box_by
     with open(out / "controllers.csv") as handle:
         redrawn = list(csv.DictReader(handle))
     assert sorted(r["d_z"] for r in redrawn) != sorted(r["d_z"] for r in rows)
+
+    # More re-solved starts only add tasks: the folder is resumed, its rows are kept to the
+    # bit, and the run it extends is named in the provenance. Fewer starts, or more starts
+    # with any other change, are another problem.
+    def solving(counts: dict, **changes) -> Problem:
+        return load_problem(problem_path).replace(study={**_controllers_section(text), "seed": 2,
+                                                         "solve_samples": counts, **changes})
+
+    with pytest.raises(StaleFolder, match="changed: study.solve_samples"):
+        run_study(solving({"horizon": 3, "resolve": 1}), out, quiet=True)
+    with pytest.raises(StaleFolder, match="changed: study.solve_samples, study.strides"):
+        run_study(solving({"horizon": 3, "resolve": 3}, strides=5), out, quiet=True)
+    grown = run_study(solving({"horizon": 3, "resolve": 3}), out, quiet=True)
+    assert grown["complete"] and grown["done_before_this_run"] == len(redrawn) and grown["done_in_this_run"] == 2
+    with open(out / "controllers.csv") as handle:
+        extended = {(r["controller"], r["box"], r["sample"]): r for r in csv.DictReader(handle)}
+    assert len(extended) == len(redrawn) + 2
+    assert {key for key in extended if key[0] == "resolve"} == {("resolve", box, k) for box in ("1.0", "4.0") for k in "012"}
+    assert all(extended[(r["controller"], r["box"], r["sample"])] == r for r in redrawn)
+    (earlier,) = grown["provenance"]["earlier_runs"]
+    assert earlier["problem_hash"] == again["provenance"]["problem_hash"] != grown["provenance"]["problem_hash"]
+    assert dict(earlier["study"]["solve_samples"]) == {"horizon": 3, "resolve": 2}
 
 
 def test_the_pivot_feedback_moves_the_vpp_pivot_alone_and_brings_back_starts_the_constant_law_loses(tmp_path):

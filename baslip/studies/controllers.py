@@ -56,7 +56,7 @@ from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import HipLaw
 from baslip.model.quantities import NOMINAL
 from baslip.problem.reader import Problem
-from baslip.problem.study import ADAPTED_CONTROLS, Controllers
+from baslip.problem.study import ADAPTED_CONTROLS, RESOLVING, Controllers
 from baslip.studies.common import StudyFailed, run_info, study_table
 from baslip.studies.runner import Workers, run_tasks
 from baslip.viz import figures
@@ -98,6 +98,30 @@ def controller_tasks(study: Controllers) -> list[dict]:
                        **{f"d_{n}": round(float(v), 15) for n, v in zip(APEX.names, delta)}}
                       for k, delta in enumerate(deltas[: study.starts(name)])]
     return tasks
+
+
+def adds_starts(old: dict, new: dict) -> bool:
+    """Whether the resolved study section ``new`` only adds starts to ``old``'s.
+
+    True when the two differ in ``solve_samples`` alone and no re-solving controller gets
+    fewer starts. Its starts are the first of the same draws (which ``samples`` and
+    ``seed`` fix), and each row depends on its own start alone, so the rows of ``old``
+    stay valid: a run of ``new`` in ``old``'s folder computes only the added starts.
+
+    Parameters
+    ----------
+    old, new : dict
+        The ``study`` entries of two resolved problems' provenance records.
+    """
+    def others(study: dict) -> dict:
+        return {key: value for key, value in study.items() if key != "solve_samples"}
+
+    def starts(study: dict, name: str) -> int:
+        return min(dict(study.get("solve_samples") or ()).get(name, study["samples"]), study["samples"])
+
+    if old.get("kind") != "controllers" or others(old) != others(new):
+        return False
+    return all(starts(new, name) >= starts(old, name) for name in RESOLVING)
 
 
 def lqr_weights(study: Controllers) -> np.ndarray:

@@ -13,7 +13,9 @@ Rerunning a finished study does no new solves; an interrupted one resumes, givin
 same answers as an uninterrupted run. The folder is held by one run at a time
 (:mod:`baslip.files.lock`). ``result.json`` is written first, with ``complete: false`` and the
 ``provenance`` of the run; a rerun whose problem differs from the one recorded there is
-refused (:class:`StaleFolder`) unless it is asked to start afresh.
+refused (:class:`StaleFolder`) unless it is asked to start afresh, or unless the kind says
+that the new problem only adds tasks to the recorded one (a controllers study given more
+re-solved starts): then the rows stay and the run computes the added tasks.
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ from baslip.studies.adaptive import run_adaptive_study
 from baslip.studies.atlas import run_atlas
 from baslip.studies.basin import check_basin, run_basin
 from baslip.studies.common import StudyFailed
-from baslip.studies.controllers import run_controllers
+from baslip.studies.controllers import adds_starts, run_controllers
 from baslip.studies.optimal import run_optimal
 from baslip.studies.processes import WorkerDied
 from baslip.studies.runner import LANES, Workers
@@ -59,12 +61,15 @@ class StudyKind:
     ``run(problem, study, out_dir, sources, quiet, lanes, workers)`` returns the kind's
     part of ``result.json``; ``check(problem, study, sources)`` raises an
     :class:`~baslip.errors.InputError` before anything runs; ``data_files`` are the
-    tables it writes (``--fresh`` removes them).
+    tables it writes (``--fresh`` removes them); ``grows(old, new)`` tells whether a
+    resolved study section ``new`` keeps every task (and row) of ``old`` and only adds
+    tasks, so that a folder of ``old`` may be resumed under ``new``.
     """
 
     run: Callable[..., dict]
     data_files: tuple[str, ...]
     check: Callable[..., None] | None = None
+    grows: Callable[[dict, dict], bool] | None = None
 
 
 #: Every kind of study, by the class of its ``study:`` section.
@@ -74,7 +79,7 @@ KINDS: dict[type, StudyKind] = {
     Basin: StudyKind(run_basin, ("basin.csv", "trajectories.csv"), check_basin),
     Adaptive: StudyKind(run_adaptive_study, ("strides.csv",)),
     Optimal: StudyKind(run_optimal, ("points.csv",)),
-    Controllers: StudyKind(run_controllers, ("controllers.csv",)),
+    Controllers: StudyKind(run_controllers, ("controllers.csv",), grows=adds_starts),
     Atlas: StudyKind(run_atlas, ("cells.csv", "atlas.csv", "atlas_boundary.csv", "atlas_best.csv")),
 }
 #: Files any study writes besides its figures; ``--fresh`` removes them before starting.
@@ -130,19 +135,26 @@ def run_study(problem: Problem, out_dir: Path, quiet: bool = False, fresh: bool 
 def _what_ran(record: dict, earlier: dict | None, code: dict[str, str]) -> dict:
     """The run's provenance ``record`` with the code its libraries ran on (in this process
     and in its workers), and, for a resumed run, the versions and code of the earlier
-    runs when they differ from this one's."""
+    runs when they differ from this one's (and the problem hash and study section of an
+    earlier run that this one extends)."""
     record = {**record, "code": dict(sorted(code.items()))}
-    if earlier is not None and (earlier.get("versions") != record["versions"] or earlier.get("code") != record["code"]):
-        record["earlier_runs"] = [{"versions": earlier.get("versions"), "code": earlier.get("code")},
-                                  *earlier.get("earlier_runs", [])]
+    if earlier is None:
+        return record
+    grown = earlier.get("problem_hash") != record["problem_hash"]
+    if grown or earlier.get("versions") != record["versions"] or earlier.get("code") != record["code"]:
+        entry = {"versions": earlier.get("versions"), "code": earlier.get("code")}
+        if grown:  # the earlier rows solved a study that this one extends
+            entry |= {"problem_hash": earlier.get("problem_hash"), "study": earlier.get("problem", {}).get("study")}
+        record["earlier_runs"] = [entry, *earlier.get("earlier_runs", [])]
     return record
 
 
 def _claim(problem: Problem, out_dir: Path, fresh: bool, lanes: int | None = None) -> tuple[dict, dict | None]:
-    """Check that ``out_dir`` holds nothing but earlier results of this same problem, run
-    in the same number of lanes (or clear it if ``fresh``); record this run's provenance
-    in result.json (its ``code`` is empty until the run has loaded its libraries).
-    Return the record and, for a resumed run, the earlier run's."""
+    """Check that ``out_dir`` holds nothing but earlier results of this same problem (or of
+    one that it extends, :func:`_extends`), run in the same number of lanes (or clear it
+    if ``fresh``); record this run's provenance in result.json (its ``code`` is empty
+    until the run has loaded its libraries). Return the record and, for a resumed run,
+    the earlier run's."""
     record = {**provenance(problem, {}), "lanes": lanes or LANES}
     earlier = None
     data = [out_dir / name for name in DATA_FILES if (out_dir / name).exists()]
@@ -153,9 +165,8 @@ def _claim(problem: Problem, out_dir: Path, fresh: bool, lanes: int | None = Non
         if old is None:
             raise StaleFolder("", f"{out_dir} holds results with no provenance record (from an older baslip?); "
                               "rerun with --fresh to discard them, or choose another --out")
-        if old.get("problem_hash") != record["problem_hash"]:
-            ignored = ("name", "solver.print_level")
-            changed = [n for n in changed_entries(old.get("problem", {}), record["problem"]) if n not in ignored]
+        if old.get("problem_hash") != record["problem_hash"] and not _extends(problem, old, record):
+            changed = _changed(old.get("problem", {}), record["problem"])
             raise StaleFolder("", f"{out_dir} holds results of a different problem (changed: {', '.join(changed[:4]) or 'unknown'}); "
                               "rerun with --fresh to discard them, or choose another --out")
         if lanes is not None and lanes != old.get("lanes", LANES):
@@ -167,6 +178,21 @@ def _claim(problem: Problem, out_dir: Path, fresh: bool, lanes: int | None = Non
     write_files_atomically({out_dir / "result.json": json_text(
         {"name": problem.name, "kind": problem.study.kind, "complete": False, "provenance": record})})
     return record, earlier
+
+
+def _extends(problem: Problem, old: dict, record: dict) -> bool:
+    """Whether this run's problem (its provenance ``record``) only adds tasks to the
+    recorded run ``old``: they differ in the study section alone, and its kind says so."""
+    grows = KINDS[type(problem.study)].grows
+    before, now = old.get("problem", {}), record["problem"]
+    return (grows is not None and all(n.startswith("study.") for n in _changed(before, now))
+            and isinstance(before.get("study"), dict) and grows(before["study"], now["study"]))
+
+
+def _changed(old: dict, new: dict) -> list[str]:
+    """Dotted names of the entries that differ between two resolved problems, leaving out
+    those that change no number (the problem hash leaves them out too)."""
+    return [n for n in changed_entries(old, new) if n not in ("name", "solver.print_level")]
 
 
 def _recorded_provenance(out_dir: Path) -> dict | None:
