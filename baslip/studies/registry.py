@@ -134,18 +134,21 @@ def run_study(problem: Problem, out_dir: Path, quiet: bool = False, fresh: bool 
 
 def _what_ran(record: dict, earlier: dict | None, code: dict[str, str]) -> dict:
     """The run's provenance ``record`` with the code its libraries ran on (in this process
-    and in its workers), and, for a resumed run, the versions and code of the earlier
-    runs when they differ from this one's (and the problem hash and study section of an
-    earlier run that this one extends)."""
+    and in its workers), and, for a resumed run (``earlier``: the folder's result.json as
+    it was), the versions and code of the earlier runs when they differ from this one's,
+    and the problem hash, study section and wall time of an earlier run that this one
+    extends."""
     record = {**record, "code": dict(sorted(code.items()))}
     if earlier is None:
         return record
-    grown = earlier.get("problem_hash") != record["problem_hash"]
-    if grown or earlier.get("versions") != record["versions"] or earlier.get("code") != record["code"]:
-        entry = {"versions": earlier.get("versions"), "code": earlier.get("code")}
-        if grown:  # the earlier rows solved a study that this one extends
-            entry |= {"problem_hash": earlier.get("problem_hash"), "study": earlier.get("problem", {}).get("study")}
-        record["earlier_runs"] = [entry, *earlier.get("earlier_runs", [])]
+    before = earlier["provenance"]
+    grown = before.get("problem_hash") != record["problem_hash"]
+    if grown or before.get("versions") != record["versions"] or before.get("code") != record["code"]:
+        entry = {"versions": before.get("versions"), "code": before.get("code")}
+        if grown:  # the earlier rows solved a study that this one extends, in this time
+            entry |= {"problem_hash": before.get("problem_hash"), "study": before.get("problem", {}).get("study"),
+                      "wall_time_s": earlier.get("wall_time_s")}
+        record["earlier_runs"] = [entry, *before.get("earlier_runs", [])]
     return record
 
 
@@ -154,11 +157,12 @@ def _claim(problem: Problem, out_dir: Path, fresh: bool, lanes: int | None = Non
     one that it extends, :func:`_extends`), run in the same number of lanes (or clear it
     if ``fresh``); record this run's provenance in result.json (its ``code`` is empty
     until the run has loaded its libraries). Return the record and, for a resumed run,
-    the earlier run's."""
+    the folder's result.json as it was."""
     record = {**provenance(problem, {}), "lanes": lanes or LANES}
     earlier = None
     data = [out_dir / name for name in DATA_FILES if (out_dir / name).exists()]
-    old = _recorded_provenance(out_dir)
+    recorded = _recorded(out_dir)
+    old = recorded.get("provenance") if isinstance(recorded.get("provenance"), dict) else None
     if fresh:
         clear_run(out_dir)
     elif data:
@@ -173,7 +177,7 @@ def _claim(problem: Problem, out_dir: Path, fresh: bool, lanes: int | None = Non
             raise StaleFolder("", f"{out_dir} holds a run in {old.get('lanes', LANES)} lanes, not {lanes}; rerun with "
                               "--fresh to start again in the new count, or leave out --lanes to resume")
         record["lanes"] = old.get("lanes", LANES)
-        earlier = old
+        earlier = recorded
     assert problem.study is not None
     write_files_atomically({out_dir / "result.json": json_text(
         {"name": problem.name, "kind": problem.study.kind, "complete": False, "provenance": record})})
@@ -195,12 +199,13 @@ def _changed(old: dict, new: dict) -> list[str]:
     return [n for n in changed_entries(old, new) if n not in ("name", "solver.print_level")]
 
 
-def _recorded_provenance(out_dir: Path) -> dict | None:
+def _recorded(out_dir: Path) -> dict:
+    """The folder's result.json as it is ({} if it is missing or unreadable)."""
     try:
         record = json.loads(regular_text(out_dir / "result.json"))
     except (OSError, ValueError):
-        return None
-    return record.get("provenance") if isinstance(record, dict) else None
+        return {}
+    return record if isinstance(record, dict) else {}
 
 
 def outcome(summary: dict) -> str | None:
