@@ -452,6 +452,8 @@ def test_a_controllers_study_compares_four_controllers_on_the_same_starts_box_by
     assert earlier["problem_hash"] == again["provenance"]["problem_hash"] != grown["provenance"]["problem_hash"]
     assert dict(earlier["study"]["solve_samples"]) == {"horizon": 3, "resolve": 2}
     assert earlier["wall_time_s"] == again["wall_time_s"]
+    rerun = run_study(solving({"horizon": 3, "resolve": 3}), out, quiet=True)  # finished: no solve, the record kept
+    assert rerun["done_in_this_run"] == 0 and rerun["provenance"]["earlier_runs"] == grown["provenance"]["earlier_runs"]
 
 
 def test_the_pivot_feedback_moves_the_vpp_pivot_alone_and_brings_back_starts_the_constant_law_loses(tmp_path):

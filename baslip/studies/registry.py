@@ -134,22 +134,31 @@ def run_study(problem: Problem, out_dir: Path, quiet: bool = False, fresh: bool 
 
 def _what_ran(record: dict, earlier: dict | None, code: dict[str, str]) -> dict:
     """The run's provenance ``record`` with the code its libraries ran on (in this process
-    and in its workers), and, for a resumed run (``earlier``: the folder's result.json as
-    it was), the versions and code of the earlier runs when they differ from this one's,
-    and the problem hash, study section and wall time of an earlier run that this one
-    extends."""
+    and in its workers), and, for a resumed run of the same problem (``earlier``: the
+    folder's result.json as it was), the earlier run's versions and code where they
+    differ from this one's, ahead of the ``earlier_runs`` that :func:`_claim` carried over."""
     record = {**record, "code": dict(sorted(code.items()))}
     if earlier is None:
         return record
     before = earlier["provenance"]
-    grown = before.get("problem_hash") != record["problem_hash"]
-    if grown or before.get("versions") != record["versions"] or before.get("code") != record["code"]:
-        entry = {"versions": before.get("versions"), "code": before.get("code")}
-        if grown:  # the earlier rows solved a study that this one extends, in this time
-            entry |= {"problem_hash": before.get("problem_hash"), "study": before.get("problem", {}).get("study"),
-                      "wall_time_s": earlier.get("wall_time_s")}
-        record["earlier_runs"] = [entry, *before.get("earlier_runs", [])]
+    extended = before.get("problem_hash") != record["problem_hash"]  # already listed by _claim
+    if not extended and (before.get("versions") != record["versions"] or before.get("code") != record["code"]):
+        record["earlier_runs"] = [{"versions": before.get("versions"), "code": before.get("code")},
+                                  *record.get("earlier_runs", [])]
     return record
+
+
+def _carried_runs(earlier: dict, record: dict) -> list[dict]:
+    """The ``earlier_runs`` that a resumed run's provenance ``record`` carries over from
+    the folder's result.json ``earlier``, led by the run it held where this run extends
+    that one (its versions, code, problem hash, study section and wall time)."""
+    before = earlier["provenance"]
+    runs = list(before.get("earlier_runs", []))
+    if before.get("problem_hash") != record["problem_hash"]:
+        runs.insert(0, {"versions": before.get("versions"), "code": before.get("code"),
+                        "problem_hash": before.get("problem_hash"), "study": before.get("problem", {}).get("study"),
+                        "wall_time_s": earlier.get("wall_time_s")})
+    return runs
 
 
 def _claim(problem: Problem, out_dir: Path, fresh: bool, lanes: int | None = None) -> tuple[dict, dict | None]:
@@ -178,6 +187,8 @@ def _claim(problem: Problem, out_dir: Path, fresh: bool, lanes: int | None = Non
                               "--fresh to start again in the new count, or leave out --lanes to resume")
         record["lanes"] = old.get("lanes", LANES)
         earlier = recorded
+        if carried := _carried_runs(earlier, record):  # kept if this run is killed
+            record["earlier_runs"] = carried
     assert problem.study is not None
     write_files_atomically({out_dir / "result.json": json_text(
         {"name": problem.name, "kind": problem.study.kind, "complete": False, "provenance": record})})
