@@ -384,7 +384,8 @@ def test_a_controllers_study_compares_four_controllers_on_the_same_starts_box_by
     gait, four perturbed starts each for the batched controllers, three for the horizon
     and two for the one-stride re-solve (the first of the same draws). The LQR weights
     are given (lqr_scale), so that no pilot sample runs in the virtual machine; the
-    feedback stabilises the linearised loop."""
+    feedback stabilises the linearised loop. Another seed is another problem; more
+    re-solved starts grow the folder in place."""
     monkeypatch.setenv("BASLIP_NO_COMPILE", "1")
     text = (Path(__file__).resolve().parents[1] / "problems" / "controllers_downward.yaml").read_text()
     text = (re.sub(r"solve_samples: \{horizon: \d+, resolve: \d+\}", "solve_samples: {horizon: 3, resolve: 2}", text)
