@@ -497,7 +497,10 @@ def test_the_pivot_feedback_moves_the_vpp_pivot_alone_and_brings_back_starts_the
 def test_the_wilson_interval_holds_its_share_and_narrows_with_samples():
     from baslip.studies.controllers import wilson_interval
 
-    assert wilson_interval(0, 10)[0] == 0.0 and wilson_interval(10, 10)[1] == 1.0
+    for samples in (10, 1000, 4000, 20000):  # all or none of the starts: the ends are exact
+        assert wilson_interval(0, samples)[0] == 0.0 and wilson_interval(samples, samples)[1] == 1.0
+    lo, hi = wilson_interval(3, 40)
+    assert wilson_interval(37, 40) == pytest.approx((1 - hi, 1 - lo), abs=1e-15)  # symmetric in k -> n - k
     lo, hi = wilson_interval(45, 100)
     assert lo < 0.45 < hi and hi - lo == pytest.approx(0.19, abs=0.01)  # about 2 x 1.96 sqrt(p q / n)
     narrow, wide = wilson_interval(450, 1000), wilson_interval(45, 100)
