@@ -133,10 +133,19 @@ def test_rerunning_a_finished_study_solves_nothing(tiny_grid):
 def test_an_interrupted_study_resumes_where_it_stopped(tiny_grid):
     problem_path, out, _ = tiny_grid
     lines = (out / "points.csv").read_text().splitlines(keepends=True)
-    # As if killed while writing the third row: two rows kept, the third cut short.
+    # As if killed while writing the third row: two rows kept, the third cut short, and
+    # result.json as the run's claim of the folder left it (its code not yet recorded).
     (out / "points.csv").write_text("".join(lines[:3]) + lines[3][:20])
+    finished = json.loads((out / "result.json").read_text())
+    claim = {"name": finished["name"], "kind": finished["kind"], "complete": False,
+             "provenance": {**finished["provenance"], "code": {}}}
+    (out / "result.json").write_text(json.dumps(claim))
     resumed = run_study(load_problem(problem_path), out, quiet=True)
     assert resumed["done_before_this_run"] == 2 and resumed["done_in_this_run"] == 2
+    # The stopped run's code is not known: listed as null, not as having loaded nothing.
+    stopped = {"versions": finished["provenance"]["versions"], "code": None}
+    assert resumed["provenance"]["earlier_runs"] == [stopped, *finished["provenance"].get("earlier_runs", [])]
+    assert resumed["provenance"]["code"]  # this run's own, recorded
     keys = [tuple(line.split(",")[:2]) for line in (out / "points.csv").read_text().splitlines()[1:]]
     assert len(keys) == len(set(keys)) == 4
 

@@ -142,8 +142,11 @@ def _what_ran(record: dict, earlier: dict | None, code: dict[str, str]) -> dict:
         return record
     before = earlier["provenance"]
     extended = before.get("problem_hash") != record["problem_hash"]  # already listed by _claim
-    if not extended and (before.get("versions") != record["versions"] or before.get("code") != record["code"]):
-        record["earlier_runs"] = [{"versions": before.get("versions"), "code": before.get("code")},
+    # A run stopped before its end never recorded its code (its claim's is empty): null
+    # says "not known", where {} would claim that it loaded nothing.
+    code_before = before.get("code") or None
+    if not extended and (before.get("versions") != record["versions"] or code_before != record["code"]):
+        record["earlier_runs"] = [{"versions": before.get("versions"), "code": code_before},
                                   *record.get("earlier_runs", [])]
     return record
 
