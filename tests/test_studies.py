@@ -510,6 +510,9 @@ def test_the_wilson_interval_holds_its_share_and_narrows_with_samples():
         assert wilson_interval(0, samples)[0] == 0.0 and wilson_interval(samples, samples)[1] == 1.0
     lo, hi = wilson_interval(3, 40)
     assert wilson_interval(37, 40) == pytest.approx((1 - hi, 1 - lo), abs=1e-15)  # symmetric in k -> n - k
+    # None of n: the upper end is z^2 / (n + z^2) (0.2775 for n = 10), and all of n mirrors it.
+    assert wilson_interval(0, 10)[1] == pytest.approx(1.96**2 / (10 + 1.96**2), abs=1e-12)
+    assert wilson_interval(10, 10)[0] == pytest.approx(10 / (10 + 1.96**2), abs=1e-12)
     lo, hi = wilson_interval(45, 100)
     assert lo < 0.45 < hi and hi - lo == pytest.approx(0.19, abs=0.01)  # about 2 x 1.96 sqrt(p q / n)
     narrow, wide = wilson_interval(450, 1000), wilson_interval(45, 100)

@@ -205,6 +205,7 @@ def wilson_interval(converged: int, samples: int, z: float = 1.96) -> tuple[floa
 
 
 def _wilson_lower(count: int, samples: int, z: float) -> float:
+    """The lower end of the Wilson score interval of ``count / samples`` (0 for none)."""
     if count == 0:
         return 0.0
     share, z2 = count / samples, z * z
