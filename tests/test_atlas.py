@@ -4,11 +4,13 @@ their length, area or volume, and no holes; a domain boundary stops the covering
 reason, and is recorded even where a neighbour's ball reaching past it closed the way;
 separate pieces are found as pieces, and a seed on a covered piece joins it; all pieces
 grow together, best-first, so that a chart limit reaches every seed's piece; a chart
-limit leaves the atlas marked incomplete; a ball whose tangent space has turned away does
+limit leaves the atlas marked incomplete; a cap on the system's rank of its points stops
+the covering there and changes nothing before it; a ball whose tangent space has turned away does
 not close a chart's directions; the chart graph's local minima of a function are one
 chart in each of its valleys."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -240,6 +242,32 @@ def test_where_the_corrector_gives_up_the_atlas_is_not_complete():
     kinds = {b.kind for b in atlas.boundaries}
     assert kinds == {"corrector"} and not atlas.complete
     assert all(b.reason.startswith("Newton") for b in atlas.boundaries)
+
+
+class RankedSphere(Sphere):
+    """A sphere ranked by its height: the atlas grows from its lowest charts first."""
+
+    def priority(self, w):
+        return float(w[-1])
+
+
+def test_a_cap_on_the_rank_stops_the_covering_there_and_changes_nothing_before_it():
+    """A sphere ranked by height, capped at 0.5: the part below the cap is covered whole
+    (no holes), no chart above the cap is grown from, each of its open directions is a
+    ``cap`` edge, and the atlas is complete up to the cap. The charts are the first ones
+    of the same covering without the cap, in the same order."""
+    capped = cover(RankedSphere(3), [np.array([1.0, 0.0, 0.0])], 2, replace(SETTINGS, max_priority=0.5))
+    rank = [c.center[-1] for c in capped.charts]
+    assert capped.complete and {b.kind for b in capped.boundaries} == {"cap"}
+    assert all(rank[c.parent] <= 0.5 for c in capped.charts if c.parent is not None)
+    assert {b.chart for b in capped.boundaries} <= {i for i, r in enumerate(rank) if r > 0.5}
+    assert all(b.reason.endswith("above the cap 0.5") for b in capped.boundaries)
+    points = on_sphere(3, 4000, np.random.default_rng(5))
+    assert holes(capped, points[points[:, 2] < 0.5]) == 0
+    assert holes(capped, points[points[:, 2] > 0.9]) > 0  # the cap left the top uncovered
+    whole = cover(RankedSphere(3), [np.array([1.0, 0.0, 0.0])], 2, SETTINGS)
+    assert len(whole.charts) > len(capped.charts)
+    assert all(np.array_equal(a.center, b.center) for a, b in zip(capped.charts, whole.charts))
 
 
 @pytest.mark.parametrize("k", [1, 2, 3])

@@ -30,7 +30,12 @@ describe for COCO's ``atlas_kd``, simplified where baslip's dimensions (k = 1 to
   lose rank, or the projection onto the tangent space folds), the corrector (Newton
   diverging or not converging, the tangent turning too fast at the least step) or the
   chart limit. Only the first two are edges of the manifold: an atlas with a boundary of
-  the other two kinds is not complete, and says so. A direction that a neighbour's ball
+  the other two kinds is not complete, and says so. A system that ranks its points may
+  also have the covering stop where its rank passes a cap
+  (:attr:`AtlasSettings.max_priority`): charts ranked above it are made but not grown
+  from, and their open directions are recorded as boundaries of kind ``cap``. An atlas
+  whose other boundaries are edges is then complete up to the cap: it holds every point
+  that the seeds' pieces reach through charts ranked within it. A direction that a neighbour's ball
   closed, but whose boundary point lies outside the domain, is recorded as an edge of the
   domain too: a ball reaching past the edge would otherwise hide that edge from the table.
 * **Pieces.** All seeds are projected first: a seed that lies in an earlier seed's ball
@@ -100,6 +105,10 @@ class AtlasSettings:
         Factor by which the radius grows after an easy step (the corrector done in
         :data:`EASY_ITERATIONS` iterations, the tangent turned by less than a quarter of
         ``max_turn``).
+    max_priority : float
+        Charts whose priority (see :func:`cover`) exceeds it are not grown from: their
+        open directions are recorded as boundaries of kind ``cap``. Infinite (no cap) by
+        default; it needs a system that ranks its points.
     """
 
     radius: float = 0.2
@@ -109,6 +118,7 @@ class AtlasSettings:
     newton_iterations: int = 20
     max_turn: float = math.radians(30)
     grow: float = 1.3
+    max_priority: float = math.inf
 
 
 @dataclass(frozen=True)
@@ -126,9 +136,10 @@ class Chart:
     iterations: int
 
 
-#: Kinds of boundary: where the manifold ends (``domain``, ``singular``), and where the
-#: covering gave up without knowing (``corrector``, ``limit``).
-EDGE_KINDS = ("domain", "singular", "corrector", "limit")
+#: Kinds of boundary: where the manifold ends (``domain``, ``singular``), where the
+#: covering gave up without knowing (``corrector``, ``limit``), and where the system's rank
+#: of its points passed the cap (``cap``: the manifold goes on, ranked worse).
+EDGE_KINDS = ("domain", "singular", "corrector", "limit", "cap")
 
 
 @dataclass(frozen=True)
@@ -337,7 +348,10 @@ class _Growth:
         queue = [(rank(self.centers[c]) if rank else float(c), c) for c in firsts]
         heapq.heapify(queue)
         while queue:
-            _, c = heapq.heappop(queue)
+            priority, c = heapq.heappop(queue)
+            if rank and priority > self.settings.max_priority:
+                self.close_at_cap(c, priority)
+                continue
             for d in range(len(self.directions)):
                 if not self.open[c][d]:
                     continue
@@ -402,6 +416,15 @@ class _Growth:
             reason = self.system.outside(point) or "outside the domain"
             self.boundaries.append(Boundary(j, self.directions[d].copy(), point, reason, "domain"))
             recorded.add(j)
+
+    def close_at_cap(self, c: int, priority: float) -> None:
+        """Record the open directions of chart ``c``, ranked ``priority`` above the cap, as
+        boundaries of kind ``cap``: the covering does not grow from it."""
+        chart, still = self.charts[c], self.open[c]
+        reason = f"ranked {priority:.4g}, above the cap {self.settings.max_priority:g}"
+        for d in np.nonzero(still)[0]:
+            self.boundaries.append(Boundary(c, self.directions[d].copy(), self.boundary_point(chart, d), reason, "cap"))
+        still[:] = False
 
     def close_at_limit(self) -> bool:
         """Record every still-open direction as stopped by the chart limit; whether any was."""

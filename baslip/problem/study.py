@@ -22,7 +22,8 @@ Kinds:
 * ``atlas``: at every point of a grid of one or two quantities (``vary``), the manifold of
   fixed points covered by charts (:mod:`baslip.analysis.atlas`), grown from ``seeds``
   independent solves with gains drawn over their whole bounds; ``radius`` and
-  ``max_radius`` size the charts (atlas units), ``max_charts`` caps each cell, and
+  ``max_radius`` size the charts (atlas units), ``max_charts`` caps each cell,
+  ``max_spectral_radius`` stops the covering at charts more unstable than it, and
   ``plot`` names the two quantities of its figure; ``polish`` descents of at most
   ``iterations`` steps each start from the least local minima of the radius.
 """
@@ -117,6 +118,7 @@ class Atlas:
     radius: float = 0.3  # of a piece's first chart, in atlas units (baslip.analysis.gaitatlas)
     max_radius: float = 1.5
     max_charts: int = 3000  # per cell
+    max_spectral_radius: float | None = None  # charts above it are made but not grown from (None: no cap)
     plot: tuple[str, str] = ("Kp", "Kd")
     polish: int = 3  # stability descents per cell, from the least local minima of the radius (0: none)
     iterations: int = 60  # most quasi-Newton iterations of each polishing descent
@@ -160,8 +162,8 @@ STUDY_KEYS = {
     "optimal": ("kind", "vary", "starts", "seed", "iterations", "method"),
     "controllers": ("kind", "perturbation", "samples", "seed", "strides", "tolerance", "criterion", "lqr_scale",
                     "boxes", "controllers", "horizon", "solve_samples"),
-    "atlas": ("kind", "vary", "seeds", "seed", "radius", "max_radius", "max_charts", "plot", "polish",
-              "iterations"),
+    "atlas": ("kind", "vary", "seeds", "seed", "radius", "max_radius", "max_charts", "max_spectral_radius", "plot",
+              "polish", "iterations"),
 }
 
 
@@ -264,6 +266,8 @@ def _atlas(data, axes: tuple[Axis, ...]) -> Atlas:
         radius=radius,
         max_radius=max_radius,
         max_charts=_integer(data.get("max_charts", 3000), "study.max_charts", 1, 100000),
+        max_spectral_radius=(_size(data["max_spectral_radius"], "study.max_spectral_radius", 1.0, 1e6)
+                             if "max_spectral_radius" in data else None),
         plot=(plot[0], plot[1]),
         polish=_integer(data.get("polish", 3), "study.polish", 0, 100),
         iterations=_integer(data.get("iterations", 60), "study.iterations", 1, 10000),

@@ -52,7 +52,9 @@ class CellAtlas:
         self.descent = StabilityDescent(self.solver.residual_map, max_iterations=study.iterations)
         self.base = fixed_point_spec(problem)
         self.settings = AtlasSettings(radius=study.radius, max_radius=study.max_radius,
-                                      min_radius=study.radius * LEAST_RADIUS_FRACTION, max_charts=study.max_charts)
+                                      min_radius=study.radius * LEAST_RADIUS_FRACTION, max_charts=study.max_charts,
+                                      max_priority=math.inf if study.max_spectral_radius is None
+                                      else study.max_spectral_radius)
 
     def run(self, task: dict) -> dict:
         """The cells.csv row of ``task``, with ``charts`` and ``boundaries`` (row lists)."""
