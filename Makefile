@@ -19,7 +19,7 @@ VPP_STUDIES = vpp_sweep_thesis vpp_sweep_thesis_low vpp_sweep_human vpp_sweep_hu
 # the most stable upright gait the upright atlas found (its gait copied into the problem),
 # and the stability NLP's cross-checks: of the upright atlas (from drawn starts, then from
 # the atlas's polished gaits), and of the VPP descent.
-ATLASES = atlas_upright atlas_downward controllers_upright_best optimal_upright_schur optimal_vpp_schur
+ATLASES = atlas_upright atlas_upright_capped atlas_downward controllers_upright_best optimal_upright_schur optimal_vpp_schur
 
 .PHONY: studies clean-studies atlases
 

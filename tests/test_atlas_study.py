@@ -195,6 +195,7 @@ def test_a_cell_logs_what_it_is_doing_phase_by_phase(caplog):
 @pytest.mark.parametrize("change, key", [
     ({"seeds": 0}, "study.seeds"), ({"radius": 0.0}, "study.radius"), ({"radius": 20.0}, "study.radius"),
     ({"max_radius": 0.1}, "study.max_radius"), ({"max_charts": 0}, "study.max_charts"), ({"polish": -1}, "study.polish"),
+    ({"max_spectral_radius": 0.9}, "study.max_spectral_radius"), ({"max_spectral_radius": "big"}, "study.max_spectral_radius"),
     ({"iterations": 0}, "study.iterations"), ({"iterations": "many"}, "study.iterations"),
     ({"plot": ["Kp"]}, "study.plot"), ({"plot": ["Kp", "speed"]}, "study.plot"), ({"plot": ["Kp", "Kp"]}, "study.plot"),
     ({"plot": ["Kp", "theta2_dot_des"]}, "study.plot"), ({"plot": ["Kp", "z"]}, "study.plot"),
@@ -247,7 +248,7 @@ def test_the_committed_atlas_never_does_worse_than_the_multistart_search_at_its_
     assert worse == {}
 
 
-@pytest.mark.parametrize("atlas", ["atlas_upright", "atlas_downward"])
+@pytest.mark.parametrize("atlas", ["atlas_upright", "atlas_downward", "atlas_upright_capped"])
 def test_the_committed_polished_gaits_are_fixed_points_of_the_independent_simulation(atlas):
     problem = load_problem(ROOT / "problems" / f"{atlas}.yaml")
     independent = solver_for(problem).verify_map
@@ -258,6 +259,26 @@ def test_the_committed_polished_gaits_are_fixed_points_of_the_independent_simula
         u = np.array([float(row[n]) for n in DESIGN[APEX.size:]])
         assert eps(independent.stride(X, u, problem.params).apex, X) <= 1e-10
         assert float(row["residual"]) <= 1e-10
+
+
+def test_the_committed_capped_atlas_grows_from_no_chart_above_its_cap():
+    """In atlas_upright_capped every ``cap`` edge leaves a chart more unstable than the
+    cap, and every corrector stop a chart within it (steps are taken only from those); a
+    cell is marked covered whole exactly where no edge of it is a corrector stop or the
+    chart limit."""
+    problem = load_problem(ROOT / "problems" / "atlas_upright_capped.yaml")
+    cap = problem.study.max_spectral_radius
+    folder = ROOT / "results" / "atlas_upright_capped"
+    charts = table(folder / "atlas.csv")
+    radius = {(r["sweep_ydot"], r["sweep_z"], r["chart"]): float(r["spectral_radius"]) for r in charts}
+    edges = table(folder / "atlas_boundary.csv")
+    assert {e["kind"] for e in edges} >= {"cap", "domain"}
+    for edge in edges:
+        above = radius[edge["sweep_ydot"], edge["sweep_z"], edge["chart"]] > cap
+        assert above if edge["kind"] == "cap" else not (edge["kind"] == "corrector" and above), edge
+    stopped = {(e["sweep_ydot"], e["sweep_z"]) for e in edges if e["kind"] in ("corrector", "limit")}
+    for cell in table(folder / "cells.csv"):
+        assert (cell["complete"] == "true") == ((cell["sweep_ydot"], cell["sweep_z"]) not in stopped)
 
 
 def test_under_vpp_the_implied_z_row_is_left_out_and_the_rest_keep_full_rank():

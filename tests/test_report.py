@@ -55,6 +55,51 @@ def test_the_atlas_claim_is_as_wide_as_its_covering(tmp_path):
         assert "24 seeds (10 failed)" in text and "3000 charts" in text
 
 
+def test_a_covering_capped_at_a_spectral_radius_is_called_whole_only_up_to_it(tmp_path):
+    """A study that grows from no chart above ``max_spectral_radius`` says so: a complete
+    cell is covered whole up to that radius."""
+    import json
+
+    from baslip.report.atlas import atlas_claims
+
+    summary = atlas_summary(2.7, True, 1.4)
+    summary["provenance"]["problem"]["study"]["max_spectral_radius"] = 20
+    folder = tmp_path / "atlas_upright_cell"
+    folder.mkdir()
+    (folder / "result.json").write_text(json.dumps(summary))
+    [text] = atlas_claims(Evidence(tmp_path))
+    assert ("covered whole up to spectral radius 20: every edge a bound, a fall or a singular chart, or a gait of "
+            "radius above 20") in text
+
+
+def test_the_capped_atlas_says_which_cells_it_covers_whole_and_where_the_uncapped_one_reached_lower(tmp_path):
+    """Beside the upright atlas, the capped one names its cells covered whole up to its
+    cap, the cells where its least radius is above the uncapped covering's, and what such
+    a covering can miss; its polished gaits count in the short answer's least radii."""
+    import json
+
+    from baslip.report.answer import upright_answer
+    from baslip.report.atlas import atlas_claims
+
+    uncapped = atlas_summary(2.7, False, 0.9)
+    capped = atlas_summary(4.1, True, 4.0)
+    capped["provenance"]["problem"]["study"].update(max_spectral_radius=100, max_charts=12000)
+    capped.update(charts=396, not_verified=1, kind="atlas", best=[
+        {"meaning": "upright_throughout", "spectral_radius": 1.19, "ydot": 0.3, "z": 0.4, "upright_apex": True,
+         "upright_throughout": True}])
+    for name, summary in (("atlas_upright", uncapped), ("atlas_upright_capped", capped)):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "result.json").write_text(json.dumps(summary))
+    [text] = atlas_claims(Evidence(tmp_path))
+    assert "1 of the 1 cells covered whole up to 100 ((0.5, 0.4))" in text
+    assert "its least is higher: (0.5, 0.4): 4 against 0.9" in text
+    assert "atlas_upright_capped/atlas.png" in text
+    assert "a stable island ringed by gaits more unstable than that" in text
+    short = upright_answer(Evidence(tmp_path))
+    assert "1 of them covered whole up to spectral radius 100 by `atlas_upright_capped`" in short
+    assert "least radius 1.190 (found by `atlas_upright_capped` at ydot = 0.3 m/s, z = 0.4 m" in short
+
+
 def write_points(path, rows):
     import csv
 
@@ -190,14 +235,23 @@ def test_the_short_upright_answer_counts_what_the_committed_atlases_hold():
 
 def test_the_short_upright_answer_never_states_a_least_radius_above_a_gait_the_report_holds():
     """The least radius upright throughout is the least of the atlas's cells and of the
-    committed multi-start and stability-NLP searches; a search's is named with its cell."""
+    committed multi-start and stability-NLP searches and the capped atlas's polished gaits;
+    a search's is named with its cell."""
     from baslip.report.answer import UPRIGHT_SEARCHES, upright_answer
 
     evidence = Evidence(RESULTS)
     cells = evidence.rows("atlas_upright", "cells.csv")
     atlas = min(c[k] for c in cells for k in ("least_radius_upright_throughout", "polished_upright_throughout_radius")
                 if isinstance(c[k], float))
-    searched = [evidence.summary(name)["least_upright_throughout"] for name in UPRIGHT_SEARCHES]
+    searched = []
+    for name in UPRIGHT_SEARCHES:
+        summary = evidence.summary(name)
+        if summary is None:
+            continue
+        if summary["kind"] == "atlas":  # its polished gaits upright throughout
+            searched += [b for b in summary["best"] if b["upright_throughout"] is True]
+        else:
+            searched.append(summary["least_upright_throughout"])
     best = min(searched, key=lambda gait: gait["spectral_radius"])
     text = upright_answer(evidence).split("Upright throughout the stride")[1]
     least = min(atlas, best["spectral_radius"])

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 from baslip.model.dynamics import Params
+from baslip.report.atlas import CAPPED_ATLAS, capped_whole, covered_whole
 from baslip.report.controllers import CONTROLLER_GAITS, best_controller
 from baslip.report.evidence import DEG, Evidence
 from baslip.report.vpp import VPP_ATLASES
@@ -22,7 +23,7 @@ def upright_answer(ev: Evidence) -> str:
 
 #: The other searches of the upright PD family whose verified gaits the short answer
 #: counts beside the atlas's: its least radii are the least over all of them.
-UPRIGHT_SEARCHES = ("optimal_upright", "optimal_upright_schur")
+UPRIGHT_SEARCHES = ("optimal_upright", "optimal_upright_schur", CAPPED_ATLAS)
 
 
 def _pd(ev: Evidence) -> str:
@@ -53,7 +54,8 @@ def _pd(ev: Evidence) -> str:
     return (f"**Constant PD:** upright at the apex, {at_apex}, least spectral radius {at_apex_radius}. Upright "
             f"throughout the stride (within 45 deg of vertical at every instant): "
             f"{throughout_found}, least radius {_least_text(throughout, searched_throughout)}. Within the bounds "
-            f"and the pieces its seeds reached; {whole} of the {len(cells)} cells covered whole.")
+            f"and the pieces its seeds reached; {whole} of the {len(cells)} cells "
+            f"{covered_whole(summary['provenance']['problem']['study'])}{capped_whole(ev)}.")
 
 
 def _searched_least(ev: Evidence, key: str) -> tuple[float, str, dict]:
@@ -61,11 +63,24 @@ def _searched_least(ev: Evidence, key: str) -> tuple[float, str, dict]:
     committed :data:`UPRIGHT_SEARCHES`; (inf, "", {}) where none has one."""
     found: tuple[float, str, dict] = (math.inf, "", {})
     for name in UPRIGHT_SEARCHES:
-        summary = ev.summary(name)
-        gait = (summary or {}).get(key)
+        gait = _least_gait(ev.summary(name) or {}, key)
         if gait and gait["spectral_radius"] < found[0]:
             found = (gait["spectral_radius"], name, gait)
     return found
+
+
+#: The meaning of upright each key of a search's summary stands for, as an atlas's
+#: polished gaits (``best``) mark it.
+_ATLAS_MEANING = {"least_upright_at_apex": "upright_apex", "least_upright_throughout": "upright_throughout"}
+
+
+def _least_gait(summary: dict, key: str) -> dict | None:
+    """The least-radius gait of ``key`` in a search's summary: its own record, or, for an
+    atlas, the least of its polished gaits with that meaning of upright."""
+    if summary.get("kind") != "atlas":
+        return summary.get(key)
+    gaits = [b for b in summary.get("best", []) if b.get(_ATLAS_MEANING[key]) is True]
+    return min(gaits, key=lambda b: b["spectral_radius"], default=None)
 
 
 def _least_text(atlas: float, searched: tuple[float, str, dict]) -> str:

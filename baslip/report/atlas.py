@@ -11,6 +11,9 @@ from baslip.report.evidence import Evidence, claim
 ATLASES = ("atlas_upright", "atlas_upright_cell")
 #: The atlas of the hanging family, the comparison.
 HANGING = "atlas_downward"
+#: The upright atlas grown from no gait above a spectral radius, so that cells can be
+#: covered whole up to it.
+CAPPED_ATLAS = "atlas_upright_capped"
 #: The stability NLP's runs, the cross-check: from drawn starts over the upright grid, and
 #: from the upright atlas's polished gaits (``examples/schur_from_atlas.py``).
 SCHUR_STUDY = "optimal_upright_schur"
@@ -26,7 +29,7 @@ def atlas_claims(ev: Evidence) -> list[str]:
     for name in ATLASES:
         summary = _finished(ev.summary(name))
         if summary is not None:
-            return [_claim(name, summary, hanging)]
+            return [_claim(name, summary, hanging, ev.summary(CAPPED_ATLAS))]
     return []
 
 
@@ -110,7 +113,7 @@ def _finished(summary: dict | None) -> dict | None:
     return summary if summary and summary.get("complete") and summary.get("cells") else None
 
 
-def _claim(name: str, summary: dict, hanging: dict | None) -> str:
+def _claim(name: str, summary: dict, hanging: dict | None, capped: dict | None) -> str:
     cells = summary["cells"]
     problem = summary["provenance"]["problem"]
     bounds, study = problem["bounds"], problem["study"]
@@ -125,6 +128,8 @@ def _claim(name: str, summary: dict, hanging: dict | None) -> str:
         for c in cells)
     gaits = " ".join(_gait(b) for b in _best_gaits(summary.get("best", [])))
     figures = [f"{name}/atlas.png"] + ([f"{name}/best_gaits_trunk.png"] if summary.get("best") else [])
+    if _finished(capped) is not None:
+        figures.append(f"{CAPPED_ATLAS}/atlas.png")
     if hanging is not None:
         figures.append(f"{HANGING}/atlas.png")
     return claim(
@@ -138,10 +143,11 @@ def _claim(name: str, summary: dict, hanging: dict | None) -> str:
         f"minima of the radius on each cell's chart graph polished by the stability descent (each end verified too). "
         f"Least radius, upright at the apex: "
         f"{_value(apex)}; upright throughout: {_value(throughout)}. {gaits} Per cell: {per_cell}."
-        + _hanging_map(hanging),
+        + _capped(capped, cells) + _hanging_map(hanging),
         _verdict(apex, throughout, all(c["complete"] for c in cells)),
         "The answer is only as wide as the covering: within the bounds, for the pieces the seeds reached, and, "
         "where a cell is not covered whole (chart limit or corrector stops, said above), for the part covered. "
+        + _cap_caveat(_finished(capped)) +
         "A stable gait found is a fact whatever the covering; its absence is only as wide as the covering. Upright at "
         "the apex: |theta_h - 90 deg| <= 30 deg; upright throughout: within 45 deg of vertical at every instant.",
         figures,
@@ -172,6 +178,43 @@ def _gait(row: dict) -> str:
             f"independent eps {row['residual']:.1e}.")
 
 
+def capped_whole(ev: Evidence) -> str:
+    """", and K of them covered whole up to spectral radius R by the capped atlas" ("" if
+    it has not finished)."""
+    summary = _finished(ev.summary(CAPPED_ATLAS))
+    if summary is None:
+        return ""
+    whole = sum(1 for c in summary["cells"] if c["complete"] is True)
+    return f"; {whole} of them {covered_whole(summary['provenance']['problem']['study'])} by `{CAPPED_ATLAS}`"
+
+
+def _capped(summary: dict | None, uncapped: list[dict]) -> str:
+    """What the capped covering adds: its cells covered whole up to its cap, its least
+    radii, and the cells where the uncapped covering reached lower."""
+    summary = _finished(summary)
+    if summary is None:
+        return ""
+    study, cells = summary["provenance"]["problem"]["study"], summary["cells"]
+    cap = study["max_spectral_radius"]
+    whole = [f"({c['ydot']:g}, {c['z']:g})" for c in cells if c["complete"] is True]
+    stops = sum(c["corrector_stops"] for c in cells)
+    before = {(c["ydot"], c["z"]): _least([c], "least_radius_upright_apex", "polished_radius") for c in uncapped}
+    short = [f"({c['ydot']:g}, {c['z']:g}): {_value(least)} against {_value(before[c['ydot'], c['z']])}"
+             for c in cells if (least := _least([c], "least_radius_upright_apex", "polished_radius")) is not None
+             and (c["ydot"], c["z"]) in before and before[c["ydot"], c["z"]] is not None
+             and least > before[c["ydot"], c["z"]] * (1 + SAME_RADIUS)]
+    throughout = _least(cells, "least_radius_upright_throughout", "polished_upright_throughout_radius")
+    return (f" `{CAPPED_ATLAS}` grows the same cells from the same seeds, but from no gait more unstable than spectral "
+            f"radius {cap:g} (at most {study['max_charts']} charts a cell): {summary['charts']} charts, "
+            f"{summary['not_verified']} not confirmed by the independent check; {len(whole)} of the {len(cells)} cells "
+            f"covered whole up to {cap:g} ({', '.join(whole) or 'none'}), the others stopped by the corrector at "
+            f"{stops} edges in all. Least radius, upright at the apex: "
+            f"{_value(_least(cells, 'least_radius_upright_apex', 'polished_radius'))}; upright throughout: "
+            f"{_value(throughout)}."
+            + (f" Where its seeds' pieces reach the uncapped covering's lower gaits only through gaits above {cap:g}, "
+               f"its least is higher: {'; '.join(short)}." if short else ""))
+
+
 def _hanging_map(hanging: dict | None) -> str:
     if hanging is None:
         return ""
@@ -181,10 +224,29 @@ def _hanging_map(hanging: dict | None) -> str:
     return f" For comparison, the hanging family (`{HANGING}`, the same bounds but theta_h within 30 deg of hanging): {cells}."
 
 
+def covered_whole(study: dict) -> str:
+    """"covered whole", and up to which spectral radius if the study's covering stops at
+    one (``max_spectral_radius``)."""
+    cap = study.get("max_spectral_radius")
+    return "covered whole" if cap is None else f"covered whole up to spectral radius {cap:g}"
+
+
+def _cap_caveat(capped: dict | None) -> str:
+    """What a cell covered whole by the capped atlas holds, and what it can miss."""
+    if capped is None:
+        return ""
+    cap = capped["provenance"]["problem"]["study"]["max_spectral_radius"]
+    return (f"`{CAPPED_ATLAS}` grows from no gait more unstable than spectral radius {cap:g}: a cell covered whole holds every "
+            f"gait its seeds' pieces reach through gaits of radius up to {cap:g}, and a stable island ringed by gaits "
+            f"more unstable than that would be found only by a seed landing on it. ")
+
+
 def _whole(cell: dict, study: dict) -> str:
     """Why a cell is not covered whole ("" if it is)."""
     if cell["complete"]:
-        return " (covered whole: every edge a bound, a fall or a singular chart)"
+        cap = study.get("max_spectral_radius")
+        edges = "a bound, a fall or a singular chart" + ("" if cap is None else f", or a gait of radius above {cap:g}")
+        return f" ({covered_whole(study)}: every edge {edges})"
     why = []
     if cell.get("corrector_stops"):
         why.append(f"the corrector gave up at {cell['corrector_stops']} of {cell['boundaries']} edges")
