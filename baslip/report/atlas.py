@@ -199,10 +199,11 @@ def _capped(summary: dict | None, uncapped: list[dict]) -> str:
     whole = [f"({c['ydot']:g}, {c['z']:g})" for c in cells if c["complete"] is True]
     stops = sum(c["corrector_stops"] for c in cells)
     before = {(c["ydot"], c["z"]): _least([c], "least_radius_upright_apex", "polished_radius") for c in uncapped}
-    short = [f"({c['ydot']:g}, {c['z']:g}): {_value(least)} against {_value(before[c['ydot'], c['z']])}"
-             for c in cells if (least := _least([c], "least_radius_upright_apex", "polished_radius")) is not None
-             and (c["ydot"], c["z"]) in before and before[c["ydot"], c["z"]] is not None
-             and least > before[c["ydot"], c["z"]] * (1 + SAME_RADIUS)]
+    short = []
+    for c in cells:
+        least, uncapped_least = _least([c], "least_radius_upright_apex", "polished_radius"), before.get((c["ydot"], c["z"]))
+        if least is not None and uncapped_least is not None and least > uncapped_least * (1 + SAME_RADIUS):
+            short.append(f"({c['ydot']:g}, {c['z']:g}): {_value(least)} against {_value(uncapped_least)}")
     throughout = _least(cells, "least_radius_upright_throughout", "polished_upright_throughout_radius")
     return (f" `{CAPPED_ATLAS}` grows the same cells from the same seeds, but from no gait more unstable than spectral "
             f"radius {cap:g} (at most {study['max_charts']} charts a cell): {summary['charts']} charts, "
