@@ -198,6 +198,8 @@ def _capped(summary: dict | None, uncapped: list[dict]) -> str:
     cap = study["max_spectral_radius"]
     whole = [f"({c['ydot']:g}, {c['z']:g})" for c in cells if c["complete"] is True]
     stops = sum(c["corrector_stops"] for c in cells)
+    limited = sum(1 for c in cells if c["charts"] >= study["max_charts"])
+    others = f"corrector stops at {stops} edges in all" + (f", the chart limit in {limited} cells" if limited else "")
     before = {(c["ydot"], c["z"]): _least([c], "least_radius_upright_apex", "polished_radius") for c in uncapped}
     short = []
     for c in cells:
@@ -208,8 +210,8 @@ def _capped(summary: dict | None, uncapped: list[dict]) -> str:
     return (f" `{CAPPED_ATLAS}` grows the same cells from the same seeds, but from no gait more unstable than spectral "
             f"radius {cap:g} (at most {study['max_charts']} charts a cell): {summary['charts']} charts, "
             f"{summary['not_verified']} not confirmed by the independent check; {len(whole)} of the {len(cells)} cells "
-            f"covered whole up to {cap:g} ({', '.join(whole) or 'none'}), the others stopped by the corrector at "
-            f"{stops} edges in all. Least radius, upright at the apex: "
+            f"covered whole up to {cap:g} ({', '.join(whole) or 'none'}); elsewhere {others}. Least radius, upright at "
+            f"the apex: "
             f"{_value(_least(cells, 'least_radius_upright_apex', 'polished_radius'))}; upright throughout: "
             f"{_value(throughout)}."
             + (f" Where its seeds' pieces reach the uncapped covering's lower gaits only through gaits above {cap:g}, "
