@@ -335,3 +335,13 @@ def test_an_atlas_under_vpp_counts_the_implied_row_and_takes_a_polish():
     data = yaml.safe_load((ROOT / "problems" / "atlas_vpp.yaml").read_text())
     data["study"]["polish"] = 2  # the stability descent runs under every law
     assert parse_problem(data).study.polish == 2
+
+
+@pytest.mark.parametrize("atlas", ["atlas_upright", "atlas_downward", "atlas_upright_capped"])
+def test_a_committed_atlas_keeps_its_problem_hash_whether_or_not_it_sets_a_cap(atlas):
+    """``max_spectral_radius`` came after the first atlases were committed: unset, it is
+    left out of the hash, so their folders still belong to their problem files."""
+    from baslip.files.provenance import problem_hash
+
+    committed = json.loads((ROOT / "results" / atlas / "result.json").read_text())["provenance"]["problem_hash"]
+    assert problem_hash(load_problem(ROOT / "problems" / f"{atlas}.yaml")) == committed

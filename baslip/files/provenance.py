@@ -50,6 +50,11 @@ def _plain(value):
     return value
 
 
+#: Study keys added after results of their kind were committed, with their unset value:
+#: left out of the hash where unset, so that those results keep their hash.
+ADDED_STUDY_KEYS: dict[str, dict[str, object]] = {"atlas": {"max_spectral_radius": None}}
+
+
 def problem_hash(problem: Problem) -> str:
     """SHA-256 (hex) of everything in the problem that can change a number."""
     record = resolved_problem(problem)
@@ -57,10 +62,11 @@ def problem_hash(problem: Problem) -> str:
     record["solver"].pop("print_level")
     if record.get("hip_law") == PD.name:
         record.pop("hip_law")
-    # Keys added since results were first committed hash as before where they are unset.
     study = record.get("study")
-    if isinstance(study, dict) and study.get("kind") == "atlas" and study.get("max_spectral_radius") is None:
-        study.pop("max_spectral_radius", None)
+    if isinstance(study, dict):
+        for key, unset in ADDED_STUDY_KEYS.get(str(study.get("kind")), {}).items():
+            if study.get(key, unset) == unset:
+                study.pop(key, None)
     return hashlib.sha256(json.dumps(record, sort_keys=True).encode()).hexdigest()
 
 
