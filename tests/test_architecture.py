@@ -170,6 +170,20 @@ def test_help_does_not_load_casadi():
     assert out.split() == ["False", "False"]
 
 
+def test_the_studies_modules_do_not_load_matplotlib():
+    # A study's worker processes import the module of their task function; matplotlib
+    # would add a quarter of a second to each one's start (see baslip.studies).
+    studies = sorted(name for name in module_files() if name.startswith("baslip.studies."))
+    code = ("import importlib, sys\n"
+            f"for name in {studies!r}:\n"
+            "    importlib.import_module(name)\n"
+            "    if 'matplotlib' in sys.modules:\n"
+            "        print(name)\n"
+            "        break")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert len(studies) > 10 and out == ""
+
+
 def _tool(name: str) -> list[str]:
     if importlib.util.find_spec(name) is None:
         pytest.fail(f"{name} is not installed: pip install -e '.[test]'")

@@ -40,7 +40,6 @@ from baslip.problem.study import Adaptive
 from baslip.studies.common import StudyFailed, study_table
 from baslip.studies.processes import map_in_processes
 from baslip.studies.runner import ResumableCsv, Workers
-from baslip.viz.adaptive import adaptive_figures
 from baslip.viz.labels import problem_title
 
 _log = logger(__name__)
@@ -247,6 +246,8 @@ def run_adaptive_study(problem: Problem, study: Adaptive, out_dir: Path, sources
     table = study_table(out_dir / "strides.csv", stride_columns(problem.hip_law), ["phase", "n"], quiet)
     summary = run_adaptive(resolved_control(solver.residual_map, gait), result.X + offset, problem.params,
                            study.strides, study.frozen_strides, table, quiet)
+    from baslip.viz.adaptive import adaptive_figures  # drawn in this process only (see baslip.studies)
+
     adaptive_figures(table.rows, out_dir, problem=problem_title(problem))
     recovery = None
     if offset.any():

@@ -40,8 +40,6 @@ from baslip.studies.common import run_info
 from baslip.studies.optimal import UPRIGHT_AT_APEX, UPRIGHT_THROUGHOUT, best_gait_motions
 from baslip.studies.runner import ResumableCsv, StateLog, Workers, csv_text, run_tasks, split_lanes
 from baslip.studies.sweep import key_column, sweep_tasks
-from baslip.viz.atlasmap import atlas_figure
-from baslip.viz.figures import trunk_motion_figure
 from baslip.viz.labels import problem_title
 
 
@@ -137,6 +135,9 @@ def run_atlas(problem: Problem, study: Atlas, out_dir: Path, sources: Path, quie
     cells = read_points(out_dir / "cells.csv")
     summary = {**run_info(report), "swept": names, "cells": _cell_summaries(cells, names)}
     if report.complete:
+        from baslip.viz.atlasmap import atlas_figure  # drawn in this process only (see baslip.studies)
+        from baslip.viz.figures import trunk_motion_figure
+
         charts = read_points(out_dir / "atlas.csv")
         atlas_figure(charts, names, study.plot, out_dir, problem_title(problem))
         best = read_points(out_dir / "atlas_best.csv")

@@ -24,7 +24,6 @@ from baslip.studies.common import run_info, study_table
 from baslip.studies.runner import Workers, run_tasks, split_lanes
 from baslip.studies.sources import StudyInputError, source_points
 from baslip.studies.sweep import key_column
-from baslip.viz import figures
 from baslip.viz.labels import problem_title
 
 #: Simulation accuracy: convergence is judged at 1e-4, far above the map's error.
@@ -146,6 +145,8 @@ def run_basin(problem: Problem, study: Basin, out_dir: Path, sources: Path, quie
     basin_rows = read_points(out_dir / "basin.csv")
     example_index = stable.index(example_stable) if example_stable is not None else None
     grid = (study.grid[0].values, study.grid[1].values)
+    from baslip.viz import figures  # drawn in this process only (see baslip.studies)
+
     figures.basin_figures(basin_rows, stable, unstable, example_index, example_unstable, trajectories, grid, out_dir,
                           problem=problem_title(problem))
     grid_size = len(study.grid[0].values) * len(study.grid[1].values)

@@ -59,7 +59,6 @@ from baslip.problem.reader import Problem
 from baslip.problem.study import ADAPTED_CONTROLS, RESOLVING, Controllers
 from baslip.studies.common import StudyFailed, run_info, study_table
 from baslip.studies.runner import Workers, run_tasks
-from baslip.viz import figures
 from baslip.viz.labels import problem_title
 
 #: Controllers whose control depends on the apex alone: their runs go in lockstep batches.
@@ -309,6 +308,8 @@ def run_controllers(problem: Problem, study: Controllers, out_dir: Path, sources
     rows = read_points(out_dir / "controllers.csv")
     basins = {name: _basin(rows, name, study.boxes) for name in study.controllers}
     smallest = [r for r in rows if r["box"] == min(study.boxes)]
+    from baslip.viz import figures  # drawn in this process only (see baslip.studies)
+
     figures.controllers_figure(smallest, {n: w * min(study.boxes) for n, w in dict(study.perturbation).items()}, out_dir,
                                problem=problem_title(problem))
     figures.basin_figure(basins, problem_title(problem), out_dir)

@@ -29,7 +29,6 @@ from baslip.status import Status
 from baslip.studies.common import run_info, status_counts, study_table
 from baslip.studies.runner import Workers, run_tasks, split_lanes
 from baslip.studies.sweep import key_column, result_columns, result_row, sweep_tasks
-from baslip.viz import figures
 from baslip.viz.labels import problem_title
 
 #: Upright at the apex: |theta_h - 90 deg| within this; upright throughout: the trunk
@@ -167,6 +166,8 @@ def run_optimal(problem: Problem, study: Optimal, out_dir: Path, sources: Path, 
                        problem.name, quiet=quiet, workers=workers)
     rows = read_points(out_dir / "points.csv")
     best = best_rows(rows, names)
+    from baslip.viz import figures  # drawn in this process only (see baslip.studies)
+
     figures.sweep_figures(best, names, out_dir, problem=problem_title(problem))
     figures.trunk_motion_figure(best_gait_motions(best, names, problem.params, law=law), out_dir, problem=problem_title(problem))
 

@@ -30,7 +30,6 @@ from baslip.studies.boundary import inside
 from baslip.studies.common import run_info, status_counts, study_table
 from baslip.studies.runner import LANES, Workers, run_tasks, split_lanes
 from baslip.studies.sources import StudyInputError, source_points, traced_boundary
-from baslip.viz import figures
 from baslip.viz.labels import problem_title
 
 #: Converged points a lane keeps as warm starts: where the solve from the latest is not
@@ -219,6 +218,8 @@ def run_sweep(problem: Problem, study: Sweep, out_dir: Path, sources: Path, quie
     origin = {a.name: problem.start_value(a.name) for a in study.axes}
     names = [a.name for a in study.axes]
     summary = solve_points(problem, out_dir, sweep_lanes(study, origin, lanes), names, quiet, workers)
+    from baslip.viz import figures  # drawn in this process only (see baslip.studies)
+
     figures.sweep_figures(read_points(out_dir / "points.csv"), names, out_dir, problem=problem_title(problem))
     return summary
 
@@ -232,6 +233,8 @@ def run_random(problem: Problem, study: RandomSample, out_dir: Path, sources: Pa
     summary["region"] = study.region
     if study.boundary is not None:
         summary["boundary"] = study.boundary
+    from baslip.viz import figures  # drawn in this process only (see baslip.studies)
+
     figures.random_figure(read_points(out_dir / "points.csv"), region_rows, names, out_dir, curve_rows,
                           problem=problem_title(problem))
     return summary
