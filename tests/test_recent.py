@@ -1,12 +1,13 @@
 """Specification of baslip.engine.recent: the engine remembers its last few settled
 strides, so that a Jacobian taken where a value was just taken settles the stride once,
-with the very numbers a fresh engine computes, and no caller can change another's."""
+and its last few Jacobians, so that a second Jacobian at the same point is not taken
+again; with the very numbers a fresh engine computes, and no caller can change another's."""
 
 import numpy as np
 
 from baslip import Params, ReturnMap, Tolerances
 from baslip.engine.outcome import Stride
-from baslip.engine.recent import MISSING, RECENT_STRIDES, RecentSettles, settle_key
+from baslip.engine.recent import MISSING, RECENT_STRIDES, RecentAnswers, settle_key
 
 PARAMS = Params()
 X_GAIT = np.array([0.4, -1.5657, 0.5, 0.164274])  # near the shipped downward gait
@@ -18,7 +19,7 @@ def key(i: int) -> bytes:
 
 
 def test_an_entry_comes_back_as_a_copy_the_caller_cannot_change_for_others():
-    recent = RecentSettles()
+    recent = RecentAnswers()
     stride = Stride(np.array([0.4, 0.1, 0.5, 0.2]), {"descent": 0.2})
     recent.put(key(0), (24, stride, np.array([0.2, 0.05, 0.05])))
     first = recent.get(key(0))
@@ -32,15 +33,25 @@ def test_an_entry_comes_back_as_a_copy_the_caller_cannot_change_for_others():
     assert np.array_equal(again[2], [0.2, 0.05, 0.05])
 
 
+def test_a_jacobian_entry_comes_back_as_a_copy_too():
+    recent = RecentAnswers()
+    jacobian = np.arange(60.0).reshape(4, 15)
+    recent.put(key(0), (jacobian, Stride(np.array([0.4, 0.1, 0.5, 0.2]), {"descent": 0.2})))
+    recent.get(key(0))[0][0, 0] = -1.0
+    jacobian[0, 1] = -1.0
+    again = recent.get(key(0))
+    assert np.array_equal(again[0], np.arange(60.0).reshape(4, 15)) and again[1].apex[0] == 0.4
+
+
 def test_none_is_an_answer_and_missing_is_not():
-    recent = RecentSettles()
+    recent = RecentAnswers()
     recent.put(key(0), None)
     assert recent.get(key(0)) is None
     assert recent.get(key(1)) is MISSING
 
 
 def test_the_oldest_entry_is_forgotten_first():
-    recent = RecentSettles()
+    recent = RecentAnswers()
     for i in range(RECENT_STRIDES + 1):
         recent.put(key(i), i)
     assert recent.get(key(0)) is MISSING
@@ -68,3 +79,20 @@ def test_a_jacobian_after_a_value_at_the_same_point_settles_once_with_a_fresh_en
     A_fresh, B_fresh = fresh.jacobians(X_GAIT, U_GAIT, PARAMS)
     assert np.array_equal(A, A_fresh) and np.array_equal(B, B_fresh)
     assert np.array_equal(value.apex, fresh.stride(X_GAIT, U_GAIT, PARAMS).apex)
+
+
+def test_a_second_jacobian_at_the_same_point_is_not_taken_again_and_is_a_fresh_engines():
+    rmap, fresh = ReturnMap(Tolerances(1e-12, 1e-12)), ReturnMap(Tolerances(1e-12, 1e-12))
+    engine = rmap.compiled_engine
+    taken = []
+    jacobian = engine.functions.jacobian
+    engine.functions.jacobian = lambda n: taken.append(n) or jacobian(n)
+    A, B = rmap.jacobians(X_GAIT, U_GAIT, PARAMS)
+    A[0, 0] = np.nan  # the caller's copy: the next caller's numbers stay the engine's
+    A_again, B_again = rmap.jacobians(X_GAIT, U_GAIT, PARAMS)
+    assert len(taken) == 1
+    A_fresh, B_fresh = fresh.jacobians(X_GAIT, U_GAIT, PARAMS)
+    assert np.array_equal(A_again, A_fresh) and np.array_equal(B_again, B_fresh)
+    nudged = X_GAIT + np.array([0.0, 0.0, 0.0, 1e-12])
+    rmap.jacobians(nudged, U_GAIT, PARAMS)
+    assert len(taken) == 2  # another point: taken afresh

@@ -34,7 +34,7 @@ from baslip.engine.kernels import (
     stiffness_rate,
 )
 from baslip.engine.outcome import PHASES, STANCE_HORIZON_HALF_PERIODS, Fall, Stride
-from baslip.engine.recent import MISSING, RecentSettles, settle_key
+from baslip.engine.recent import MISSING, RecentAnswers, settle_key
 from baslip.model.dynamics import PARAMS, STANCE
 from baslip.model.hiplaw import PD, HipLaw
 
@@ -115,7 +115,8 @@ class CompiledEngine:
         self.tolerance = tolerance
         self.law = law
         self.functions = StrideFunctions(law, compile) if functions is None else functions
-        self.recent = RecentSettles()  # a Jacobian after a value at the same point settles once
+        self.recent = RecentAnswers()  # a Jacobian after a value at the same point settles once
+        self.recent_jacobians = RecentAnswers()  # and a second Jacobian there is not taken again
 
     def stride(self, X, u, p, t_guess) -> Stride | None:
         """The stride from apex ``X`` (which passed the pre-checks), or None."""
@@ -126,6 +127,14 @@ class CompiledEngine:
         """(dr/d(X, u, p) as 4 x (4 + controls + 6), the stride), the Jacobian None after a fall; or None.
 
         The step count is settled by value passes, which cost a fraction of a Jacobian."""
+        key = settle_key(X, u, p, t_guess)
+        answer = self.recent_jacobians.get(key)
+        if answer is MISSING:
+            answer = self._stride_jacobian_afresh(X, u, p, t_guess)
+            self.recent_jacobians.put(key, answer)
+        return answer  # type: ignore[return-value]
+
+    def _stride_jacobian_afresh(self, X, u, p, t_guess) -> tuple[np.ndarray | None, Stride] | None:
         settled = self._settle(X, u, p, t_guess)
         if not isinstance(settled, tuple):
             return None if settled is None else (None, settled)
