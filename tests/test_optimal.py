@@ -6,6 +6,8 @@
   stride, match finite differences of the AD Jacobian's eigenvalues.
 * A descent never ends above where it started, every point it accepts is a fixed point,
   and its end point passes the solver's independent verification.
+* Its line searches take second derivatives only at the trials they accept, and no
+  stride Jacobian twice at one point.
 * After its quasi-Newton iterations, or where the surrogate is stationary, a compass
   search on the radius goes on, and the stop reason says so.
 * Where the start has no second derivatives, a compass search on the radius alone still
@@ -110,6 +112,39 @@ def test_a_descent_lowers_the_radius_and_ends_on_a_verified_fixed_point(downward
     verified = solver.verify_point(spec, found.best.X, found.best.u)
     assert verified.converged and verified.residual <= 1e-10
     assert verified.spectral_radius == pytest.approx(radii[-1], rel=1e-6)
+
+
+def test_second_derivatives_are_taken_only_where_the_descent_steps(downward, monkeypatch):
+    """A line search's trials need the radius and the surrogate only: the gradient (a
+    reverse sweep of second derivatives) is taken at the start and at each accepted
+    trial, and each Jacobian of the stride once per point."""
+    problem, solver, spec, X, u = downward
+    descent = StabilityDescent(solver.residual_map, max_iterations=8)
+    gradients, jacobians, searches = [], [], []
+    gradient, line_search = descent.gradient, descent._line_search
+    engine = solver.residual_map.compiled_engine
+    jacobian = engine._stride_jacobian_afresh
+
+    def counted_gradient(X, u, spec, G):
+        gradients.append(X.copy())
+        return gradient(X, u, spec, G)
+
+    def counted_line_search(*args):
+        searches.append(line_search(*args))
+        return searches[-1]
+
+    def counted_jacobian(*args):
+        jacobians.append(np.hstack(args).tobytes())  # the stride's inputs: X, u, p, t_guess
+        return jacobian(*args)
+
+    descent.gradient, descent._line_search = counted_gradient, counted_line_search
+    monkeypatch.setattr(engine, "_stride_jacobian_afresh", counted_jacobian)  # the shared solver's engine
+    found = descent.run(spec, X, u)
+    accepted = [s for s in searches if s[0] is not None]
+    assert sum(s[-1] for s in searches) > len(accepted) > 0  # some trials were turned down
+    assert len(gradients) == 1 + len(accepted)
+    assert [g.tolist() for g in gradients] == [s.X.tolist() for s in found.steps[: len(gradients)]]
+    assert len(jacobians) == len(set(jacobians))
 
 
 def test_after_its_iterations_the_descent_goes_on_by_compass_search_and_says_so(downward):

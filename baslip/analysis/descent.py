@@ -126,11 +126,17 @@ class StabilityDescent:
 
     def evaluate(self, spec: FixedPointSpec, X, u) -> tuple[float, float, np.ndarray]:
         """(spectral radius, phi, gradient of phi in (X, u)) at a fixed point."""
+        radius, phi, G = self.surrogate_at(spec, X, u)
+        return radius, phi, self.gradient(X, u, spec, G)
+
+    def surrogate_at(self, spec: FixedPointSpec, X, u) -> tuple[float, float, np.ndarray]:
+        """(spectral radius, phi, G) at a fixed point, from first derivatives only; G is
+        phi's gradient in the entries of dr/dX, which :meth:`gradient` takes."""
         dr_dX, _ = self.rmap.jacobians(X, u, spec.params)
         stability = classify(dr_dX, spec.params, u, spec.law)
         trivial = np.array([m.trivial for m in stability.multipliers])
         phi, G = surrogate(dr_dX, trivial)
-        return stability.spectral_radius, phi, self.gradient(X, u, spec, G)
+        return stability.spectral_radius, phi, G
 
     def gradient(self, X, u, spec: FixedPointSpec, G: np.ndarray) -> np.ndarray:
         """The gradient of <G, dr/dX> in (X, u), by AD second derivatives of the stride."""
@@ -162,13 +168,15 @@ class StabilityDescent:
             return self._compass_only(spec, design)
         steps = [DescentStep(design[:NX].copy(), design[NX:].copy(), radius, phi)]
         evaluations, chart, norm = 1, None, float("nan")
+        known: np.ndarray | None = None  # the reduced gradient here, where the last pass found it
         for _ in range(self.max_iterations):
             if chart is None:
                 chart, fresh_chart = self._chart(spec, design), True
                 if not chart.size:
                     return Descent(tuple(steps), "the manifold has no free direction here", 0.0, evaluations)
                 inverse_hessian = np.eye(chart.size)
-            reduced = self._reduced_gradient(spec, design, grad, chart)
+            reduced = known if known is not None else self._reduced_gradient(spec, design, grad, chart)
+            known = None
             if reduced is None:  # the chart degenerated here: choose another, once
                 if fresh_chart:
                     break
@@ -188,7 +196,7 @@ class StabilityDescent:
             evaluations += found[-1]
             if found[0] is None:
                 if not np.allclose(inverse_hessian, np.eye(chart.size)):
-                    inverse_hessian = np.eye(chart.size)  # retry along the gradient
+                    inverse_hessian, known = np.eye(chart.size), reduced  # retry along the gradient
                     continue
                 break
             trial, t_radius, t_phi, t_grad, _ = found
@@ -199,7 +207,7 @@ class StabilityDescent:
             if t_reduced is None:
                 chart = None
                 continue
-            y = t_reduced - reduced
+            known, y = t_reduced, t_reduced - reduced
             if s @ y > 1e-12 * np.linalg.norm(s) * np.linalg.norm(y):
                 inverse_hessian = _bfgs(inverse_hessian, s, y)
             if np.max(np.abs(s)) < STEP_TOLERANCE:
@@ -242,11 +250,14 @@ class StabilityDescent:
             if trial is not None:
                 evaluations += 1
                 try:
-                    t_radius, t_phi, t_grad = self.evaluate(spec, trial[:NX], trial[NX:])
+                    t_radius, t_phi, G = self.surrogate_at(spec, trial[:NX], trial[NX:])
+                    if t_phi <= phi + ARMIJO * length * slope:
+                        # Second derivatives only where a trial is taken: most trials are
+                        # not, and their gradient (a reverse sweep through the stride's
+                        # Jacobian) was most of a line search's cost.
+                        return trial, t_radius, t_phi, self.gradient(trial[:NX], trial[NX:], spec, G), evaluations
                 except (RunnerFell, NoSecondDerivatives):
-                    t_phi = np.inf
-                if t_phi <= phi + ARMIJO * length * slope:
-                    return trial, t_radius, t_phi, t_grad, evaluations
+                    pass
             length /= 2
         return None, None, None, None, evaluations
 
