@@ -252,9 +252,9 @@ class StabilityDescent:
                 try:
                     t_radius, t_phi, G = self.surrogate_at(spec, trial[:NX], trial[NX:])
                     if t_phi <= phi + ARMIJO * length * slope:
-                        # Second derivatives only where a trial is taken: most trials are
-                        # not, and their gradient (a reverse sweep through the stride's
-                        # Jacobian) was most of a line search's cost.
+                        # Second derivatives only where a trial is taken: a turned-down
+                        # trial's gradient (a reverse sweep through the stride's Jacobian,
+                        # several Jacobians' cost) would go unused.
                         return trial, t_radius, t_phi, self.gradient(trial[:NX], trial[NX:], spec, G), evaluations
                 except (RunnerFell, NoSecondDerivatives):
                     pass
