@@ -43,6 +43,18 @@ def test_a_jacobian_entry_comes_back_as_a_copy_too():
     assert np.array_equal(again[0], np.arange(60.0).reshape(4, 15)) and again[1].apex[0] == 0.4
 
 
+def test_an_answer_is_computed_once_and_handed_out_as_copies():
+    recent, computed = RecentAnswers(), []
+
+    def compute():
+        computed.append(1)
+        return np.array([1.0, 2.0])
+
+    first = recent.answer(key(0), compute)
+    first[0] = -1.0
+    assert np.array_equal(recent.answer(key(0), compute), [1.0, 2.0]) and computed == [1]
+
+
 def test_none_is_an_answer_and_missing_is_not():
     recent = RecentAnswers()
     recent.put(key(0), None)

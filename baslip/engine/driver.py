@@ -34,7 +34,7 @@ from baslip.engine.kernels import (
     stiffness_rate,
 )
 from baslip.engine.outcome import PHASES, STANCE_HORIZON_HALF_PERIODS, Fall, Stride
-from baslip.engine.recent import MISSING, RecentAnswers, settle_key
+from baslip.engine.recent import RecentAnswers, settle_key
 from baslip.model.dynamics import PARAMS, STANCE
 from baslip.model.hiplaw import PD, HipLaw
 
@@ -127,12 +127,8 @@ class CompiledEngine:
         """(dr/d(X, u, p) as 4 x (4 + controls + 6), the stride), the Jacobian None after a fall; or None.
 
         The step count is settled by value passes, which cost a fraction of a Jacobian."""
-        key = settle_key(X, u, p, t_guess)
-        answer = self.recent_jacobians.get(key)
-        if answer is MISSING:
-            answer = self._stride_jacobian_afresh(X, u, p, t_guess)
-            self.recent_jacobians.put(key, answer)
-        return answer  # type: ignore[return-value]
+        return self.recent_jacobians.answer(  # type: ignore[return-value]
+            settle_key(X, u, p, t_guess), lambda: self._stride_jacobian_afresh(X, u, p, t_guess))
 
     def _stride_jacobian_afresh(self, X, u, p, t_guess) -> tuple[np.ndarray | None, Stride] | None:
         settled = self._settle(X, u, p, t_guess)
@@ -193,12 +189,8 @@ class CompiledEngine:
 
     def _settle(self, X, u, p, t_guess) -> tuple[int, Stride | None, np.ndarray] | Stride | None:
         """:meth:`_settle_afresh`, or its answer for the same inputs among the last few."""
-        key = settle_key(X, u, p, t_guess)
-        settled = self.recent.get(key)
-        if settled is MISSING:
-            settled = self._settle_afresh(X, u, p, t_guess)
-            self.recent.put(key, settled)
-        return settled  # type: ignore[return-value]
+        return self.recent.answer(settle_key(X, u, p, t_guess),  # type: ignore[return-value]
+                                  lambda: self._settle_afresh(X, u, p, t_guess))
 
     def _settle_afresh(self, X, u, p, t_guess) -> tuple[int, Stride | None, np.ndarray] | Stride | None:
         """The scout and the final passes: a fall found in planning, None, or :meth:`_final`'s

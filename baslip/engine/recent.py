@@ -14,6 +14,7 @@ a batch has an engine of its own).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -56,6 +57,15 @@ class RecentAnswers:
         """A copy of the entry for ``key``, or :data:`MISSING`."""
         entry = self._entries.get(key, MISSING)
         return entry if entry is MISSING else _copied(entry)
+
+    def answer(self, key: bytes, compute: Callable[[], object]) -> object:
+        """A copy of the entry for ``key``; where there is none, ``compute()``'s answer,
+        remembered."""
+        entry = self.get(key)
+        if entry is MISSING:
+            entry = compute()
+            self.put(key, entry)
+        return entry
 
     def put(self, key: bytes, answer: object) -> None:
         """Remember a copy of ``answer`` under ``key``, forgetting the oldest entry if full."""
