@@ -78,12 +78,17 @@ def test_the_key_tells_apart_strides_that_differ_in_the_last_bit():
     assert settle_key(X, U_GAIT, PARAMS.vector(), 0.2) != settle_key(X, U_GAIT, PARAMS.vector(), np.nextafter(0.2, 1))
 
 
-def test_a_jacobian_after_a_value_at_the_same_point_settles_once_with_a_fresh_engines_numbers():
+def counted(kernel: str) -> tuple[ReturnMap, ReturnMap, list[int]]:
+    """A map whose engine lists the step counts of each ``kernel`` it takes, and a fresh one."""
     rmap, fresh = ReturnMap(Tolerances(1e-12, 1e-12)), ReturnMap(Tolerances(1e-12, 1e-12))
-    engine = rmap.compiled_engine
-    passes = []
-    final = engine.functions.final
-    engine.functions.final = lambda n: passes.append(n) or final(n)
+    functions, taken = rmap.compiled_engine.functions, []
+    original = getattr(functions, kernel)
+    setattr(functions, kernel, lambda n: taken.append(n) or original(n))
+    return rmap, fresh, taken
+
+
+def test_a_jacobian_after_a_value_at_the_same_point_settles_once_with_a_fresh_engines_numbers():
+    rmap, fresh, passes = counted("final")
     value = rmap.stride(X_GAIT, U_GAIT, PARAMS)
     settled = len(passes)
     A, B = rmap.jacobians(X_GAIT, U_GAIT, PARAMS)
@@ -94,11 +99,7 @@ def test_a_jacobian_after_a_value_at_the_same_point_settles_once_with_a_fresh_en
 
 
 def test_a_second_jacobian_at_the_same_point_is_not_taken_again_and_is_a_fresh_engines():
-    rmap, fresh = ReturnMap(Tolerances(1e-12, 1e-12)), ReturnMap(Tolerances(1e-12, 1e-12))
-    engine = rmap.compiled_engine
-    taken = []
-    jacobian = engine.functions.jacobian
-    engine.functions.jacobian = lambda n: taken.append(n) or jacobian(n)
+    rmap, fresh, taken = counted("jacobian")
     A, B = rmap.jacobians(X_GAIT, U_GAIT, PARAMS)
     A[0, 0] = np.nan  # the caller's copy: the next caller's numbers stay the engine's
     A_again, B_again = rmap.jacobians(X_GAIT, U_GAIT, PARAMS)

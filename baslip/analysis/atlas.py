@@ -35,9 +35,10 @@ describe for COCO's ``atlas_kd``, simplified where baslip's dimensions (k = 1 to
   (:attr:`AtlasSettings.max_priority`): charts ranked above it are made but not grown
   from, and their open directions are recorded as boundaries of kind ``cap``. An atlas
   whose other boundaries are edges is then complete up to the cap: it holds every point
-  that the seeds' pieces reach through charts ranked within it. A direction that a neighbour's ball
-  closed, but whose boundary point lies outside the domain, is recorded as an edge of the
-  domain too: a ball reaching past the edge would otherwise hide that edge from the table.
+  that the seeds' pieces reach through charts ranked within it. A direction that a
+  neighbour's ball closed, but whose boundary point lies outside the domain, is recorded
+  as an edge of the domain too: a ball reaching past the edge would otherwise hide that
+  edge from the table.
 * **Pieces.** All seeds are projected first: a seed that lies in an earlier seed's ball
   belongs to that chart's piece; any other starts a new piece. Then all pieces grow
   together from one best-first queue (so that the most interesting parts near every
