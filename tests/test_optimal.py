@@ -8,6 +8,8 @@
   and its end point passes the solver's independent verification.
 * Its line searches take second derivatives only at the trials they accept, and no
   stride Jacobian twice at one point.
+* Where phi is concave along the bare reduced gradient (BFGS learns no curvature), the
+  line search lengthens its step, and the next search starts at that length.
 * After its quasi-Newton iterations, or where the surrogate is stationary, a compass
   search on the radius goes on, and the stop reason says so.
 * Where the start has no second derivatives, a compass search on the radius alone still
@@ -26,7 +28,15 @@ import numpy as np
 import pytest
 
 from baslip import Params
-from baslip.analysis.descent import SURROGATE_POWER, StabilityDescent, optimise_from, random_start, surrogate
+from baslip.analysis.descent import (
+    MAX_STEP,
+    SURROGATE_POWER,
+    Descent,
+    StabilityDescent,
+    optimise_from,
+    random_start,
+    surrogate,
+)
 from baslip.engine.returnmap import NoSecondDerivatives
 from baslip.gait.from_problem import fixed_point_spec, shooting_options, solver_for
 from baslip.gait.polish import eps
@@ -117,10 +127,11 @@ def test_a_descent_lowers_the_radius_and_ends_on_a_verified_fixed_point(downward
 def test_second_derivatives_are_taken_only_where_the_descent_steps(downward, monkeypatch):
     """A line search's trials need the radius and the surrogate only: the gradient (a
     reverse sweep of second derivatives) is taken at the start and at each accepted
-    trial, and each Jacobian of the stride once per point."""
+    trial, and each Jacobian of the stride once per point. A step that BFGS has scaled is
+    never lengthened."""
     problem, solver, spec, X, u = downward
     descent = StabilityDescent(solver.residual_map, max_iterations=8)
-    gradients, jacobians, searches = [], [], []
+    gradients, jacobians, searches, scaled = [], [], [], []
     gradient, line_search = descent.gradient, descent._line_search
     engine = solver.residual_map.compiled_engine
     jacobian = engine._stride_jacobian_afresh
@@ -131,6 +142,8 @@ def test_second_derivatives_are_taken_only_where_the_descent_steps(downward, mon
 
     def counted_line_search(*args):
         searches.append(line_search(*args))
+        if not args[7]:  # a BFGS step (curvature learnt): never beyond its first length
+            scaled.append(searches[-1][0] is None or searches[-1][4] <= args[6])
         return searches[-1]
 
     def counted_jacobian(*args):
@@ -142,9 +155,47 @@ def test_second_derivatives_are_taken_only_where_the_descent_steps(downward, mon
     found = descent.run(spec, X, u)
     accepted = [s for s in searches if s[0] is not None]
     assert sum(s[-1] for s in searches) > len(accepted) > 0  # some trials were turned down
+    assert scaled and all(scaled)
     assert len(gradients) == 1 + len(accepted)
     assert [g.tolist() for g in gradients] == [s.X.tolist() for s in found.steps[: len(gradients)]]
     assert len(jacobians) == len(set(jacobians))
+
+
+#: A chart of atlas_downward's cell (0.3 m/s, 0.4 m), one of the cell's polish starts on
+#: 2026-12-06: along the descent from it phi is slightly concave, so BFGS learned no
+#: curvature and unit steps of the reduced gradient moved 0.015 scaled units each (the
+#: radius 0.8907 -> 0.8115 in 396 steps, 0.0002 a step).
+CONCAVE_X = [0.4, -1.5700716325969735, 0.3, 0.09979370674274267]
+CONCAVE_U = [3.276390936389593, 9.404231510161836, 2.4639709431715553, 0.0, 0.06857903310109668]
+
+
+def test_where_phi_is_concave_the_line_search_lengthens_its_step(monkeypatch):
+    """From CONCAVE_X the first line search doubles its accepted step up to the cap of
+    MAX_STEP scaled units, the next starts at that length, and three iterations take the
+    radius below 0.84 (measured 0.819; unit steps reach 0.890), on fixed points."""
+    problem = load_problem(ROOT / "problems" / "atlas_downward.yaml")
+    spec = replace(fixed_point_spec(problem), fixed={"theta2_dot_des": 0.0, "ydot": 0.3, "z": 0.4})
+    solver = solver_for(problem)
+    descent = StabilityDescent(solver.residual_map, max_iterations=3)
+    searches = []
+    line_search = descent._line_search
+
+    def counted_line_search(spec, design, chart, direction, reduced, phi, first, lengthen):
+        searches.append((direction, first, lengthen, line_search(spec, design, chart, direction, reduced, phi, first,
+                                                                 lengthen)))
+        return searches[-1][-1]
+
+    monkeypatch.setattr(descent, "_line_search", counted_line_search)
+    monkeypatch.setattr(descent, "_compass_after", lambda spec, steps, *rest: Descent(tuple(steps), "no compass"))
+    found = descent.run(spec, np.array(CONCAVE_X), np.array(CONCAVE_U))
+    (direction, first, lengthen, result), *rest = searches
+    cap = MAX_STEP / np.max(np.abs(direction))
+    assert lengthen and first == 1.0 and result[4] == pytest.approx(cap, rel=1e-12) and cap > 100
+    assert rest[0][1] == result[4] and rest[0][2]  # the next bare step starts where this one ended
+    radii = [s.spectral_radius for s in found.steps]
+    assert len(radii) == 4 and radii[-1] < 0.84 < radii[0]
+    for step in found.steps:
+        assert eps(solver.residual_map(step.X, step.u, problem.params), step.X) <= 1e-12
 
 
 def test_after_its_iterations_the_descent_goes_on_by_compass_search_and_says_so(downward):

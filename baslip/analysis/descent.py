@@ -25,15 +25,17 @@ of the compiled stride, i.e. exact second derivatives of the map
 equations can be solved well for the others (greedy column pivoting of their Jacobian).
 On the chart, phi is an ordinary function: a point is the fixed point with the chart
 quantities held (the Newton polish solves for the rest), and its gradient follows by the
-implicit-function theorem. BFGS with a backtracking (Armijo) line search minimises it;
-a degenerate chart is replaced. Where phi stops falling (a kink of rho, where two
-multipliers of equal modulus meet), a compass search on rho itself goes on. Every
-accepted point is a fixed point of the compiled map to eps <= 1e-12; the caller verifies
-the end point independently.
+implicit-function theorem. BFGS with an Armijo line search minimises it; the line search
+backtracks, and lengthens a step along which phi is straight or concave (where BFGS learns
+no curvature and its step is the bare gradient's); a degenerate chart is replaced. Where
+phi stops falling (a kink of rho, where two multipliers of equal modulus meet), a compass
+search on rho itself goes on. Every accepted point is a fixed point of the compiled map to
+eps <= 1e-12; the caller verifies the end point independently.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -60,6 +62,11 @@ HALVINGS = 10
 #: chart, before another chart is chosen.
 MAX_CHART_CONDITION = 1e8
 GRADIENT_TOLERANCE = 1e-7
+#: A line search's first trial, accepted, is lengthened only if it lowered phi by at least
+#: this share of the slope's prediction: then phi is nearly straight (or concave) along the
+#: direction, and a quadratic through the two values and the slope puts its minimum at five
+#: times the length or beyond.
+EXTEND_RATIO = 0.9
 STEP_TOLERANCE = 1e-9
 #: The compass search's steps (scaled units) and trial budget.
 COMPASS = CompassSettings(first_step=0.05, largest_step=0.4, last_step=1e-6, trials=600)
@@ -167,7 +174,7 @@ class StabilityDescent:
         except NoSecondDerivatives:
             return self._compass_only(spec, design)
         steps = [DescentStep(design[:NX].copy(), design[NX:].copy(), radius, phi)]
-        evaluations, chart, norm = 1, None, float("nan")
+        evaluations, chart, norm, stretch = 1, None, float("nan"), 1.0
         known: np.ndarray | None = None  # the reduced gradient here, where the last pass found it
         for _ in range(self.max_iterations):
             if chart is None:
@@ -192,14 +199,18 @@ class StabilityDescent:
             direction = -inverse_hessian @ reduced
             if direction @ reduced >= 0:
                 inverse_hessian, direction = np.eye(chart.size), -reduced
-            found = self._line_search(spec, design, chart, direction, reduced, phi)
+            # Only a bare gradient step (no curvature learnt yet) may be lengthened: a BFGS
+            # step's own length already carries what the updates learnt.
+            bare = bool(np.array_equal(inverse_hessian, np.eye(chart.size)))
+            found = self._line_search(spec, design, chart, direction, reduced, phi, stretch, bare)
             evaluations += found[-1]
+            stretch = 1.0
             if found[0] is None:
                 if not np.allclose(inverse_hessian, np.eye(chart.size)):
                     inverse_hessian, known = np.eye(chart.size), reduced  # retry along the gradient
                     continue
                 break
-            trial, t_radius, t_phi, t_grad, _ = found
+            trial, t_radius, t_phi, t_grad, length, _ = found
             s = (trial[chart] - design[chart]) / self.scale[chart]
             t_reduced = self._reduced_gradient(spec, trial, t_grad, chart)
             design, radius, phi, grad = trial, t_radius, t_phi, t_grad
@@ -210,6 +221,11 @@ class StabilityDescent:
             known, y = t_reduced, t_reduced - reduced
             if s @ y > 1e-12 * np.linalg.norm(s) * np.linalg.norm(y):
                 inverse_hessian = _bfgs(inverse_hessian, s, y)
+            elif length > 1.0:
+                # No curvature to learn from (phi straight or concave along the step), and
+                # the search lengthened the step: the next direction is scaled as this one
+                # was, so the next search starts at the length this one reached.
+                stretch = length
             if np.max(np.abs(s)) < STEP_TOLERANCE:
                 break
         else:
@@ -236,30 +252,68 @@ class StabilityDescent:
         found, searched, compass = self._pattern_search(spec, design, start.spectral_radius)
         return Descent((start, *found), f"{compass} (no second derivatives at the start)", float("nan"), 1 + searched)
 
-    def _line_search(self, spec, design, chart, direction, reduced, phi):
-        """(point, radius, phi, gradient, evaluations) of the first step along ``direction``
-        (chart coordinates, scaled) with enough decrease, halving from the full step
-        (capped at MAX_STEP); (None, ..., evaluations) if there is none."""
-        length, evaluations = min(1.0, MAX_STEP / max(np.max(np.abs(direction)), 1e-300)), 0
+    def _line_search(self, spec, design, chart, direction, reduced, phi, first: float = 1.0,
+                     lengthen: bool = False):
+        """(point, radius, phi, gradient, length, evaluations) of a step along ``direction``
+        (chart coordinates, scaled) with enough decrease (Armijo), (None, ..., evaluations)
+        if there is none. The first trial's length is ``first`` times the direction (capped
+        so that no coordinate moves more than MAX_STEP); it is halved until a trial is
+        accepted. With ``lengthen`` (a bare gradient direction), a first trial accepted at
+        once is doubled while that lowers phi further: where phi is straight or concave
+        along the direction, BFGS learns no curvature, the direction stays the bare reduced
+        gradient, and its unit step is short (0.015 scaled units a step, 396 steps in a row,
+        at a hanging gait of atlas_downward)."""
+        cap = MAX_STEP / max(np.max(np.abs(direction)), 1e-300)
+        length, evaluations = min(first, cap), 0
         slope = float(direction @ reduced)
-        for _ in range(HALVINGS):
+        # A search that starts longer than the unit step may halve down to where a unit
+        # start would have ended.
+        for halving in range(HALVINGS + max(0, math.ceil(math.log2(max(first, 1.0))))):
             if length * np.max(np.abs(direction)) < STEP_TOLERANCE:
                 break
-            values = design[chart] + length * direction * self.scale[chart]
-            trial = self._retract(spec, design, chart, values)
-            if trial is not None:
-                evaluations += 1
-                try:
-                    t_radius, t_phi, G = self.surrogate_at(spec, trial[:NX], trial[NX:])
-                    if t_phi <= phi + ARMIJO * length * slope:
-                        # Second derivatives only where a trial is taken: a turned-down
-                        # trial's gradient (a reverse sweep through the stride's Jacobian,
-                        # several Jacobians' cost) would go unused.
-                        return trial, t_radius, t_phi, self.gradient(trial[:NX], trial[NX:], spec, G), evaluations
-                except (RunnerFell, NoSecondDerivatives):
-                    pass
+            taken = self._trial(spec, design, chart, direction, length, phi, slope)
+            evaluations += taken is not None
+            if taken is not None and taken[0] is not None:
+                if lengthen and halving == 0 and phi - taken[2] >= -EXTEND_RATIO * length * slope:
+                    taken, length, more = self._extended(spec, design, chart, direction, length, cap, phi, slope, taken)
+                    evaluations += more
+                trial, t_radius, t_phi, G = taken
+                # Second derivatives only where a trial is taken: a turned-down trial's
+                # gradient (a reverse sweep through the stride's Jacobian, several Jacobians'
+                # cost) would go unused.
+                return trial, t_radius, t_phi, self.gradient(trial[:NX], trial[NX:], spec, G), length, evaluations
             length /= 2
-        return None, None, None, None, evaluations
+        return None, None, None, None, None, evaluations
+
+    def _extended(self, spec, design, chart, direction, length, cap, phi, slope, taken):
+        """(the accepted trial, its length, trials made): ``taken`` at ``length``, or the
+        trial at a doubled length, doubled again while each keeps Armijo's decrease and
+        lowers phi further, up to ``cap``."""
+        made = 0
+        while length < cap:
+            longer = min(2 * length, cap)
+            further = self._trial(spec, design, chart, direction, longer, phi, slope)
+            made += further is not None
+            if further is None or further[0] is None or further[2] >= taken[2]:
+                break
+            taken, length = further, longer
+        return taken, length, made
+
+    def _trial(self, spec, design, chart, direction, length, phi, slope):
+        """The point ``length`` times ``direction`` away, pulled back onto the manifold, with
+        its (radius, phi, G): None where it cannot be placed, (None, ...) where it falls,
+        has no second derivatives or lacks Armijo's decrease."""
+        values = design[chart] + length * direction * self.scale[chart]
+        trial = self._retract(spec, design, chart, values)
+        if trial is None:
+            return None
+        try:
+            t_radius, t_phi, G = self.surrogate_at(spec, trial[:NX], trial[NX:])
+        except (RunnerFell, NoSecondDerivatives):
+            return None, None, None, None
+        if t_phi > phi + ARMIJO * length * slope:
+            return None, None, None, None
+        return trial, t_radius, t_phi, G
 
     def _free(self, spec: FixedPointSpec, design) -> np.ndarray:
         """Indices of the free quantities not held on a bound."""
