@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from baslip import Fall, Params, ReturnMap, Tolerances
-from baslip.engine.outcome import precheck, prechecks, strides_can_start
+from baslip.engine.outcome import TOUCHDOWN_GRID, precheck, prechecks, strides_can_start
+from baslip.model.dynamics import descent_foot_height
 
 PARAMS = Params()
 GAIT_X = np.array([0.4, -1.5657, 0.5, 0.164274])
@@ -115,3 +116,36 @@ def test_batched_prechecks_are_the_single_prechecks():
     assert seen == {None, Fall.NOT_FINITE, Fall.FOOT_BELOW_GROUND, Fall.NO_TOUCHDOWN}
     # The cheap test of many points (no touchdown times refined) says the same as precheck.
     assert np.array_equal(strides_can_start(X, U, PARAMS.vector()), np.array([f is None for f in falls]))
+
+
+@pytest.mark.parametrize("d", [PARAMS.d, 0.0])
+def test_the_touchdown_search_skips_no_root_of_the_whole_grid(d):
+    """The batched touchdown search starts each row's grid where a root becomes possible
+    and stops at its first root; its guesses are those of a search of every grid point, to
+    the bit, also where the clearance is within round-off of the hip offset (there no grid
+    point may be skipped; with d = 0, the SLIP limit, round-off decides the signs) and
+    where a fast spin makes the foot height wiggle."""
+    rng = np.random.default_rng(5)
+    n = 3000
+    p = Params(d=d).vector()
+    rho0, g = PARAMS.rho0, PARAMS.g
+    theta_td = rng.uniform(-1.2, 1.2, n)
+    clearance = np.concatenate([rng.uniform(-0.05, 0.5, n - 300), d + rng.uniform(-1e-13, 1e-13, 100),
+                                d + rng.uniform(0, 1e-6, 100), d + rng.uniform(-1e-16, 1e-16, 100)])
+    X = np.column_stack([clearance + rho0 * np.cos(theta_td), rng.uniform(-4, 4, n), rng.uniform(-1, 2, n),
+                         rng.choice([1.0, 30.0, 300.0], n) * rng.uniform(-1, 1, n)])
+    U = np.column_stack([np.zeros((n, 4)), theta_td])
+    _, guesses = prechecks(X, U, p)
+    whole = 0
+    for x, u, guess in zip(X, U, guesses):
+        if descent_foot_height(0.0, x[0], x[1], x[3], u[-1], d, rho0, g) < 0.0:
+            continue  # the foot is below ground at the apex: a fall before any search
+        bound = math.sqrt(2.0 * max(x[0] - rho0 * math.cos(u[-1]) + d, 0.0) / g) + 1e-9
+        grid = bound * np.linspace(0.0, 1.0, TOUCHDOWN_GRID)
+        below = np.nonzero(descent_foot_height(grid[1:], x[0], x[1], x[3], u[-1], d, rho0, g) <= 0.0)[0]
+        assert np.isnan(guess) == (len(below) == 0)
+        if len(below):
+            single = precheck(x, u, p)[1]
+            assert guess == single and grid[below[0]] <= guess <= grid[below[0] + 1]
+            whole += 1
+    assert whole > n // 2

@@ -31,6 +31,7 @@ from baslip.engine.driver import (
     scout_step,
     stride_of_verdict,
     touchdown_fall,
+    touchdown_may_fall,
 )
 from baslip.engine.kernels import (
     BATCH,
@@ -116,10 +117,10 @@ class _Batch:
         h = scout_step(p, rate)
         x_td, com_height, clean, bottom, liftoff, error = _call(
             self.functions.batch("stance_plan"), X.T, U.T, _columns(p, len(live)), t_descent[live], h)
-        for k, i in enumerate(live):
-            fall = touchdown_fall(x_td[:, k], float(com_height[0, k]), t_descent[i])
+        for k in np.nonzero(touchdown_may_fall(x_td, com_height[0]))[0]:
+            fall = touchdown_fall(x_td[:, k], float(com_height[0, k]), t_descent[live[k]])
             if fall is not None:
-                self.results[i] = fall
+                self.results[live[k]] = fall
         go = np.array([isinstance(self.results[i], str) for i in live]) & (clean[0] == 1.0)
         if go.any():
             self._final(live[go], t_descent[live[go]], bottom[0, go], liftoff[0, go] - bottom[0, go], rate[go], h[go],

@@ -542,6 +542,13 @@ def touchdown_fall(x_touchdown, com_height: float, t_descent: float) -> Stride |
     return None
 
 
+def touchdown_may_fall(x_touchdown: np.ndarray, com_height: np.ndarray) -> np.ndarray:
+    """Which columns of touchdown states (and their CoM heights [m]) :func:`touchdown_fall`
+    would call a fall: its tests for many strides at once, so that a batch builds a
+    stride's fall only where there is one."""
+    return (com_height <= 0.0) | (x_touchdown[_RHODOT] >= 0.0)
+
+
 def first_rise(values: np.ndarray) -> int | None:
     """The first index j >= 1 with values[j] >= 0 after values[j - 1] < 0, or None."""
     rises = np.nonzero((values[1:] >= 0.0) & (values[:-1] < 0.0))[0]

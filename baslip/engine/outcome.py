@@ -176,29 +176,62 @@ def touchdown_guesses(X: np.ndarray, U: np.ndarray, p) -> np.ndarray:
     (n x controls), the grid search done for all rows at once; NaN where the foot cannot reach
     the ground."""
     X, U, p = np.asarray(X, dtype=float), np.asarray(U, dtype=float), np.asarray(p, dtype=float)
-    found, grid, first = _touchdown_brackets(X, U, p)
+    found, lo, hi = _touchdown_brackets(X, U, p)
     clearance = X[:, _Z] - float(p[_RHO0]) * np.cos(U[:, _THETA_TD])
     guesses = np.full(len(X), np.nan)
-    for i in np.nonzero(found)[0]:
-        lo, hi = grid[i, first[i]], grid[i, first[i] + 1]
-        guesses[i] = _refine_root(lo, hi, float(X[i, _THETA_H]), float(X[i, _SPIN]), float(clearance[i]),
+    rows = np.nonzero(found)[0]
+    guesses[rows] = _refine_roots(lo[rows], hi[rows], X[rows, _THETA_H], X[rows, _SPIN], clearance[rows],
                                   float(p[_D]), float(p[_G]))
     return guesses
 
 
+#: Grid intervals searched at a time for the first touchdown root, per row.
+BRACKET_CHUNK = 32
+#: Fraction of the time t_low = sqrt(2 (c - |d|) / g) before which the grid is not searched:
+#: there the foot height is at least (1 - 0.9^2) (c - |d|) > 0, far above round-off.
+SURELY_ABOVE = 0.9
+
+
 def _touchdown_brackets(X: np.ndarray, U: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The grid search of :func:`touchdown_guess` for the rows of X under the rows of U:
-    whether the foot reaches the ground, the grids of times [s] and, per row, the grid
-    interval of the first root."""
+    whether the foot reaches the ground, and the times [s] that bracket each row's first
+    root. Each row's grid is searched :data:`BRACKET_CHUNK` intervals at a time, from
+    where a root becomes possible (:data:`SURELY_ABOVE`) until its first root: the heights
+    are those of the whole grid, computed alike, so the brackets are the same."""
     z, theta_h, spin = X[:, _Z], X[:, _THETA_H], X[:, _SPIN]
     rho0, d, g = float(p[_RHO0]), float(p[_D]), float(p[_G])
     theta_td = U[:, _THETA_TD]
-    reaches = np.abs(theta_td) < math.pi / 2
     clearance = z - rho0 * np.cos(theta_td)
-    grid = _descent_bound(clearance, d, g)[:, None] * _GRID_FRACTIONS[None, :]
-    height = descent_foot_height(grid[:, 1:], z[:, None], theta_h[:, None], spin[:, None], theta_td[:, None], d, rho0, g)
-    below = height <= 0.0
-    return reaches & below.any(axis=1), grid, np.argmax(below, axis=1)
+    bound = _descent_bound(clearance, d, g)
+    intervals = TOUCHDOWN_GRID - 1
+    start = _first_possible_interval(clearance, z, bound, d, rho0, g)
+    first, found = np.zeros(len(X), dtype=int), np.zeros(len(X), dtype=bool)
+    pending = np.arange(len(X))
+    for offset in range(0, intervals, BRACKET_CHUNK):
+        j = start[pending, None] + offset + np.arange(BRACKET_CHUNK)  # intervals, ending at grid point j + 1
+        t = bound[pending, None] * _GRID_FRACTIONS[np.minimum(j, intervals - 1) + 1]
+        height = descent_foot_height(t, z[pending, None], theta_h[pending, None], spin[pending, None],
+                                     theta_td[pending, None], d, rho0, g)
+        below = (height <= 0.0) & (j < intervals)
+        hit = below.any(axis=1)
+        first[pending[hit]] = j[hit, np.argmax(below[hit], axis=1)]
+        found[pending[hit]] = True
+        pending = pending[~hit & (j[:, -1] < intervals - 1)]
+        if not pending.size:
+            break
+    reaches = np.abs(theta_td) < math.pi / 2
+    return reaches & found, bound * _GRID_FRACTIONS[first], bound * _GRID_FRACTIONS[first + 1]
+
+
+def _first_possible_interval(clearance, z, bound, d: float, rho0: float, g: float) -> np.ndarray:
+    """Per row, the first grid interval that may hold the touchdown root: the grid points
+    before it lie before SURELY_ABOVE t_low, where h(t) >= c - |d| - g t^2 / 2 > 0. Rows
+    whose margin c - |d| is not far above round-off are searched from the start."""
+    margin = clearance - abs(d)
+    safe = margin > 1e-12 * (1.0 + np.abs(z) + rho0 + abs(d))
+    t_low = np.sqrt(2.0 * np.maximum(margin, 0.0) / g)
+    last_above = np.searchsorted(_GRID_FRACTIONS, SURELY_ABOVE * t_low / bound, side="right") - 1
+    return np.where(safe, np.clip(last_above, 0, TOUCHDOWN_GRID - 2), 0)
 
 
 def strides_can_start(X: np.ndarray, U: np.ndarray, p) -> np.ndarray:
@@ -245,6 +278,33 @@ def _refine_root(lo: float, hi: float, theta_h: float, w: float, clearance: floa
             t_new = 0.5 * (lo + hi)
         t = t_new
     return t
+
+
+def _refine_roots(lo: np.ndarray, hi: np.ndarray, theta_h: np.ndarray, w: np.ndarray, clearance: np.ndarray,
+                  d: float, g: float) -> np.ndarray:
+    """:func:`_refine_root` of each entry of the arrays at once, with the same arithmetic in
+    the same order, so that each root is the single one to the bit; each entry stops at
+    its own convergence."""
+    lo, hi = np.array(lo, dtype=float), np.array(hi, dtype=float)
+    t = 0.5 * (lo + hi)
+    roots = t.copy()
+    live = np.arange(len(t))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for _ in range(60):
+            if not live.size:
+                break
+            tl, lol, hil, angle = t[live], lo[live], hi[live], theta_h[live] + w[live] * t[live]
+            height = clearance[live] - 0.5 * g * tl * tl - d * np.sin(angle)
+            lol, hil = np.where(height > 0.0, tl, lol), np.where(height > 0.0, hil, tl)
+            slope = -g * tl - d * w[live] * np.cos(angle)
+            t_new = np.where(slope < 0.0, tl - height / slope, 0.5 * (lol + hil))
+            done = (np.abs(t_new - tl) <= 1e-15 * tl) | (hil - lol <= 1e-15 * hil)
+            roots[live[done]] = np.where((lol <= t_new) & (t_new <= hil), t_new, tl)[done]
+            t_new = np.where((lol < t_new) & (t_new < hil), t_new, 0.5 * (lol + hil))
+            lo[live], hi[live], t[live] = lol, hil, t_new
+            live = live[~done]
+    roots[live] = t[live]
+    return roots
 
 
 def precheck(X, u, p) -> tuple[Stride | None, float | None]:
