@@ -293,15 +293,16 @@ def _refine_roots(lo: np.ndarray, hi: np.ndarray, theta_h: np.ndarray, w: np.nda
         for _ in range(60):
             if not live.size:
                 break
-            tl, lol, hil, angle = t[live], lo[live], hi[live], theta_h[live] + w[live] * t[live]
-            height = clearance[live] - 0.5 * g * tl * tl - d * np.sin(angle)
-            lol, hil = np.where(height > 0.0, tl, lol), np.where(height > 0.0, hil, tl)
-            slope = -g * tl - d * w[live] * np.cos(angle)
-            t_new = np.where(slope < 0.0, tl - height / slope, 0.5 * (lol + hil))
-            done = (np.abs(t_new - tl) <= 1e-15 * tl) | (hil - lol <= 1e-15 * hil)
-            roots[live[done]] = np.where((lol <= t_new) & (t_new <= hil), t_new, tl)[done]
-            t_new = np.where((lol < t_new) & (t_new < hil), t_new, 0.5 * (lol + hil))
-            lo[live], hi[live], t[live] = lol, hil, t_new
+            t_now, lower, upper = t[live], lo[live], hi[live]
+            angle = theta_h[live] + w[live] * t_now
+            height = clearance[live] - 0.5 * g * t_now * t_now - d * np.sin(angle)
+            lower, upper = np.where(height > 0.0, t_now, lower), np.where(height > 0.0, upper, t_now)
+            slope = -g * t_now - d * w[live] * np.cos(angle)
+            t_new = np.where(slope < 0.0, t_now - height / slope, 0.5 * (lower + upper))
+            done = (np.abs(t_new - t_now) <= 1e-15 * t_now) | (upper - lower <= 1e-15 * upper)
+            roots[live[done]] = np.where((lower <= t_new) & (t_new <= upper), t_new, t_now)[done]
+            t_new = np.where((lower < t_new) & (t_new < upper), t_new, 0.5 * (lower + upper))
+            lo[live], hi[live], t[live] = lower, upper, t_new
             live = live[~done]
     roots[live] = t[live]
     return roots
