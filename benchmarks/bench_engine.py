@@ -6,7 +6,9 @@ Both engines run side by side in one process; each row prints the two medians an
 ratio. The baseline is the event map in CasADi's virtual machine, the engine of every
 stride before the compiled engine existed; the stride rows also show the event map
 generated as C. ``--cold`` also times a first CLI run into an empty cache (code
-generation and gcc for the engine, the NLP and the verification).
+generation and gcc for the engine, the NLP and the verification). A last table gives
+issue 22's figures from the same measurements: the engine's stride against the event map
+as C, the Jacobian's cost in strides, and the batched rate, each beside its target.
 """
 
 from __future__ import annotations
@@ -80,6 +82,7 @@ def main() -> None:
     parser.add_argument("--cold", action="store_true", help="also time the first compile")
     args = parser.parse_args()
     p = Params()
+    targets: list[str] = []  # issue 22's figures, from the same measurements
     print("| what | erk event map (VM) | erk event map (C) | compiled engine | ratio to the VM |")
     print("|---|---|---|---|---|")
     for tol in (1e-10, 1e-12):
@@ -90,12 +93,16 @@ def main() -> None:
         # (it doubled the first row's median: 290 us against 150 us).
         new.jacobians(X_RUN, U_RUN, p)
         for name, X, u in (("running stride", X_RUN, U_RUN), ("downward gait", X_GAIT, U_GAIT)):
+            r_engine = median_s(lambda k: new.stride(nudged(X, k), u, p), args.repeats)
+            r_in_c = median_s(lambda k: old_in_c.stride(nudged(X, k), u, p), args.repeats)
             row(f"r, {name}, tol {tol:g}", median_s(lambda k: old.stride(nudged(X, k), u, p), args.repeats),
-                median_s(lambda k: new.stride(nudged(X, k), u, p), args.repeats), "us",
-                median_s(lambda k: old_in_c.stride(nudged(X, k), u, p), args.repeats))
+                r_engine, "us", r_in_c)
+            r_and_j = median_s(lambda k: new.jacobians(nudged(X, k), u, p), args.repeats)
             row(f"r + dr/dX + dr/du, {name}, tol {tol:g}",
-                median_s(lambda k: old.jacobians(nudged(X, k), u, p), args.repeats),
-                median_s(lambda k: new.jacobians(nudged(X, k), u, p), args.repeats), "us")
+                median_s(lambda k: old.jacobians(nudged(X, k), u, p), args.repeats), r_and_j, "us")
+            targets.append(f"| r, {name}, tol {tol:g}: the erk event map (C) over the engine | "
+                           f"{r_in_c / r_engine:.2f}x | >= 2x |")
+            targets.append(f"| r + dr/dX + dr/du over r, {name}, tol {tol:g} | {r_and_j / r_engine:.1f} | <= 3 |")
         rng = np.random.default_rng(0)
         for name, X, u, spread in (("the downward gait", X_GAIT, U_GAIT, [0.01, 0.05, 0.05, 0.2]),
                                    ("the running stride", X_RUN, U_RUN, [0.01, 0.02, 0.05, 0.1])):
@@ -108,6 +115,8 @@ def main() -> None:
             rate_batch = len(many) / median_s(lambda k: new.strides(many, u, p), 5)  # 4,096 strides: no memo holds them
             print(f"| strides/s, 4096 starts near {name}, `ReturnMap.strides` (2 threads), tol {tol:g} | "
                   f"{rate_old:.0f} | - | {rate_batch:.0f} | {rate_batch / rate_old:.1f}x |")
+            if tol == 1e-10 and name == "the running stride":
+                targets.append(f"| strides/s, 4,096 batched near {name}, tol {tol:g} | {rate_batch:,.0f} | >= 30,000 |")
 
     spec = fixed_point_spec(load_problem("problems/downward.yaml"))
     new_solver = FixedPointSolver()
@@ -127,6 +136,9 @@ def main() -> None:
         subprocess.run([sys.executable, "-m", "baslip.solve", "problems/downward.yaml", "--out", out],
                        check=True, capture_output=True)
         print(f"whole CLI process, warm cache: {time.perf_counter() - start:.2f} s")
+    print("\n| issue 22's figure | measured | target |")
+    print("|---|---|---|")
+    print("\n".join(targets))
     if args.cold:
         with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as out:
             env = dict(os.environ, BASLIP_CACHE_DIR=cache)
