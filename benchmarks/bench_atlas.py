@@ -9,6 +9,8 @@ covering and checks together, the number of residual evaluations (exact and roug
 Jacobians the covering took, and the checks' own time. The baseline, measured in the
 same process at the charts' own centres, is one residual evaluation and one AD Jacobian
 of the compiled stride, so that the covering's cost reads as a count of those.
+``--record`` writes the cell's figure to ``benchmarks/figures/bench_atlas.json`` for the
+README's speed table (issue 20 asks for about 1,000 charts: run with ``--charts 1000``).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import time
 from dataclasses import replace
 
 import numpy as np
+from figures import Figure, report
 
 from baslip import load_problem
 from baslip.analysis.gaitatlas import GaitManifold
@@ -62,6 +65,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--problem", default="problems/atlas_upright_cell.yaml")
     parser.add_argument("--charts", type=int, default=300)
+    parser.add_argument("--record", action="store_true", help="write the figure to benchmarks/figures/")
     args = parser.parse_args()
     problem = load_problem(args.problem)
     study = problem.study
@@ -102,6 +106,12 @@ def main() -> None:
           f"AD Jacobian {one_jacobian:6.2f} ms")
     print(f"  wall / (the covering's residuals and Jacobians at the baseline's cost): {wall / calls:5.2f}")
     print(f"  1,000 charts: about {wall / n * 1000:5.0f} s (covering and checks, no seeds, no polish)")
+    report("bench_atlas", [Figure(
+        20, f"one 2-D cell covered, {n:,} charts ({problem.name}, {cell}), each chart independently checked", wall,
+        "s", 30.0, "lower",
+        f"from one seed, no polish; {counted.evaluations / n:.1f} residuals, {counted.rough / n:.1f} rough residuals "
+        f"and {counted.jacobians / n:.1f} Jacobians a chart, {calls:.1f} s at the cost of single calls in the same "
+        f"process ({wall / calls:.2f}x)")], args.record)
 
 if __name__ == "__main__":
     main()

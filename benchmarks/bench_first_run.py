@@ -11,7 +11,8 @@ independent check). Two ways of compiling are timed alternately:
 * **baseline**: every library at -O3, one after the other, as before the change.
 
 Each line also gives each library's own compile time [s] and size of C [MB], from the
-process's own account; the last gives the ratio of the medians.
+process's own account; the last gives the ratio of the medians. ``--record`` writes the
+figure to ``benchmarks/figures/bench_first_run.json`` for the README's speed table.
 """
 
 from __future__ import annotations
@@ -24,6 +25,8 @@ import subprocess
 import sys
 import tempfile
 import time
+
+from figures import Figure, report
 
 #: Run in the child: time each library's compile, optionally as the baseline, then solve.
 CHILD = """
@@ -65,6 +68,7 @@ def first_run(how: str) -> tuple[float, dict]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--repeats", type=int, default=2, help="runs of each way (default 2)")
+    parser.add_argument("--record", action="store_true", help="write the figure to benchmarks/figures/")
     args = parser.parse_args()
     walls: dict[str, list[float]] = {"now": [], "baseline": []}
     for _ in range(args.repeats):
@@ -76,6 +80,11 @@ def main() -> None:
             print(f"{how:>8}: {wall:5.1f} s ({account['status']}); {builds}", flush=True)
     now, baseline = (statistics.median(walls[how]) for how in ("now", "baseline"))
     print(f"median first run: now {now:.1f} s, baseline {baseline:.1f} s, ratio {baseline / now:.2f}x")
+    report("bench_first_run", [Figure(
+        22, "first solve on a new machine: the shipped hanging gait into an empty cache (code generation, gcc, "
+        "solve)", now, "s", 30.0, "lower",
+        f"median of {args.repeats} fresh processes; every library at -O3, one after the other: {baseline:.1f} s "
+        f"({baseline / now:.2f}x)")], args.record)
 
 
 if __name__ == "__main__":
