@@ -97,6 +97,7 @@ def report(benchmark: str, figures: list[Figure], save: bool) -> None:
 
 
 def _first_line(command: list[str]) -> str:
+    """The first line that ``command`` prints, or "none" where it cannot run or fails."""
     try:
         done = subprocess.run(command, capture_output=True, text=True, timeout=30)
     except (OSError, subprocess.SubprocessError):

@@ -23,6 +23,7 @@ END = "<!-- end of the speed table -->"
 
 
 def machine_line(machine: dict) -> str:
+    """The machine of a recorded run (:func:`figures.machine`) in words."""
     memory = f", {machine['memory_gb']:g} GB" if machine.get("memory_gb") else ""
     return (f"{machine['cpu']}, {machine['cores']} logical cores{memory}, {machine['system']}; "
             f"Python {machine['python']}, CasADi {machine['casadi']}, numpy {machine['numpy']}, gcc {machine['gcc']}")
