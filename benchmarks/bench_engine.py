@@ -53,17 +53,13 @@ def median_s(fn, repeats: int) -> float:
     return statistics.median(times)
 
 
-def nudged(X: np.ndarray, k: int) -> np.ndarray:
-    """Apex ``X`` with theta_h_dot moved by k * 1e-12 rad/s: a stride of the same cost
-    that the engine has not seen (the memo's keys are the inputs' exact bytes)."""
-    return X + np.array([0.0, 0.0, 0.0, 1e-12 * k])
-
-
 def unseen(X: np.ndarray, counter: Iterator[int]) -> np.ndarray:
-    """:func:`nudged` by the next number of ``counter``: one counter for a whole process
-    makes every timed call new to the memo. A value and a Jacobian timed one after the
-    other at the same nudges would time the Jacobian alone, its value remembered."""
-    return nudged(X, next(counter))
+    """Apex ``X`` with theta_h_dot moved by k * 1e-12 rad/s, k the next number of
+    ``counter``: a stride of the same cost that the engine has not seen (the memo's keys
+    are the inputs' exact bytes). One counter for a whole process makes every timed call
+    new to the memo: a value and a Jacobian timed one after the other at the same nudges
+    would time the Jacobian alone, its value remembered."""
+    return X + np.array([0.0, 0.0, 0.0, 1e-12 * next(counter)])
 
 
 def row(what: str, old: float, new: float, unit: str = "ms", middle: float | None = None) -> None:

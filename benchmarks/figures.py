@@ -13,13 +13,12 @@ import os
 import platform
 import subprocess
 import sys
-import tempfile
 from dataclasses import asdict, dataclass
 from datetime import date
 from pathlib import Path
 
-import casadi
-import numpy
+from baslip.files.atomic import json_text, write_files_atomically
+from baslip.files.provenance import versions
 
 #: Where ``--record`` writes, one JSON file per benchmark.
 FIGURES = Path(__file__).resolve().parent / "figures"
@@ -127,24 +126,18 @@ def _memory_gb() -> float | None:
 
 def machine() -> dict[str, object]:
     """The machine a benchmark ran on: CPU model, logical cores, memory [GB], operating
-    system (its name only), and the versions of Python, CasADi, numpy and gcc."""
-    return {"cpu": _cpu_model(), "cores": os.cpu_count(), "memory_gb": _memory_gb(),
-            "system": platform.system(),
-            "python": platform.python_version(), "casadi": casadi.__version__, "numpy": numpy.__version__,
-            "gcc": _first_line(["gcc", "-dumpfullversion"])}
+    system (its name only), gcc's version, and the software versions that results record
+    (:func:`baslip.files.provenance.versions`)."""
+    return {"cpu": _cpu_model(), "cores": os.cpu_count(), "memory_gb": _memory_gb(), "system": platform.system(),
+            "gcc": _first_line(["gcc", "-dumpfullversion"]), **versions()}
 
 
 def record(benchmark: str, figures: list[Figure], folder: Path = FIGURES) -> Path:
     """Write ``folder/<benchmark>.json`` (replacing it whole, never half-written): today's
     date, :func:`machine` and ``figures``. Returns the path."""
-    folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{benchmark}.json"
-    text = json.dumps({"benchmark": benchmark, "date": date.today().isoformat(), "machine": machine(),
-                       "figures": [asdict(f) for f in figures]}, indent=1) + "\n"
-    handle, temporary = tempfile.mkstemp(dir=folder, prefix=f".{benchmark}.", suffix=".json")
-    with os.fdopen(handle, "w") as stream:
-        stream.write(text)
-    os.replace(temporary, path)
+    write_files_atomically({path: json_text({"benchmark": benchmark, "date": date.today().isoformat(),
+                                             "machine": machine(), "figures": [asdict(f) for f in figures]})})
     print(f"recorded {len(figures)} figures in {path}", file=sys.stderr)
     return path
 
