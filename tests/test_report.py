@@ -153,6 +153,45 @@ def test_the_cross_check_compares_the_stability_nlp_with_the_atlas_cell_by_cell(
     assert "a stable gait the atlas's polish missed at (0.5 m/s, 0.4 m): radius 0.9915 against 1.012" in text
 
 
+def test_the_cross_check_sets_gaits_upright_throughout_against_the_least_of_both_atlases(tmp_path):
+    """Upright throughout the stride, the NLP's least verified radius per cell stands
+    beside the least of the upright atlas and the capped one (charts and polished gaits
+    alike); the verdict names the cells where the NLP's is lower by over 1 %, and says
+    whether that gait is stable and whether it undercuts the atlases' least of all cells."""
+    import json
+
+    from baslip.report.atlas import crosscheck_claims
+
+    cases = ((1.60, "", "(0.5, 0.4): 1.6 against 1.5."),
+             (1.45, "more stable gaits than the atlases in 1 of 1 cells ((0.5, 0.4): 1.45 against 1.5): none "
+                    "stable, the least 1.45, below the atlases' least over all cells, 1.5", ""),
+             (0.95, "among them a stable gait that the atlases missed, radius 0.95", ""))
+    for nlp_radius, clause, beside in cases:
+        root = tmp_path / str(nlp_radius)
+        for name in ("atlas_upright", "atlas_upright_capped", "optimal_upright_schur"):
+            (root / name).mkdir(parents=True)
+        charts_only = atlas_summary(1.2, True, 0.932)
+        charts_only["cells"][0]["least_radius_upright_throughout"] = 2.5
+        capped = atlas_summary(1.2, True, 0.932)
+        capped["cells"][0]["polished_upright_throughout_radius"] = 1.5
+        (root / "atlas_upright" / "result.json").write_text(json.dumps({**charts_only, "name": "atlas_upright"}))
+        (root / "atlas_upright_capped" / "result.json").write_text(json.dumps({**capped, "name": "atlas_upright_capped"}))
+        study = {"complete": True, "starts": 1, "provenance": {"problem": {"bounds": {"Kp": [-1, 1], "Kd": [-1, 1]}}},
+                 "least_per_point": [{"ydot": 0.5, "z": 0.4, "spectral_radius": 2.0}]}
+        (root / "optimal_upright_schur" / "result.json").write_text(json.dumps(study))
+        upright = {"sweep_ydot": 0.5, "sweep_z": 0.4, "start_status": "converged", "status": "converged",
+                   "spectral_radius": nlp_radius, "theta_h_dot": -0.1, "upright_throughout": "true",
+                   "descent_stop": f"stability NLP: Solve_Succeeded, its bound {nlp_radius:.4g}"}
+        swinging = {**upright, "spectral_radius": 0.5, "upright_throughout": "false"}  # not upright throughout: not compared
+        write_points(root / "optimal_upright_schur" / "points.csv", [upright, swinging])
+        [text] = crosscheck_claims(Evidence(root))
+        assert "against the least of `atlas_upright` and `atlas_upright_capped` (charts and polished gaits)" in text
+        assert f"(0.5, 0.4): {nlp_radius:.3g} against 1.5" in text and beside in text
+        verdict = text[text.index("**Verdict:**"):text.index("**Why:**")]
+        assert verdict.startswith("**Verdict:** agrees with the atlas for gaits upright at the apex")
+        assert (clause in verdict) and (("upright throughout the stride it found" in verdict) == bool(clause))
+
+
 def test_the_atlas_claim_names_the_polished_gaits_and_maps_the_hanging_family(tmp_path):
     """The best polished gait of each meaning is described (radius, gait, trunk range), and
     a finished hanging-family atlas adds its least radius and stable share per cell."""
