@@ -14,12 +14,14 @@ def test_body_angle_scan_counts_its_points_and_does_not_claim_absence():
     evidence = Evidence(RESULTS)
     rows = evidence.points("body_angle_scan")
     text = scan_claims(evidence)[0]
-    found = re.search(r"(\d+) of (\d+) body angles .* at the other (\d+) the warm-started local solver found none, "
-                      r"which does not show that none exist", text)
+    found = re.search(r"(\d+) of (\d+) body angles .* at the other (\d+) the warm-started local solver found no "
+                      r"verified one \((\d+) solves failed, (\d+) ended at points that the independent re-simulation "
+                      r"rejected\), which does not show that none exist", text)
     assert found, text
-    verified, scanned, others = map(int, found.groups())
+    verified, scanned, others, failed, rejected = map(int, found.groups())
     assert (verified, scanned) == (len(converged(rows)), len(rows))
-    assert verified + others == scanned
+    assert verified + others == scanned and failed + rejected == others
+    assert rejected == sum(1 for r in rows if r["status"] == "not_verified")
 
 
 def atlas_summary(least_apex, complete=True, polished=None):
@@ -223,6 +225,17 @@ def basins(largest, last_share, cost, kept_up=0.0):
         {"box": 1.0, "returned_fraction": 1.0 - kept_up, "bounded_fraction": kept_up, "ci95": [0.99, 1.0],
          "median_ms_per_stride": cost},
         {"box": 16.0, "returned_fraction": last_share, "ci95": [0.0, 1.0], "median_ms_per_stride": cost}]}
+
+
+def test_the_local_search_claim_gives_the_hanging_range_that_its_search_found():
+    """The comparison with the hanging trunk quotes the least and largest of the hanging
+    search's least radius per cell, as committed, not a typed-in range."""
+    from baslip.report.beyond import upright_section
+
+    evidence = Evidence(RESULTS)
+    radii = [p["spectral_radius"] for p in evidence.summary("optimal_downward")["least_per_point"]]
+    [text] = [c for c in upright_section(evidence) if c.startswith("### Under constant PD, by the local multi-start")]
+    assert f"while the hanging trunk reaches {min(radii):.2f} to {max(radii):.2f};" in text
 
 
 def test_the_best_controller_has_the_largest_90_percent_box_then_the_most_returned_then_the_least_cost():

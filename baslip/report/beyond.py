@@ -48,8 +48,8 @@ def upright_section(ev: Evidence) -> list[str]:
             "The search minimises a smooth bound of the spectral radius on the manifold of fixed points (gradient from "
             "AD second derivatives of the stride), from many starts, then polishes the radius itself by a compass "
             "search. It is local: a valley between starts can be missed, and gains beyond the bounds were not "
-            "searched. Among the gaits it reached the least radius stays above 1 in every cell, while the hanging "
-            "trunk reaches 0.5-0.9; that says nothing of the gaits it did not reach. The atlas below covers the "
+            "searched. Among the gaits it reached the least radius stays above 1 in every cell" + _hanging_range(hanging)
+            + "; that says nothing of the gaits it did not reach. The atlas below covers the "
             "whole family and polishes its best charts: where it finds a stable gait, this search missed it.",
             ["optimal_upright/spectral_radius_map.png", "optimal_upright/best_gaits_trunk.png",
              "optimal_downward/spectral_radius_map.png"],
@@ -301,3 +301,10 @@ def period_two_gait(ev: Evidence) -> str:
         f"spectral radius {record['spectral_radius']:.4g} ({'stable' if record['stable'] else 'unstable'}). "
         f"Its apexes: {apexes}. It lies on the switched branch of continuation_downward_height.", "",
     ])
+
+
+def _hanging_range(hanging: dict | None) -> str:
+    """", while the hanging trunk reaches ..." : the range of the hanging search's least
+    radius per cell ("" if it has not run)."""
+    radii = [p["spectral_radius"] for p in (hanging or {}).get("least_per_point", [])]
+    return f", while the hanging trunk reaches {min(radii):.2f} to {max(radii):.2f}" if radii else ""

@@ -155,8 +155,10 @@ def scan_claims(ev: Evidence) -> list[str]:
     if len(ok) < len(rows):
         # A failed local solve is no proof of absence: which angles fail depends on the
         # branch each warm-started lane follows, which round-off can change.
-        text += (f"; at the other {len(rows) - len(ok)} the warm-started local solver found none, "
-                 "which does not show that none exist")
+        rejected = sum(1 for r in rows if r["status"] == "not_verified")
+        text += (f"; at the other {len(rows) - len(ok)} the warm-started local solver found no verified one "
+                 f"({len(rows) - len(ok) - rejected} solves failed, {rejected} ended at points that the independent "
+                 "re-simulation rejected), which does not show that none exist")
     why = ("With ydot and z fixed, the controls (five numbers) and theta_h_dot leave enough freedom to make many "
            "body angles periodic. The thesis's optimizer minimised eps over fewer free quantities and accepted "
            "eps < 1e-5, and did not find these points.")
