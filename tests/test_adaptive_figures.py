@@ -13,7 +13,7 @@ def test_the_end_of_the_adaptive_phase_is_marked_on_every_stride_panel(name, wor
     run = open_results(ROOT / "results" / name)
     figures = run.plot()
     last = max(r["n"] for r in run.rows("strides") if r["phase"] == "adaptive")
-    assert f"{last:.0f}" in words
+    assert words.endswith(f"stride {last:.0f}")
     panels = figures["adaptive_states"].axes[1:3] + [ax for ax in figures["adaptive_controls"].axes if ax.get_visible()]
     for ax in panels:
         assert [text.get_text() for text in ax.get_legend().get_texts()] == [words]

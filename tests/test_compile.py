@@ -149,7 +149,6 @@ def test_without_a_compiler_the_originals_are_used_with_one_notice(cache, monkey
     functions = make_functions()
     result = compile_functions("test_lib", functions)
     assert all(result[f.name()] is f for f in functions)
-    assert_same_results(functions, result)
     lines = _said(caplog)
     assert len(lines) == 1
     assert lines[0].startswith("baslip: no working C compiler (")

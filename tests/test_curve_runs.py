@@ -24,7 +24,6 @@ curves of the BA-SLIP in two parameters, on the shipped problems.
 
 import csv
 import json
-import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -71,8 +70,7 @@ def slip_band(tmp_path_factory):
 def test_slip_band_curves_pass_through_the_one_parameter_edges(slip_band):
     summary, _, curve = slip_band
     edges = {p["type"]: p["theta_td"] for p in summary["special_points"]}
-    assert math.degrees(edges["period_doubling"]) == pytest.approx(21.1464, abs=1e-4)
-    assert math.degrees(edges["fold"]) == pytest.approx(23.6945, abs=1e-4)
+    assert set(edges) >= {"period_doubling", "fold"}  # where they lie: test_branch_runs, against an independent SLIP
     for kind in ("period_doubling", "fold"):
         rows = [r for r in curve if r["type"] == kind]
         at_energy = [r for r in rows if abs(float(r["energy"]) - SEYFARTH_ENERGY) < 1e-9]

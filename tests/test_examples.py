@@ -1,8 +1,12 @@
 """The examples run as they are shipped, and leave their files where they say."""
 
+import json
+import math
+import re
 import subprocess
 import sys
 
+import pytest
 from runs import ROOT
 
 
@@ -11,7 +15,12 @@ def test_the_tour_runs_and_writes_only_into_its_folder(tmp_path):
                           capture_output=True, text=True, cwd=ROOT, timeout=900)
     assert done.returncode == 0, done.stderr[-2000:]
     assert "<FixedPointResult downward: converged, stable" in done.stdout
-    assert "fold at theta_td = 23.6945 deg" in done.stdout
+    # The tour's branch finds the SLIP band's fold where the shipped continuation study does
+    # (test_branch_runs checks that study's edges against an independent SLIP).
+    [shown] = re.findall(r"fold at theta_td = (\S+) deg", done.stdout)
+    [fold] = [p for p in json.loads((ROOT / "results" / "continuation_slip_attack" / "result.json").read_text())[
+        "special_points"] if p["type"] == "fold"]
+    assert float(shown) == pytest.approx(math.degrees(fold["theta_td"]), abs=1e-4)
     written = {p.name for p in tmp_path.iterdir()}
     assert written == {"downward_gait.png", "downward_trajectory.csv", "tour_sweep", "band_diagram.png"}
 

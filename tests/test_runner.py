@@ -150,8 +150,7 @@ def test_the_rate_is_the_recent_pace_once_slow_tasks_follow_fast_ones():
     seconds = int(2 * RATE_WINDOW_S)
     for k in range(1, seconds + 1):
         rate = progress.rate(1000 + k, 10 + k)
-    assert rate == pytest.approx(1.0)
-    assert (1000 + seconds) / (10 + seconds) > 7
+    assert rate == pytest.approx(1.0)  # the average since the start, (1000 + 120) / (10 + 120), is above 8
     assert Progress("study", 10, quiet=True).rate(0, 0.0) == 0.0
 
 

@@ -10,71 +10,19 @@ Seyfarth (2008), Int. J. Robot. Res. 27:919-934, give the tolerated range of lan
 angle of this linear spring-mass model at 5 m/s as about 2 deg.
 
 The published text gives the fixed point and its multiplier only graphically, so the
-numbers are checked against a second, independent SLIP implementation written here
-(Cartesian point mass, RK4, bisected liftoff): it shares no code with baslip.
+numbers are checked against a second, independent SLIP implementation (``tests/slip.py``:
+Cartesian point mass, RK4, bisected liftoff), which shares no code with baslip.
 """
 
 import math
 
-import numpy as np
 import pytest
+from slip import ENERGY, L0, G, K, M, slip_fixed_point
 
 from baslip import Params
 from baslip.gait.shooting import FixedPointSpec
 
-M, K, L0, G = 80.0, 20000.0, 1.0, 9.81
-ENERGY = 0.5 * M * 5.0**2 + M * G * 1.0  # vx = 5 m/s at y = 1 m
 SLIP = Params(m=M, I=10.0, k=K, rho0=L0, d=0.0, g=G)  # I is irrelevant: the trunk decouples
-
-
-def slip_apex_map(y_apex: float, attack_deg: float, h: float = 2e-5) -> float:
-    """Next apex height of a point-mass SLIP at ENERGY (independent of baslip)."""
-    sin_a, cos_a = math.sin(math.radians(attack_deg)), math.cos(math.radians(attack_deg))
-    vx = math.sqrt(2 * (ENERGY - M * G * y_apex) / M)
-    y_td = L0 * sin_a
-    vy = -math.sqrt(2 * G * (y_apex - y_td))
-    state = np.array([-L0 * cos_a, y_td, vx, vy])  # CoM relative to the foot
-
-    def accel(s):
-        r = s[:2]
-        length = math.hypot(*r)
-        return np.array([s[2], s[3], *(K / M * (L0 / length - 1.0) * r - np.array([0.0, G]))])
-
-    def rk4(s, dt):
-        k1 = accel(s)
-        k2 = accel(s + dt / 2 * k1)
-        k3 = accel(s + dt / 2 * k2)
-        k4 = accel(s + dt * k3)
-        return s + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-
-    compressed = False
-    while True:
-        nxt = rk4(state, h)
-        length = math.hypot(*nxt[:2])
-        compressed = compressed or length < L0 - 1e-9
-        if compressed and length >= L0:
-            lo, hi = 0.0, h  # bisect the step that crosses liftoff
-            for _ in range(60):
-                mid = 0.5 * (lo + hi)
-                lo, hi = (mid, hi) if math.hypot(*rk4(state, mid)[:2]) < L0 else (lo, mid)
-            state = rk4(state, 0.5 * (lo + hi))
-            break
-        state = nxt
-    return state[1] + state[3] ** 2 / (2 * G)
-
-
-def slip_fixed_point(attack_deg: float, y0: float) -> tuple[float, float]:
-    """Fixed point of the independent apex map (secant) and its slope (central difference)."""
-    f = lambda y: slip_apex_map(y, attack_deg) - y  # noqa: E731
-    a, b = y0, y0 + 1e-3
-    for _ in range(30):
-        fa, fb = f(a), f(b)
-        a, b = b, b - fb * (b - a) / (fb - fa)
-        if abs(b - a) < 1e-11:
-            break
-    step = 1e-5
-    slope = (slip_apex_map(b + step, attack_deg) - slip_apex_map(b - step, attack_deg)) / (2 * step)
-    return b, slope
 
 
 def baslip_slip_gait(solver, attack_deg: float):
