@@ -23,6 +23,7 @@ _HOMES = {
     "Problem": "baslip.problem.reader", "load_problem": "baslip.problem.reader",
     "parse_problem": "baslip.problem.reader", "problems_dir": "baslip.problem.shipped",
     "ProblemError": "baslip.errors", "InputError": "baslip.errors", "RunError": "baslip.errors",
+    "ProblemKindError": "baslip.errors",
     "Status": "baslip.status",
     "Fall": "baslip.engine.returnmap", "ReturnMap": "baslip.engine.returnmap", "Simulation": "baslip.engine.returnmap",
     "Stride": "baslip.engine.returnmap", "Tolerances": "baslip.engine.returnmap",
@@ -44,6 +45,7 @@ __all__ = [
     "Params",
     "Problem",
     "ProblemError",
+    "ProblemKindError",
     "ReturnMap",
     "RunError",
     "RunResults",
@@ -64,7 +66,7 @@ __all__ = [
 if TYPE_CHECKING:  # the same names, for type checkers and editors
     from baslip.api import run
     from baslip.engine.returnmap import Fall, ReturnMap, Simulation, Stride, Tolerances
-    from baslip.errors import InputError, ProblemError, RunError
+    from baslip.errors import InputError, ProblemError, ProblemKindError, RunError
     from baslip.gait.fixedpoint import FixedPointResult, FixedPointSolver
     from baslip.gait.from_problem import solve_problem
     from baslip.model.dynamics import APEX, Params, build_model

@@ -5,7 +5,7 @@
 * Without ``out`` nothing is written, and the result holds its tables in memory; with
   ``out`` the folder holds exactly the command line's files.
 * ``solve_problem`` refuses a problem that holds a study or a continuation, naming
-  ``baslip.run``; bad input to ``run`` is an ``InputError`` raised before any solve.
+  ``baslip.run`` (a ``baslip.ProblemKindError``); bad input to ``run`` is an ``InputError`` raised before any solve.
 * A gait's ``animate()`` is one type, with or without IPython: it saves as a GIF and shows
   itself in a notebook as that GIF, embedded (nothing fetched from the web).
 """
@@ -124,6 +124,7 @@ def test_a_gaits_animation_saves_a_gif_and_shows_it_embedded(tmp_path):
 
 
 def test_solve_problem_refuses_a_study_and_names_run():
+    assert baslip.ProblemKindError is ProblemKindError  # the error it raises, importable from baslip
     with pytest.raises(ProblemKindError, match=r"baslip\.run") as caught:
         baslip.solve_problem(baslip.parse_problem(SWEEP))
     assert caught.value.key == "study"
