@@ -16,6 +16,20 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(EXIT_BAD_INPUT, f"error: {message} (see --help)\n")
 
 
+def whole_number(lo: int, hi: int):
+    """An argparse ``type``: a whole number in [``lo``, ``hi``], else a one-line refusal."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number, got {text[:20]!r}") from None
+        if not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"expected {lo} to {hi}, got {value}")
+        return value
+
+    return parse
+
+
 def place_refusal(option: str, place: Path, *, file: bool = False, existing: bool = False) -> str | None:
     """The one-line refusal of an output place given to ``option``, or None if it can be
     written: a ``file`` in an existing folder, else a folder (one that must exist when

@@ -18,7 +18,14 @@ import argparse
 import sys
 from pathlib import Path
 
-from baslip.cli.common import EXIT_BAD_INPUT, EXIT_NOT_CONVERGED, EXIT_OK, OneLineParser, place_refusal
+from baslip.cli.common import (
+    EXIT_BAD_INPUT,
+    EXIT_NOT_CONVERGED,
+    EXIT_OK,
+    OneLineParser,
+    place_refusal,
+    whole_number,
+)
 from baslip.version import __version__
 
 COMMANDS = {
@@ -102,8 +109,8 @@ def trajectory(argv: list[str]) -> int:
 
     parser = OneLineParser(prog="baslip trajectory", description=COMMANDS["trajectory"])
     parser.add_argument("problem", type=Path, help="a single-gait problem file (no study or continuation)")
-    parser.add_argument("--strides", type=_count(1, 1000), default=2, metavar="N", help="strides to sample (default 2)")
-    parser.add_argument("--samples", type=_count(2, 100000), default=100, metavar="N",
+    parser.add_argument("--strides", type=whole_number(1, 1000), default=2, metavar="N", help="strides to sample (default 2)")
+    parser.add_argument("--samples", type=whole_number(2, 100000), default=100, metavar="N",
                         help="samples per flight phase; stance gets twice as many (default 100)")
     parser.add_argument("--out", type=Path, metavar="FILE", help="CSV file (default: <name>_trajectory.csv)")
     args = parser.parse_args(argv)
@@ -132,19 +139,6 @@ def trajectory(argv: list[str]) -> int:
     write_files_atomically({out: motion.csv_text()})
     print(f"wrote {out}: {motion!r}")
     return EXIT_OK
-
-
-def _count(lo: int, hi: int):
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a whole number, got {text[:20]!r}") from None
-        if not lo <= value <= hi:
-            raise argparse.ArgumentTypeError(f"expected {lo} to {hi}, got {value}")
-        return value
-
-    return parse
 
 
 if __name__ == "__main__":

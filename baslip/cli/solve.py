@@ -17,7 +17,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from baslip.cli.common import EXIT_BAD_INPUT, EXIT_NOT_CONVERGED, EXIT_OK, OneLineParser
+from baslip.cli.common import EXIT_BAD_INPUT, EXIT_NOT_CONVERGED, EXIT_OK, OneLineParser, whole_number
 from baslip.diagnostics import show_on_stderr
 from baslip.errors import InputError, RunError
 from baslip.gait.describe import summary_text as summary
@@ -55,11 +55,11 @@ def _parser(prog: str = "python -m baslip.solve") -> argparse.ArgumentParser:
     talk.add_argument("--quiet", action="store_true", help="print nothing but errors")
     talk.add_argument("--verbose", action="store_true",
                       help="also print IPOPT's iterations (of a single solve, or of a branch's start)")
-    parser.add_argument("--jobs", type=_positive, metavar="N",
+    parser.add_argument("--jobs", type=whole_number(1, 1024), metavar="N",
                         help="worker processes for a study, or for a continuation's curves (default: one per core, at "
                              "most one per lane; the answers do not depend on it); with --scheduler local, the "
                              "LocalCluster's workers")
-    parser.add_argument("--lanes", type=_positive, metavar="N",
+    parser.add_argument("--lanes", type=whole_number(1, 1024), metavar="N",
                         help="split a new study into N lanes of warm-started tasks (default 2), so that up to N "
                              "workers run at once; recorded in result.json and kept when the run resumes. "
                              "The answers depend on N (not on --jobs): each lane warm-starts from its own "
@@ -76,16 +76,6 @@ def _parser(prog: str = "python -m baslip.solve") -> argparse.ArgumentParser:
              "branch, or a changed study's results is refused)",
     )
     return parser
-
-
-def _positive(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text[:20]!r}") from None
-    if not 1 <= value <= 1024:
-        raise argparse.ArgumentTypeError(f"expected 1 to 1024, got {value}")
-    return value
 
 
 def main(argv: list[str] | None = None, prog: str = "python -m baslip.solve") -> int:

@@ -66,12 +66,19 @@ class Axis:
 
 @dataclass(frozen=True)
 class Sweep:
+    """``kind: sweep``: fixed points over a grid of one or two quantities (``axes``, SI
+    units and radians), one solve per grid point."""
+
     axes: tuple[Axis, ...]
     kind: str = "sweep"
 
 
 @dataclass(frozen=True)
 class RandomSample:
+    """``kind: random``: ``count`` points drawn (with ``seed``) inside the stable region of
+    the finished two-quantity sweep ``region``, or inside the stability boundary traced by
+    the finished curve run ``boundary``; each is solved and verified."""
+
     region: str  # name of a finished two-quantity sweep
     count: int
     seed: int = 0
@@ -81,6 +88,12 @@ class RandomSample:
 
 @dataclass(frozen=True)
 class Basin:
+    """``kind: basin``: the convergence regions, by simulation, of a stable and an unstable
+    point of the finished (ydot, z) sweep ``source``. ``grid`` holds the initial apexes'
+    ydot [m/s] and z [m]; ``stable_at`` and ``unstable_at`` are (ydot [m/s], z [m]) near
+    the two examples; a start has converged when it comes within ``tolerance`` (relative
+    distance) of the fixed point in at most ``strides`` strides."""
+
     source: str  # name of a finished (ydot, z) sweep
     grid: tuple[Axis, Axis]  # ydot and z of the initial apex states
     stable_at: tuple[float, float]  # (ydot, z) near the stable example
@@ -92,6 +105,11 @@ class Basin:
 
 @dataclass(frozen=True)
 class Adaptive:
+    """``kind: adaptive``: from the gait perturbed by ``perturbation`` (apex quantity ->
+    offset, SI units and radians), the control re-solved at every apex for ``strides``
+    strides by ``criterion``, then held for at most ``frozen_strides``; a perturbed start
+    counts as recovered when it survives ``probe_strides`` strides."""
+
     strides: int = 2048
     frozen_strides: int = 1000
     perturbation: tuple[tuple[str, float], ...] = ()  # offsets of the first apex from the gait
@@ -102,6 +120,11 @@ class Adaptive:
 
 @dataclass(frozen=True)
 class Optimal:
+    """``kind: optimal``: the most stable gait at each cell of ``axes``, descended (``method``:
+    ``descent`` along the fixed-point manifold, or ``schur_nlp``, the stability NLP) from
+    ``starts`` gaits whose gains (or pivot) are drawn with ``seed`` over their bounds; each
+    descent takes at most ``iterations`` quasi-Newton steps."""
+
     axes: tuple[Axis, ...]
     starts: int = 16
     seed: int = 0
@@ -112,6 +135,13 @@ class Optimal:
 
 @dataclass(frozen=True)
 class Atlas:
+    """``kind: atlas``: the family of gaits at each cell of ``axes`` covered by charts
+    (:mod:`baslip.analysis.atlas`), grown from ``seeds`` independent solves. Radii are in
+    atlas units (:mod:`baslip.analysis.gaitatlas`); ``plot`` names the figure's two
+    quantities; ``polish`` descents of at most ``iterations`` steps each polish the least
+    local minima of the spectral radius. docs/guides/problem-files.md gives each key's
+    range."""
+
     axes: tuple[Axis, ...]  # the cells: one atlas at each grid point
     seeds: int = 24  # solves per cell (the guess's, then drawn gains), each seeding a piece unless on a covered one
     seed: int = 0
@@ -127,6 +157,13 @@ class Atlas:
 
 @dataclass(frozen=True)
 class Controllers:
+    """``kind: controllers``: stride-to-stride controllers compared by their measured
+    basins. ``perturbation`` gives the basin box's half-width per apex quantity (SI units
+    and radians) and ``boxes`` its sizes as multiples of it; ``samples`` starts a box
+    (drawn with ``seed``) run at most ``strides`` strides, and a start has returned when it
+    comes within ``tolerance`` (relative distance) of the gait. docs/guides/problem-files.md
+    gives each key's range."""
+
     perturbation: tuple[tuple[str, float], ...]  # half-width of the box in each apex quantity
     samples: int = 200
     seed: int = 0
