@@ -8,7 +8,7 @@ rhodot * theta1_dot) and against the invariants of the maps.
 import numpy as np
 import pytest
 
-from baslip.model.dynamics import Params, build_model, stance_equations
+from baslip.model.dynamics import CONFIGURATION, STANCE, Params, build_model, stance_equations
 
 MODEL = build_model()
 RNG = np.random.default_rng(7)
@@ -46,6 +46,15 @@ def thesis_rhs(x, tau, p: Params):
             tau / m + rd * t1d * 2 * d * np.cos(th2) + t1d**2 * d * rho * np.sin(th2) - g * d * np.sin(th1 + th2),
         ]
     )
+
+
+def test_the_stance_state_is_the_configuration_then_the_rate_of_each_entry():
+    """The equations split a stance state by CONFIGURATION's size: q first, then qdot in
+    the same order."""
+    n = CONFIGURATION.size
+    assert STANCE.size == 2 * n and STANCE.names[:n] == CONFIGURATION.names
+    for coordinate, rate in zip(CONFIGURATION.names, STANCE.names[n:]):
+        assert rate.startswith(coordinate) and rate.endswith("dot")
 
 
 @pytest.mark.parametrize("params", [Params(), Params(m=2.5, I=0.01, d=0.07, k=3000.0)])

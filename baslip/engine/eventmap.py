@@ -48,6 +48,7 @@ from baslip.model import hiplaw as _hiplaw
 from baslip.model import layout as _layout
 from baslip.model.dynamics import (
     APEX,
+    CONFIGURATION,
     FLIGHT,
     PARAMS,
     STANCE,
@@ -97,7 +98,7 @@ def _stance_run_indicators(s, p):
     in_compression = phase < 0.5
     in_stance = phase < 1.5
     in_decompression = ca.logic_and(in_stance, ca.logic_not(in_compression))
-    q = x[:3]
+    q = x[: CONFIGURATION.size]
     rho_floor = COLLAPSE_FRACTION * PARAMS.get(p, "rho0")
     return ca.vertcat(
         ca.if_else(in_compression, -bottom_guard(x), 1),

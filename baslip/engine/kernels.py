@@ -51,6 +51,7 @@ from baslip.model import hiplaw as _hiplaw
 from baslip.model import layout as _layout
 from baslip.model.dynamics import (
     APEX,
+    CONFIGURATION,
     FLIGHT,
     PARAMS,
     STANCE,
@@ -122,7 +123,7 @@ def stance_rhs(law: HipLaw = PD) -> ca.Function:
 def stance_clearances(x, theta):
     """(CoM height, hip height, rho - collapse floor) [m]; the runner falls at zero."""
     _, p = _split_theta(theta)
-    q = x[:3]
+    q = x[: CONFIGURATION.size]
     floor = COLLAPSE_FRACTION * PARAMS.get(p, "rho0")
     return ca.vertcat(stance_com_position(q, p)[1], stance_hip_position(q)[1], STANCE.get(x, "rho") - floor)
 

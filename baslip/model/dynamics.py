@@ -50,6 +50,9 @@ def _sx_function(*sizes: int):
 
 PARAMS = Layout(("m", "I", "k", "rho0", "d", "g"))
 STANCE = Layout(("rho", "theta1", "theta2", "rhodot", "theta1_dot", "theta2_dot"))
+#: The stance configuration q: the first half of STANCE, whose second half holds the rates
+#: of these entries (qdot, named here by the coordinate each is the rate of).
+CONFIGURATION = Layout(("rho", "theta1", "theta2"))
 FLIGHT = Layout(("y", "z", "theta_h", "ydot", "zdot", "theta_h_dot"))
 APEX = Layout(("z", "theta_h", "ydot", "theta_h_dot"))
 
@@ -132,7 +135,8 @@ def stance_pose(q, p):
 
 def _coordinates(x):
     """Split a stance state into configuration q and velocity qdot."""
-    return x[0:3], x[3:6]
+    n = CONFIGURATION.size
+    return x[:n], x[n : 2 * n]
 
 
 # --- Lagrangian mechanics of stance -------------------------------------------------------
@@ -142,7 +146,8 @@ def _coordinates(x):
 def stance_kinetic_energy(q, qdot, p):
     """T = m/2 |v_CoM|^2 + I/2 theta_h_dot^2 [J]."""
     v_com = ca.mtimes(stance_velocity_jacobian(q, p)[:2, :], qdot)
-    theta_h_dot = qdot[1] + qdot[2]  # theta_h = theta1 + theta2 - pi/2
+    # theta_h = theta1 + theta2 - pi/2
+    theta_h_dot = CONFIGURATION.get(qdot, "theta1") + CONFIGURATION.get(qdot, "theta2")
     m, inertia = PARAMS.get(p, "m"), PARAMS.get(p, "I")
     return 0.5 * m * ca.dot(v_com, v_com) + 0.5 * inertia * theta_h_dot**2
 

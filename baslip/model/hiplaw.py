@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from baslip.model.dynamics import PARAMS, STANCE, stance_com_position
+from baslip.model.dynamics import CONFIGURATION, PARAMS, STANCE, stance_com_position
 from baslip.model.layout import Layout
 
 
@@ -287,7 +287,7 @@ class VPPLaw(HipLaw):
         p : casadi.SX, casadi.MX or casadi.DM
             The parameter vector (m, I, k, rho0, d, g).
         """
-        q = x[:3, :]
+        q = x[: CONFIGURATION.size, :]
         pivot = virtual_pivot(q, self.controls.get(u, "r_vpp"), p)
         along, across = leg_axes(STANCE.get(x, "theta1"))
         rho = STANCE.get(x, "rho")
