@@ -55,6 +55,19 @@ def test_a_branch_too_small_to_see_is_zoomed_in_an_inset_and_a_visible_one_is_no
     plt.close(fig)
 
 
+def test_an_unstable_stretch_is_one_dashed_line_whose_dashes_show():
+    """Each run of stable or unstable points is one line (dashes drawn per two-point piece
+    would be shorter than a dash, and read as solid): on the VPP fold curve's branch,
+    unstable throughout, one dashed line carries every point."""
+    run, fig = _diagram("curve_vpp_fold")
+    rows = run.rows("branch")
+    assert not any(r["stable"] for r in rows)
+    drawn = [line for line in fig.axes[0].get_lines() if len(line.get_xdata()) > 1]
+    assert [line.get_linestyle() for line in drawn] == ["--"] * len({r["branch"] for r in rows})
+    assert sum(len(line.get_xdata()) for line in drawn) == len(rows)
+    plt.close(fig)
+
+
 def _band(fig):
     return [c for c in fig.axes[0].collections if isinstance(c, PolyCollection) and "stable gaits" in str(c.get_label())]
 

@@ -23,6 +23,7 @@ import numpy as np
 from baslip.files.rows import read_points
 from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import PD, HipLaw
+from baslip.model.quantities import quantity_text
 from baslip.problem.reader import Problem
 from baslip.problem.study import Atlas, Optimal
 from baslip.status import Status
@@ -137,7 +138,7 @@ def best_gait_motions(best: list[dict], names: list[str], params, count: int = 6
     for row in sorted(best, key=lambda r: r["spectral_radius"])[:count]:
         X, u = np.array([row[n] for n in APEX.names]), np.array([row[n] for n in law.controls.names])
         motion = stride_trajectory(rmap, X, u, params, strides=1, samples=100)
-        where = ", ".join(f"{n} = {row[key_column(n)]:g}" for n in names)
+        where = ", ".join(quantity_text(n, row[key_column(n)], 6) for n in names)
         motions.append((f"{where}{note(row)}: radius {row['spectral_radius']:.3g}", motion.t, motion.theta_h))
     return motions
 

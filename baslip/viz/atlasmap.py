@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.tri import Triangulation
 
+from baslip.model.quantities import quantity_text
 from baslip.viz.colours import radius_colorbar, radius_colours
 from baslip.viz.figures import LABELS, _in, _save, plt, shown
 
@@ -42,8 +43,7 @@ def atlas_figure(charts: list[dict], names: list[str], plot: tuple[str, str], ou
     image = None
     for ax, cell in zip(axes.flat, cells):
         mine = [c for c in charts if tuple(c[f"sweep_{n}"] for n in names) == cell and c["status"] == "converged"]
-        image = _panel(ax, mine, plot, colours) or image
-        ax.set_title(", ".join(f"{n} = {v:g}" for n, v in zip(names, cell)) + f": {len(mine)} charts", fontsize=9)
+        image = _panel(ax, mine, plot, colours, ", ".join(quantity_text(n, v, 6) for n, v in zip(names, cell))) or image
     for ax in list(axes.flat)[len(cells):]:
         ax.set_visible(False)
     if image is not None:
@@ -53,9 +53,13 @@ def atlas_figure(charts: list[dict], names: list[str], plot: tuple[str, str], ou
     return _save(fig, _in(out_dir, "atlas.png"), tight=False)
 
 
-def _panel(ax, charts: list[dict], plot: tuple[str, str], colours):
+def _panel(ax, charts: list[dict], plot: tuple[str, str], colours, cell: str):
+    """One cell's verified ``charts`` on ``ax``, titled by ``cell``; the colour image (None
+    if there is no chart). The least radius goes in the title, not a legend, which would
+    sit on the charts."""
     if not charts:
         ax.text(0.5, 0.5, "no verified chart", ha="center", va="center", transform=ax.transAxes)
+        ax.set_title(f"{cell}: no verified chart", fontsize=9)
         return None
     x = shown(plot[0], [c[plot[0]] for c in charts])
     y = shown(plot[1], [c[plot[1]] for c in charts])
@@ -68,8 +72,11 @@ def _panel(ax, charts: list[dict], plot: tuple[str, str], colours):
             ax.tricontour(mesh, level, levels=[0.0], colors="k", linewidths=0.8)
     image = ax.scatter(x, y, c=radius, s=6, cmap=colours[0], norm=colours[1], linewidths=0)
     best = int(np.argmin(radius))
-    ax.plot(x[best], y[best], "*", ms=13, mfc="gold", mec="k", label=f"least radius {radius[best]:.3g}")
-    ax.legend(fontsize=7, loc="best")
+    # Drawn over the frame: the most stable chart often lies on a bound, at the panel's edge.
+    ax.plot(x[best], y[best], "*", ms=13, mfc="gold", mec="k", clip_on=False, zorder=5)
+    ax.use_sticky_edges = False  # the filled contours would pin the limits to the charts
+    ax.margins(0.03)
+    ax.set_title(f"{cell}: {len(charts)} charts, least radius {radius[best]:.3g}", fontsize=9)
     ax.set_xlabel(LABELS.get(plot[0], plot[0]))
     ax.set_ylabel(LABELS.get(plot[1], plot[1]))
     return image

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.ticker import MaxNLocator
 
-from baslip.model.quantities import quantity_text
+from baslip.model.quantities import NOMINAL, quantity_text
 from baslip.viz.figures import LABELS, _save, plt, shown
 from baslip.viz.labels import SPECIAL_NAMES
 from baslip.viz.placement import clear_placement
@@ -40,7 +40,7 @@ def bifurcation_diagram(rows: list[dict], parameter: str, quantity: str, path=No
         # The label goes where it clears the branches and the other labels, inside the
         # frame, in its marker's colour and tied to it by a line.
         where = clear_placement(ax, (xv, yv), drawn, placed)
-        ax.annotate(f"{SPECIAL_NAMES[r['special']]}\n{quantity_text(parameter, r[parameter], 6)}", (xv, yv),
+        ax.annotate(f"{SPECIAL_NAMES[r['special']]}\n{quantity_text(parameter, _rounded(parameter, r[parameter]), 6)}", (xv, yv),
                     textcoords="offset points", xytext=where.offset, ha=where.ha, va=where.va, fontsize=8,
                     color=color, arrowprops={"arrowstyle": "-", "color": color, "lw": 0.7})
     if _zoom_small_branches(ax, segments):  # the legend goes above the frame, clear of the inset
@@ -55,7 +55,7 @@ def _draw_branches(ax, rows, parameter, quantity) -> list:
     """Each branch of ``rows`` on ``ax``, stable segments solid and unstable dashed, with a
     legend entry per style drawn; returns ((x, y), style-and-colour) of every segment."""
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    segments = []
+    segments: list = []
     for number in sorted({r["branch"] for r in rows}):
         branch = [r for r in rows if r["branch"] == number]
         color = colors[int(number) % len(colors)]
@@ -63,15 +63,33 @@ def _draw_branches(ax, rows, parameter, quantity) -> list:
         for k in range(len(branch[0].get("orbit", [None]))):
             x = shown(parameter, [_orbit_value(r, k, parameter) for r in branch])
             y = shown(quantity, [_orbit_value(r, k, quantity) for r in branch])
-            for i in range(len(branch) - 1):
-                style = "-" if stable[i] and stable[i + 1] else "--"
-                ax.plot(x[i : i + 2], y[i : i + 2], style, color=color)
-                segments.append(((x[i : i + 2], y[i : i + 2]), (style, color, int(number))))
+            styles = ["-" if stable[i] and stable[i + 1] else "--" for i in range(len(branch) - 1)]
+            for first, end in _runs(styles):  # one line a run: a dash is longer than a step
+                ax.plot(x[first : end + 1], y[first : end + 1], styles[first], color=color)
+            segments.extend(((x[i : i + 2], y[i : i + 2]), (style, color, int(number))) for i, style in enumerate(styles))
         strides = int(branch[0]["strides"])
         for style, word, present in (("-", "stable", any(stable)), ("--", "unstable", not all(stable))):
             if present:  # only the styles drawn get a legend entry
                 ax.plot([], [], style, color=color, label=f"{strides}-stride orbits, {word}")
     return segments
+
+
+#: A special point's parameter below this share of the quantity's nominal size is shown as
+#: 0: a point located at 0 by structure lands within the corrector's tolerance of it, and
+#: its digits there are noise (r_vpp = 1.7e-10 m at the VPP branch point).
+ZERO_SHARE = 1e-6
+
+
+def _rounded(name: str, value: float) -> float:
+    """``value`` of quantity ``name`` for a label: 0 where it is noise about 0 (:data:`ZERO_SHARE`)."""
+    return 0.0 if abs(value) < ZERO_SHARE * NOMINAL.get(name, 1.0) else value
+
+
+def _runs(items: list) -> list[tuple[int, int]]:
+    """(first, end) of each run of equal neighbours in ``items``: items[first:end] are
+    equal, and the runs cover ``items`` in order."""
+    bounds = [0] + [i for i in range(1, len(items)) if items[i] != items[i - 1]] + [len(items)]
+    return [(first, end) for first, end in zip(bounds[:-1], bounds[1:]) if end > first]
 
 
 #: A branch smaller than this on screen, both ways [px], is shown again in a zoomed inset.
