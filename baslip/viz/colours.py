@@ -36,13 +36,31 @@ def radius_colours(radii) -> tuple[Colormap, LogNorm]:
 def radius_colorbar(fig, image, ax, label: str):
     """A colour bar for spectral radii, ticked at round radii (1 among them)."""
     bar = fig.colorbar(image, ax=ax, label=label)
-    lo, hi = image.norm.vmin, image.norm.vmax
-    # 0.9 and 1.1 crowd 1 on a bar of more than a decade each way.
-    ticks = [t for t in RADIUS_TICKS if lo <= t <= hi and (hi <= 10.0 or t not in (0.9, 1.1))]
+    ticks = spaced_radius_ticks(image.norm.vmin, image.norm.vmax)
     bar.set_ticks(ticks)
     bar.set_ticklabels([f"{t:g}" for t in ticks])
     bar.minorticks_off()
     return bar
+
+
+#: Least gap between two ticks of a radius colour bar, as a share of its log range: about
+#: a label's height on a bar of the figures' size.
+TICK_GAP_SHARE = 0.06
+
+
+def spaced_radius_ticks(lo: float, hi: float) -> list[float]:
+    """The ticks of :data:`RADIUS_TICKS` within [``lo``, ``hi``] that a bar can label
+    without their text running together: 1, then outwards from it each tick at least
+    :data:`TICK_GAP_SHARE` of the bar's log range from the last one kept."""
+    gap = TICK_GAP_SHARE * math.log10(hi / lo)
+    kept = [1.0] if lo <= 1.0 <= hi else []
+    for side in (sorted(t for t in RADIUS_TICKS if 1.0 < t <= hi), sorted((t for t in RADIUS_TICKS if lo <= t < 1.0), reverse=True)):
+        last = 0.0
+        for tick in side:
+            if abs(math.log10(tick)) - last >= gap:
+                kept.append(tick)
+                last = abs(math.log10(tick))
+    return sorted(kept)
 
 
 #: Least span of an angle's colour bar [deg]: a map whose angles differ by a quarter of a

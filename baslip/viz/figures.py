@@ -15,7 +15,7 @@ from baslip.viz.backend import hand_over, use_file_backend
 
 use_file_backend()
 import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import numpy as np
 
 from baslip.model.quantities import UNITS  # noqa: E402
 from baslip.problem.study import CONTROLLER_KINDS  # noqa: E402
@@ -84,6 +84,17 @@ def _in(out_dir: Path | None, name: str) -> Path | Unwritten:
     return Unwritten(name) if out_dir is None else out_dir / name
 
 
+def legend_beside(ax, fontsize: float = 8) -> None:
+    """The legend of ``ax`` to the right of its frame, where it cannot cover data."""
+    ax.legend(fontsize=fontsize, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, frameon=False)
+
+
+def legend_below(ax, fontsize: float = 8, columns: int = 3) -> None:
+    """The legend of ``ax`` under its frame and axis label (for a figure whose right side
+    holds a colour bar), in ``columns`` columns, where it cannot cover data."""
+    ax.legend(fontsize=fontsize, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=columns, frameon=False)
+
+
 def _save(fig, path, tight: bool = True, problem: str = "") -> Path | None:
     """Save to ``path`` (a file name, whose suffix becomes the current format, or a
     binary file object) and close the figure; return where it went. With ``path`` None
@@ -129,8 +140,17 @@ def sweep_figures(rows: list[dict], names: list[str], out_dir: Path | None, *, p
     if not rows:
         return []
     if len(names) == 1:
-        return [_sweep_line(rows, names[0], y, out_dir, problem) for y in ("z", "theta_h", "spectral_radius", "residual")]
-    return [_sweep_map(rows, names, value, out_dir, problem) for value in ("theta_h", "spectral_radius")]
+        return [_sweep_line(rows, names[0], y, out_dir, problem) for y in ("z", "theta_h", "spectral_radius", "residual")
+                if y not in names and _varies(rows, y)]
+    return [_sweep_map(rows, names, value, out_dir, problem) for value in ("theta_h", "spectral_radius")
+            if value not in names and _varies(rows, value)]
+
+
+def _varies(rows: list[dict], quantity: str) -> bool:
+    """Whether ``quantity`` takes more than one value over the verified rows: a figure of a
+    quantity the problem holds (or of none verified) would show nothing."""
+    values = [r[quantity] for r in rows if r["status"] == Status.CONVERGED and isinstance(r[quantity], float)]
+    return len(values) > 1 and max(values) - min(values) > 1e-12 * max(1.0, max(abs(v) for v in values))
 
 
 def _sweep_line(rows, name, quantity, out_dir, problem: str = "") -> Path | None:
@@ -139,10 +159,12 @@ def _sweep_line(rows, name, quantity, out_dir, problem: str = "") -> Path | None
     y = y if quantity in ("spectral_radius", "residual") else shown(quantity, y)
     stable, unstable, missing = _classes(rows)
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
-    ax.plot(x[stable], y[stable], "o", color="tab:blue", ms=4, label="stable")
-    ax.plot(x[unstable], y[unstable], "x", color="tab:red", ms=4, label="unstable")
+    for mask, style, color, word in ((stable, "o", "tab:blue", "stable"), (unstable, "x", "tab:red", "unstable")):
+        if mask.any():  # only what is there gets a legend entry
+            ax.plot(x[mask], y[mask], style, color=color, ms=4, label=word)
     if quantity in ("z", "theta_h", "residual"):
-        ax.plot(x[missing], y[missing], ".", color="0.6", ms=4, label="not verified / failed")
+        if missing.any():
+            ax.plot(x[missing], y[missing], ".", color="0.6", ms=4, label="not verified / failed")
     elif missing.any():
         for xv in x[missing]:
             ax.axvline(xv, color="0.85", lw=0.8, zorder=0)
@@ -155,7 +177,7 @@ def _sweep_line(rows, name, quantity, out_dir, problem: str = "") -> Path | None
         ax.set_yscale("log")
     ax.set_xlabel(LABELS.get(name, name))
     ax.set_ylabel(LABELS[quantity])
-    ax.legend(fontsize=8)
+    legend_beside(ax)
     path = _in(out_dir, f"{quantity}.png")
     return _save(fig, path, problem=problem)
 
@@ -176,7 +198,7 @@ def _grid(rows, names, quantity):
 def _sweep_map(rows, names, quantity, out_dir, problem: str = "") -> Path | None:
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     draw_map(fig, ax, rows, names, quantity)
-    ax.legend(fontsize=8, loc="upper right")
+    legend_below(ax)
     return _save(fig, _in(out_dir, f"{quantity}_map.png"), problem=problem)
 
 
@@ -238,7 +260,7 @@ def random_figure(rows: list[dict], region_rows: list[dict], names, out_dir: Pat
                     ms=4 if style == "o" else 5, label=f"{word} ({mask.sum()})")
     ax.set_xlabel(LABELS.get(names[0], names[0]))
     ax.set_ylabel(LABELS.get(names[1], names[1]))
-    ax.legend(fontsize=8)
+    legend_below(ax)
     path = _in(out_dir, "samples.png")
     return _save(fig, path, problem=problem)
 
@@ -348,7 +370,7 @@ def curve_diagram(rows: list[dict], first: str, second: str, path=None, *, probl
     if params is not None and "energy" in (first, second):
         _speed_axis(ax, params, "y" if second == "energy" else "x")
     if ax.get_legend_handles_labels()[0]:
-        ax.legend(fontsize=8)
+        legend_below(ax, columns=1)
     saved = _save(fig, path, problem=problem)
     return fig if path is None else saved
 
@@ -442,11 +464,15 @@ def trunk_motion_figure(motions: list[tuple[str, np.ndarray, np.ndarray]], out_d
     """Trunk angle over one stride of each gait: (label, t [s], theta_h [rad]), with the
     band of 'upright throughout' (within 45 deg of vertical) shaded where it falls within
     the traces' range: the range follows the traces (at least 10 deg), not the band."""
-    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    fig, ax = plt.subplots(figsize=(9.6, 4.8))
     angles = [shown("theta_h", theta_h) for _, _, theta_h in motions]
-    ax.axhspan(45, 135, color="0.92", label="within 45 deg of vertical")
-    for (label, t, _), angle in zip(motions, angles):
-        ax.plot(t, angle, lw=1.2, label=label)
+    # The band about the vertical the traces keep to: upright (90 deg) or hanging (-90 deg).
+    vertical = 90.0 if not angles or np.mean([a.mean() for a in angles]) >= 0 else -90.0
+    ax.axhspan(vertical - 45, vertical + 45, color="0.92", label="within 45 deg of vertical")
+    # Ten colours, solid then dashed: twenty traces that can be told apart.
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for k, ((label, t, _), angle) in enumerate(zip(motions, angles)):
+        ax.plot(t, angle, "-" if k < len(colours) else "--", color=colours[k % len(colours)], lw=1.2, label=label)
     if angles:
         low, high = min(a.min() for a in angles), max(a.max() for a in angles)
         margin = max(0.1 * (high - low), 5.0)
@@ -454,7 +480,7 @@ def trunk_motion_figure(motions: list[tuple[str, np.ndarray, np.ndarray]], out_d
     ax.set_xlabel("time from apex t [s]")
     ax.set_ylabel(LABELS["theta_h"])
     ax.set_title("Trunk angle over one stride of the most stable gaits")
-    ax.legend(fontsize=7, loc="best")
+    legend_beside(ax, fontsize=7)
     path = _in(out_dir, "best_gaits_trunk.png")
     return _save(fig, path, problem=problem)
 
@@ -485,7 +511,7 @@ def controllers_figure(rows: list[dict], perturbation: dict, out_dir: Path | Non
     axes[0].set_ylabel("share of perturbed starts")
     axes[0].tick_params(axis="x", labelsize=7)
     axes[0].set_ylim(0, 1)
-    axes[0].legend(fontsize=8)
+    axes[0].legend(fontsize=8, loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=len(outcomes), frameon=False)
     for ax, name in zip(axes[1:], names):
         mine = [r for r in rows if r["controller"] == name]
         for outcome in outcomes:
@@ -498,7 +524,7 @@ def controllers_figure(rows: list[dict], perturbation: dict, out_dir: Path | Non
         ax.set_title(CONTROLLER_NAMES[name], fontsize=9)
         ax.set_xlabel("change of " + LABELS[axes_names[0]])
         ax.set_ylabel("change of " + LABELS[axes_names[1]])
-        ax.legend(fontsize=7)
+        legend_below(ax, fontsize=7)
     path = _in(out_dir, "controllers.png")
     return _save(fig, path, problem=problem)
 
