@@ -101,6 +101,19 @@ def test_other_studies_draw_their_figures_without_writing(name, count):
     assert {p: p.stat().st_mtime_ns for p in folder.iterdir()} == before
 
 
+def test_a_sweep_draws_no_figure_of_a_quantity_that_does_not_vary():
+    """A scan of theta_h with z held draws no theta_h or z line (the swept angle against
+    itself, a constant), and a VPP sweep no theta_h map (its gaits all share 90 deg);
+    the spectral radius and the residual are always drawn."""
+    scan = open_results(RESULTS / "body_angle_scan").plot()
+    assert set(scan) == {"spectral_radius", "residual"}
+    vpp = open_results(RESULTS / "vpp_sweep_thesis")
+    angles = [r["theta_h"] for r in vpp.rows() if r["status"] == "converged"]
+    assert max(angles) - min(angles) < 1e-8  # the symmetric family: theta_h = 90 deg to round-off
+    assert set(vpp.plot()) == {"spectral_radius_map"}
+    assert "theta_h_map" in open_results(RESULTS / "grid_upward").plot()  # theta_h varies there
+
+
 def test_convergence_regions_redrawn_from_files_hold_the_counted_cells():
     """The regions read back are those the run counted: one stable point's and the union."""
     basin = open_results(RESULTS / "convergence_regions")
