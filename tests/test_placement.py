@@ -40,3 +40,17 @@ def test_a_label_on_a_rising_line_sits_off_the_line_and_off_the_other_label():
     second = clear_placement(ax, (5.0, 5.0), line, placed)
     assert second.offset != first.offset  # not on top of the first label
     plt.close(fig)
+
+
+def test_labels_of_two_nearby_points_do_not_overlap():
+    """Two points near each other beside a falling line, each labelled: the boxes stay
+    apart. Their distance is taken box to box; from a few points of the first box only
+    (its corners and centre), the second label was placed across the first one's edge."""
+    fig, ax = _axes()
+    line = np.column_stack([np.linspace(0, 10, 50), np.linspace(10.568, 4.802, 50)])
+    placed: list = []
+    for point in ((6.307, 6.542), (6.564, 6.237)):
+        clear_placement(ax, point, line, placed)
+    (a0, b0, a1, b1), (c0, d0, c1, d1) = placed
+    assert min(a1, c1) - max(a0, c0) <= 0 or min(b1, d1) - max(b0, d0) <= 0
+    plt.close(fig)

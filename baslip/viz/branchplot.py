@@ -96,6 +96,14 @@ def _runs(items: list) -> list[tuple[int, int]]:
 SMALL_BRANCH_PX = 60.0
 
 
+#: The zoomed inset's size and its candidate places (lower left corners), as fractions of
+#: the axes: the four corners, then the middles of the top and bottom edges.
+INSET_SIZE = (0.35, 0.38)
+INSET_PLACES = ((0.04, 0.56), (0.61, 0.56), (0.04, 0.06), (0.61, 0.06), (0.325, 0.56), (0.325, 0.06))
+#: Points sampled along each segment to find the emptiest place for the inset.
+INSET_SAMPLES = 20
+
+
 def _zoom_small_branches(ax, segments) -> bool:
     """An inset, in the emptiest corner, that zooms on the first branch after the first
     whose extent on screen is under :data:`SMALL_BRANCH_PX` both ways (a short
@@ -106,15 +114,20 @@ def _zoom_small_branches(ax, segments) -> bool:
         screen = ax.transData.transform(points)
         if np.ptp(screen[:, 0]) >= SMALL_BRANCH_PX or np.ptp(screen[:, 1]) >= SMALL_BRANCH_PX:
             continue
-        every = ax.transAxes.inverted().transform(ax.transData.transform(np.vstack([np.column_stack(xy) for xy, _ in segments])))
-        corners = {(0.04, 0.56): (0.0, 0.5), (0.61, 0.56): (0.5, 0.5), (0.04, 0.06): (0.0, 0.0), (0.61, 0.06): (0.5, 0.0)}
-        crowding = {where: int(np.sum((every[:, 0] >= box[0]) & (every[:, 0] <= box[0] + 0.5)
-                                      & (every[:, 1] >= box[1]) & (every[:, 1] <= box[1] + 0.5)))
-                    for where, box in corners.items()}
-        corner = min(crowding, key=lambda where: crowding[where])
-        inset = ax.inset_axes([corner[0], corner[1], 0.35, 0.38])
-        for (x, y), (style, color, _) in segments:
-            inset.plot(x, y, style, color=color)
+        # Every segment sampled along its length (a long segment has only its two ends
+        # among the points), in axes coordinates: the inset goes where fewest lie.
+        along = np.linspace(0.0, 1.0, INSET_SAMPLES)[:, None]
+        every = ax.transAxes.inverted().transform(ax.transData.transform(np.vstack(
+            [np.column_stack(xy)[0] + along * np.diff(np.column_stack(xy), axis=0) for xy, _ in segments])))
+        width, height = INSET_SIZE
+        crowding = {where: int(np.sum((every[:, 0] >= where[0]) & (every[:, 0] <= where[0] + width)
+                                      & (every[:, 1] >= where[1]) & (every[:, 1] <= where[1] + height)))
+                    for where in INSET_PLACES}
+        corner = min(INSET_PLACES, key=lambda where: crowding[where])  # ties keep the first
+        inset = ax.inset_axes([corner[0], corner[1], width, height])
+        for line in ax.get_lines():
+            if len(line.get_xdata()) > 1:  # the branches' lines, as drawn (not markers or legend keys)
+                inset.plot(line.get_xdata(), line.get_ydata(), line.get_linestyle(), color=line.get_color())
         pad_x, pad_y = 0.15 * max(np.ptp(points[:, 0]), 1e-12), 0.15 * max(np.ptp(points[:, 1]), 1e-12)
         inset.set_xlim(points[:, 0].min() - pad_x, points[:, 0].max() + pad_x)
         inset.set_ylim(points[:, 1].min() - pad_y, points[:, 1].max() + pad_y)

@@ -22,6 +22,7 @@ from baslip.problem.study import CONTROLLER_KINDS  # noqa: E402
 from baslip.status import Status
 from baslip.viz.colours import colour_limits, radius_colorbar, radius_colours  # noqa: E402
 from baslip.viz.labels import CONTROLLER_NAMES  # noqa: E402
+from baslip.viz.placement import clear_placement  # noqa: E402
 
 DEG = 180 / math.pi
 ANGLES = ("theta_h", "theta2_des", "theta_td")
@@ -360,13 +361,16 @@ def curve_diagram(rows: list[dict], first: str, second: str, path=None, *, probl
     specials = [r for r in rows if r["special"]]
     if specials:
         ax.plot([], [], "o", color="k", mfc="none", label="codimension-two point")
-    x_mid = np.mean(ax.get_xlim())
+    ax.autoscale_view()  # the limits final, so that the labels are placed on the screen they end on
+    drawn = np.column_stack([shown(first, [r[first] for r in rows]), shown(second, [r[second] for r in rows])])
+    placed: list = []
     for r in specials:
         x, y = shown(first, [r[first]])[0], shown(second, [r[second]])[0]
         ax.plot(x, y, "o", color="k", mfc="none", ms=9)
-        # Labels lean towards the middle, so that they stay inside the frame.
+        # Inside the frame, clear of the curves and of the other labels, tied to the point.
+        where = clear_placement(ax, (x, y), drawn, placed, size=(70.0, 12.0))
         ax.annotate(CODIM2_NAMES[r["special"]], (x, y), textcoords="offset points", fontsize=8,
-                    xytext=(10 if x <= x_mid else -10, 8), ha="left" if x <= x_mid else "right")
+                    xytext=where.offset, ha=where.ha, va=where.va, arrowprops={"arrowstyle": "-", "lw": 0.6})
     ax.set_xlabel(LABELS.get(first, first))
     ax.set_ylabel(LABELS.get(second, second))
     if params is not None and "energy" in (first, second):

@@ -2,7 +2,8 @@
 
 A label of a marked point (a special point of a branch, say) is tried at a few offsets
 around its point; the one kept lies inside the axes and farthest from the drawn points
-and from the labels already placed. Distances are taken on the screen, in pixels, so
+and from the boxes of the labels already placed (box to box: two labels whose boxes
+overlap are as close as can be). Distances are taken on the screen, in pixels, so
 that axes of very different scales (degrees against metres) weigh alike.
 """
 
@@ -12,8 +13,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: Offsets [pt] of a label from its point, tried in this order (ties keep the first).
-OFFSETS = ((14, 12), (14, -12), (-14, 12), (-14, -12), (0, 22), (0, -22), (26, 0), (-26, 0))
+#: Offsets [pt] of a label from its point, tried in this order (ties keep the first): a
+#: near ring, then a far one for a point whose near ring is crowded (by the branches, the
+#: frame or a neighbour's label).
+OFFSETS = ((14, 12), (14, -12), (-14, 12), (-14, -12), (0, 22), (0, -22), (26, 0), (-26, 0),
+           (14, 36), (14, -36), (-14, 36), (-14, -36), (0, 48), (0, -48))
 
 
 @dataclass(frozen=True)
@@ -45,6 +49,13 @@ def _clearance(box, points: np.ndarray) -> float:
     return float(np.min(np.hypot(dx, dy)))
 
 
+def _gap(a, b) -> float:
+    """The distance [px] between two boxes (x0, y0, x1, y1); 0 where they overlap."""
+    dx = max(a[0] - b[2], b[0] - a[2], 0.0)
+    dy = max(a[1] - b[3], b[1] - a[3], 0.0)
+    return float(np.hypot(dx, dy))
+
+
 def clear_placement(ax, xy, drawn, placed: list, size=(120.0, 24.0)) -> Placement:
     """The offset of the label of the point ``xy`` that keeps it inside ``ax`` and
     farthest from ``drawn`` and from the boxes in ``placed``.
@@ -71,8 +82,6 @@ def clear_placement(ax, xy, drawn, placed: list, size=(120.0, 24.0)) -> Placemen
     anchor = to_pixels(np.asarray(xy, dtype=float).reshape(1, 2))[0]
     drawn = np.asarray(drawn, dtype=float).reshape(-1, 2)
     points = to_pixels(drawn[np.all(np.isfinite(drawn), axis=1)]) if len(drawn) else np.empty((0, 2))
-    corners = [np.array([[b[0], b[1]], [b[2], b[3]], [(b[0] + b[2]) / 2, (b[1] + b[3]) / 2]]) for b in placed]
-    others = np.vstack([points, *corners]) if corners else points
     frame = ax.get_window_extent()
     scale = ax.figure.dpi / 72.0
     best, best_score = OFFSETS[0], -np.inf
@@ -81,7 +90,8 @@ def clear_placement(ax, xy, drawn, placed: list, size=(120.0, 24.0)) -> Placemen
         inside = box[0] >= frame.x0 and box[1] >= frame.y0 and box[2] <= frame.x1 and box[3] <= frame.y1
         # Any box inside the frame beats every box outside it (clearances are capped well
         # below the penalty: with nothing drawn every clearance is infinite).
-        score = min(_clearance(box, others), 1e5) - (0.0 if inside else 1e6)
+        clearance = min([_clearance(box, points), *(_gap(box, other) for other in placed)])
+        score = min(clearance, 1e5) - (0.0 if inside else 1e6)
         if score > best_score:
             best, best_score = offset, score
     placed.append(_box(anchor, best, size, scale))
