@@ -12,7 +12,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from test_slip_limit import slip_apex_map, slip_fixed_point  # an independent SLIP (tests/ is on sys.path)
+from slip import slip_apex_map, slip_fixed_point  # the independent SLIP (tests/ is on sys.path)
 
 from baslip.analysis.continuation import Settings, continue_branch, switch_branch
 from baslip.analysis.gaitsystem import FixedPointSystem, NearestGuessSystem, branch_system
