@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import replace
 
 import casadi as ca
 import numpy as np
@@ -378,8 +379,7 @@ def trace_half(curve: CurveSystem, start: np.ndarray, sign: float, settings: Set
     direction[-1] = sign
     half = continue_branch(type(curve)(curve.base, curve.kind), start, direction, settings, accept=accept,
                            progress=progress)
-    half.stop_reason = explain(half)
-    return half
+    return replace(half, stop_reason=explain(half))
 
 
 def trace_curve(curve: CurveSystem, v: np.ndarray, settings: Settings,

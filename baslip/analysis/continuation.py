@@ -86,7 +86,7 @@ class Settings:
     max_newton: int = 8
 
 
-@dataclass
+@dataclass(frozen=True)
 class Point:
     """An accepted point of the branch (scaled v), its tangent and test functions."""
 
@@ -101,8 +101,10 @@ class Point:
     jacobian: np.ndarray | None = field(default=None, repr=False, compare=False)
 
 
-@dataclass
+@dataclass(frozen=True)
 class Branch:
+    """The points of a traced branch, in order along it, and why the tracing stopped."""
+
     points: list[Point] = field(default_factory=list)
     stop_reason: str = ""
 
@@ -247,28 +249,24 @@ def continue_branch(
         direction = np.concatenate([np.zeros(len(v0) - 1), [direction]])
     # The test functions depend on the tangent's sign, so it is oriented before they are
     # evaluated (a flip afterwards would fake a branch point at the first step).
-    first = make_point(system, v0, np.asarray(direction, dtype=float))
-    branch = Branch([first])
+    points = [make_point(system, v0, np.asarray(direction, dtype=float))]
     h = settings.step
     while True:
-        if len(branch.points) >= settings.max_points:
-            branch.stop_reason = "maximum number of points"
-            return branch
-        here = branch.points[-1]
+        if len(points) >= settings.max_points:
+            return Branch(points, "maximum number of points")
+        here = points[-1]
         try:
             v, easy = _correct_from(system, here, here.v + h * here.tangent, here.tangent, settings)
             point = make_point(system, v, here.tangent)
         except CorrectionFailed as err:
             if h / 2 < settings.min_step:
-                branch.stop_reason = f"step too small ({err})"
-                return branch
+                return Branch(points, f"step too small ({err})")
             h /= 2
             continue
         veto = accept(point.v)
         if veto:
             if h / 2 < settings.min_step:
-                branch.stop_reason = veto
-                return branch
+                return Branch(points, veto)
             h /= 2
             continue
         outside = _outside(point.v, settings)
@@ -278,12 +276,11 @@ def continue_branch(
             for kind in _crossings(system, here, end):
                 located = locate(system, here, end, kind, settings)
                 if _inside(located.v, settings):
-                    branch.points.append(located)
-            branch.points.append(end)
-            progress(len(branch.points), end)
+                    points.append(located)
+            points.append(end)
+            progress(len(points), end)
         if outside:
-            branch.stop_reason = "end of range"
-            return branch
+            return Branch(points, "end of range")
         h = min(h * 1.5, settings.max_step) if easy else max(h * 0.7, settings.min_step)
 
 
@@ -407,10 +404,8 @@ def locate(system: System, a: Point, b: Point, kind: str, settings: Settings) ->
         # At a fold lambda is extremal, so it settles long before s does: both must.
         if (np.max(np.abs(lam_hi - lam_lo)) < LOCATE_TOLERANCE and abs(s_hi - s_lo) < 1e-5) or value == 0.0:
             break
-    best.special = kind
-    if kind == "fold" and "multiplier_one" in a.tests and not _multiplier_crosses_one(a, b):
-        best.special = "turning_point"
-    return best
+    turning = kind == "fold" and "multiplier_one" in a.tests and not _multiplier_crosses_one(a, b)
+    return replace(best, special="turning_point" if turning else kind)
 
 
 def _multiplier_crosses_one(a: Point, b: Point) -> bool:

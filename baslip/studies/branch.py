@@ -156,12 +156,12 @@ def _trace(system, v0, direction, settings, solver, number, origin, quiet) -> Tr
     if isinstance(direction, str):  # "both": down first, then up, joined at the start
         lower = continue_branch(system, v0, -1.0, settings, accept=verified, progress=progress)
         upper = continue_branch(system, v0, 1.0, settings, accept=verified, progress=progress)
-        lower.stop_reason = named_stop(system, lower)
-        upper.stop_reason = named_stop(system, upper)
+        lower = replace(lower, stop_reason=named_stop(system, lower))
+        upper = replace(upper, stop_reason=named_stop(system, upper))
         branch = join(lower, upper)
     else:
         branch = continue_branch(system, v0, direction, settings, accept=verified, progress=progress)
-        branch.stop_reason = named_stop(system, branch)
+        branch = replace(branch, stop_reason=named_stop(system, branch))
     end_progress_line()
     return TracedBranch(number, system, branch, origin)
 
