@@ -109,6 +109,19 @@ def check_run(problem: Problem, out: Path | None, sources: Path, scheduler: str 
     the runs a study reads, the scheduler, and the output folder (writable, and holding no
     run of another kind or problem unless ``fresh``).
 
+    Parameters
+    ----------
+    problem : Problem
+        The problem, read and checked.
+    out : Path or None
+        The output folder; None for a run that writes nothing.
+    sources : Path
+        The folder that holds the finished runs a study reads (its sweep, region, ...).
+    scheduler : str or None
+        A Dask scheduler's address (``tcp://...`` or ``local``), or None for worker processes.
+    fresh : bool
+        Whether results already in ``out`` are to be discarded rather than resumed.
+
     Raises
     ------
     InputError
@@ -166,7 +179,22 @@ def _run_into(problem: Problem, out: Path, sources: Path, *, jobs, lanes, schedu
 
 def solve_and_write(problem: Problem, out: Path, quiet: bool = True) -> FixedPointResult:
     """Solve the gait of ``problem`` and write ``result.json`` and ``multipliers.csv`` to
-    ``out``, replacing an earlier result only once the new files are complete."""
+    ``out``, replacing an earlier result only once the new files are complete.
+
+    Parameters
+    ----------
+    problem : Problem
+        A single-gait problem (no study or continuation).
+    out : Path
+        The output folder.
+    quiet : bool
+        Whether to say nothing on stderr (else what is being loaded and solved).
+
+    Returns
+    -------
+    FixedPointResult
+        The verified gait, or the failure, as written.
+    """
     with hold(out), recording_code() as code:
         if not quiet:
             s = problem.solver

@@ -65,7 +65,10 @@ def deadbeat_gain(A: np.ndarray, B: np.ndarray, scale: np.ndarray = CONTROL_SCAL
 
 def lqr_gain(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, iterations: int = 60,
              tolerance: float = 1e-12) -> np.ndarray:
-    """The discrete LQR gain K (u = K x) for x' = A x + B u with costs x'Qx + u'Ru.
+    """The discrete LQR gain K (u = K x) for x' = A x + B u with costs x'Qx + u'Ru
+    (``A`` n x n, ``B`` n x m, ``Q`` n x n, ``R`` m x m; ``iterations`` doubling steps at
+    most, until no entry of P changes by more than ``tolerance`` times max(1, its largest
+    entry)).
 
     The Riccati equation's stabilising solution P comes from the structure-preserving
     doubling algorithm, which converges quadratically (a few tens of 4 x 4 products, where
@@ -218,7 +221,31 @@ def run_closed_loop(rmap: ReturnMap, params: Params, controller, X0, X_star, str
     """Run ``controller`` from apex ``X0`` for at most ``strides`` strides; it has
     converged when an apex comes within ``tolerance`` (eq. 4.1) of ``X_star``. With
     ``settle``, a run whose apex repeats to ``tolerance`` elsewhere has settled on a
-    neighbouring gait."""
+    neighbouring gait.
+
+    Parameters
+    ----------
+    rmap : ReturnMap
+        The return map the strides are taken on (its hip law gives the controls).
+    params : Params
+        The runner's parameters.
+    controller
+        Anything with ``control(X) -> (u, residual)``: the control [SI, rad] applied at
+        apex ``X``, and the residual its own solve left (0 for a law without one).
+    X0, X_star : array_like
+        The first apex and the gait's, shape (4,) [m, rad, m/s, rad/s].
+    strides : int
+        Strides at most.
+    tolerance : float
+        eps (eq. 4.1) within which an apex counts as the gait's (or as repeating).
+    settle : bool
+        Whether a run that repeats away from ``X_star`` ends as settled (a family of gaits).
+
+    Returns
+    -------
+    ClosedLoopRun
+        The apexes, controls and residuals of the run, and how it ended.
+    """
     apexes, controls, residuals = [np.asarray(X0, dtype=float)], [], []
     X_star = np.asarray(X_star, dtype=float)
     for n in range(strides):
@@ -252,7 +279,9 @@ def run_closed_loop_many(rmap: ReturnMap, params: Params, controller, X0s: np.nd
                          tolerance: float = 1e-6, settle: bool = False) -> list[Outcome]:
     """:func:`run_closed_loop` from every row of ``X0s`` at once, for a controller whose
     control depends on the apex alone (``controller.controls(Xs)``): the runs go in
-    lockstep, so that each stride of all live runs is one batched call of the engine."""
+    lockstep, so that each stride of all live runs is one batched call of the engine.
+    ``X0s`` is n x 4; the other parameters are :func:`run_closed_loop`'s. Returns each
+    run's outcome, in the rows' order."""
     X_star = np.asarray(X_star, dtype=float)
     X = np.array(X0s, dtype=float)
     ended: dict[int, Outcome] = {}

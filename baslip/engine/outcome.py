@@ -345,8 +345,11 @@ def prechecks(X: np.ndarray, U: np.ndarray, p) -> tuple[list[Stride | None], np.
 
 
 def vec(v) -> np.ndarray:
+    """``v`` (a number, sequence or array) as a flat float array."""
     return np.asarray(v, dtype=float).ravel()
 
 
 def param_vector(params) -> np.ndarray:
+    """The parameter vector (m, I, k, rho0, d, g) of a :class:`~baslip.model.dynamics.Params`
+    or of a sequence already in that order."""
     return params.vector() if hasattr(params, "vector") else vec(params)

@@ -89,7 +89,8 @@ class Stability:
 
 
 def trivial_labels(params: Params, u, law: HipLaw = PD) -> list[str]:
-    """Labels of the multipliers that equal 1 by the structure of the problem.
+    """Labels of the multipliers that equal 1 by the structure of the problem, for the
+    runner of ``params`` under control ``u`` [SI, rad] of hip law ``law``.
 
     The spin pair comes first: it is 1 at every apex, the energy multiplier only at a
     fixed point, and labels go to the multipliers nearest 1 in this order.
