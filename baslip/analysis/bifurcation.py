@@ -388,7 +388,26 @@ def trace_curve(curve: CurveSystem, v: np.ndarray, settings: Settings,
                 explain: Callable[[Branch], str] = lambda b: b.stop_reason) -> Branch:
     """The curve through ``v`` (a point near it) traced both ways within the settings'
     ranges (:data:`CURVE_DIRECTIONS`), joined. ``accept`` may veto points (e.g. not
-    verified); ``explain`` words each end's stop."""
+    verified); ``explain`` words each end's stop.
+
+    Parameters
+    ----------
+    curve : CurveSystem
+        The curve's equations: the fixed-point equations and the bifurcation's condition.
+    v : array
+        A point near the curve, in the curve's scaled coordinates.
+    settings : Settings
+        Steps, the two parameters' ranges and the corrector's tolerances.
+    accept, progress : callable
+        As :func:`baslip.analysis.continuation.continue_branch`'s.
+    explain : callable
+        ``explain(half)``: the words for why a half of the curve stopped.
+
+    Returns
+    -------
+    Branch
+        The curve's points from one end to the other.
+    """
     start = curve_start(curve, v, settings, accept)
     return join(*(trace_half(curve, start, sign, settings, accept, progress, explain) for sign in CURVE_DIRECTIONS))
 

@@ -244,7 +244,29 @@ def continue_branch(
 ) -> Branch:
     """Trace the branch from the solution ``v0`` towards increasing (direction > 0) or
     decreasing lambda, or, if ``direction`` is a vector, along the tangent that points
-    with it. ``accept(v)`` may veto a point with a reason (e.g. not verified)."""
+    with it. ``accept(v)`` may veto a point with a reason (e.g. not verified).
+
+    Parameters
+    ----------
+    system : System
+        The equations F(v) = 0 and their multipliers and test functions.
+    v0 : array
+        A solution, in the system's scaled coordinates (the parameters last).
+    direction : float or array
+        The sign of the first step in the (last) parameter, or a vector the first
+        tangent must point with.
+    settings : Settings
+        Steps, ranges and the corrector's tolerances.
+    accept : callable
+        ``accept(v)``: None, or why the point ``v`` is refused (the step is then halved).
+    progress : callable
+        ``progress(count, point)``, called after each accepted point.
+
+    Returns
+    -------
+    Branch
+        The points in order, special points located between them, and why it stopped.
+    """
     if np.isscalar(direction):
         direction = np.concatenate([np.zeros(len(v0) - 1), [direction]])
     # The test functions depend on the tangent's sign, so it is oriented before they are

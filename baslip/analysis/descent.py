@@ -152,7 +152,8 @@ class StabilityDescent:
     # -- the descent -----------------------------------------------------------------------
 
     def run(self, spec: FixedPointSpec, X, u) -> Descent:
-        """Descend from the fixed point (X, u) of ``spec`` (one-stride gaits).
+        """Descend from the fixed point (X, u) of ``spec`` (one-stride gaits): ``X`` the apex
+        [m, rad, m/s, rad/s] and ``u`` the control of the spec's hip law [SI, rad].
 
         The manifold is charted by some of its free quantities (:meth:`_chart`); the rest
         follow from the fixed-point equations (the polish with the chart held). On the

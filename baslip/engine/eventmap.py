@@ -228,7 +228,10 @@ class EventMap:
     # -- numeric use -------------------------------------------------------------------
 
     def stride(self, X, u, p, t_guess) -> Stride:
-        """One stride: the next apex and phase durations, or the fall."""
+        """One stride from apex ``X`` [m, rad, m/s, rad/s] under control ``u`` [SI, rad],
+        parameter vector ``p``, with ``t_guess`` [s] the guess of the descent's duration
+        (:func:`~baslip.engine.outcome.touchdown_guess`): the next apex and phase
+        durations, or the fall."""
         try:
             outputs = self._value(X, u, p, t_guess)
         except RuntimeError:  # the integrator gave up (a CasADi error, or a C status)

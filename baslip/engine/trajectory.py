@@ -37,7 +37,9 @@ class Trajectory:
 
 
 def stride_trajectory(rmap: ReturnMap, X, u, params: Params, strides: int = 2, samples: int = 40) -> Trajectory:
-    """Sample ``strides`` strides from apex ``X`` under control ``u``."""
+    """Sample ``strides`` strides from apex ``X`` [m, rad, m/s, rad/s] under control ``u``
+    [SI, rad] of ``rmap``'s hip law, ``samples`` samples in each phase (descent, stance,
+    ascent), with the runner of ``params``. Raises :class:`RunnerFell` if a stride falls."""
     model = build_model()
     p = params.vector()
     theta_td = float(touchdown_angle(np.asarray(u)))
@@ -218,8 +220,9 @@ def _pandas():
 
 
 def motion(rmap: ReturnMap, X, u, params: Params, strides: int = 1, samples: int = 100) -> Motion:
-    """The motion of ``strides`` strides from apex ``X`` under control ``u``, with
-    ``samples`` samples in each phase. Raises :class:`RunnerFell` if a stride falls."""
+    """The motion of ``strides`` strides from apex ``X`` [m, rad, m/s, rad/s] under control
+    ``u`` [SI, rad] of ``rmap``'s hip law, for the runner of ``params``, with ``samples``
+    samples in each phase. Raises :class:`RunnerFell` if a stride falls."""
     model = build_model()
     p = params.vector()
     u = np.asarray(u, dtype=float)
