@@ -15,7 +15,7 @@ from baslip.viz.backend import hand_over, use_file_backend
 
 use_file_backend()
 import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np
+import numpy as np  # noqa: E402
 
 from baslip.model.quantities import UNITS  # noqa: E402
 from baslip.problem.study import CONTROLLER_KINDS  # noqa: E402
@@ -142,9 +142,15 @@ def sweep_figures(rows: list[dict], names: list[str], out_dir: Path | None, *, p
         return []
     if len(names) == 1:
         return [_sweep_line(rows, names[0], y, out_dir, problem) for y in ("z", "theta_h", "spectral_radius", "residual")
-                if y in ("spectral_radius", "residual") or (y not in names and _varies(rows, y))]
+                if _shows_something(rows, names, y)]
     return [_sweep_map(rows, names, value, out_dir, problem) for value in ("theta_h", "spectral_radius")
-            if value == "spectral_radius" or (value not in names and _varies(rows, value))]
+            if _shows_something(rows, names, value)]
+
+
+def _shows_something(rows: list[dict], names: list[str], quantity: str) -> bool:
+    """Whether a sweep's figure of ``quantity`` shows anything: the spectral radius and the
+    residual always do; an apex quantity only if it is not swept and varies (:func:`_varies`)."""
+    return quantity in ("spectral_radius", "residual") or (quantity not in names and _varies(rows, quantity))
 
 
 def _varies(rows: list[dict], quantity: str) -> bool:
@@ -165,9 +171,8 @@ def _sweep_line(rows, name, quantity, out_dir, problem: str = "") -> Path | None
     for mask, style, color, word in ((stable, "o", "tab:blue", "stable"), (unstable, "x", "tab:red", "unstable")):
         if mask.any():  # only what is there gets a legend entry
             ax.plot(x[mask], y[mask], style, color=color, ms=4, label=word)
-    if quantity in ("z", "theta_h", "residual"):
-        if missing.any():
-            ax.plot(x[missing], y[missing], ".", color="0.6", ms=4, label="not verified / failed")
+    if quantity in ("z", "theta_h", "residual") and missing.any():
+        ax.plot(x[missing], y[missing], ".", color="0.6", ms=4, label="not verified / failed")
     elif missing.any():
         for xv in x[missing]:
             ax.axvline(xv, color="0.85", lw=0.8, zorder=0)
