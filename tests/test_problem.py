@@ -10,6 +10,7 @@ import pickle
 
 import pytest
 
+from baslip.gait.from_problem import fixed_point_spec
 from baslip.model.dynamics import Params
 from baslip.model.quantities import DEFAULT_GUESS
 from baslip.problem.reader import ProblemError, SolverSettings, load_problem, parse_problem
@@ -258,3 +259,67 @@ def test_each_re_solving_controller_runs_its_own_number_of_starts():
     assert starts({"horizon": 300}) == [400, 400, 300, 400]
     assert starts({"horizon": 300, "resolve": 20}) == [400, 400, 300, 20]
     assert starts({"horizon": 1000}) == [400, 400, 400, 400]
+
+
+# --- defaults that follow the body --------------------------------------------------------
+
+HUMAN = {"m": 80.0, "I": 4.58, "k": 20000.0, "rho0": 1.0, "d": 0.1, "g": 9.81}
+
+
+def _scaled_body(length: float, mass: float) -> dict[str, float]:
+    """The thesis's body with lengths times ``length`` and masses times ``mass`` (g kept,
+    so times scale by sqrt(length))."""
+    thesis = Params()
+    return {"m": thesis.m * mass, "I": thesis.I * mass * length**2, "k": thesis.k * mass / length,
+            "rho0": thesis.rho0 * length, "d": thesis.d * length, "g": thesis.g}
+
+
+@pytest.mark.parametrize("law", ["pd", "vpp"])
+def test_defaults_of_a_scaled_body_are_the_thesis_defaults_scaled_by_their_dimension(law):
+    length, mass = 4.0, 2.0
+    problem = parse_problem({"params": _scaled_body(length, mass), "hip_law": law})
+    time = math.sqrt(length)
+    factors = {"z": length, "theta_h": 1.0, "ydot": length / time, "theta_h_dot": 1 / time, "Kp": mass * length**2 / time**2,
+               "Kd": mass * length**2 / time, "theta2_des": 1.0, "theta2_dot_des": 1 / time, "theta_td": 1.0,
+               "r_vpp": length}
+    thesis = parse_problem({"hip_law": law})
+    for name in problem.design:
+        assert problem.start_value(name) == pytest.approx(thesis.start_value(name) * factors[name], rel=1e-14), name
+    spec = fixed_point_spec(problem)
+    for name in problem.design:
+        lo, hi = fixed_point_spec(thesis).bounds_of(name)
+        assert spec.bounds_of(name) == pytest.approx((lo * factors[name], hi * factors[name]), rel=1e-14), name
+
+
+def test_the_thesis_body_keeps_its_defaults_exactly():
+    problem = parse_problem({"hip_law": "pd"})
+    assert problem.full_guess() == {name: DEFAULT_GUESS[name] for name in problem.design}
+
+
+def test_a_human_sweep_over_z_without_a_z_guess_is_accepted():
+    """Issue 56: the thesis's default z = 0.4 m refused a human body's sweep over z."""
+    problem = parse_problem({"params": HUMAN, "hip_law": "vpp", "fix": {"ydot": 3.0, "r_vpp": 0.1},
+                             "guess": {"theta_h": "90 deg", "theta_td": "17 deg"},
+                             "study": {"kind": "sweep", "vary": {"z": [1.1, 1.2, 0.05]}}})
+    assert problem.start_value("z") == pytest.approx(0.4 * 5)
+    assert problem.start_value("ydot") == 3.0
+
+
+def test_a_human_gain_beyond_the_thesis_bound_is_accepted():
+    problem = parse_problem({"params": HUMAN, "fix": {"z": 1.1, "ydot": 3.0}, "guess": {"Kp": 2000.0}})
+    assert problem.guess["Kp"] == 2000.0
+
+
+def test_a_default_that_cannot_serve_names_itself_a_default_and_what_to_write():
+    with pytest.raises(ProblemError) as caught:
+        parse_problem({"params": HUMAN, "hip_law": "vpp", "guess": {"theta_h": "90 deg", "theta_td": "17 deg"},
+                       "bounds": {"z": [0.5, 0.9]}})
+    assert caught.value.key == "guess.z"
+    assert "default for this body" in caught.value.message and "write guess.z above 1.056 m" in caught.value.message
+    assert "theta_td = 17 deg" in caught.value.message and "rad" not in caught.value.message
+
+
+def test_a_written_value_is_not_called_a_default():
+    with pytest.raises(ProblemError) as caught:
+        parse_problem({"params": HUMAN, "hip_law": "vpp", "guess": {"z": 0.8, "theta_h": "90 deg"}})
+    assert caught.value.key == "guess.z" and "default" not in caught.value.message

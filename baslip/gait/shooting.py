@@ -73,7 +73,7 @@ from baslip.model.dynamics import (
     touchdown_map,
 )
 from baslip.model.hiplaw import PD, HipLaw, touchdown_angle
-from baslip.model.quantities import DEFAULT_BOUNDS, NOMINAL, OBJECTIVES, design_names, start_value
+from baslip.model.quantities import NOMINAL, OBJECTIVES, design_names, physical_range, start_value
 from baslip.model.quantities import implied_periodicity as structurally_implied
 from baslip.problem.reader import SolverSettings
 
@@ -133,15 +133,17 @@ class FixedPointSpec:
         return design_names(self.law)
 
     def bounds_of(self, name: str) -> tuple[float, float]:
-        """Bounds of a design quantity: the problem's, inside the physical ones."""
-        lo, hi = DEFAULT_BOUNDS[name]
+        """Bounds of a design quantity: the problem's, inside the physical ones (the thesis
+        body's scaled to this body, :func:`baslip.model.quantities.body_scale`)."""
+        lo, hi = physical_range(name, self.params)
         if name in self.bounds:
             lo, hi = max(lo, self.bounds[name][0]), min(hi, self.bounds[name][1])
         return lo, hi
 
     def start_design(self) -> np.ndarray:
-        """Starting value of each design quantity (fixed, guessed, or default in bounds)."""
-        return np.array([start_value(n, self.fixed, self.guess, self.bounds) for n in self.design])
+        """Starting value of each design quantity (fixed, guessed, or the body's default in
+        bounds)."""
+        return np.array([start_value(n, self.fixed, self.guess, self.bounds, self.params) for n in self.design])
 
 
 @dataclass(frozen=True)

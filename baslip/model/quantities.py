@@ -75,25 +75,86 @@ UNITS = {
 def quantity_text(name: str, value: float, digits: int = 7) -> str:
     """``name = value unit`` for people: angles (in radians in data and code) in degrees,
     the rest in their SI units."""
+    return f"{name} = {value_text(name, value, digits)}"
+
+
+def value_text(name: str, value: float, digits: int = 7) -> str:
+    """``value unit`` of quantity ``name`` for people: an angle [rad] or a rate [rad/s]
+    in deg or deg/s, the rest in its SI unit (``17 deg``, ``3 m/s``)."""
     unit = UNITS.get(name, "")
     if unit.startswith("rad"):
-        return f"{name} = {math.degrees(value):.{digits}g} deg{unit[len('rad'):]}"
-    return f"{name} = {value:.{digits}g}" + (f" {unit}" if unit else "")
+        return f"{math.degrees(value):.{digits}g} deg{unit[len('rad'):]}"
+    return f"{value:.{digits}g}" + (f" {unit}" if unit else "")
 
 
-def physical_range(name: str) -> tuple[float, float]:
-    """Documented range of a design quantity, ``energy`` or a model parameter."""
+#: The body whose defaults :data:`DEFAULT_GUESS` and :data:`DEFAULT_BOUNDS` hold: the
+#: thesis's (m 1 kg, rho0 0.2 m, g 9.81 m/s^2, ...).
+THESIS_BODY = Params()
+
+#: Dimension of each SI unit as exponents of (mass, length, time); radians count as 1.
+UNIT_DIMENSIONS = {
+    "rad": (0, 0, 0), "m": (0, 1, 0), "m/s": (0, 1, -1), "rad/s": (0, 0, -1), "J": (1, 2, -2),
+    "N m/rad": (1, 2, -2), "N m s/rad": (1, 2, -1),
+}
+
+
+def body_scale(name: str, params: Params) -> float:
+    """Factor that carries a value of ``name`` from the thesis's body to ``params``'s body.
+
+    The two bodies are compared by their dimensionless groups: a length scales by rho0, a
+    time by sqrt(rho0/g) and a mass by m, so that a speed scales by sqrt(g rho0), a rate by
+    sqrt(g/rho0), Kp by m g rho0 and Kd by m g rho0 sqrt(rho0/g). At the thesis's body
+    every factor is exactly 1.
+
+    Parameters
+    ----------
+    name : str
+        A design quantity or ``energy`` (its unit in :data:`UNITS` gives its dimension).
+    params : Params
+        The body; its m [kg], rho0 [m] and g [m/s^2] set the scales.
+
+    Returns
+    -------
+    float
+        The dimensionless factor (1 for angles).
+    """
+    mass, length, time = UNIT_DIMENSIONS[UNITS[name]]
+    length_ratio = params.rho0 / THESIS_BODY.rho0
+    time_ratio = math.sqrt(length_ratio * THESIS_BODY.g / params.g)
+    return (params.m / THESIS_BODY.m) ** mass * length_ratio**length * time_ratio**time
+
+
+def physical_range(name: str, params: Params = THESIS_BODY) -> tuple[float, float]:
+    """Documented range of a design quantity, ``energy`` or a model parameter.
+
+    Parameters
+    ----------
+    name : str
+        The quantity or parameter.
+    params : Params
+        The body: a design quantity's range is the thesis body's scaled to it
+        (:func:`body_scale`); the energy's and the parameters' ranges are fixed.
+    """
     if name in DEFAULT_BOUNDS:
-        return DEFAULT_BOUNDS[name]
+        scale = body_scale(name, params)
+        lo, hi = DEFAULT_BOUNDS[name]
+        return lo * scale, hi * scale
     if name == "energy":
         return ENERGY_RANGE
     lo, hi, _ = PARAM_RANGES[name]
     return lo, hi
 
 
-#: Starting values of design quantities that a problem neither fixes nor guesses (they are
-#: clipped into the problem's bounds).
+#: Starting values of design quantities that a problem neither fixes nor guesses, for the
+#: thesis's body (:func:`default_guess` scales them to another; they are clipped into the
+#: problem's bounds).
 DEFAULT_GUESS = {"z": 0.4, "theta_h": math.pi / 2, "ydot": 0.5, "theta_h_dot": 0.0, **_every_law("defaults")}
+
+
+def default_guess(name: str, params: Params = THESIS_BODY) -> float:
+    """Default starting value of design quantity ``name`` for the body ``params``: the
+    thesis body's :data:`DEFAULT_GUESS` scaled by :func:`body_scale` (SI units, radians)."""
+    return DEFAULT_GUESS[name] * body_scale(name, params)
 
 #: Objectives and their weights (nearest-guess distance, integral of tau^2 dt):
 #: ``nearest_guess``, ``min_torque`` (with a 1e-6 nearest-guess term to make the minimiser
@@ -112,15 +173,15 @@ OBJECTIVES = {
 STABILITY_OBJECTIVES = ("least_spectral_radius",)
 
 
-def start_value(name: str, fixed, guess, bounds) -> float:
-    """Value a design quantity starts from: fixed, else guessed, else its default clipped
-    into the problem's bounds."""
+def start_value(name: str, fixed, guess, bounds, params: Params) -> float:
+    """Value a design quantity starts from: fixed, else guessed, else its default for the
+    body ``params`` (:func:`default_guess`) clipped into the problem's bounds."""
     if name in fixed:
         return fixed[name]
     if name in guess:
         return guess[name]
     lo, hi = bounds.get(name, (-math.inf, math.inf))
-    return min(max(DEFAULT_GUESS[name], lo), hi)
+    return min(max(default_guess(name, params), lo), hi)
 
 
 def implied_periodicity(fixed: Mapping[str, float], params: Params, law: HipLaw = PD) -> tuple[str, ...]:

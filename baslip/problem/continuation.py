@@ -15,7 +15,7 @@ from typing import Any
 from baslip.errors import ProblemError
 from baslip.model.dynamics import APEX, PARAMS, Params
 from baslip.model.hiplaw import PD, HipLaw
-from baslip.model.quantities import ANY_DESIGN, UNITS, design_names, implied_periodicity
+from baslip.model.quantities import ANY_DESIGN, design_names, implied_periodicity, quantity_text, value_text
 from baslip.problem.text import excerpt
 from baslip.problem.values import mapping, physical
 from baslip.problem.values import number as _number
@@ -98,7 +98,10 @@ def _continuation_range(bounds: Any, name: str, key: str) -> tuple[float, float]
     if not isinstance(bounds, (list, tuple)) or len(bounds) != 2:
         raise ProblemError(key, f"expected [lo, hi], got {excerpt(bounds)}")
     where = f"{key}.{name}"
-    lo, hi = (physical(name, _number(b, where), where) for b in bounds)
+    # A design quantity's range depends on the body: check_continuation checks it.
+    lo, hi = (_number(b, where) for b in bounds)
+    if name in PARAMS.names:
+        lo, hi = (physical(name, end, where) for end in (lo, hi))
     if lo >= hi:
         raise ProblemError(key, f"expected lo < hi, got [{lo:g}, {hi:g}]")
     return lo, hi
@@ -133,6 +136,9 @@ def check_continuation(spec: ContinuationSpec, fix: Mapping[str, float], params:
     if spec.second is not None:
         ranges.append((spec.second, spec.second_lo, spec.second_hi, "continuation.second_range"))
     for name, lo, hi, key in ranges:
+        if name not in PARAMS.names:
+            for end in (lo, hi):
+                physical(name, end, f"{key}.{name}", params)
         if name in PARAMS.names:
             start = getattr(params, name)
         elif name in fix:
@@ -142,8 +148,8 @@ def check_continuation(spec: ContinuationSpec, fix: Mapping[str, float], params:
         if not lo <= start <= hi:
             raise ProblemError(
                 key,
-                f"the branch starts at {name} = {start:g} {UNITS[name]}, "
-                f"outside [{lo:g}, {hi:g}]; widen the range or change the start",
+                f"the branch starts at {quantity_text(name, start, 6)}, outside [{value_text(name, lo, 6)}, "
+                f"{value_text(name, hi, 6)}]; widen the range or change the start",
             )
     check_branch(fix, params, objective, spec.parameter, law=law)
     if spec.second is not None:

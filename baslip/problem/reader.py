@@ -33,13 +33,15 @@ from baslip.model.dynamics import APEX, PARAMS, Params
 from baslip.model.hiplaw import HIP_LAWS, PD, HipLaw
 from baslip.model.quantities import (
     ANY_DESIGN,
-    DEFAULT_BOUNDS,
     OBJECTIVES,
     STABILITY_OBJECTIVES,
     design_names,
     implied_periodicity,
+    physical_range,
     quantity_names,
+    quantity_text,
     start_value,
+    value_text,
 )
 from baslip.problem.continuation import ContinuationSpec, check_continuation, parse_continuation
 from baslip.problem.shipped import find_problem
@@ -138,7 +140,8 @@ class Problem:
         return {n: self.start_value(n) for n in self.design if n not in self.fix}
 
     def start_value(self, name: str) -> float:
-        """The fixed value of ``name`` if fixed, else its starting value.
+        """The fixed value of ``name`` if fixed, else its starting value (guessed, or the
+        default for this body: :func:`baslip.model.quantities.default_guess`).
 
         Parameters
         ----------
@@ -146,7 +149,7 @@ class Problem:
             A design quantity (``z``, ``theta_h``, ..., a control); the value is in its SI
             unit or radians.
         """
-        return start_value(name, self.fix, self.guess, self.bounds)
+        return start_value(name, self.fix, self.guess, self.bounds, self.params)
 
     def __reduce__(self):
         # Workers get the problem itself, as data; mapping proxies do not pickle, so they
@@ -258,6 +261,7 @@ def _checked(problem: Problem) -> Problem:
         raise ProblemError("objective", f"{problem.objective} bounds the multipliers of one one-stride gait; it takes "
                            "neither strides nor a continuation")
     _check_law(problem)
+    _check_ranges(problem)
     _check_consistency(problem)
     _check_sweep(problem)
     _check_atlas(problem)
@@ -328,8 +332,9 @@ def _params(value: Any) -> Params:
 
 
 def _quantities(value: Any, key: str, allowed: tuple[str, ...]) -> dict[str, float]:
+    # Their physical ranges depend on the body: :func:`_check_ranges` checks them.
     raw = mapping(value, key, allowed)
-    return {name: physical(name, _number(v, f"{key}.{name}"), f"{key}.{name}") for name, v in raw.items()}
+    return {name: _number(v, f"{key}.{name}") for name, v in raw.items()}
 
 
 def _bounds(value: Any) -> dict[str, tuple[float, float]]:
@@ -339,9 +344,10 @@ def _bounds(value: Any) -> dict[str, tuple[float, float]]:
         key = f"bounds.{name}"
         if not isinstance(pair, (list, tuple)) or len(pair) != 2:
             raise ProblemError(key, f"expected [lo, hi] (null for no bound), got {excerpt(pair)}")
-        # A missing end is the physical limit; a written one must lie within the range.
-        lo = -math.inf if pair[0] is None else physical(name, _number(pair[0], key), key)
-        hi = math.inf if pair[1] is None else physical(name, _number(pair[1], key), key)
+        # A missing end is the physical limit; a written one must lie within the range
+        # (the body's: :func:`_check_ranges`).
+        lo = -math.inf if pair[0] is None else _number(pair[0], key)
+        hi = math.inf if pair[1] is None else _number(pair[1], key)
         if lo > hi:
             raise ProblemError(key, f"lower bound {lo:g} exceeds upper bound {hi:g}")
         bounds[name] = (lo, hi)
@@ -392,6 +398,18 @@ _FIELDS: dict[str, Callable[[Any], Any]] = {
 }
 
 
+def _check_ranges(problem: Problem) -> None:
+    """Every written value of fix and guess, and every written end of bounds, lies in its
+    physical range for the problem's body."""
+    for section in ("fix", "guess"):
+        for name, value in getattr(problem, section).items():
+            physical(name, value, f"{section}.{name}", problem.params)
+    for name, ends in problem.bounds.items():
+        for end in ends:
+            if math.isfinite(end):
+                physical(name, end, f"bounds.{name}", problem.params)
+
+
 def _check_consistency(problem: Problem) -> None:
     for name, value in problem.fix.items():
         if name in problem.guess:
@@ -404,20 +422,49 @@ def _check_consistency(problem: Problem) -> None:
         if not lo <= value <= hi:
             raise ProblemError(f"guess.{name}", f"{value:g} lies outside bounds.{name} = [{lo:g}, {hi:g}]")
     _check_energy(problem)
+    _check_touchdown_angle(problem)
+    _check_foot_clearance(problem)
+
+
+def _swept(problem: Problem) -> tuple[str, ...]:
+    """The quantities a study fixes at each of its points: their own value in the problem
+    is never used, so it is not checked (each point is)."""
+    return tuple(a.name for a in getattr(problem.study, "axes", ()))
+
+
+def _source(problem: Problem, name: str) -> tuple[str, str]:
+    """(key, how the value was given) of a design quantity's starting value, for messages:
+    ``fix.z`` or ``guess.z`` as written, or ``guess.z`` and a note that it is the default."""
+    if name in problem.fix:
+        return f"fix.{name}", ""
+    if name in problem.guess:
+        return f"guess.{name}", ""
+    clipped = f", clipped into bounds.{name}" if name in problem.bounds else ""
+    return f"guess.{name}", f" (the default for this body{clipped}, not written in the file)"
+
+
+def _check_touchdown_angle(problem: Problem) -> None:
     theta_td = problem.start_value("theta_td")
-    if not abs(theta_td) < math.pi / 2:
-        key = "fix.theta_td" if "theta_td" in problem.fix else "guess.theta_td"
-        raise ProblemError(key, f"touchdown angle {theta_td:g} rad must lie within (-pi/2, pi/2)")
-    z, theta_h = problem.start_value("z"), problem.start_value("theta_h")
+    if "theta_td" not in _swept(problem) and not abs(theta_td) < math.pi / 2:
+        key, source = _source(problem, "theta_td")
+        raise ProblemError(key, f"touchdown angle {value_text('theta_td', theta_td, 4)}{source} must lie within "
+                           "(-90 deg, 90 deg)")
+
+
+def _check_foot_clearance(problem: Problem) -> None:
+    """The foot, with the leg at theta_td, lies above ground at the apex."""
+    if {"z", "theta_h", "theta_td"} & set(_swept(problem)):
+        return
+    z, theta_h, theta_td = (problem.start_value(n) for n in ("z", "theta_h", "theta_td"))
     p = problem.params
-    foot_height = z - p.d * math.sin(theta_h) - p.rho0 * math.cos(theta_td)
-    if foot_height < 0:
-        key = "fix.z" if "z" in problem.fix else "guess.z"
-        raise ProblemError(
-            key,
-            f"apex height {z:g} m puts the foot below ground at apex (foot at {foot_height:.4g} m "
-            f"with theta_h = {theta_h:.4g} rad, theta_td = {theta_td:.4g} rad)",
-        )
+    least_z = p.d * math.sin(theta_h) + p.rho0 * math.cos(theta_td)
+    if z >= least_z:
+        return
+    key, source = _source(problem, "z")
+    remedy = f"; write {key} above {least_z:.4g} m" if source else ""
+    angles = f"{quantity_text('theta_h', theta_h, 4)}, {quantity_text('theta_td', theta_td, 4)}"
+    raise ProblemError(key, f"apex height {z:.4g} m{source} puts the foot below ground at apex (foot at "
+                       f"{z - least_z:.4g} m with {angles}){remedy}")
 
 
 def _check_energy(problem: Problem) -> None:
@@ -431,8 +478,9 @@ def _check_energy(problem: Problem) -> None:
         """Smallest value of name (if fixed, its value) allowed by the bounds, in its term."""
         if name in fix:
             return fix[name] if name == "z" else fix[name] ** 2
-        lo, hi = problem.bounds.get(name, DEFAULT_BOUNDS[name])
-        lo, hi = max(lo, DEFAULT_BOUNDS[name][0]), min(hi, DEFAULT_BOUNDS[name][1])
+        physical_lo, physical_hi = physical_range(name, p)
+        lo, hi = problem.bounds.get(name, (physical_lo, physical_hi))
+        lo, hi = max(lo, physical_lo), min(hi, physical_hi)
         return lo if name == "z" else (0.0 if lo <= 0.0 <= hi else min(lo * lo, hi * hi))
 
     lowest = p.m * p.g * least("z") + 0.5 * p.m * least("ydot") + 0.5 * p.I * least("theta_h_dot")
@@ -451,9 +499,10 @@ def check_point(problem: Problem, values: Mapping[str, float]) -> None:
     fixed values passes every check a written ``fix`` gets (physical range, the problem's
     bounds, touchdown angle, foot above ground at apex, reachable energy)."""
     for name, value in values.items():
-        physical(name, value, f"fix.{name}")
+        physical(name, value, f"fix.{name}", problem.params)
     guess = {n: v for n, v in problem.guess.items() if n not in values}
-    variant = replace(problem, fix=MappingProxyType({**problem.fix, **values}), guess=MappingProxyType(guess))
+    variant = replace(problem, fix=MappingProxyType({**problem.fix, **values}), guess=MappingProxyType(guess),
+                      study=None)
     _check_consistency(variant)
 
 
@@ -504,10 +553,10 @@ def _check_basin(problem: Problem) -> None:
         return
     for axis in study.grid:
         for value in axis.values:
-            physical(axis.name, value, f"study.grid.{axis.name}")
+            physical(axis.name, value, f"study.grid.{axis.name}", problem.params)
     for key, (ydot, z) in (("study.stable_at", study.stable_at), ("study.unstable_at", study.unstable_at)):
-        physical("ydot", ydot, f"{key}.ydot")
-        physical("z", z, f"{key}.z")
+        physical("ydot", ydot, f"{key}.ydot", problem.params)
+        physical("z", z, f"{key}.z", problem.params)
 
 
 def _check_continuation(problem: Problem) -> None:

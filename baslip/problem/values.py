@@ -13,7 +13,8 @@ import re
 from typing import Any
 
 from baslip.errors import ProblemError
-from baslip.model.quantities import PARAM_RANGES, UNITS, physical_range
+from baslip.model.dynamics import Params
+from baslip.model.quantities import PARAM_RANGES, THESIS_BODY, UNITS, physical_range, value_text
 from baslip.problem.text import NonScalarKey, clip, excerpt
 
 #: Quantities that may be given in ``deg`` or ``rad``, and rates in ``deg/s`` or ``rad/s``.
@@ -75,8 +76,21 @@ def mapping(value: Any, key: str, allowed: tuple[str, ...]) -> dict[str, Any]:
     return value
 
 
-def physical(name: str, value: float, key: str) -> float:
-    """``value`` if it lies in the documented physical range of ``name``, else an error."""
+def physical(name: str, value: float, key: str, params: Params = THESIS_BODY) -> float:
+    """``value`` if it lies in the documented physical range of ``name``, else an error.
+
+    Parameters
+    ----------
+    name : str
+        A design quantity, ``energy`` or a model parameter.
+    value : float
+        Its value, SI units and radians.
+    key : str
+        The problem file's key that holds it, for the message.
+    params : Params
+        The body: a design quantity's range is the thesis body's scaled to it
+        (:func:`baslip.model.quantities.body_scale`).
+    """
     unit = UNITS[name]
     if name in PARAM_RANGES:
         lo, hi, closed = PARAM_RANGES[name]
@@ -85,12 +99,13 @@ def physical(name: str, value: float, key: str) -> float:
         if value > hi:
             raise ProblemError(key, f"{value:g} {unit} exceeds the physical range (at most {hi:g} {unit})")
         return value
-    lo, hi = physical_range(name)
+    lo, hi = physical_range(name, params)
     if not lo <= value <= hi:
-        hint = ""
-        if name in ANGLES and abs(value) > 2 * math.pi:  # looks like degrees
-            hint = ' (angles are in radians; write "-90 deg" for degrees)'
-        elif name in RATES:
-            hint = ' (rates are in rad/s; write "30 deg/s" for degrees)'
-        raise ProblemError(key, f"{value:g} {unit} lies outside the physical range [{lo:g}, {hi:g}] {unit}{hint}")
+        if name in ANGLES and abs(value) > 2 * math.pi:  # looks like degrees written as radians
+            raise ProblemError(key, f"{value:g} rad lies outside the physical range [{lo:g}, {hi:g}] rad (angles "
+                               'are in radians; write "-90 deg" for degrees)')
+        hint = ' (rates are in rad/s; write "30 deg/s" for degrees)' if name in RATES else ""
+        body = "" if params == THESIS_BODY else " for this body (the thesis body's, scaled by its m, rho0 and g)"
+        shown = [value_text(name, v, 6) for v in (value, lo, hi)]
+        raise ProblemError(key, f"{shown[0]} lies outside the physical range [{shown[1]}, {shown[2]}]{body}{hint}")
     return value
