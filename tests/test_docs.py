@@ -154,3 +154,14 @@ def test_every_public_name_in_the_api_reference_has_a_numpy_docstring():
     assert len(objects) >= 25
     gaps = [gap for name, obj in objects for gap in _object_gaps(name, obj)]
     assert gaps == []
+
+
+def test_no_code_in_a_table_holds_an_escaped_pipe():
+    """Issue 56: MkDocs shows ``\\|`` inside a table's code literally (``[--quiet \\| --verbose]``),
+    where GitHub shows a pipe: a table's code names its alternatives in the text instead."""
+    pages = [ROOT / "README.md", *DOCS.rglob("*.md")]
+    for page in pages:
+        for number, line in enumerate(page.read_text(encoding="utf-8").splitlines(), 1):
+            if line.startswith("|"):
+                spans = re.findall(r"`[^`]*`", line)
+                assert not any("\\|" in span for span in spans), f"{page.name}:{number}"
