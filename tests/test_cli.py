@@ -54,6 +54,22 @@ def test_problems_are_listed_and_copied_without_overwriting(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in shipped_problems())
 
 
+def test_problem_descriptions_are_cut_at_a_word_with_an_ellipsis(capsys):
+    """Issue 56: ``baslip problems`` cut descriptions mid-word, with no sign of the cut."""
+    from baslip.problem.shipped import describe
+
+    assert main(["problems"]) == 0
+    lines = capsys.readouterr().out.splitlines()[1:]
+    cut = 0
+    for path, line in zip(shipped_problems(), lines):
+        full, shown = " ".join(describe(path).split()), line[2 + 32 + 1:]
+        if shown != full:
+            cut += 1
+            assert shown.endswith(" …") and full.startswith(shown[:-2]), line
+            assert full[len(shown) - 2] == " ", line  # the cut falls between words
+    assert cut > 0  # some shipped descriptions are longer than a line
+
+
 def test_solve_through_the_command_with_one_job(tmp_path):
     done = run("solve", "problems/downward.yaml", "--out", str(tmp_path / "out"), "--jobs", "1", cwd=ROOT)
     assert done.returncode == 0, done.stderr

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import textwrap
 from pathlib import Path
 
 from baslip.cli.common import (
@@ -35,6 +36,9 @@ COMMANDS = {
     "report": "write results/REPORT.md from the studies' results",
     "problems": "list the shipped problem files, or copy them into a folder",
 }
+
+#: Most characters of a shipped problem's description in ``baslip problems``.
+DESCRIPTION_WIDTH = 90
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -96,7 +100,8 @@ def problems(argv: list[str]) -> int:
         return EXIT_OK
     print(f"shipped problems ({problems_dir()}):")
     for path in shipped_problems():
-        print(f"  {path.stem:<32} {describe(path)[:90]}")
+        # Cut at a word, and say so, rather than mid-word.
+        print(f"  {path.stem:<32} {textwrap.shorten(describe(path), DESCRIPTION_WIDTH, placeholder=' …')}")
     return EXIT_OK
 
 

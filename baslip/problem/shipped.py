@@ -37,13 +37,13 @@ def find_problem(path: Path) -> Path:
 
 
 def describe(path: Path) -> str:
-    """The first comment line of a problem file (what it is), or ''."""
+    """What a problem file is: its opening comment on one line, or ''."""
+    comment = []
     for line in path.read_text(encoding="utf-8").splitlines():
-        if line.startswith("#"):
-            return line.lstrip("# ").strip()
-        if line.strip():
+        if not line.startswith("#"):
             break
-    return ""
+        comment.append(line.lstrip("# ").strip())
+    return " ".join(" ".join(comment).split())
 
 
 def copy_problems(target: Path) -> list[Path]:
