@@ -5,6 +5,8 @@ import math
 import subprocess
 import sys
 
+import re
+
 import pytest
 from runs import ROOT
 
@@ -35,6 +37,21 @@ def test_help_covers_every_command_and_solve_help_covers_studies_and_continuatio
     text = capsys.readouterr().out
     for word in ("study:", "continuation:", "curve", "--jobs", "--verbose", "Exit status"):
         assert word in text
+
+
+@pytest.mark.parametrize("command", ["solve", "trajectory", "animate", "report", "problems"])
+def test_each_command_help_is_plain_text_with_a_line_for_every_option(command, capsys):
+    """Issue 56: report and animate printed their docstrings' markup, and --results had no help."""
+    with pytest.raises(SystemExit):
+        main([command, "--help"])
+    text = capsys.readouterr().out
+    assert "``" not in text and ":mod:" not in text
+    lines = text[text.index("options:"):].splitlines()[1:]
+    for number, line in enumerate(lines):
+        invocation = re.fullmatch(r"  (-[^ ]+(?:, -[^ ]+)*(?: [A-Z]+)?)(\s{2,}\S.*)?", line)
+        if invocation and invocation.group(2) is None:  # help, if any, is on the next line
+            following = lines[number + 1] if number + 1 < len(lines) else ""
+            assert re.match(r" {6,}\S", following), f"{command} {invocation.group(1)} has no help line"
 
 
 def test_an_unknown_command_is_one_line_and_exit_2():

@@ -8,12 +8,12 @@ motion by :mod:`baslip.viz.animation`.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from baslip.cli.common import OneLineParser
 from baslip.diagnostics import show_on_stderr
 from baslip.engine.returnmap import ReturnMap, Tolerances
 from baslip.engine.trajectory import stride_trajectory
@@ -21,13 +21,18 @@ from baslip.gait.from_problem import solve_start
 from baslip.problem.reader import ProblemError, load_problem
 from baslip.viz.animation import animate
 
+#: What ``--help`` says the command does (plain text: help is no docstring).
+DESCRIPTION = ("solve and verify each single-gait problem, then write an animated GIF of its gait: two strides "
+               "in slow motion (also python -m baslip.animate)")
+
 
 def main(argv: list[str] | None = None, prog: str = "python -m baslip.animate") -> int:
     """Solve each problem file given in ``argv`` and write its GIF; return the exit status."""
     show_on_stderr()  # diagnostics (progress, notes) go through logging; show them
-    parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
+    parser = OneLineParser(prog=prog, description=DESCRIPTION)
     parser.add_argument("problems", nargs="+", type=Path, help="single fixed-point problem files")
-    parser.add_argument("--out", type=Path, default=Path("results/animation"), metavar="DIR")
+    parser.add_argument("--out", type=Path, default=Path("results/animation"), metavar="DIR",
+                        help="folder for the GIFs, one <name>.gif per problem (default: results/animation)")
     args = parser.parse_args(argv)
     problems = []
     for path in args.problems:  # every file read before anything is written

@@ -2,21 +2,26 @@
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
-from baslip.cli.common import EXIT_BAD_INPUT, place_refusal
+from baslip.cli.common import EXIT_BAD_INPUT, OneLineParser, place_refusal
 from baslip.diagnostics import show_on_stderr
 from baslip.files.atomic import write_files_atomically
 from baslip.report.page import build_report
+
+#: What ``--help`` says the command does (plain text: help is no docstring).
+DESCRIPTION = "write REPORT.md, the studies' results and figures in one page, into the results folder " \
+              "(also python -m baslip.report)"
 
 
 def main(argv: list[str] | None = None, prog: str = "python -m baslip.report") -> int:
     """Write ``REPORT.md`` into the results folder given by ``--results``; return the exit status."""
     show_on_stderr()  # diagnostics (progress, notes) go through logging; show them
-    parser = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
-    parser.add_argument("--results", type=Path, default=Path("results"), metavar="DIR")
+    parser = OneLineParser(prog=prog, description=DESCRIPTION)
+    parser.add_argument("--results", type=Path, default=Path("results"), metavar="DIR",
+                        help="the results folder whose studies the report gathers; REPORT.md is written there "
+                        "(default: results)")
     args = parser.parse_args(argv)
     refusal = place_refusal("--results", args.results, existing=True)
     if refusal is not None:
