@@ -14,7 +14,7 @@ def summary_text(result) -> str:
         f"  IPOPT {result.solver.return_status} in {result.solver.iterations} iterations, "
         f"Newton polish {result.polish_iterations} steps, {result.solver.time_s:.2f} s",
         f"  apex     z = {a['z']:.6f} m, theta_h = {a['theta_h'] * deg:.4f} deg, "
-        f"ydot = {a['ydot']:.6f} m/s, theta_h_dot = {a['theta_h_dot']:.6f} rad/s",
+        f"ydot = {a['ydot']:.6f} m/s, theta_h_dot = {a['theta_h_dot'] * deg:.4f} deg/s",
         f"  control  {_controls_text(c, result.law.units)}" + ("" if result.law.name == "pd" else f" ({result.law.name})"),
         f"  energy   {result.energy:.9g} J",
     ]
@@ -25,7 +25,9 @@ def summary_text(result) -> str:
         lines.append(f"  residual eps = {result.residual:.3e} ({result.residual_source})")
     if result.stability is not None:
         parts = []
-        for m in result.stability.multipliers:
+        # Largest modulus first, the one that decides stability; the files keep the
+        # eigenvalue solver's order.
+        for m in sorted(result.stability.multipliers, key=lambda m: -abs(m.value)):
             text = f"{m.value.real:.6g}{m.value.imag:+.6g}j" if m.value.imag else f"{m.value.real:.6g}"
             parts.append(f"{text} [{m.label}]" if m.label else text)
         verdict = "stable" if result.stable else "unstable"
@@ -36,6 +38,11 @@ def summary_text(result) -> str:
 
 
 def _controls_text(control: dict[str, float], units) -> str:
-    """``name = value unit`` of each control, angles [rad] in degrees."""
-    return ", ".join(f"{name} = {value * 180 / math.pi:.4f} deg" if units[name] == "rad" else f"{name} = {value:.6g} {units[name]}"
-                     for name, value in control.items())
+    """``name = value unit`` of each control, angles [rad] and rates [rad/s] in degrees."""
+    return ", ".join(_control_text(name, value, units[name]) for name, value in control.items())
+
+
+def _control_text(name: str, value: float, unit: str) -> str:
+    if unit.startswith("rad"):
+        return f"{name} = {math.degrees(value):.4f} deg{unit[len('rad'):]}"
+    return f"{name} = {value:.6g} {unit}"
