@@ -323,3 +323,11 @@ def test_a_written_value_is_not_called_a_default():
     with pytest.raises(ProblemError) as caught:
         parse_problem({"params": HUMAN, "hip_law": "vpp", "guess": {"z": 0.8, "theta_h": "90 deg"}})
     assert caught.value.key == "guess.z" and "default" not in caught.value.message
+
+
+def test_messages_give_angles_in_degrees_as_they_were_written():
+    """Issue 56: an input of "17 deg" came back as ``theta_td = 0.2967 rad``."""
+    with pytest.raises(ProblemError) as caught:
+        parse_problem(with_(guess={"theta_td": "17 deg"}, bounds={"theta_td": ["0 deg", "10 deg"]}))
+    assert caught.value.key == "guess.theta_td"
+    assert caught.value.message == "17 deg lies outside bounds.theta_td = [0 deg, 10 deg]"

@@ -413,17 +413,22 @@ def _check_ranges(problem: Problem) -> None:
 def _check_consistency(problem: Problem) -> None:
     for name, value in problem.fix.items():
         if name in problem.guess:
-            raise ProblemError(f"guess.{name}", f"{name} is fixed at {value:g}; remove it from guess")
+            raise ProblemError(f"guess.{name}", f"{name} is fixed at {value_text(name, value, 6)}; remove it from guess")
         lo, hi = problem.bounds.get(name, (-math.inf, math.inf))
         if not lo <= value <= hi:
-            raise ProblemError(f"fix.{name}", f"{value:g} lies outside bounds.{name} = [{lo:g}, {hi:g}]")
+            raise ProblemError(f"fix.{name}", _outside_bounds(name, value, lo, hi))
     for name, value in problem.guess.items():
         lo, hi = problem.bounds.get(name, (-math.inf, math.inf))
         if not lo <= value <= hi:
-            raise ProblemError(f"guess.{name}", f"{value:g} lies outside bounds.{name} = [{lo:g}, {hi:g}]")
+            raise ProblemError(f"guess.{name}", _outside_bounds(name, value, lo, hi))
     _check_energy(problem)
     _check_touchdown_angle(problem)
     _check_foot_clearance(problem)
+
+
+def _outside_bounds(name: str, value: float, lo: float, hi: float) -> str:
+    shown = [value_text(name, v, 6) for v in (value, lo, hi)]
+    return f"{shown[0]} lies outside bounds.{name} = [{shown[1]}, {shown[2]}]"
 
 
 def _swept(problem: Problem) -> tuple[str, ...]:
@@ -521,7 +526,7 @@ def _check_sweep(problem: Problem) -> None:
             check_point(problem, values)
         except ProblemError as err:
             name = err.key.rsplit(".", 1)[-1]
-            where = ", ".join(f"{n} = {v:g}" for n, v in values.items())
+            where = ", ".join(quantity_text(n, v, 6) for n, v in values.items())
             key = f"study.vary.{name}" if name in values else "study.vary"
             raise ProblemError(key, f"at {where}: {err.message}") from None
 
