@@ -252,3 +252,16 @@ def test_an_event_map_has_no_second_derivatives(params, running_point):
     with pytest.raises(NoSecondDerivatives):
         ReturnMap(Tolerances(1e-12, 1e-12), plugin="erk").hessian_vectors(X, u, params, np.ones(APEX.size),
                                                                            np.ones((APEX.size + u.size + 6, 1)))
+
+
+def test_a_return_map_takes_its_hip_law_by_name():
+    """Issue 56: ``ReturnMap(hip_law="vpp")`` raised a TypeError."""
+    from baslip.errors import InputError
+    from baslip.model.hiplaw import PD, VPP
+
+    assert ReturnMap(plugin="erk", hip_law="vpp").law is VPP
+    assert ReturnMap(plugin="erk", hip_law="pd").law is PD
+    with pytest.raises(InputError, match=r"hip_law: expected one of pd, vpp, got 'spring'"):
+        ReturnMap(plugin="erk", hip_law="spring")
+    with pytest.raises(InputError, match="contradicts"):
+        ReturnMap(plugin="erk", law=VPP, hip_law="pd")

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from baslip.engine.eventmap import EventMap
+from baslip.errors import InputError
 from baslip.engine.outcome import (  # noqa: F401  (re-exported: the public names of the return map)
     COLLAPSE_FRACTION,
     PHASES,
@@ -36,7 +37,7 @@ from baslip.engine.outcome import (  # noqa: F401  (re-exported: the public name
     vec,
 )
 from baslip.model.dynamics import APEX, PARAMS
-from baslip.model.hiplaw import PD, HipLaw
+from baslip.model.hiplaw import HIP_LAWS, PD, HipLaw
 
 #: The compiled engine's error bound is met down to this tolerance; tighter ones use the
 #: adaptive event map.
@@ -49,6 +50,15 @@ PARALLEL_TERMS = 2
 
 if TYPE_CHECKING:
     from baslip.engine.batch import BatchEngine
+
+
+def _named_law(name: object, law: HipLaw) -> HipLaw:
+    """The law called ``name``; ``law``, if not the default, must be that one."""
+    if not isinstance(name, str) or name not in HIP_LAWS:
+        raise InputError("hip_law", f"expected one of {', '.join(HIP_LAWS)}, got {name!r}")
+    if law is not PD and law is not HIP_LAWS[name]:
+        raise InputError("hip_law", f"{name!r} contradicts law={law.name!r}; give one of them")
+    return HIP_LAWS[name]
 
 
 class ReturnMap:
@@ -76,6 +86,9 @@ class ReturnMap:
         Force the C route on or off; None follows ``BASLIP_NO_COMPILE``.
     law : HipLaw
         The stance hip law whose controls ``u`` holds.
+    hip_law : str, optional
+        The law by its name in problem files, ``"pd"`` or ``"vpp"``, instead of ``law``;
+        an unknown name raises :class:`~baslip.errors.InputError` naming the known ones.
 
     Examples
     --------
@@ -83,10 +96,13 @@ class ReturnMap:
     >>> stride = rmap.stride(X, u, Params())     # numeric, with fall detection
     >>> A, B = rmap.jacobians(X, u, Params())    # dr/dX (4x4) and dr/du (4x5)
     >>> A2, B2 = rmap.jacobians(X, u, Params(), strides=2)   # of r(r(X, u), u)
+    >>> vpp_map = ReturnMap(hip_law="vpp")              # u = (r_vpp, theta_td)
     """
 
     def __init__(self, tolerances: Tolerances = Tolerances(), plugin: str | None = None, compile: bool | None = None,
-                 law: HipLaw = PD):
+                 law: HipLaw = PD, *, hip_law: str | None = None):
+        if hip_law is not None:
+            law = _named_law(hip_law, law)
         self.tolerances = tolerances
         self.law = law
         tolerance = min(tolerances.rtol, tolerances.atol)
