@@ -7,6 +7,7 @@ line on stderr and exit code 2 (see test_solve.py).
 
 import math
 import pickle
+import re
 
 import pytest
 
@@ -331,3 +332,17 @@ def test_messages_give_angles_in_degrees_as_they_were_written():
         parse_problem(with_(guess={"theta_td": "17 deg"}, bounds={"theta_td": ["0 deg", "10 deg"]}))
     assert caught.value.key == "guess.theta_td"
     assert caught.value.message == "17 deg lies outside bounds.theta_td = [0 deg, 10 deg]"
+
+
+@pytest.mark.parametrize(("continuation", "key", "names"), [
+    ({"parameter": "speed", "range": [0.4, 0.6]}, "continuation.parameter", ("ydot", "energy", "rho0")),
+    ({"parameter": "r_vpp", "range": [0.0, 0.1]}, "continuation.parameter", ("ydot", "energy", "rho0")),
+    ({"parameter": "ydot", "range": [0.4, 0.6], "plot": "height"}, "continuation.plot", ("z", "theta_td")),
+    ({"parameter": "ydot", "range": [0.4, 0.6], "plot": "r_vpp"}, "continuation.plot", ("z", "Kp", "theta_td")),
+])
+def test_a_refused_continuation_name_lists_the_accepted_ones(continuation, key, names):
+    """Issue 56: a refused continuation.plot or parameter did not say what it accepts."""
+    with pytest.raises(ProblemError) as caught:
+        parse_problem(with_(continuation=continuation, guess={"Kp": 0.0}))
+    assert caught.value.key == key
+    assert all(re.search(rf"\b{name}\b", caught.value.message) for name in names), caught.value.message

@@ -78,7 +78,8 @@ def parse_continuation(value: Any) -> ContinuationSpec:
         raise ProblemError("continuation.direction", f"expected 1, -1 or both, got {excerpt(direction)}")
     plot = raw.get("plot", "z")
     if plot not in ANY_DESIGN:
-        raise ProblemError("continuation.plot", f"expected a design quantity, got {excerpt(plot)}")
+        raise ProblemError("continuation.plot", f"expected a design quantity (one of {', '.join(ANY_DESIGN)}), "
+                           f"got {excerpt(plot)}")
     switch = raw.get("switch")
     if switch is not None and switch not in SWITCHES:
         raise ProblemError("continuation.switch", f"expected one of {', '.join(SWITCHES)}, got {excerpt(switch)}")
@@ -89,8 +90,10 @@ def parse_continuation(value: Any) -> ContinuationSpec:
 
 
 def _continued(name: Any, key: str) -> str:
-    if name not in ANY_DESIGN + ("energy",) + PARAMS.names:
-        raise ProblemError(key, f"expected a quantity or a model parameter, got {excerpt(name)}")
+    continued = ANY_DESIGN + ("energy",) + PARAMS.names
+    if name not in continued:
+        raise ProblemError(key, f"expected a quantity or a model parameter (one of {', '.join(continued)}), "
+                           f"got {excerpt(name)}")
     return name
 
 
@@ -174,7 +177,8 @@ def check_parameter(fix: Mapping[str, float], parameter: str, key: str, law: Hip
     """Raise :class:`BranchError` unless ``parameter`` can be varied from its fixed value."""
     design = design_names(law)
     if parameter not in design + ("energy",) + PARAMS.names:
-        raise BranchError(key, f"{parameter!r} cannot be varied under hip_law {law.name}")
+        raise BranchError(key, f"{parameter!r} cannot be varied under hip_law {law.name} (it varies one of "
+                          f"{', '.join(design + ('energy',) + PARAMS.names)})")
     if parameter in design + ("energy",) and parameter not in fix:
         raise BranchError(key, f"{parameter} must be fixed (at its starting value)")
 

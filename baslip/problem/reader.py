@@ -296,9 +296,10 @@ def _check_law(problem: Problem) -> None:
         named += [("continuation.plot", problem.continuation.plot)]
     for key, name in named:
         if name not in allowed:
-            controls = ", ".join(problem.hip_law.controls.names)
-            raise ProblemError(key, f"{name} is not a quantity under hip_law {problem.hip_law.name} "
-                               f"(its controls are {controls})")
+            law = problem.hip_law
+            accepted = f"it plots one of {', '.join(problem.design)}" if key == "continuation.plot" else \
+                f"its controls are {', '.join(law.controls.names)}"
+            raise ProblemError(key, f"{name} is not a quantity under hip_law {law.name} ({accepted})")
     _check_adapted_controls(problem)
 
 
