@@ -2,10 +2,9 @@
 a result."""
 
 import math
+import re
 import subprocess
 import sys
-
-import re
 
 import pytest
 from runs import ROOT

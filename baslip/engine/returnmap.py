@@ -21,7 +21,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from baslip.engine.eventmap import EventMap
-from baslip.errors import InputError
 from baslip.engine.outcome import (  # noqa: F401  (re-exported: the public names of the return map)
     COLLAPSE_FRACTION,
     PHASES,
@@ -36,6 +35,7 @@ from baslip.engine.outcome import (  # noqa: F401  (re-exported: the public name
     touchdown_guess,
     vec,
 )
+from baslip.errors import InputError
 from baslip.model.dynamics import APEX, PARAMS
 from baslip.model.hiplaw import HIP_LAWS, PD, HipLaw
 

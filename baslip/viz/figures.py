@@ -212,19 +212,31 @@ def _sweep_map(rows, names, quantity, out_dir, problem: str = "") -> Path | None
 
 def draw_map(fig, ax, rows, names, quantity) -> None:
     """A sweep's map of ``quantity`` over its two axes on ``ax``, with a colour bar; stable
-    cells ringed, unstable ones crossed, cells without a verified fixed point marked."""
+    cells ringed, unstable ones crossed, cells without a verified fixed point marked.
+
+    With a single value along an axis there are no cells to paint (their width would be
+    invented): each point is then a coloured marker, and the axes say so.
+    """
     a, b, values, stable = _grid(rows, names, quantity)
-    extent = _extent(shown(names[0], a), shown(names[1], b))
-    if quantity == "spectral_radius":
-        colours, norm = radius_colours(values)
-        image = ax.imshow(values, origin="lower", aspect="auto", extent=extent, cmap=colours, norm=norm)
-        radius_colorbar(fig, image, ax, LABELS[quantity] + " (log scale; blue: stable)")
-    else:
-        cmap = plt.get_cmap("viridis" if quantity == "theta_h" else "coolwarm").with_extremes(bad="0.85")
-        image = ax.imshow(shown(quantity, values), origin="lower", aspect="auto", extent=extent, cmap=cmap,
-                          **colour_limits(quantity, shown(quantity, values)))
-        fig.colorbar(image, ax=ax, label=LABELS[quantity])
+    painted = shown(quantity, values) if quantity != "spectral_radius" else values
     A, B = np.meshgrid(shown(names[0], a), shown(names[1], b))
+    if quantity == "spectral_radius":
+        colours, limits = radius_colours(values)
+        scale = {"cmap": colours, "norm": limits}
+        label = LABELS[quantity] + " (log scale; blue: stable)"
+    else:
+        scale = {"cmap": plt.get_cmap("viridis" if quantity == "theta_h" else "coolwarm").with_extremes(bad="0.85"),
+                 **colour_limits(quantity, painted)}
+        label = LABELS[quantity]
+    if len(a) > 1 and len(b) > 1:
+        image = ax.imshow(painted, origin="lower", aspect="auto", extent=_extent(A[0], B[:, 0]), **scale)
+    else:
+        image = ax.scatter(A.ravel(), B.ravel(), c=painted.ravel(), marker="s", s=160, **scale)
+        _name_the_single_values(ax, names, (A[0], B[:, 0]))
+    if quantity == "spectral_radius":
+        radius_colorbar(fig, image, ax, label)
+    else:
+        fig.colorbar(image, ax=ax, label=label)
     unstable = np.isfinite(values) & ~stable
     if stable.any():  # only what is there gets a legend entry
         ax.plot(A[stable], B[stable], "o", mfc="none", mec="k", ms=7, label="stable")
@@ -234,6 +246,17 @@ def draw_map(fig, ax, rows, names, quantity) -> None:
         ax.plot(A[np.isnan(values)], B[np.isnan(values)], "s", color="0.5", ms=3, label="no verified fixed point")
     ax.set_xlabel(LABELS.get(names[0], names[0]))
     ax.set_ylabel(LABELS.get(names[1], names[1]))
+
+
+def _name_the_single_values(ax, names, axes_values) -> None:
+    """Tick a swept quantity that takes one value at that value alone, and title the map
+    as points rather than cells."""
+    single = []
+    for name, values, set_ticks in zip(names, axes_values, (ax.set_xticks, ax.set_yticks)):
+        if len(values) == 1:
+            set_ticks(values)
+            single.append(f"{name} {values[0]:.4g}")
+    ax.set_title(f"one value of {' and '.join(single)}: points, not cells", fontsize=9)
 
 
 def _extent(a, b):
