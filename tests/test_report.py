@@ -216,6 +216,7 @@ def test_the_atlas_claim_names_the_polished_gaits_and_maps_the_hanging_family(tm
     assert "The polished gait of least radius of all: radius 0.740" in text and "radius 0.900" not in text
     assert "The polished gait of upright throughout: radius 1.900" in text
     assert "between -34 and 155 deg" in text
+    assert "theta_h_dot = -435.4 deg/s at the apex" in text and "rad/s" not in text  # issue 56: texts in deg/s
     assert "the hanging family" in text and "(0.5, 0.4): least radius 0.4, stable share 25.0%" in text
     assert "**Verdict:** differs: a stable gait upright at the apex exists; none was found upright throughout" in text
 

@@ -67,8 +67,8 @@ def crosscheck_claims(ev: Evidence) -> list[str]:
         "every upright fixed point found was unstable under the constant PD hip law (sec. 4.4.3.1, 4.7).",
         ours, verdict,
         "The NLP is local: IPOPT goes from each start to a nearby minimum of its bound. Its starts are solved from "
-        f"the problem's guess, and its verified ends spin the trunk at most {_spin(verified):.2g} rad/s at the apex. The "
-        f"atlas's most stable gait spins it at {_spin(_best_gaits(atlas.get('best', []))[:1]):.2g} rad/s, swinging it "
+        f"the problem's guess, and its verified ends spin the trunk at most {math.degrees(_spin(verified)):.3g} deg/s at the apex. The "
+        f"atlas's most stable gait spins it at {math.degrees(_spin(_best_gaits(atlas.get('best', []))[:1])):.3g} deg/s, swinging it "
         "through most of a turn over the stride, on a part of the family no drawn start reached; the runs from the "
         "atlas's own gaits test the NLP there. Where the NLP's bound and the verified radius differ by a few per "
         "cent, the minimum it found is a point where several multipliers coincide (in an earlier cross-check, at "
@@ -215,7 +215,7 @@ def _gait(row: dict) -> str:
     what = "upright throughout" if row["meaning"] == "upright_throughout" else "least radius of all"
     return (f"The polished gait of {what}: radius {row['spectral_radius']:.3f} at ydot = {row['ydot']:g} m/s, "
             f"z = {row['z']:g} m, theta_h = {math.degrees(row['theta_h']):.1f} deg and theta_h_dot = "
-            f"{row['theta_h_dot']:.2f} rad/s at the apex, Kp = {row['Kp']:.3g} N m/rad, Kd = {row['Kd']:.3g} N m s/rad, "
+            f"{math.degrees(row['theta_h_dot']):.1f} deg/s at the apex, Kp = {row['Kp']:.3g} N m/rad, Kd = {row['Kd']:.3g} N m s/rad, "
             f"theta2_des = {math.degrees(row['theta2_des']):.1f} deg, theta_td = {math.degrees(row['theta_td']):.1f} deg; "
             f"the trunk between {row['trunk_min_deg']:.0f} and {row['trunk_max_deg']:.0f} deg over the stride; "
             f"independent eps {row['residual']:.1e}.")

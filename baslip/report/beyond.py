@@ -292,7 +292,7 @@ def period_two_gait(ev: Evidence) -> str:
     if record["status"] != Status.CONVERGED or not record.get("orbit"):
         return f"### downward_period2\n\nThe two-stride solve did not converge: status {record['status']}.\n"
     apexes = "; ".join(f"z = {a['z']:.5g} m, theta_h = {a['theta_h'] * DEG:.4g} deg, ydot = {a['ydot']:.4g} m/s, "
-                       f"theta_h_dot = {a['theta_h_dot']:.4g} rad/s" for a in record["orbit"])
+                       f"theta_h_dot = {a['theta_h_dot'] * DEG:.4g} deg/s" for a in record["orbit"])
     return "\n".join([
         "### downward_period2", "",
         f"`problems/downward_period2.yaml` asks the NLP directly for a {record['strides']}-stride orbit at the first "

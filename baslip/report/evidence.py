@@ -13,6 +13,7 @@ from baslip.engine.returnmap import ReturnMap, Tolerances
 from baslip.files.rows import read_points
 from baslip.model.dynamics import APEX, Params
 from baslip.model.hiplaw import CONTROL, PD, HipLaw
+from baslip.model.quantities import quantity_text
 from baslip.status import Status
 
 DEG = 180 / math.pi
@@ -79,7 +80,7 @@ def claim(title: str, thesis: str, ours: str, verdict: str, why: str, figures: S
 def point_evidence(ev: Evidence, row: dict, what: str) -> str:
     return (
         f"{what}: ydot = {row['ydot']:.4g} m/s, z = {row['z']:.4g} m, theta_h = {row['theta_h'] * DEG:.4f} deg, "
-        f"theta_h_dot = {row['theta_h_dot']:.4g} rad/s, u = ({', '.join(f'{row[n]:.4g}' for n in CONTROL.names)}); "
+        f"theta_h_dot = {row['theta_h_dot'] * DEG:.4g} deg/s, u = ({', '.join(quantity_text(n, row[n], 4) for n in CONTROL.names)}); "
         f"verified residual {row['residual']:.1e} (Rosenbrock, 1e-12), independent re-simulation "
         f"eps = {ev.resimulate(row):.1e} (erk, 1e-13)"
     )
