@@ -203,9 +203,11 @@ class RunResults:
             rows, boxes = self.rows("controllers"), self.record.get("boxes", [1.0])
             smallest = [r for r in rows if r.get("box", boxes[0]) == min(boxes)]
             perturbation = {n: w * min(boxes) for n, w in self.record["perturbation"].items()}
-            plots.controllers_figure(smallest, perturbation, None, problem=self._title())
+            from baslip.viz.controllersplot import basin_figure, controllers_figure
+
+            controllers_figure(smallest, perturbation, None, problem=self._title())
             if "basins" in self.record:
-                plots.basin_figure(self.record["basins"], self._title(), None)
+                basin_figure(self.record["basins"], self._title(), None)
         drawn = [plots.plt.figure(n) for n in sorted(set(plots.plt.get_fignums()) - before)]
         return Figures(drawn + self._diagrams())
 

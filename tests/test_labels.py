@@ -27,7 +27,7 @@ def test_the_controller_panels_are_titled_in_words():
 def test_a_controller_that_runs_fewer_starts_says_so_in_the_basin_legend():
     import matplotlib.pyplot as plt
 
-    from baslip.viz.figures import basin_figure
+    from baslip.viz.controllersplot import basin_figure
 
     def basin(samples: int) -> dict:
         return {"per_box": [{"box": box, "returned_fraction": 0.5, "ci95": [0.4, 0.6], "samples": samples}

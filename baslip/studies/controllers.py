@@ -308,11 +308,11 @@ def run_controllers(problem: Problem, study: Controllers, out_dir: Path, sources
     rows = read_points(out_dir / "controllers.csv")
     basins = {name: _basin(rows, name, study.boxes) for name in study.controllers}
     smallest = [r for r in rows if r["box"] == min(study.boxes)]
-    from baslip.viz import figures  # drawn in this process only (see baslip.studies)
+    from baslip.viz import controllersplot  # drawn in this process only (see baslip.studies)
 
-    figures.controllers_figure(smallest, {n: w * min(study.boxes) for n, w in dict(study.perturbation).items()}, out_dir,
+    controllersplot.controllers_figure(smallest, {n: w * min(study.boxes) for n, w in dict(study.perturbation).items()}, out_dir,
                                problem=problem_title(problem))
-    figures.basin_figure(basins, problem_title(problem), out_dir)
+    controllersplot.basin_figure(basins, problem_title(problem), out_dir)
     return {
         "gait": {"hip_law": law.name, "apex": gait.apex, "control": gait.control,
                  "spectral_radius": gait.spectral_radius, "rank_dr_du": control_rank(B, scale)},

@@ -7,7 +7,6 @@ unstable ones as red crosses, and points without a verified fixed point as grey 
 from __future__ import annotations
 
 import math
-import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,10 +17,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from baslip.model.quantities import UNITS  # noqa: E402
-from baslip.problem.study import CONTROLLER_KINDS  # noqa: E402
 from baslip.status import Status
 from baslip.viz.colours import colour_limits, radius_colorbar, radius_colours  # noqa: E402
-from baslip.viz.labels import CONTROLLER_NAMES  # noqa: E402
 from baslip.viz.placement import clear_placement  # noqa: E402
 
 DEG = 180 / math.pi
@@ -212,31 +209,30 @@ def _sweep_map(rows, names, quantity, out_dir, problem: str = "") -> Path | None
 
 def draw_map(fig, ax, rows, names, quantity) -> None:
     """A sweep's map of ``quantity`` over its two axes on ``ax``, with a colour bar; stable
-    cells ringed, unstable ones crossed, cells without a verified fixed point marked.
-
-    With a single value along an axis there are no cells to paint (their width would be
-    invented): each point is then a coloured marker, and the axes say so.
-    """
+    cells ringed, unstable ones crossed, cells without a verified fixed point marked. With
+    one value along an axis there are no cells (their width would be invented): the points
+    are then markers, ticked at their values, and the title says so."""
     a, b, values, stable = _grid(rows, names, quantity)
-    painted = shown(quantity, values) if quantity != "spectral_radius" else values
     A, B = np.meshgrid(shown(names[0], a), shown(names[1], b))
     if quantity == "spectral_radius":
-        colours, limits = radius_colours(values)
-        scale = {"cmap": colours, "norm": limits}
-        label = LABELS[quantity] + " (log scale; blue: stable)"
+        painted, (cmap, norm) = values, radius_colours(values)
+        scale = {"cmap": cmap, "norm": norm}
     else:
-        scale = {"cmap": plt.get_cmap("viridis" if quantity == "theta_h" else "coolwarm").with_extremes(bad="0.85"),
-                 **colour_limits(quantity, painted)}
-        label = LABELS[quantity]
+        painted, cmap = shown(quantity, values), plt.get_cmap("viridis" if quantity == "theta_h" else "coolwarm")
+        scale = {"cmap": cmap.with_extremes(bad="0.85"), **colour_limits(quantity, shown(quantity, values))}
     if len(a) > 1 and len(b) > 1:
         image = ax.imshow(painted, origin="lower", aspect="auto", extent=_extent(A[0], B[:, 0]), **scale)
     else:
         image = ax.scatter(A.ravel(), B.ravel(), c=painted.ravel(), marker="s", s=160, **scale)
-        _name_the_single_values(ax, names, (A[0], B[:, 0]))
+        single = [(name, v, tick) for name, v, tick in zip(names, (A[0], B[:, 0]), (ax.set_xticks, ax.set_yticks))
+                  if len(v) == 1]
+        for _, v, tick in single:
+            tick(v)
+        ax.set_title(f"one value of {' and '.join(f'{n} {v[0]:.4g}' for n, v, _ in single)}: points, not cells", fontsize=9)
     if quantity == "spectral_radius":
-        radius_colorbar(fig, image, ax, label)
+        radius_colorbar(fig, image, ax, LABELS[quantity] + " (log scale; blue: stable)")
     else:
-        fig.colorbar(image, ax=ax, label=label)
+        fig.colorbar(image, ax=ax, label=LABELS[quantity])
     unstable = np.isfinite(values) & ~stable
     if stable.any():  # only what is there gets a legend entry
         ax.plot(A[stable], B[stable], "o", mfc="none", mec="k", ms=7, label="stable")
@@ -246,17 +242,6 @@ def draw_map(fig, ax, rows, names, quantity) -> None:
         ax.plot(A[np.isnan(values)], B[np.isnan(values)], "s", color="0.5", ms=3, label="no verified fixed point")
     ax.set_xlabel(LABELS.get(names[0], names[0]))
     ax.set_ylabel(LABELS.get(names[1], names[1]))
-
-
-def _name_the_single_values(ax, names, axes_values) -> None:
-    """Tick a swept quantity that takes one value at that value alone, and title the map
-    as points rather than cells."""
-    single = []
-    for name, values, set_ticks in zip(names, axes_values, (ax.set_xticks, ax.set_yticks)):
-        if len(values) == 1:
-            set_ticks(values)
-            single.append(f"{name} {values[0]:.4g}")
-    ax.set_title(f"one value of {' and '.join(single)}: points, not cells", fontsize=9)
 
 
 def _extent(a, b):
@@ -517,76 +502,6 @@ def trunk_motion_figure(motions: list[tuple[str, np.ndarray, np.ndarray]], out_d
     legend_beside(ax, fontsize=7)
     path = _in(out_dir, "best_gaits_trunk.png")
     return _save(fig, path, problem=problem)
-
-
-# --- controllers ----------------------------------------------------------------------------
-
-OUTCOME_STYLE = {"converged": ("o", "tab:blue"), "settled": ("d", "tab:green"), "bounded": ("s", "tab:orange"),
-                 "fell": ("x", "tab:red")}
-
-
-def controllers_figure(rows: list[dict], perturbation: dict, out_dir: Path | None, *, problem: str = "") -> Path | None:
-    """Left: the share of perturbed starts each controller brings back to the gait, keeps
-    up without converging, or lets fall. Right, per controller: the starts in the plane of
-    the two most perturbed apex quantities, marked by outcome."""
-    names = [n for n in CONTROLLER_KINDS if any(r["controller"] == n for r in rows)]
-    axes_names = sorted(perturbation, key=lambda n: -perturbation[n] / _NOMINAL_APEX[n])[:2]
-    if len(axes_names) < 2:
-        axes_names = (axes_names + ["z", "ydot"])[:2]
-    fig, axes = plt.subplots(1, 1 + len(names), figsize=(4.0 * (1.5 + len(names)), 3.8),
-                             gridspec_kw={"width_ratios": [1.5] + [1] * len(names)})
-    outcomes = tuple(OUTCOME_STYLE)
-    bottom = np.zeros(len(names))
-    for outcome in outcomes:
-        share = np.array([np.mean([r["outcome"] == outcome for r in rows if r["controller"] == n]) for n in names])
-        axes[0].bar([textwrap.fill(CONTROLLER_NAMES[n], 12) for n in names], share, bottom=bottom,
-                    color=OUTCOME_STYLE[outcome][1], label=outcome)
-        bottom += share
-    axes[0].set_ylabel("share of perturbed starts")
-    axes[0].tick_params(axis="x", labelsize=7)
-    axes[0].set_ylim(0, 1)
-    axes[0].legend(fontsize=8, loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=len(outcomes), frameon=False)
-    for ax, name in zip(axes[1:], names):
-        mine = [r for r in rows if r["controller"] == name]
-        for outcome in outcomes:
-            pick = [r for r in mine if r["outcome"] == outcome]
-            if pick:
-                marker, color = OUTCOME_STYLE[outcome]
-                ax.plot(shown(axes_names[0], [r[f"d_{axes_names[0]}"] for r in pick]),
-                        shown(axes_names[1], [r[f"d_{axes_names[1]}"] for r in pick]),
-                        marker, color=color, ms=4, ls="none", label=outcome)
-        ax.set_title(CONTROLLER_NAMES[name], fontsize=9)
-        ax.set_xlabel("change of " + LABELS[axes_names[0]])
-        ax.set_ylabel("change of " + LABELS[axes_names[1]])
-        legend_below(ax, fontsize=7)
-    path = _in(out_dir, "controllers.png")
-    return _save(fig, path, problem=problem)
-
-
-_NOMINAL_APEX = {"z": 0.1, "theta_h": 0.1, "ydot": 0.1, "theta_h_dot": 1.0}
-
-
-def basin_figure(basins: dict, title: str, out_dir: Path | None) -> Path | None:
-    """The share of starts each controller brings back (to the gait, or onto its family)
-    against the box size (a multiple of the perturbation's half-widths), with 95 %
-    intervals, and each controller's starts a box in the legend; the 90 % line dashed."""
-    fig, ax = plt.subplots(figsize=(8.8, 3.8))
-    for k, (name, basin) in enumerate(basins.items()):
-        boxes = np.array([b["box"] for b in basin["per_box"]]) * (1 + 0.03 * (k - 1.5))  # spread the bars
-        share = np.array([b["returned_fraction"] or 0.0 for b in basin["per_box"]])
-        low, high = (np.array([b["ci95"][i] for b in basin["per_box"]]) for i in (0, 1))
-        spread = [np.maximum(share - low, 0.0), np.maximum(high - share, 0.0)]  # round-off can cross zero
-        # The re-solving controllers run fewer starts than the batched ones: the legend says how many.
-        label = f"{CONTROLLER_NAMES.get(name, name)}; {basin['per_box'][0]['samples']:,} starts a box"
-        ax.errorbar(boxes, share, yerr=spread, marker="o", ms=4, capsize=3, label=label)
-    ax.axhline(0.9, color="0.5", ls="--", lw=0.8)
-    ax.set_xscale("log", base=2)
-    ax.set_ylim(-0.02, 1.02)
-    ax.set_xlabel("box half-widths [multiples of the study's perturbation]")
-    ax.set_ylabel("share of starts that return")
-    ax.set_title("share of starts that return, by box size (95 % intervals)", fontsize=10)
-    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0))  # beside the axes: never over a curve
-    return _save(fig, _in(out_dir, "basins.png"), problem=title)
 
 
 # --- a gait's motion ----------------------------------------------------------------------
