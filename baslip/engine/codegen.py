@@ -53,7 +53,7 @@ from collections.abc import Callable, Iterator, Sequence
 import casadi as ca
 
 from baslip.children import compiler_preexec, in_own_group
-from baslip.diagnostics import logger
+from baslip.diagnostics import heartbeat, logger
 from baslip.engine.native import Kernel, NativeKernel, VirtualMachineKernel
 
 _log = logger(__name__)
@@ -324,9 +324,9 @@ def _build(name: str, c_text: str, compiler: list[str], library: pathlib.Path, o
         with tempfile.TemporaryDirectory(dir=library.parent, prefix=f".{library.stem}.", suffix=".cc") as scratch:
             source = pathlib.Path(scratch) / f"{name}.c"
             source.write_text(c_text, encoding="utf-8")
-            _announce(name, c_text, library.parent, optimisation)  # once the cache has taken the source
             try:
-                _run([*compiler, *_flags(optimisation), str(source), "-o", partial, *LDLIBS])
+                with _announced(name, c_text, library.parent, optimisation):  # once the cache has taken the source
+                    _run([*compiler, *_flags(optimisation), str(source), "-o", partial, *LDLIBS])
             except _NoCompiler as reason:
                 raise _NoCompiler(f"compiling {name} failed ({reason})") from None
         digest = _sha256(pathlib.Path(partial))
@@ -450,24 +450,43 @@ def _build_and_load(name, names, build, load, generated, compiler, library: path
     return loaded
 
 
-#: Generated C from which on a build is announced on stderr (smaller ones take a second or
-#: two), and gcc's pace by optimisation level on the 2-core machine, measured on baslip's
-#: libraries alone (at -O3 the engine's passes, 0.64 MB in 7.7 s, and the shooting NLP,
-#: 1.1 MB in 12.3 s; at -O1 the engine's Jacobians, 2.84 MB in 21.7 s) [s per MB].
+#: Generated C from which on a build is announced (smaller ones take a second or two).
 ANNOUNCE_BYTES = 200_000
-SECONDS_PER_MB = {"-O3": 12.0, "-O1": 7.6}
+#: gcc's time for a library of 1 MB of C by optimisation level, on the 2-core machine [s],
+#: and the power of the size it grows with (superlinearly: large functions cost the
+#: optimiser more per line). Fitted to compiles of baslip's libraries there: at -O3
+#: 0.25 MB in 2.3 s and 0.64 MB in 10.1 s (and the 4 MB stability NLP in about 180 s), at
+#: -O1 1.1 MB in 5.6 s and 2.84 MB in 30 s.
+SECONDS_PER_MB = {"-O3": 20.6, "-O1": 5.7}
+SIZE_POWER = 1.6
 
 
-def _announce(name: str, c_text: str, folder: pathlib.Path, optimisation: str = OPTIMISATION) -> None:
-    """Say on stderr, when it is a terminal, that ``name`` is being compiled and about how
-    long it takes: the silence of a first run would otherwise look like a hang. Small
-    libraries, workers (whose parent speaks for them) and output to files or pipes (logs,
-    tests that read stderr) get nothing."""
+def expected_compile_s(size: int, optimisation: str = OPTIMISATION) -> float:
+    """About how long gcc takes for ``size`` bytes of generated C at ``optimisation`` [s]."""
+    return SECONDS_PER_MB.get(optimisation, SECONDS_PER_MB["-O3"]) * (size / 1e6) ** SIZE_POWER
+
+
+@contextlib.contextmanager
+def _announced(name: str, c_text: str, folder: pathlib.Path, optimisation: str = OPTIMISATION) -> Iterator[None]:
+    """Say that ``name`` is being compiled, its size and about how long it takes, then
+    while the block runs say every few seconds that it still is (:func:`~baslip.diagnostics.heartbeat`):
+    the silence of a first run would otherwise look like a hang. Small libraries and
+    workers (whose parent speaks for them) get nothing."""
     size = len(c_text.encode())
-    if size < ANNOUNCE_BYTES or not _PROCESS.notices_here or not sys.stderr.isatty():
+    if size < ANNOUNCE_BYTES or not _PROCESS.notices_here:
+        yield
         return
-    _log.info(f"baslip: compiling {name} for this machine ({size / 1e6:.1f} MB of C, about "
-              f"{size / 1e6 * SECONDS_PER_MB.get(optimisation, 12.0):.0f} s; once, then kept in {folder})")
+    expected = expected_compile_s(size, optimisation)
+    _log.info(f"baslip: compiling {name} for this machine ({size / 1e6:.1f} MB of C, about {expected:.0f} s; "
+              f"once, then kept in {folder})")
+
+    def still(elapsed: float) -> str:
+        if elapsed <= expected:
+            return f"baslip: still compiling {name}, {elapsed:.0f} s of about {expected:.0f} s"
+        return f"baslip: still compiling {name}, {elapsed:.0f} s (about {expected:.0f} s was expected)"
+
+    with heartbeat(_log, still):
+        yield
 
 
 def _checksum_path(library: pathlib.Path) -> pathlib.Path:
