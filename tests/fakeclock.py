@@ -10,6 +10,10 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import queue
+import threading
+import time
+import types
 from collections.abc import Iterator
 
 from baslip import diagnostics
@@ -55,7 +59,7 @@ class FakeClock(logging.Handler):
 
     def longest_silence(self, start: float = 0.0, end: float | None = None) -> float:
         """The longest time [s] between ``start``, the records and ``end`` (now)."""
-        times = [start, *(t for t, _ in self.said if t >= start), self.time if end is None else end]
+        times = [start, *sorted(t for t, _ in self.said if t >= start), self.time if end is None else end]
         return max(b - a for a, b in zip(times, times[1:]))
 
     def messages(self) -> list[str]:
@@ -79,3 +83,22 @@ def clock_in_place(shown: bool = True) -> Iterator[FakeClock]:
         base.setLevel(level)
         base.removeHandler(clock)
         diagnostics.CLOCK = real_clock
+
+
+def collect_in_thread(worker, lane: list[dict], context, progress, table) -> tuple[int, bool, str]:
+    """Run a study's ``worker`` on ``lane`` in a thread of this process (in place of a
+    worker process, so that it shares the fake clock), its rows collected on this thread
+    as a study collects them; what the collection returns."""
+    from baslip.studies.runner import _collect
+
+    items: queue.Queue = queue.Queue()
+    thread = threading.Thread(target=worker, args=(lane, context, types.SimpleNamespace(put=items.put)), daemon=True)
+
+    def next_row():
+        if thread.ident is None:  # started once the collection (and its heartbeat) has begun
+            thread.start()
+        return items.get()
+
+    collected = _collect(next_row, 1, table, progress, 0, time.perf_counter())
+    thread.join()
+    return collected

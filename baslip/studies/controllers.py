@@ -155,7 +155,8 @@ def controllers_worker(chunk: list[dict], context: dict, queue) -> None:
         for name in BATCHED:
             mine = [task for task in pending if task["controller"] == name]
             if mine:
-                _log.info(f"controller {name}: {len(mine)} runs in lockstep")  # news for the parent's progress line
+                # news for the parent's progress line while the batch runs
+                _log.info(f"controller {name}: {len(mine)} run{'s' * (len(mine) > 1)} in lockstep")
                 for row in _batched_rows(mine, context, rmap):
                     queue.put(row)
         for task in pending:
