@@ -99,6 +99,23 @@ def show_on_stderr() -> None:
     base.setLevel(logging.INFO)
 
 
+@contextlib.contextmanager
+def progress_hidden(hidden: bool = True) -> Iterator[None]:
+    """Within the block, if ``hidden``, baslip's progress (INFO records: compiles, IPOPT
+    tries, studies) is not shown, whatever handler shows it; warnings still are. For
+    ``--quiet`` and ``progress=False``."""
+    if not hidden:
+        yield
+        return
+    base = logging.getLogger(ROOT_LOGGER)
+    level = base.level
+    base.setLevel(max(level, logging.WARNING))  # setLevel: the loggers' cached answers are cleared
+    try:
+        yield
+    finally:
+        base.setLevel(level)
+
+
 def end_progress_line() -> None:
     """End the console's open progress line (before a result is printed on stdout)."""
     for handler in logging.getLogger(ROOT_LOGGER).handlers:

@@ -121,11 +121,11 @@ def test_a_large_build_says_what_it_compiles_and_about_how_long_a_cached_load_sa
     """Above ANNOUNCE_BYTES of C (lowered here, so that a small library counts), a build
     logs one line naming the library, its size and an estimate, in a log as on a
     terminal; the load from the cache logs none. Below the size a build is silent."""
-    import baslip.engine.codegen as codegen
+    import baslip.engine.announce as announce
 
     compile_functions("test_lib_small", make_functions(gain=0.03))
     assert _said(caplog) == []
-    monkeypatch.setattr(codegen, "ANNOUNCE_BYTES", 1)
+    monkeypatch.setattr(announce, "ANNOUNCE_BYTES", 1)
     for terminal, name in ((False, "test_lib_piped"), (True, "test_lib")):
         monkeypatch.setattr(sys.stderr, "isatty", lambda terminal=terminal: terminal)
         compile_functions(name, make_functions())
@@ -136,24 +136,17 @@ def test_a_large_build_says_what_it_compiles_and_about_how_long_a_cached_load_sa
     assert _said(caplog) == []
 
 
-def test_the_expected_compile_time_follows_the_measured_ones():
-    """The estimate is within 30 % of the compiles it was fitted to (size [MB], level, s)."""
-    from baslip.engine.codegen import expected_compile_s
-
-    for megabytes, level, seconds in ((0.25, "-O3", 2.3), (0.64, "-O3", 10.1), (1.1, "-O1", 5.6), (2.84, "-O1", 30.0)):
-        assert expected_compile_s(int(megabytes * 1e6), level) == pytest.approx(seconds, rel=0.3)
-
-
 def test_a_long_compile_is_never_silent_for_more_than_10_s_and_quiet_silences_it(cache, monkeypatch, fake_clock):
     """A gcc that takes 47 s (a stub moving a fake clock, then the real gcc) is announced
     and then heard from at least every 10 s, past its estimate too; with INFO not shown
     (``progress=False``, ``--quiet``) nothing is said and no heartbeat runs."""
+    import baslip.engine.announce as announce
     import baslip.engine.codegen as codegen
     from baslip import diagnostics
 
     real_run = codegen._run
-    monkeypatch.setattr(codegen, "ANNOUNCE_BYTES", 1)
-    monkeypatch.setattr(codegen, "expected_compile_s", lambda size, optimisation: 30.0)
+    monkeypatch.setattr(announce, "ANNOUNCE_BYTES", 1)
+    monkeypatch.setattr(announce, "expected_compile_s", lambda size, optimisation: 30.0)
     clock = fake_clock()
 
     def slow_gcc(command):

@@ -81,3 +81,18 @@ def test_the_real_clock_beats_on_a_daemon_thread_that_ends_when_stopped():
     assert threads and all(t.daemon for t in threads)
     stop()
     assert not any(t.name == "baslip-heartbeat" for t in threading.enumerate())
+
+
+def test_progress_hidden_silences_progress_and_heartbeats_in_its_block_only(fake_clock):
+    """``--quiet`` and ``progress=False``: inside the block no INFO record and no
+    heartbeat, warnings still; after it, progress is shown again."""
+    clock = fake_clock()
+    log = diagnostics.logger("baslip.gait.tries")
+    with diagnostics.progress_hidden():
+        log.info("IPOPT try 2 of 2: starting")
+        with diagnostics.heartbeat(log, lambda elapsed: "still solving"):
+            assert clock.running() == 0
+        log.warning("baslip: no working C compiler")
+    with diagnostics.progress_hidden(False):
+        log.info("shown")
+    assert clock.messages() == ["baslip: no working C compiler", "shown"]

@@ -234,6 +234,7 @@ def test_a_study_whose_tasks_take_minutes_is_heard_from_every_10_s_and_quiet_sil
             continue
         assert clock.longest_silence(0.0, 600.0) <= 10.0
         said = clock.messages()
+        assert said[0] == "optimal: 0/8 done, starting the rest"
         assert "optimal: 0/8 done, 36 s so far, tasks running" in said
         assert "optimal: 0/8 done, 45 s so far, tasks running; IPOPT try 1 of up to 2 (stability NLP): still solving, 0 s" in said
         assert said[-1].startswith("optimal: 8/8 done")

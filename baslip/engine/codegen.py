@@ -53,7 +53,8 @@ from collections.abc import Callable, Iterator, Sequence
 import casadi as ca
 
 from baslip.children import compiler_preexec, in_own_group
-from baslip.diagnostics import heartbeat, logger
+from baslip.diagnostics import logger
+from baslip.engine.announce import announced
 from baslip.engine.native import Kernel, NativeKernel, VirtualMachineKernel
 
 _log = logger(__name__)
@@ -325,7 +326,7 @@ def _build(name: str, c_text: str, compiler: list[str], library: pathlib.Path, o
             source = pathlib.Path(scratch) / f"{name}.c"
             source.write_text(c_text, encoding="utf-8")
             try:
-                with _announced(name, c_text, library.parent, optimisation):  # once the cache has taken the source
+                with announced(_log, name, c_text, library.parent, optimisation):  # once the cache has taken the source
                     _run([*compiler, *_flags(optimisation), str(source), "-o", partial, *LDLIBS])
             except _NoCompiler as reason:
                 raise _NoCompiler(f"compiling {name} failed ({reason})") from None
@@ -448,45 +449,6 @@ def _build_and_load(name, names, build, load, generated, compiler, library: path
     if loaded is None:
         raise _NoCompiler(f"the freshly compiled {library.name} does not load")
     return loaded
-
-
-#: Generated C from which on a build is announced (smaller ones take a second or two).
-ANNOUNCE_BYTES = 200_000
-#: gcc's time for a library of 1 MB of C by optimisation level, on the 2-core machine [s],
-#: and the power of the size it grows with (superlinearly: large functions cost the
-#: optimiser more per line). Fitted to compiles of baslip's libraries there: at -O3
-#: 0.25 MB in 2.3 s and 0.64 MB in 10.1 s (and the 4 MB stability NLP in about 180 s), at
-#: -O1 1.1 MB in 5.6 s and 2.84 MB in 30 s.
-SECONDS_PER_MB = {"-O3": 20.6, "-O1": 5.7}
-SIZE_POWER = 1.6
-
-
-def expected_compile_s(size: int, optimisation: str = OPTIMISATION) -> float:
-    """About how long gcc takes for ``size`` bytes of generated C at ``optimisation`` [s]."""
-    return SECONDS_PER_MB.get(optimisation, SECONDS_PER_MB["-O3"]) * (size / 1e6) ** SIZE_POWER
-
-
-@contextlib.contextmanager
-def _announced(name: str, c_text: str, folder: pathlib.Path, optimisation: str = OPTIMISATION) -> Iterator[None]:
-    """Say that ``name`` is being compiled, its size and about how long it takes, then
-    while the block runs say every few seconds that it still is (:func:`~baslip.diagnostics.heartbeat`):
-    the silence of a first run would otherwise look like a hang. Small libraries and
-    workers (whose parent speaks for them) get nothing."""
-    size = len(c_text.encode())
-    if size < ANNOUNCE_BYTES or not _PROCESS.notices_here:
-        yield
-        return
-    expected = expected_compile_s(size, optimisation)
-    _log.info(f"baslip: compiling {name} for this machine ({size / 1e6:.1f} MB of C, about {expected:.0f} s; "
-              f"once, then kept in {folder})")
-
-    def still(elapsed: float) -> str:
-        if elapsed <= expected:
-            return f"baslip: still compiling {name}, {elapsed:.0f} s of about {expected:.0f} s"
-        return f"baslip: still compiling {name}, {elapsed:.0f} s (about {expected:.0f} s was expected)"
-
-    with heartbeat(_log, still):
-        yield
 
 
 def _checksum_path(library: pathlib.Path) -> pathlib.Path:

@@ -523,6 +523,7 @@ class Progress:
         self._done = done
         if self.quiet:
             return contextlib.nullcontext()
+        _log.info(f"{self.label}: {done}/{self.total} done, starting the rest", extra=IN_PLACE if self.terminal else None)
         return heartbeat(_log, self._still, in_place=self.terminal)
 
     def _still(self, elapsed: float) -> str:
