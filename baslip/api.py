@@ -16,7 +16,7 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-from baslip.diagnostics import logger, show_on_stderr
+from baslip.diagnostics import logger, progress_hidden, show_on_stderr
 from baslip.engine.codegen import recording_code
 from baslip.errors import InputError
 from baslip.files.atomic import write_result
@@ -94,8 +94,9 @@ def run(problem: Problem | str | Path, out: str | Path | None = None, *, jobs: i
     where = Path(sources) if sources is not None else (folder.parent if folder is not None else Path("results"))
     check_run(problem, folder, where, scheduler, fresh)
     if folder is None and problem.study is None and problem.continuation is None:
-        return solve_problem(problem)  # a gait written nowhere needs no folder at all
-    with _place(folder, problem.name) as target:
+        with progress_hidden(not progress):
+            return solve_problem(problem)  # a gait written nowhere needs no folder at all
+    with progress_hidden(not progress), _place(folder, problem.name) as target:
         result = _run_into(problem, target, where, jobs=jobs, lanes=lanes, scheduler=scheduler, fresh=fresh,
                            quiet=not progress)
         if folder is not None:

@@ -15,12 +15,22 @@ either way (logging's last resort shows them when no handler is configured).
 A progress line that should replace the previous one on a terminal is logged with
 ``extra=IN_PLACE``; the console handler rewrites it in place, and any other handler
 writes it as an ordinary record.
+
+A stage that may run long without news of its own (gcc compiling a library, an IPOPT
+solve, a study's task) runs inside :func:`heartbeat`, which logs a line at least every
+:data:`HEARTBEAT_S` seconds saying what still runs and for how long: nothing stays silent
+for more than 10 s. When INFO records are not shown (``progress=False``, ``--quiet``, a
+worker process) no heartbeat thread is started at all.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
 
 #: The logger every baslip module's logger descends from.
 ROOT_LOGGER = "baslip"
@@ -89,8 +99,92 @@ def show_on_stderr() -> None:
     base.setLevel(logging.INFO)
 
 
+@contextlib.contextmanager
+def progress_hidden(hidden: bool = True) -> Iterator[None]:
+    """Within the block, if ``hidden``, baslip's progress (INFO records: compiles, IPOPT
+    tries, studies) is not shown, whatever handler shows it; warnings still are. For
+    ``--quiet`` and ``progress=False``."""
+    if not hidden:
+        yield
+        return
+    base = logging.getLogger(ROOT_LOGGER)
+    level = base.level
+    base.setLevel(max(level, logging.WARNING))  # setLevel: the loggers' cached answers are cleared
+    try:
+        yield
+    finally:
+        base.setLevel(level)
+
+
 def end_progress_line() -> None:
     """End the console's open progress line (before a result is printed on stdout)."""
     for handler in logging.getLogger(ROOT_LOGGER).handlers:
         if isinstance(handler, ConsoleHandler):
             handler.end_line()
+
+
+#: Seconds between heartbeat lines: under 10, so that with a thread's scheduling delay no
+#: stage stays silent for more than 10 s.
+HEARTBEAT_S = 9.0
+
+
+class Clock:
+    """Time for heartbeats: the monotonic clock, and a call repeated on a daemon thread.
+
+    Tests replace :data:`CLOCK` with a clock of their own whose time moves only when they
+    move it, so that a stage's silences are measured without waiting.
+    """
+
+    def now(self) -> float:
+        """Seconds on a monotonic clock [s]."""
+        return time.monotonic()
+
+    def every(self, seconds: float, beat: Callable[[], None]) -> Callable[[], None]:
+        """Call ``beat`` every ``seconds`` [s] on a daemon thread until the returned
+        function is called; that stops the thread and waits for it to end."""
+        stop = threading.Event()
+
+        def run() -> None:
+            while not stop.wait(seconds):
+                beat()
+
+        thread = threading.Thread(target=run, name="baslip-heartbeat", daemon=True)
+        thread.start()
+
+        def halt() -> None:
+            stop.set()
+            thread.join()
+
+        return halt
+
+
+#: The clock heartbeats run on (a constant: only tests put another in its place).
+CLOCK = Clock()
+
+
+@contextlib.contextmanager
+def heartbeat(log: logging.Logger, say: Callable[[float], str], *, in_place: bool = False) -> Iterator[None]:
+    """Log ``say(elapsed)`` every :data:`HEARTBEAT_S` seconds while the block runs.
+
+    Parameters
+    ----------
+    log : logging.Logger
+        The logger of the module whose stage runs; nothing is started unless it shows
+        INFO records.
+    say : callable
+        The line, from the seconds since the block began [s]; called on the heartbeat's
+        thread, so it should only read state.
+    in_place : bool
+        Whether the line replaces the previous one on a terminal (``extra=IN_PLACE``).
+    """
+    if not log.isEnabledFor(logging.INFO):
+        yield
+        return
+    clock = CLOCK
+    start = clock.now()
+    extra = IN_PLACE if in_place else None
+    halt = clock.every(HEARTBEAT_S, lambda: log.info(say(clock.now() - start), extra=extra))
+    try:
+        yield
+    finally:
+        halt()

@@ -1,12 +1,14 @@
 """Shared, session-wide fixtures: CasADi objects are built once and reused."""
 
 import ast
+import contextlib
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from fakeclock import clock_in_place
 
 from baslip import FixedPointSolver, Params, ReturnMap, Tolerances
 
@@ -53,3 +55,12 @@ def heavy_modules_after():
         return text, ast.literal_eval(modules)
 
     return run
+
+
+@pytest.fixture
+def fake_clock():
+    """``fake_clock(shown=True)``: a :class:`fakeclock.FakeClock` in place of baslip's
+    clock until the test ends, hearing baslip's records (INFO shown, or with ``shown``
+    False only warnings, as with ``--quiet``); a second call replaces the first."""
+    with contextlib.ExitStack() as stack:
+        yield lambda shown=True: (stack.close(), stack.enter_context(clock_in_place(shown)))[1]

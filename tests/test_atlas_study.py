@@ -345,3 +345,49 @@ def test_a_committed_atlas_keeps_its_problem_hash_whether_or_not_it_sets_a_cap(a
 
     committed = json.loads((ROOT / "results" / atlas / "result.json").read_text())["provenance"]["problem_hash"]
     assert problem_hash(load_problem(ROOT / "problems" / f"{atlas}.yaml")) == committed
+
+
+class _SlowCell(CellAtlas):
+    """A cell that takes 100 s of the fake clock, saying how many charts it has as it
+    goes, through the cell's own paced ``say``."""
+
+    def __init__(self, problem, study, quiet):
+        self.problem, self.study, self.quiet = problem, study, quiet
+
+    def run(self, task):
+        from baslip import diagnostics
+
+        say = self._progress({"ydot": task["sweep_ydot"]})
+        for charts in range(1, 21):
+            diagnostics.CLOCK.advance(5.0)
+            say(f"{charts} charts from 1 seeds")
+        return {"sweep_ydot": task["sweep_ydot"], "charts": 20}
+
+
+def test_an_atlas_is_heard_from_every_10_s_with_its_cell_s_news_and_quiet_silences_it(monkeypatch, tmp_path,
+                                                                                      fake_clock):
+    """Two cells of 100 s each: the study's line comes at least every 10 s, with the
+    latest of the cell's own lines (at most one every PROGRESS_EVERY_S); quiet says nothing."""
+    from fakeclock import collect_in_thread
+
+    from baslip.studies import atlascell
+    from baslip.studies.atlas import atlas_worker
+    from baslip.studies.runner import Progress, ResumableCsv
+
+    monkeypatch.setattr(atlascell, "CellAtlas", _SlowCell)
+    problem = load_problem(ROOT / "problems" / "atlas_downward.yaml")
+    lane = [{"sweep_ydot": 0.5}, {"sweep_ydot": 0.6}]
+    for shown in (True, False):
+        clock = fake_clock(shown)
+        table = ResumableCsv(tmp_path / f"cells_{shown}.csv", ["sweep_ydot", "charts"], ["sweep_ydot"])
+        ran = collect_in_thread(atlas_worker, lane, (problem, not shown), Progress("atlas", 2, not shown), table)
+        assert ran == (2, False, "") and clock.time == 200.0 and clock.running() == 0
+        if not shown:
+            assert clock.said == []
+            continue
+        said = clock.messages()
+        cells = [line for line in said if line.startswith("atlas_downward: cell ydot = 0.5: ")]
+        assert cells[:2] == ["atlas_downward: cell ydot = 0.5: 3 charts from 1 seeds",
+                             "atlas_downward: cell ydot = 0.5: 6 charts from 1 seeds"]
+        assert "atlas: 0/2 done, 18 s so far, tasks running" in said
+        assert clock.longest_silence(0.0, 200.0) <= 10.0

@@ -118,22 +118,53 @@ def test_second_call_loads_from_the_cache_without_compiling(cache, tmp_path, mon
 
 def test_a_large_build_says_what_it_compiles_and_about_how_long_a_cached_load_says_nothing(cache, monkeypatch,
                                                                                            caplog):
-    """On a terminal, above ANNOUNCE_BYTES of C (lowered here, so that a small library
-    counts), a build logs one line naming the library, its size and an estimate; the
-    load from the cache logs none. Not on a terminal (every other test here), or below
-    the size, a build is silent."""
-    import baslip.engine.codegen as codegen
+    """Above ANNOUNCE_BYTES of C (lowered here, so that a small library counts), a build
+    logs one line naming the library, its size and an estimate, in a log as on a
+    terminal; the load from the cache logs none. Below the size a build is silent."""
+    import baslip.engine.announce as announce
 
-    monkeypatch.setattr(codegen, "ANNOUNCE_BYTES", 1)
-    compile_functions("test_lib_piped", make_functions(gain=0.02))
+    compile_functions("test_lib_small", make_functions(gain=0.03))
     assert _said(caplog) == []
-    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
-    compile_functions("test_lib", make_functions())
-    [line] = _said(caplog)
-    assert line.startswith("baslip: compiling test_lib for this machine (") and " MB of C, about " in line
-    assert str(cache) in line
+    monkeypatch.setattr(announce, "ANNOUNCE_BYTES", 1)
+    for terminal, name in ((False, "test_lib_piped"), (True, "test_lib")):
+        monkeypatch.setattr(sys.stderr, "isatty", lambda terminal=terminal: terminal)
+        compile_functions(name, make_functions())
+        [line] = _said(caplog)
+        assert line.startswith(f"baslip: compiling {name} for this machine (") and " MB of C, about " in line
+        assert str(cache) in line
     compile_functions("test_lib", make_functions())
     assert _said(caplog) == []
+
+
+def test_a_long_compile_is_never_silent_for_more_than_10_s_and_quiet_silences_it(cache, monkeypatch, fake_clock):
+    """A gcc that takes 47 s (a stub moving a fake clock, then the real gcc) is announced
+    and then heard from at least every 10 s, past its estimate too; with INFO not shown
+    (``progress=False``, ``--quiet``) nothing is said and no heartbeat runs."""
+    import baslip.engine.announce as announce
+    import baslip.engine.codegen as codegen
+    from baslip import diagnostics
+
+    real_run = codegen._run
+    monkeypatch.setattr(announce, "ANNOUNCE_BYTES", 1)
+    monkeypatch.setattr(announce, "expected_compile_s", lambda size, optimisation: 30.0)
+    clock = fake_clock()
+
+    def slow_gcc(command):
+        if "-shared" in command:
+            diagnostics.CLOCK.advance(47.0)
+        return real_run(command)
+
+    monkeypatch.setattr(codegen, "_run", slow_gcc)
+    compile_functions("test_lib", make_functions())
+    said = clock.messages()
+    assert said[0].startswith("baslip: compiling test_lib for this machine (") and "about 30 s" in said[0]
+    assert "baslip: still compiling test_lib, 18 s of about 30 s" in said
+    assert said[-1] == "baslip: still compiling test_lib, 45 s (about 30 s was expected)"
+    assert clock.longest_silence() <= 10.0 and clock.running() == 0
+
+    quiet = fake_clock(shown=False)
+    compile_functions("test_lib", make_functions(gain=0.02))
+    assert quiet.said == [] and quiet.time == 47.0 and quiet.running() == 0
 
 
 def test_changed_function_gets_its_own_library(cache):

@@ -3,6 +3,7 @@ stderr, rewrites progress in place and ends that line before the next message; i
 installed once, and not over an application's own logging set-up."""
 
 import logging
+import threading
 
 import pytest
 
@@ -51,3 +52,47 @@ def test_an_application_that_configured_logging_keeps_its_own_handlers(bare_logg
     logging.getLogger().handlers.append(logging.StreamHandler())
     diagnostics.show_on_stderr()
     assert bare_logging.handlers == []
+
+
+def test_a_heartbeat_speaks_every_few_seconds_while_its_block_runs_and_stops_with_it(fake_clock):
+    clock = fake_clock()
+    log = diagnostics.logger("baslip.engine.codegen")
+    with diagnostics.heartbeat(log, lambda elapsed: f"still working, {elapsed:.0f} s"):
+        clock.advance(35.0)
+    clock.advance(60.0)  # after the block: nothing more
+    assert clock.messages() == ["still working, 9 s", "still working, 18 s", "still working, 27 s"]
+    assert clock.longest_silence(0.0, 35.0) <= 10.0
+    assert clock.running() == 0
+
+
+def test_a_heartbeat_starts_nothing_when_info_is_not_shown(fake_clock):
+    clock = fake_clock(shown=False)
+    with diagnostics.heartbeat(diagnostics.logger("baslip.x"), lambda elapsed: "still working"):
+        assert clock.running() == 0
+        clock.advance(35.0)
+    assert clock.said == []
+
+
+def test_the_real_clock_beats_on_a_daemon_thread_that_ends_when_stopped():
+    beats = threading.Event()
+    stop = diagnostics.Clock().every(0.01, beats.set)
+    assert beats.wait(5.0)
+    threads = [t for t in threading.enumerate() if t.name == "baslip-heartbeat"]
+    assert threads and all(t.daemon for t in threads)
+    stop()
+    assert not any(t.name == "baslip-heartbeat" for t in threading.enumerate())
+
+
+def test_progress_hidden_silences_progress_and_heartbeats_in_its_block_only(fake_clock):
+    """``--quiet`` and ``progress=False``: inside the block no INFO record and no
+    heartbeat, warnings still; after it, progress is shown again."""
+    clock = fake_clock()
+    log = diagnostics.logger("baslip.gait.tries")
+    with diagnostics.progress_hidden():
+        log.info("IPOPT try 2 of 2: starting")
+        with diagnostics.heartbeat(log, lambda elapsed: "still solving"):
+            assert clock.running() == 0
+        log.warning("baslip: no working C compiler")
+    with diagnostics.progress_hidden(False):
+        log.info("shown")
+    assert clock.messages() == ["baslip: no working C compiler", "shown"]

@@ -198,3 +198,42 @@ def test_a_point_a_hair_past_a_bound_is_verified_on_it(solver, downward):
     result = solver.verify_point(spec, downward.X, downward.u)
     assert result.status == "converged", result.message
     assert result.apex["theta_h"] == theta_h - 5e-9 and recheck(result) <= 1e-10
+
+
+def _slow_failing_nlp(seconds):
+    """A stand-in for IPOPT that takes ``seconds`` of the fake clock and then fails."""
+    from baslip import diagnostics
+    from baslip.gait.shooting import NlpSolution
+
+    def solve(nlp, spec, w0=None, rmap=None, ipopt=None):
+        diagnostics.CLOCK.advance(seconds)
+        return NlpSolution(spec.start_design()[:4], spec.start_design()[4:], np.full(3, np.nan),
+                           "Maximum_Iterations_Exceeded", 300, seconds)
+
+    return solve
+
+
+def test_ipopt_tries_are_announced_and_heard_from_every_10_s_and_quiet_silences_them(solver, monkeypatch,
+                                                                                     fake_clock):
+    """Two slow, failing tries (25 s each on a fake clock): the second is announced as it
+    starts, with how the first ended, and neither is silent for more than 10 s."""
+    from baslip.gait.shooting import ShootingNLP
+
+    monkeypatch.setattr(ShootingNLP, "solve", _slow_failing_nlp(25.0))
+    monkeypatch.setattr(solver, "nlp_for", lambda strides, exact=False: solver.nlp)  # no exact NLP to build
+    spec = FixedPointSpec(Params(), fixed={"z": 0.4, "ydot": 0.5}, guess=DOWNWARD_GUESS, bounds=HANGING)
+    clock = fake_clock()
+    result = solver.solve(spec)
+    assert result.solver.return_status == "Maximum_Iterations_Exceeded"
+    said = clock.messages()
+    first = f"IPOPT try 1 of up to 2 ({solver.options.hessian} Hessian): still solving, "
+    assert said[:2] == [first + "9 s", first + "18 s"]
+    assert said[2] == ("IPOPT try 2 of 2 (exact Hessian): starting from the same start; "
+                       "try 1 ended Maximum_Iterations_Exceeded after 300 iterations")
+    assert said[3:] == ["IPOPT try 2 of 2 (exact Hessian): still solving, 9 s",
+                        "IPOPT try 2 of 2 (exact Hessian): still solving, 18 s"]
+    assert clock.time == 50.0 and clock.longest_silence(0.0, 50.0) <= 10.0 and clock.running() == 0
+
+    quiet = fake_clock(shown=False)
+    solver.solve(spec)
+    assert quiet.time == 50.0 and quiet.said == [] and quiet.running() == 0

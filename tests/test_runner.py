@@ -7,6 +7,7 @@ The time left is estimated from the recent pace, not the pace since the start.
 """
 
 import csv
+import logging
 import os
 import signal
 import subprocess
@@ -204,3 +205,69 @@ def test_a_worker_that_fails_midway_is_a_failure_with_its_rows_kept(tmp_path):
     assert "exit code 7 before finishing its tasks" in report.worker_failure
     kept = ResumableCsv(tmp_path / "points.csv", ["task", "value"], ["task"]).done()
     assert len(kept) == report.ran >= 1
+
+
+def test_a_study_whose_tasks_take_minutes_is_heard_from_every_10_s_and_quiet_silences_it(tmp_path, fake_clock):
+    """Eight tasks of 150 s each on two lanes (rows arriving from a stub moving a fake
+    clock), the case of the piped optimal study that said nothing for 307 s: a line comes
+    at least every 10 s, with the tasks done, the time so far and the latest news from
+    inside a task; quiet says nothing and runs no heartbeat."""
+    from baslip import diagnostics
+    from baslip.studies.runner import TaskNote, _collect
+
+    def arrivals():
+        for k in range(8):
+            diagnostics.CLOCK.advance(40.0)
+            yield TaskNote(f"IPOPT try 1 of up to 2 (stability NLP): still solving, {k} s")
+            diagnostics.CLOCK.advance(35.0)
+            yield {"task": k, "value": 1.0, "state": None}
+        yield from (None, None)
+
+    for shown in (True, False):
+        clock = fake_clock(shown)
+        table = ResumableCsv(tmp_path / f"points_{shown}.csv", ["task", "value"], ["task"])
+        progress = Progress("optimal", 8, quiet=not shown)
+        assert _collect(arrivals().__next__, 2, table, progress, 0, time.perf_counter()) == (8, False, "")
+        assert clock.time == 600.0 and clock.running() == 0
+        if not shown:
+            assert clock.said == []
+            continue
+        assert clock.longest_silence(0.0, 600.0) <= 10.0
+        said = clock.messages()
+        assert said[0] == "optimal: 0/8 done, starting the rest"
+        assert "optimal: 0/8 done, 36 s so far, tasks running" in said
+        assert "optimal: 0/8 done, 45 s so far, tasks running; IPOPT try 1 of up to 2 (stability NLP): still solving, 0 s" in said
+        assert said[-1].startswith("optimal: 8/8 done")
+
+
+def test_a_workers_progress_records_go_to_the_parent_and_its_warnings_to_stderr(capsys):
+    from baslip.studies.runner import TaskNote, _NoteRelay
+
+    sent = []
+    relay = _NoteRelay(sent.append)
+    log = logging.getLogger("baslip.gait.tries")
+    relay.handle(log.makeRecord(log.name, logging.INFO, __file__, 1, "IPOPT try 2 of 2: starting", (), None))
+    relay.handle(log.makeRecord(log.name, logging.WARNING, __file__, 1, "baslip: no working C compiler", (), None))
+    assert sent == [TaskNote("IPOPT try 2 of 2: starting")]
+    assert capsys.readouterr().err == "baslip: no working C compiler\n"
+
+
+def _noting_worker(lane, context, queue) -> None:
+    """A worker whose task logs a progress line before its row."""
+    from baslip.diagnostics import logger
+
+    for task in lane:
+        logger("baslip.gait.tries").info(f"task {task['task']}: still solving")
+        queue.put({"task": task["task"], "value": 1.0, "state": None})
+    queue.put(None)
+
+
+def test_a_task_s_progress_lines_reach_the_parent_s_progress(tmp_path, monkeypatch):
+    from baslip.studies.runner import run_tasks
+
+    notes = []
+    monkeypatch.setattr(Progress, "note", lambda self, text: notes.append(text))
+    table = ResumableCsv(tmp_path / "points.csv", ["task", "value"], ["task"])
+    report = run_tasks([[{"task": 0}, {"task": 1}], [{"task": 2}]], _noting_worker, None, table, "study", quiet=True)
+    assert report.complete
+    assert sorted(notes) == ["task 0: still solving", "task 1: still solving", "task 2: still solving"]

@@ -18,7 +18,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from baslip.cli.common import EXIT_BAD_INPUT, EXIT_NOT_CONVERGED, EXIT_OK, OneLineParser, whole_number
-from baslip.diagnostics import show_on_stderr
+from baslip.diagnostics import progress_hidden, show_on_stderr
 from baslip.errors import InputError, RunError
 from baslip.gait.describe import summary_text as summary
 from baslip.problem.reader import ProblemError, load_problem
@@ -114,7 +114,13 @@ def refusal(err: InputError, problem_path: Path) -> str:
 
 
 def _run(problem, args, out_dir: Path) -> int:
-    """Run the problem: a gait, a study or a continuation (inputs already checked)."""
+    """Run the problem: a gait, a study or a continuation (inputs already checked); with
+    ``--quiet`` no progress at all (compiles, IPOPT tries, the study's)."""
+    with progress_hidden(args.quiet):
+        return _run_shown(problem, args, out_dir)
+
+
+def _run_shown(problem, args, out_dir: Path) -> int:
     try:
         if problem.study is not None:
             return _run_study(problem, out_dir, args.quiet, args.fresh, args.jobs, args.scheduler,

@@ -54,6 +54,7 @@ import casadi as ca
 
 from baslip.children import compiler_preexec, in_own_group
 from baslip.diagnostics import logger
+from baslip.engine.announce import announced
 from baslip.engine.native import Kernel, NativeKernel, VirtualMachineKernel
 
 _log = logger(__name__)
@@ -324,9 +325,9 @@ def _build(name: str, c_text: str, compiler: list[str], library: pathlib.Path, o
         with tempfile.TemporaryDirectory(dir=library.parent, prefix=f".{library.stem}.", suffix=".cc") as scratch:
             source = pathlib.Path(scratch) / f"{name}.c"
             source.write_text(c_text, encoding="utf-8")
-            _announce(name, c_text, library.parent, optimisation)  # once the cache has taken the source
             try:
-                _run([*compiler, *_flags(optimisation), str(source), "-o", partial, *LDLIBS])
+                with announced(_log, name, c_text, library.parent, optimisation):  # once the cache has taken the source
+                    _run([*compiler, *_flags(optimisation), str(source), "-o", partial, *LDLIBS])
             except _NoCompiler as reason:
                 raise _NoCompiler(f"compiling {name} failed ({reason})") from None
         digest = _sha256(pathlib.Path(partial))
@@ -448,26 +449,6 @@ def _build_and_load(name, names, build, load, generated, compiler, library: path
     if loaded is None:
         raise _NoCompiler(f"the freshly compiled {library.name} does not load")
     return loaded
-
-
-#: Generated C from which on a build is announced on stderr (smaller ones take a second or
-#: two), and gcc's pace by optimisation level on the 2-core machine, measured on baslip's
-#: libraries alone (at -O3 the engine's passes, 0.64 MB in 7.7 s, and the shooting NLP,
-#: 1.1 MB in 12.3 s; at -O1 the engine's Jacobians, 2.84 MB in 21.7 s) [s per MB].
-ANNOUNCE_BYTES = 200_000
-SECONDS_PER_MB = {"-O3": 12.0, "-O1": 7.6}
-
-
-def _announce(name: str, c_text: str, folder: pathlib.Path, optimisation: str = OPTIMISATION) -> None:
-    """Say on stderr, when it is a terminal, that ``name`` is being compiled and about how
-    long it takes: the silence of a first run would otherwise look like a hang. Small
-    libraries, workers (whose parent speaks for them) and output to files or pipes (logs,
-    tests that read stderr) get nothing."""
-    size = len(c_text.encode())
-    if size < ANNOUNCE_BYTES or not _PROCESS.notices_here or not sys.stderr.isatty():
-        return
-    _log.info(f"baslip: compiling {name} for this machine ({size / 1e6:.1f} MB of C, about "
-              f"{size / 1e6 * SECONDS_PER_MB.get(optimisation, 12.0):.0f} s; once, then kept in {folder})")
 
 
 def _checksum_path(library: pathlib.Path) -> pathlib.Path:

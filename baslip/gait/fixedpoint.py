@@ -26,6 +26,7 @@ from baslip.gait.polish import Polish
 from baslip.gait.polish import eps as _eps
 from baslip.gait.shooting import FixedPointSpec, NlpSolution, ShootingNLP, ShootingOptions, torque_effort
 from baslip.gait.stability import Multiplier, Stability, classify
+from baslip.gait.tries import IpoptTry, ended, first_try, told
 from baslip.model.dynamics import APEX, Params
 from baslip.model.hiplaw import PD, HipLaw
 from baslip.model.quantities import NOMINAL, STABILITY_OBJECTIVES, UNITS
@@ -354,12 +355,13 @@ class FixedPointSolver:
             return self._solve_stable(spec, name, w0)
         nlp = self.nlp_for(spec.strides)  # built once, outside the timed solve
         start = time.perf_counter()
-        sol = self._run_nlp(nlp, spec, w0)
+        sol = self._run_nlp(nlp, spec, w0, attempt=first_try(nlp.options.hessian))
         if sol.return_status not in ACCEPTED_IPOPT and nlp.options.hessian != "exact":
             # The fast NLP drops the constraints' curvature; from a poor start the exact
             # Hessian sometimes succeeds where it fails (measured in docs/background/stability.md), so it gets
             # a second try, from the same start.
-            retry = self._run_nlp(self.nlp_for(spec.strides, exact=True), spec, w0)
+            retry = self._run_nlp(self.nlp_for(spec.strides, exact=True), spec, w0,
+                                  attempt=IpoptTry(2, 2, "exact Hessian", ended(sol)))
             sol = replace(retry, iterations=sol.iterations + retry.iterations)
         if sol.return_status not in ACCEPTED_IPOPT:
             return self._result(spec, name, Status.FAILED, f"IPOPT: {sol.return_status}", sol, start, sol.X, sol.u)
@@ -375,9 +377,10 @@ class FixedPointSolver:
             if orbit.nlp_w is None or orbit.solver.return_status not in ACCEPTED_IPOPT:
                 return replace(orbit, message=f"no periodic orbit to start the stability NLP from: {orbit.message}")
             w0 = orbit.nlp_w
-        sol = self._run_nlp(stable_nlp, spec, w0)
+        sol = self._run_nlp(stable_nlp, spec, w0, attempt=IpoptTry(1, 2, "stability NLP"))
         if sol.return_status != "Solve_Succeeded":  # a second try from the same start: STABLE_NLP_RETRY
-            retry = self._run_nlp(stable_nlp, spec, w0, STABLE_NLP_RETRY)
+            retry = self._run_nlp(stable_nlp, spec, w0, STABLE_NLP_RETRY,
+                                  IpoptTry(2, 2, "stability NLP, IPOPT's own first Hessian", ended(sol)))
             sol = replace(min(sol, retry, key=_stable_nlp_rank), iterations=sol.iterations + retry.iterations)
         if sol.return_status not in ACCEPTED_IPOPT:
             return self._result(spec, name, Status.FAILED, f"IPOPT (stability NLP): {sol.return_status}", sol, start,
@@ -461,9 +464,10 @@ class FixedPointSolver:
             self._nlps[key] = self.nlp if key == (1, self.options.hessian) else ShootingNLP(options, strides, law=self.law)
         return self._nlps[key]
 
-    def _run_nlp(self, nlp: ShootingNLP, spec: FixedPointSpec, w0, ipopt=None) -> NlpSolution:
+    def _run_nlp(self, nlp: ShootingNLP, spec: FixedPointSpec, w0, ipopt=None, attempt=IpoptTry()) -> NlpSolution:
         try:
-            return nlp.solve(spec, w0=w0, rmap=self.residual_map, ipopt=ipopt)
+            with told(attempt):
+                return nlp.solve(spec, w0=w0, rmap=self.residual_map, ipopt=ipopt)
         except RuntimeError as err:  # CasADi could not even run IPOPT
             return NlpSolution(spec.start_design()[: APEX.size], spec.start_design()[APEX.size :],
                                np.full(len(PHASES), np.nan), f"Error: {_first_line(err)}", 0, 0.0)

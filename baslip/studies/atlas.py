@@ -72,8 +72,8 @@ CELL_COLUMNS = [
 def atlas_worker(chunk: list[dict], context: tuple[Problem, bool], queue) -> None:
     """Worker process: cover the manifold of each cell not yet done and put its row, with
     its charts and boundaries (``chart_rows``, ``boundary_rows``), on the queue.
-    ``context`` is the problem and whether to be quiet (else a cell's progress is printed
-    on stderr every :data:`~baslip.studies.atlascell.PROGRESS_EVERY_S` seconds)."""
+    ``context`` is the problem and whether to be quiet (else a cell's progress goes to the
+    parent's progress line every :data:`~baslip.studies.atlascell.PROGRESS_EVERY_S` seconds)."""
     from baslip.studies.atlascell import CellAtlas
 
     problem, quiet = context

@@ -4,13 +4,13 @@ polished best gaits (see :mod:`baslip.studies.atlas`)."""
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import replace
 
 import numpy as np
 
+from baslip import diagnostics
 from baslip.analysis.atlas import Atlas as Covering
 from baslip.analysis.atlas import AtlasSettings, cover, local_minima
 from baslip.analysis.descent import StabilityDescent, random_start
@@ -97,14 +97,15 @@ class CellAtlas:
         return atlas, [chart_report(manifold, c.center, d) for c, d in zip(atlas.charts, done)]
 
     def _progress(self, held: dict):
-        """``say(text, always=False)``: prints a progress line of the cell on stderr, at
-        most every :data:`PROGRESS_EVERY_S` seconds unless ``always`` (nothing if quiet)."""
+        """``say(text, always=False)``: logs a progress line of the cell (a worker sends it to
+        the parent's progress line), at most every :data:`PROGRESS_EVERY_S` seconds unless
+        ``always`` (nothing if quiet)."""
         cell = ", ".join(f"{n} = {v:g}" for n, v in held.items())
-        last = [time.monotonic()]
+        last = [diagnostics.CLOCK.now()]
 
         def say(text: str, always: bool = False) -> None:
-            if not self.quiet and (always or time.monotonic() - last[0] >= PROGRESS_EVERY_S):
-                last[0] = time.monotonic()
+            if not self.quiet and (always or diagnostics.CLOCK.now() - last[0] >= PROGRESS_EVERY_S):
+                last[0] = diagnostics.CLOCK.now()
                 _log.info(f"{self.problem.name}: cell {cell}: {text}")
 
         return say

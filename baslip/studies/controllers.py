@@ -49,6 +49,7 @@ from baslip.analysis.feedback import (
 )
 from baslip.analysis.horizon import RecedingHorizon
 from baslip.analysis.tuning import FeedbackChoice, choose_feedback, transverse_radius
+from baslip.diagnostics import logger
 from baslip.engine.returnmap import ReturnMap, Tolerances
 from baslip.files.rows import read_points
 from baslip.gait.polish import eps
@@ -60,6 +61,8 @@ from baslip.problem.study import ADAPTED_CONTROLS, RESOLVING, Controllers
 from baslip.studies.common import StudyFailed, run_info, study_table
 from baslip.studies.runner import Workers, run_tasks
 from baslip.viz.labels import problem_title
+
+_log = logger(__name__)
 
 #: Controllers whose control depends on the apex alone: their runs go in lockstep batches.
 BATCHED = ("constant", "feedback", "pivot")
@@ -152,10 +155,13 @@ def controllers_worker(chunk: list[dict], context: dict, queue) -> None:
         for name in BATCHED:
             mine = [task for task in pending if task["controller"] == name]
             if mine:
+                # news for the parent's progress line while the batch runs
+                _log.info(f"controller {name}: {len(mine)} run{'s' * (len(mine) > 1)} in lockstep")
                 for row in _batched_rows(mine, context, rmap):
                     queue.put(row)
         for task in pending:
             if task["controller"] not in BATCHED:
+                _log.info(f"controller {task['controller']}: a run with its re-solves")
                 queue.put(_solved_row(task, context, rmap))
     finally:
         queue.put(None)

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from baslip.diagnostics import logger
 from baslip.files.rows import read_points
 from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import PD, HipLaw
@@ -36,6 +37,8 @@ from baslip.viz.labels import problem_title
 #: within UPRIGHT_THROUGHOUT of vertical at every instant of the stride [rad].
 UPRIGHT_AT_APEX = math.radians(30)
 UPRIGHT_THROUGHOUT = math.radians(45)
+
+_log = logger(__name__)
 
 
 
@@ -114,6 +117,9 @@ def optimal_worker(chunk: list[dict], problem: Problem, queue) -> None:
                 continue
             swept = {k[len("sweep_"):]: v for k, v in task.items() if k.startswith("sweep_")}
             spec = replace(base, fixed={**base.fixed, **swept})
+            # news for the parent's progress line while this start runs (minutes, at times)
+            where = ", ".join(quantity_text(n, v, 6) for n, v in swept.items())
+            _log.info(f"start {task['start'] + 1} of {study.starts} at {where}")
             started = time.perf_counter()
             if study.method == "schur_nlp":
                 gait = stable_nlp_from(solver, spec, task_rng(study, task), problem.name)

@@ -19,12 +19,15 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import json
+import logging
 import os
 import signal
 import sys
+import threading
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
@@ -34,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from baslip.diagnostics import IN_PLACE, end_progress_line, logger
+from baslip.diagnostics import HEARTBEAT_S, IN_PLACE, ROOT_LOGGER, end_progress_line, heartbeat, logger
 from baslip.engine.codegen import leave_notices_to_parent, note_code, recording_code
 from baslip.errors import InputError
 from baslip.files.atomic import write_files_atomically
@@ -313,21 +316,25 @@ def _collect(next_row, lanes: int, table, progress, skipped: int, start: float,
     ``seen``, rows whose key is in it (a lane run again) are dropped."""
     finished, ran = 0, 0
     try:
-        while finished < lanes:
-            row = next_row()
-            if isinstance(row, WorkerCode):
-                note_code(row.routes)
-                continue
-            if row is None:
-                finished += 1
-                continue
-            if seen is not None:
-                if table.key(row) in seen:
+        with progress.running(skipped):
+            while finished < lanes:
+                row = next_row()
+                if isinstance(row, WorkerCode):
+                    note_code(row.routes)
                     continue
-                seen.add(table.key(row))
-            table.append(row)
-            ran += 1
-            progress.update(skipped + ran, ran, time.perf_counter() - start)
+                if isinstance(row, TaskNote):
+                    progress.note(row.text)
+                    continue
+                if row is None:
+                    finished += 1
+                    continue
+                if seen is not None:
+                    if table.key(row) in seen:
+                        continue
+                    seen.add(table.key(row))
+                table.append(row)
+                ran += 1
+                progress.update(skipped + ran, ran, time.perf_counter() - start)
     except KeyboardInterrupt:
         progress.interrupted(skipped + ran)
         return ran, True, ""
@@ -427,9 +434,58 @@ def _worker_main(worker, lanes, context, connection) -> None:
     the fallback notices to the parent, run its lanes in turn, report what ran."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent stops the workers itself
     leave_notices_to_parent()
+    send = _one_at_a_time(connection.send)  # rows from this thread, notes from heartbeats' threads
+    relay_notes(send)
     with recording_code() as used:
         for lane in lanes:
-            worker(lane, context, Reporting(connection.send, used))
+            worker(lane, context, Reporting(send, used))
+
+
+def _one_at_a_time(send: Callable[[object], None]) -> Callable[[object], None]:
+    """``send`` behind a lock: two threads' messages never interleave on the pipe."""
+    lock = threading.Lock()
+
+    def locked(item: object) -> None:
+        with lock:
+            send(item)
+
+    return locked
+
+
+@dataclass(frozen=True)
+class TaskNote:
+    """A progress line from inside a worker's task (an IPOPT try that still runs, an
+    atlas cell's stage), sent to the parent, whose progress line shows the latest."""
+
+    text: str
+
+
+class _NoteRelay(logging.Handler):
+    """In a worker: baslip's INFO records go to the parent as :class:`TaskNote`; warnings
+    are written here, as they would be with no handler at all."""
+
+    def __init__(self, send: Callable[[object], None]):
+        super().__init__(logging.INFO)
+        self._send = send
+
+    def emit(self, record: logging.LogRecord) -> None:
+        if record.levelno >= logging.WARNING:
+            if logging.lastResort is not None:
+                logging.lastResort.handle(record)
+            return
+        try:
+            self._send(TaskNote(record.getMessage()))
+        except Exception:  # logging's own convention: a failing handler reports, never raises
+            self.handleError(record)
+
+
+def relay_notes(send: Callable[[object], None]) -> None:
+    """In a worker process: send baslip's progress records to the parent with ``send``
+    (the worker's own stderr is the parent's, but its lines would cut across the parent's
+    progress bar), so that what a long task is doing shows in the parent's progress."""
+    base = logging.getLogger(ROOT_LOGGER)
+    base.addHandler(_NoteRelay(send))
+    base.setLevel(logging.INFO)
 
 
 def split_lanes(tasks: Sequence[dict], n: int = LANES) -> list[list[dict]]:
@@ -452,11 +508,31 @@ class Progress:
     study whose tasks differ in cost (the controllers study's batched runs, then its
     re-solves) would otherwise promise the fast tasks' pace for the slow ones."""
 
-    def __init__(self, label: str, total: int, quiet: bool, every_s: float = 10.0):
+    def __init__(self, label: str, total: int, quiet: bool, every_s: float = HEARTBEAT_S):
         self.label, self.total, self.quiet, self.every_s = label, total, quiet, every_s
         self.terminal = sys.stderr.isatty()
         self._last = -every_s
         self._history: deque[tuple[float, int]] = deque([(0.0, 0)])
+        self._done = 0
+        self._note = ""
+
+    def running(self, done: int = 0):
+        """A context in which the state is said again at least every 10 s (with the time
+        so far and the latest note from inside a task), even while no task finishes: a
+        task may take minutes. ``done``: the tasks done before (on a resume)."""
+        self._done = done
+        if self.quiet:
+            return contextlib.nullcontext()
+        _log.info(f"{self.label}: {done}/{self.total} done, starting the rest", extra=IN_PLACE if self.terminal else None)
+        return heartbeat(_log, self._still, in_place=self.terminal)
+
+    def _still(self, elapsed: float) -> str:
+        text = f"{self.label}: {self._done}/{self.total} done, {elapsed:.0f} s so far, tasks running"
+        return f"{text}; {self._note}" if self._note else text
+
+    def note(self, text: str) -> None:
+        """Keep ``text``, news from inside a running task, for the next line."""
+        self._note = text
 
     def rate(self, ran: int, elapsed: float) -> float:
         """Tasks a second over the last :data:`RATE_WINDOW_S` seconds (since the start
@@ -468,6 +544,7 @@ class Progress:
         return (ran - ran_then) / (elapsed - then) if elapsed > then else 0.0
 
     def update(self, done: int, ran: int, elapsed: float) -> None:
+        self._done, self._note = done, ""  # a task ended: its news are old
         if self.quiet:
             return
         rate = self.rate(ran, elapsed)

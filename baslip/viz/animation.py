@@ -13,6 +13,7 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
+from baslip.diagnostics import heartbeat, logger
 from baslip.viz.backend import use_file_backend
 
 use_file_backend()
@@ -25,6 +26,8 @@ from baslip.engine.returnmap import ReturnMap, Tolerances  # noqa: E402
 from baslip.engine.trajectory import Trajectory, stride_trajectory  # noqa: E402
 from baslip.model.dynamics import Params  # noqa: E402
 from baslip.model.hiplaw import PD, HipLaw  # noqa: E402
+
+_log = logger(__name__)
 
 SLOW_MOTION = 4.0  # animation seconds per simulated second
 FPS = 20
@@ -46,9 +49,26 @@ def spring_points(hip, foot, coils: int = 6, width: float = 0.012):
 def animate(trajectory: Trajectory, params: Params, title: str, path: Path) -> Path:
     """Write a GIF of ``trajectory`` to ``path``."""
     fig, animation = _animation(trajectory, params, title)
-    animation.save(path, writer=PillowWriter(fps=FPS))
+    _save(animation, path, title)
     plt.close(fig)
     return path
+
+
+def _save(animation: FuncAnimation, path: Path, title: str) -> None:
+    """Write ``animation`` as a GIF to ``path``, saying every few seconds which frame it
+    has reached: drawing a few hundred frames takes tens of seconds."""
+    reached = [0, 0]  # frames drawn, frames in all
+
+    def at(frame: int, frames: int) -> None:
+        reached[:] = [frame + 1, frames]
+
+    def still(elapsed: float) -> str:
+        done, frames = reached
+        stage = "writing the file" if frames and done == frames else f"frame {done} of {frames or '...'}"
+        return f"animating {title}: {stage}, {elapsed:.0f} s"
+
+    with heartbeat(_log, still):
+        animation.save(path, writer=PillowWriter(fps=FPS), progress_callback=at)
 
 
 @dataclass(frozen=True)
@@ -80,7 +100,7 @@ class GaitAnimation:
             The file to write.
         """
         path = Path(path)
-        self.animation.save(path, writer=PillowWriter(fps=FPS))
+        _save(self.animation, path, self.title)
         return path
 
     def gif(self) -> bytes:
