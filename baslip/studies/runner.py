@@ -292,7 +292,7 @@ def _marked(task: dict, key, done: set, states: dict) -> dict:
 
 def _run_lanes(todo, worker, context, table, label, quiet, skipped, total, start,
                jobs=None) -> tuple[int, bool, str]:
-    """Run the lanes ``todo`` on spawned worker processes, each sending its rows back on a
+    """Run the lanes ``todo`` on worker processes, each sending its rows back on a
     pipe of its own. Pipes, not a multiprocessing queue: they need no semaphores, so no
     resource-tracker process is started that could outlive a killed run."""
     count = worker_count(jobs, len(todo))
