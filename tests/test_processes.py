@@ -136,3 +136,11 @@ def test_a_worker_ends_when_its_standard_input_closes():
     processes[0].join(timeout=30)  # the work alone would take 60 s, and end with exit code 0
     assert processes[0].exitcode == 1
     pipes[0].close()
+
+
+def test_a_frozen_application_is_told_to_name_a_python_interpreter(monkeypatch):
+    """A frozen executable cannot run ``-c``: unless multiprocessing.set_executable names
+    an interpreter, starting workers is refused with what to do, and nothing is started."""
+    monkeypatch.setattr(sys, "frozen", True, raising=False)
+    with pytest.raises(WorkerDied, match=r"multiprocessing.set_executable.*or run with jobs=1"):
+        start_workers(ready_then_sleep, [(60,)])

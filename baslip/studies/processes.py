@@ -117,7 +117,7 @@ class WorkerProcess:
     """
 
     def __init__(self, payload: bytes, end: Connection):
-        executable = multiprocessing.spawn.get_executable()
+        executable = os.fsdecode(multiprocessing.spawn.get_executable())  # bytes on POSIX
         if getattr(sys, "frozen", False) and executable == sys.executable:
             raise WorkerDied("a frozen application starts baslip's worker processes only with a Python interpreter: "
                              "call multiprocessing.set_executable(<path of python>) first, or run with jobs=1")

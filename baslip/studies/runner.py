@@ -481,9 +481,10 @@ class Progress:
             self._last = elapsed
             _log.info(text)
 
-    def interrupted(self, saved: int, why: str = "interrupted") -> None:
+    def interrupted(self, done: int, why: str = "interrupted") -> None:
+        # "done", not "saved": a run without an output folder keeps none of them.
         if not self.quiet:
-            _log.warning(f"{self.label}: {why}; {saved} of {self.total} rows are saved")
+            _log.warning(f"{self.label}: {why}; {done} of {self.total} rows were done")
 
     def close(self) -> None:
         if not self.quiet:
