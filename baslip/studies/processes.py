@@ -13,12 +13,12 @@ from baslip's own entry point (:data:`baslip.children.WORKER_BOOTSTRAP`), not fr
 caller's ``__main__``: multiprocessing's "spawn" would import the caller's script in every
 worker, and a script without an ``if __name__ == "__main__":`` guard would start its run
 again there. Workers talk over pipes (no semaphores, so no resource-tracker process can
-outlive a killed run), and die with the process that started them (:mod:`baslip.children`). They are not kept
-to cores of their own: a worker's threads may then use a core the other leaves idle. (Kept
-to one core each, `optimal_upright` took 300 s instead of 257 s, and one of its 108 cells
-ended at another local optimum, so its answers depended on the worker count.) Each reports the
-code its libraries ran on (:class:`WorkerCode`) before the first message that follows a
-library's loading, so the parent's provenance record holds it.
+outlive a killed run), and die with the process that started them (:mod:`baslip.children`).
+They are not kept to cores of their own: a worker's threads may then use a core the other
+leaves idle. (Kept to one core each, `optimal_upright` took 300 s instead of 257 s, and one
+of its 108 cells ended at another local optimum, so its answers depended on the worker
+count.) Each reports the code its libraries ran on (:class:`WorkerCode`) before the first
+message that follows a library's loading, so the parent's provenance record holds it.
 """
 
 from __future__ import annotations
