@@ -392,6 +392,10 @@ def run_lanes_on_dask(todo, worker, context, table, label, quiet, skipped, total
             client = Client(scheduler, timeout=DASK_CONNECT_TIMEOUT)
     except (OSError, TimeoutError, ValueError, TypeError) as err:
         raise SchedulerError("--scheduler", f"cannot reach the Dask scheduler at {scheduler}: {err}") from None
+    except RuntimeError as err:  # Dask's own worker processes did not start
+        raise SchedulerError("--scheduler", f"Dask's LocalCluster could not start its workers ({err}); they import the "
+                             "script that started the run, so a script must start it under "
+                             "`if __name__ == \"__main__\":`") from None
     with client:
         queue = Queue(f"baslip-rows-{os.getpid()}-{time.time_ns()}", client=client)
         futures = [client.submit(_lane_on_dask, worker, lane, context, queue, pure=False, retries=DASK_RETRIES)
