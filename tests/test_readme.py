@@ -111,7 +111,8 @@ def launch(mode: str, program: str, folder: Path) -> tuple[subprocess.Popen, str
     input; return the process and what is to be written on its standard input."""
     command, given = {"script": ([sys.executable, "tour.py"], None), "-c": ([sys.executable, "-c", program], None),
                       "stdin": ([sys.executable, "-"], program)}[mode]
-    (folder / "tour.py").write_text(program)
+    if mode == "script":
+        (folder / "tour.py").write_text(program)
     process = subprocess.Popen(command, cwd=folder, stdin=subprocess.PIPE if given else subprocess.DEVNULL,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     return process, given
