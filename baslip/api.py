@@ -84,7 +84,7 @@ def run(problem: Problem | str | Path, out: str | Path | None = None, *, jobs: i
     RunError
         A run that could not start, e.g. a study or branch whose start did not converge,
         or a study whose worker process ended before finishing its tasks (what was done is
-        kept, for a rerun to resume).
+        kept in ``out``, for a rerun to resume; without ``out`` nothing is kept).
     """
     if progress:
         show_on_stderr()
@@ -98,7 +98,7 @@ def run(problem: Problem | str | Path, out: str | Path | None = None, *, jobs: i
             return solve_problem(problem)  # a gait written nowhere needs no folder at all
     with progress_hidden(not progress), _place(folder, problem.name) as target:
         result = _run_into(problem, target, where, jobs=jobs, lanes=lanes, scheduler=scheduler, fresh=fresh,
-                           quiet=not progress)
+                           quiet=not progress, kept=folder is not None)
         if folder is not None:
             return result
         return read_into_memory(target, where)
@@ -160,12 +160,12 @@ def _place(folder: Path | None, name: str) -> Iterator[Path]:
 
 
 def _run_into(problem: Problem, out: Path, sources: Path, *, jobs, lanes, scheduler, fresh: bool,
-              quiet: bool) -> FixedPointResult | RunResults:
+              quiet: bool, kept: bool = True) -> FixedPointResult | RunResults:
     # The studies' modules are imported where a run needs them, as in check_run.
     if problem.study is not None:
         from baslip.studies.registry import run_study
 
-        run_study(problem, out, quiet, fresh, jobs, scheduler, lanes, sources=sources)
+        run_study(problem, out, quiet, fresh, jobs, scheduler, lanes, sources=sources, kept=kept)
         return open_results(out)
     if fresh:
         with hold(out):

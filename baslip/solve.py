@@ -2,7 +2,7 @@
 
 import sys
 
-if __name__ == "__main__":  # not when a spawned worker imports this module as __mp_main__
+if __name__ == "__main__":  # not when a process spawned by multiprocessing (a Dask LocalCluster's) imports it as __mp_main__
     from baslip.cli.solve import main
 
     sys.exit(main())

@@ -6,8 +6,8 @@ it from the repository root (about half a minute):
 
 Everything it writes goes into OUTPUT_FOLDER (default: runs/tour), never into results/.
 In a notebook, paste the steps into cells: results show themselves as tables there.
-(Studies run on worker processes, so a script that runs one needs the
-``if __name__ == "__main__":`` guard below.)
+(The ``if __name__ == "__main__":`` guard below is not needed for baslip's worker
+processes, which never import the script that starts them.)
 """
 
 import sys

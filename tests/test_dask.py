@@ -115,3 +115,30 @@ def test_a_run_killed_on_a_cluster_resumes_to_the_same_rows(tmp_path, local_rows
     summary = json.loads((out / "result.json").read_text())
     assert summary["complete"] and summary["done_before_this_run"] == cut
     assert rows_of(out) == local_rows
+
+
+UNGUARDED = """
+import sys
+import baslip
+from baslip.errors import InputError
+
+try:
+    baslip.run(sys.argv[1], scheduler="local", jobs=1, progress=False)
+except InputError as err:
+    print("InputError:", err, flush=True)
+    sys.exit(3)
+"""
+
+
+def test_a_local_cluster_started_by_a_script_without_a_main_guard_says_it_needs_one(tmp_path):
+    """Dask's LocalCluster, unlike baslip's own workers, starts its processes with
+    multiprocessing's spawn, which imports the script: without the guard the run is
+    refused with an InputError that names the guard, not only Dask's traceback."""
+    path = small_grid(tmp_path)
+    script = tmp_path / "unguarded.py"
+    script.write_text(UNGUARDED)
+    done = subprocess.run([sys.executable, str(script), str(path)], capture_output=True, text=True, timeout=300,
+                          cwd=tmp_path)
+    assert done.returncode == 3, done.stderr[-2000:]
+    assert "--scheduler: Dask's LocalCluster could not start its workers" in done.stdout
+    assert 'start it under `if __name__ == "__main__":`' in done.stdout

@@ -9,6 +9,7 @@ The time left is estimated from the recent pace, not the pace since the start.
 import csv
 import logging
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -75,30 +76,33 @@ def test_saved_states_round_trip_exactly_and_finish_orders_the_rows(tmp_path):
     assert not table.states.path.exists()
 
 
-CHILD = """
-import multiprocessing, pickle, sys, time
-from baslip.children import run_pickled
-from baslip.studies.runner import _worker_main
+SLEEPY = """
+import time
 
 def sleeper(lane, context, queue):
     time.sleep(60)
+"""
 
-if __name__ == "__main__":
-    ctx = multiprocessing.get_context("spawn")
-    payload = pickle.dumps((_worker_main, (sleeper, [[]], None)))  # one empty lane
-    reader, sender = ctx.Pipe(duplex=False)
-    child = ctx.Process(target=run_pickled, args=(payload, sender))
-    child.start()
-    print(child.pid, flush=True)
-    time.sleep(60)
+# No `if __name__ == "__main__":` guard: the worker never imports this script. It finds
+# the module beside it because it is given this process's sys.path.
+PARENT = """
+import time
+import sleepy
+from baslip.studies.processes import start_workers
+from baslip.studies.runner import _worker_main
+
+processes, _ = start_workers(_worker_main, [(sleepy.sleeper, [[]], None)])  # one empty lane
+print(processes[0].pid, flush=True)
+time.sleep(60)
 """
 
 
 @pytest.mark.skipif(not os.path.isdir("/proc"), reason="needs /proc to watch processes")
 def test_a_worker_dies_when_its_parent_is_killed(tmp_path):
+    (tmp_path / "sleepy.py").write_text(SLEEPY)
     script = tmp_path / "parent.py"
-    script.write_text(CHILD)
-    parent = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
+    script.write_text(PARENT)
+    parent = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True, cwd=tmp_path)
     child = int(parent.stdout.readline())
     time.sleep(1.0)  # let the child set up its watch
     assert not gone(child)
@@ -156,14 +160,16 @@ def test_the_rate_is_the_recent_pace_once_slow_tasks_follow_fast_ones():
 
 
 UNGUARDED = """
-import sys
+import multiprocessing, sys
 from pathlib import Path
 import baslip
 from baslip.errors import RunError
 
-problem = Path(sys.argv[1])
+if len(sys.argv) > 3:
+    multiprocessing.set_executable(sys.argv[3])
+out = Path(sys.argv[2]) if sys.argv[2] != "-" else None
 try:
-    baslip.run(problem, Path(sys.argv[2]), progress=False)
+    baslip.run(Path(sys.argv[1]), out, progress=False)
 except RunError as err:
     print("RunError:", err)
     sys.exit(3)
@@ -171,20 +177,45 @@ print("returned")
 """
 
 
-def test_a_study_whose_workers_die_at_start_is_a_run_error_naming_the_main_guard(tmp_path):
-    """A script that starts a study at its top level, with no ``if __name__ ==
-    "__main__":``: each spawned worker imports the script and dies. The run raises
-    RunError (it does not return an empty result) and says what to do."""
+@pytest.fixture
+def two_point_study(tmp_path):
     problem = tmp_path / "grid.yaml"
     problem.write_text((ROOT / "problems" / "grid_downward.yaml").read_text().replace(
         "vary: {ydot: [0.1, 1.0, 0.1], z: [0.3, 0.7, 0.05]}", "vary: {ydot: [0.3, 0.4, 0.1]}"))
     script = tmp_path / "unguarded.py"
     script.write_text(UNGUARDED)
-    run = subprocess.run([sys.executable, str(script), str(problem), str(tmp_path / "out")], capture_output=True,
-                         text=True, timeout=300, cwd=tmp_path)
+    return problem, script
+
+
+def run_unguarded(script, *arguments) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(script), *map(str, arguments)], capture_output=True, text=True,
+                          timeout=300, cwd=script.parent)
+
+
+def test_a_script_without_a_main_guard_runs_a_study(two_point_study, tmp_path):
+    """A script that starts a study at its top level, with no ``if __name__ ==
+    "__main__":``: the workers do not import it, so the study runs once and returns."""
+    problem, script = two_point_study
+    run = run_unguarded(script, problem, tmp_path / "out")
+    assert run.returncode == 0, run.stdout + run.stderr[-2000:]
+    assert run.stdout.splitlines() == ["returned"]  # the script ran once: no worker re-ran it
+    assert len((tmp_path / "out" / "points.csv").read_text().splitlines()) == 3
+
+
+@pytest.mark.parametrize("out", ["out", "-"])
+def test_workers_that_die_at_start_are_a_run_error_true_about_what_was_kept(two_point_study, tmp_path, out):
+    """Workers that cannot start (here multiprocessing's executable, which they honour,
+    is ``false``) make a RunError, not an empty result. With an ``out`` folder the done
+    tasks are kept for a rerun; without one the error says that nothing was kept."""
+    problem, script = two_point_study
+    run = run_unguarded(script, problem, tmp_path / out if out != "-" else "-", shutil.which("false"))
     assert run.returncode == 3, run.stdout + run.stderr[-2000:]
-    assert "before sending any row" in run.stdout and '__name__ == "__main__"' in run.stdout
-    assert "0 of 2 tasks are done" in run.stdout
+    assert "ended with exit code 1 before sending any row" in run.stdout
+    if out == "-":
+        assert "0 of 2 tasks were done, not kept: the run had no `out` folder" in run.stdout
+        assert "rerun resumes" not in run.stdout
+    else:
+        assert "0 of 2 tasks were done, kept, and a rerun resumes from them" in run.stdout
 
 
 def _row_then_exit(lane, context, queue) -> None:

@@ -8,36 +8,42 @@ Two ways of spreading work over the cores rest on this module:
   items (the two directions of each bifurcation curve, the probes of a bisection), handed
   out one at a time to whichever worker is free, the results returned in item order.
 
-Workers are spawned (a fresh interpreter: CasADi's objects are not shared across a fork),
-talk over pipes (no semaphores, so no resource-tracker process can outlive a killed run),
-and die with the process that started them (:mod:`baslip.children`). They are not kept
-to cores of their own: a worker's threads may then use a core the other leaves idle. (Kept
-to one core each, `optimal_upright` took 300 s instead of 257 s, and one of its 108 cells
-ended at another local optimum, so its answers depended on the worker count.) Each reports the
-code its libraries ran on (:class:`WorkerCode`) before the first message that follows a
-library's loading, so the parent's provenance record holds it.
+Each worker is a fresh interpreter (CasADi's objects are not shared across a fork) started
+from baslip's own entry point (:data:`baslip.children.WORKER_BOOTSTRAP`), not from the
+caller's ``__main__``: multiprocessing's "spawn" would import the caller's script in every
+worker, and a script without an ``if __name__ == "__main__":`` guard would start its run
+again there. Workers talk over pipes (no semaphores, so no resource-tracker process can
+outlive a killed run), and die with the process that started them (:mod:`baslip.children`).
+They are not kept to cores of their own: a worker's threads may then use a core the other
+leaves idle. (Kept to one core each, `optimal_upright` took 300 s instead of 257 s, and one
+of its 108 cells ended at another local optimum, so its answers depended on the worker
+count.) Each reports the code its libraries ran on (:class:`WorkerCode`) before the first
+message that follows a library's loading, so the parent's provenance record holds it.
 """
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import multiprocessing.connection
+import multiprocessing.spawn
 import os
 import pickle
 import signal
+import subprocess
+import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from typing import Any, cast
 
-from baslip.children import run_pickled
+from baslip.children import WORKER_BOOTSTRAP, WORKER_OF, worker_start
 from baslip.engine.codegen import leave_notices_to_parent, note_code, recording_code
 from baslip.errors import RunError
 
 
 class WorkerDied(RunError):
-    """A worker process ended without finishing its work: the run stopped short. A study's
-    rows so far are kept, and a rerun resumes from them."""
+    """A worker process ended without finishing its work: the run stopped short."""
 
 
 @dataclass(frozen=True)
@@ -72,20 +78,90 @@ class Reporting:
 
 
 def start_workers(main: Callable, arguments: Sequence[tuple], duplex: bool = False) -> tuple[list, list]:
-    """Spawn one worker per entry of ``arguments``, running ``main(*entry, connection)``;
-    return (processes, this process's ends of their pipes). Without ``duplex`` the pipes
-    only carry messages from the workers."""
-    ctx = multiprocessing.get_context("spawn")
-    pipes = [ctx.Pipe(duplex=duplex) for _ in arguments]
-    # The work travels pickled, and is unpickled (its modules imported) only after the
-    # worker has asked to die with this process: see baslip.children.run_pickled.
-    processes = [ctx.Process(target=run_pickled, args=(pickle.dumps((main, entry)), theirs), daemon=True)
-                 for entry, (_, theirs) in zip(arguments, pipes)]
-    for process in processes:
-        process.start()
-    for _, theirs in pipes:
-        theirs.close()  # a worker's end closes when it ends
+    """Start one worker process per entry of ``arguments``, running
+    ``main(*entry, connection)``; return (processes, this process's ends of their pipes).
+    Without ``duplex`` the pipes only carry messages from the workers. ``main`` and the
+    entries travel pickled: they must be importable by name from outside ``__main__``.
+
+    Raises
+    ------
+    WorkerDied
+        If a worker's interpreter cannot be started.
+    """
+    pipes = [multiprocessing.Pipe(duplex=duplex) for _ in arguments]
+    processes = []
+    try:
+        for entry, (_, theirs) in zip(arguments, pipes):
+            processes.append(WorkerProcess(pickle.dumps((main, entry)), theirs))
+    except BaseException:
+        for process in processes:
+            process.terminate()
+            process.join()
+        raise
+    finally:
+        for _, theirs in pipes:
+            theirs.close()  # the worker holds its own copy; its end closes when it ends
     return processes, [ours for ours, _ in pipes]
+
+
+class WorkerProcess:
+    """One worker: a Python interpreter running :data:`~baslip.children.WORKER_BOOTSTRAP`,
+    with what :class:`multiprocessing.Process` offers that this module uses (``pid``,
+    ``exitcode``, ``is_alive``, ``terminate``, ``join``).
+
+    The interpreter is multiprocessing's (``multiprocessing.set_executable`` changes it,
+    as a frozen or embedded application must); ``end``, the worker's end of its pipe, is
+    inherited by it, and its start (:func:`~baslip.children.worker_start`) goes on its
+    standard input, which stays open, unread, until the worker is joined: the worker ends
+    when it closes. Its environment names this process in ``BASLIP_WORKER_OF``.
+    """
+
+    def __init__(self, payload: bytes, end: Connection):
+        executable = os.fsdecode(multiprocessing.spawn.get_executable())  # bytes on POSIX
+        if getattr(sys, "frozen", False) and executable == sys.executable:
+            raise WorkerDied("a frozen application starts baslip's worker processes only with a Python interpreter: "
+                             "call multiprocessing.set_executable(<path of python>) first, or run with jobs=1")
+        try:
+            self._popen = subprocess.Popen([executable, "-c", WORKER_BOOTSTRAP], stdin=subprocess.PIPE,
+                                           pass_fds=(end.fileno(),), env={**os.environ, WORKER_OF: str(os.getpid())})
+        except OSError as err:
+            raise WorkerDied(f"cannot start a worker process with {executable}: {err}") from None
+        self.pid = self._popen.pid
+        stdin = cast("Any", self._popen.stdin)
+        try:
+            stdin.write(pickle.dumps(worker_start(payload, end)))
+            stdin.flush()
+        except BrokenPipeError:
+            pass  # it ended at once; the Inbox reads its exit code as that of any worker that died
+
+    @property
+    def exitcode(self) -> int | None:
+        """The worker's exit code (negative: the signal that ended it), or None while it runs."""
+        return self._popen.poll()
+
+    def is_alive(self) -> bool:
+        return self.exitcode is None
+
+    def terminate(self) -> None:
+        """Send SIGTERM (unless it has ended)."""
+        if self.is_alive():
+            self._popen.terminate()
+
+    def join(self, timeout: float | None = None) -> None:
+        """Wait up to ``timeout`` seconds (None: for ever) for the worker to end, then
+        close its standard input, which ends it if it still runs."""
+        try:
+            self._popen.wait(timeout)
+        except subprocess.TimeoutExpired:
+            pass
+        finally:
+            self._close_stdin()
+
+    def _close_stdin(self) -> None:
+        stdin = self._popen.stdin
+        if stdin is not None and not stdin.closed:
+            with contextlib.suppress(BrokenPipeError):
+                stdin.close()
 
 
 def stop_workers(processes: list, inbox: Inbox) -> None:
@@ -129,14 +205,10 @@ class Inbox:
 
     def _death(self, process) -> str:
         code = process.exitcode if process is not None else 0
-        if process is None or process not in self._silent.values():
-            return f"a worker process ended with exit code {code} before finishing its tasks"
-        # The commonest cause: a script that starts a study at its top level. Each spawned
-        # worker imports the script, which starts the study again, and multiprocessing
-        # refuses to start processes from a process still starting up.
-        return (f"a worker process ended with exit code {code} before sending any row (if a script started "
-                f"this run, the run must sit under `if __name__ == \"__main__\":`, because each worker process "
-                f"imports the script)")
+        silent = process is not None and process in self._silent.values()
+        when = "before sending any row" if silent else "before finishing its tasks"
+        # A worker's stderr is this process's: what it printed as it died is shown above.
+        return f"a worker process ended with exit code {code} {when} (its error, if it printed one, is above)"
 
     def close(self) -> None:
         for reader in self.readers:

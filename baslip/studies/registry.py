@@ -99,7 +99,7 @@ def check_study_inputs(problem: Problem, sources: Path) -> None:
 
 def run_study(problem: Problem, out_dir: Path, quiet: bool = False, fresh: bool = False,
               jobs: int | None = None, scheduler: str | None = None, lanes: int | None = None,
-              sources: Path | None = None) -> dict:
+              sources: Path | None = None, kept: bool = True) -> dict:
     """Run (or resume) the study of ``problem``; return its summary (also in result.json).
 
     The runs a study reads (its source, region or boundary) are looked up in ``sources``,
@@ -112,6 +112,8 @@ def run_study(problem: Problem, out_dir: Path, quiet: bool = False, fresh: bool 
     Raises :class:`baslip.files.lock.FolderBusy` if another process is writing into ``out_dir``,
     and :class:`~baslip.studies.processes.WorkerDied` (a ``RunError``) if a worker process
     ended before finishing its tasks; what was done is written first, for a rerun to resume.
+    ``kept=False`` says that ``out_dir`` is a temporary folder, removed after the run: such
+    a failure then says that nothing was kept.
     """
     study = problem.study
     if study is None:
@@ -127,8 +129,10 @@ def run_study(problem: Problem, out_dir: Path, quiet: bool = False, fresh: bool 
         write_files_atomically({out_dir / "result.json": json_text(summary)})
     if "worker_failure" in summary:  # not a result: the run failed, though what it did is kept
         done = summary["done_before_this_run"] + summary["done_in_this_run"]
-        raise WorkerDied(f"{summary['worker_failure']}; {done} of {summary['tasks']} tasks are done and kept, "
-                         "and a rerun resumes from them")
+        fate = "kept, and a rerun resumes from them"
+        if not kept:
+            fate = "not kept: the run had no `out` folder, so nothing was written (give one to keep them for a rerun)"
+        raise WorkerDied(f"{summary['worker_failure']}; {done} of {summary['tasks']} tasks were done, {fate}")
     return summary
 
 

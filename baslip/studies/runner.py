@@ -295,7 +295,7 @@ def _marked(task: dict, key, done: set, states: dict) -> dict:
 
 def _run_lanes(todo, worker, context, table, label, quiet, skipped, total, start,
                jobs=None) -> tuple[int, bool, str]:
-    """Run the lanes ``todo`` on spawned worker processes, each sending its rows back on a
+    """Run the lanes ``todo`` on worker processes, each sending its rows back on a
     pipe of its own. Pipes, not a multiprocessing queue: they need no semaphores, so no
     resource-tracker process is started that could outlive a killed run."""
     count = worker_count(jobs, len(todo))
@@ -399,6 +399,10 @@ def run_lanes_on_dask(todo, worker, context, table, label, quiet, skipped, total
             client = Client(scheduler, timeout=DASK_CONNECT_TIMEOUT)
     except (OSError, TimeoutError, ValueError, TypeError) as err:
         raise SchedulerError("--scheduler", f"cannot reach the Dask scheduler at {scheduler}: {err}") from None
+    except RuntimeError as err:  # Dask's own worker processes did not start
+        raise SchedulerError("--scheduler", f"Dask's LocalCluster could not start its workers ({err}); they import the "
+                             "script that started the run, so a script must start it under "
+                             "`if __name__ == \"__main__\":`") from None
     with client:
         queue = Queue(f"baslip-rows-{os.getpid()}-{time.time_ns()}", client=client)
         futures = [client.submit(_lane_on_dask, worker, lane, context, queue, pure=False, retries=DASK_RETRIES)
@@ -558,9 +562,10 @@ class Progress:
             self._last = elapsed
             _log.info(text)
 
-    def interrupted(self, saved: int, why: str = "interrupted") -> None:
+    def interrupted(self, done: int, why: str = "interrupted") -> None:
+        # "done", not "saved": a run without an output folder keeps none of them.
         if not self.quiet:
-            _log.warning(f"{self.label}: {why}; {saved} of {self.total} rows are saved")
+            _log.warning(f"{self.label}: {why}; {done} of {self.total} rows were done")
 
     def close(self) -> None:
         if not self.quiet:
