@@ -6,6 +6,10 @@
   stride itself (not from A and B).
 * LQR solves the discrete Riccati equation and stabilises the upright gait linearly,
   where dr/du has rank 3 and deadbeat is impossible.
+* A structural multiplier at 1 that no control reaches is left out of the design: the
+  transverse LQR stabilises the rest and leaves that direction alone, where the plain
+  Riccati iteration has no stabilising solution; where the plain design settles, it is
+  the one kept.
 * The per-stride re-solve keeps a perturbed runner hopping and reports what it leaves.
 """
 
@@ -15,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from baslip import Params
+from baslip import Params, ReturnMap
 from baslip.analysis.feedback import (
     CONTROL_SCALE,
     LinearFeedback,
@@ -24,7 +28,9 @@ from baslip.analysis.feedback import (
     control_rank,
     deadbeat_gain,
     lqr_gain,
+    lqr_gain_for_gait,
     run_closed_loop,
+    transverse_lqr_gain,
 )
 from baslip.gait.polish import eps
 
@@ -151,3 +157,36 @@ def test_a_run_that_repeats_away_from_the_gait_has_settled_on_its_family(lineari
     start = gait.X + 1e-5 * family / np.linalg.norm(family)
     run = run_closed_loop(rmap, gait.params, ConstantControl(gait.u), start, gait.X, 50, 1e-6, settle=True)
     assert run.outcome == "settled" and eps(run.apexes[-1], gait.X) > 1e-6
+
+
+def _system_with_a_unit_multiplier_no_control_reaches():
+    """A 4-state system, unstable (multipliers 1.6 and 1.3), with a multiplier at exactly 1
+    along v = (1, 1, 0, 0) / sqrt(2) that B does not reach, written in a rotated basis."""
+    rotation = np.linalg.qr(np.array([[1.0, 2, 0, 1], [1, -1, 1, 0], [0, 1, 3, 1], [2, 0, 1, -1]]))[0]
+    modal = np.array([[1.0, 0, 0, 0], [0, 1.6, 0.3, 0], [0, 0, 1.3, 0], [0, 0, 0.2, 0.5]])
+    reach = np.array([[0.0, 0], [1, 0], [0.5, 1], [0, 1]])  # nothing along the first (neutral) mode
+    return rotation @ modal @ rotation.T, rotation @ reach, rotation[:, 0]
+
+
+def test_the_plain_riccati_iteration_refuses_a_unit_multiplier_no_control_reaches():
+    A, B, _ = _system_with_a_unit_multiplier_no_control_reaches()
+    with pytest.raises(ValueError, match="does not settle"):
+        lqr_gain(A, B, np.eye(4), np.eye(2))
+
+
+def test_the_transverse_lqr_stabilises_the_rest_and_leaves_the_neutral_direction_alone():
+    A, B, neutral_direction = _system_with_a_unit_multiplier_no_control_reaches()
+    K = transverse_lqr_gain(A, B, np.eye(4), np.eye(2), neutral=1)
+    assert np.allclose(K @ neutral_direction, 0.0, atol=1e-12)
+    multipliers = np.sort(np.abs(np.linalg.eigvals(A + B @ K)))
+    assert multipliers[-1] == pytest.approx(1.0, abs=1e-12)  # the neutral one, untouched
+    assert multipliers[-2] < 1.0  # the unstable 1.6 and 1.3 are brought inside
+    assert np.allclose(lqr_gain_for_gait(A, B, np.eye(4), np.eye(2), neutral=1), K)
+    with pytest.raises(ValueError):
+        lqr_gain_for_gait(A, B, np.eye(4), np.eye(2), neutral=0)
+
+
+def test_where_the_plain_design_settles_it_is_the_gain_kept():
+    X, u = gait("downward")
+    A, B = ReturnMap().jacobians(X, u, Params())
+    assert np.array_equal(lqr_gain_for_gait(A, B, Q, R, neutral=1), lqr_gain(A, B, Q, R))

@@ -92,6 +92,77 @@ def lqr_gain(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, iterati
     raise ValueError("the Riccati iteration does not settle: an unstable mode is not reachable")
 
 
+def transverse_lqr_gain(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, neutral: int) -> np.ndarray:
+    """The discrete LQR gain K (u = K x) of :func:`lqr_gain`, designed on the transverse
+    dynamics alone: the ``neutral`` eigen-directions of ``A`` nearest 1 (structural
+    multipliers, which no control moves at first order) are left out of the Riccati
+    equation, and K is zero on them.
+
+    With such a multiplier at 1 to the last bit, or above it by round-off, the Riccati
+    equation of the whole apex has no stabilising solution (its P grows without bound);
+    whether the plain iteration settles then depends on the last bits of the Jacobian,
+    which differ between processors' libm. The transverse design does not.
+
+    Parameters
+    ----------
+    A, B : numpy.ndarray
+        dr/dX (n x n) and dr/du (n x m) at the gait.
+    Q, R : numpy.ndarray
+        The apex's (n x n) and the controls' (m x m) weights.
+    neutral : int
+        How many of A's eigenvalues nearest 1 to leave out (at least 1, less than n).
+
+    Returns
+    -------
+    numpy.ndarray
+        K (m x n), with K v = 0 for each left-out eigenvector v of A.
+
+    Raises
+    ------
+    ValueError
+        If the transverse Riccati iteration does not settle either.
+    """
+    n = A.shape[0]
+    values, right = np.linalg.eig(A)
+    left_out = np.argsort(np.abs(values - 1.0))[:neutral]
+    V = np.real_if_close(right[:, left_out])
+    # The projector onto the other eigen-directions along the left-out ones: the rows of
+    # the inverse eigenvector matrix that belong to the left-out values span their left
+    # eigenvectors, normalised so that W V = I.
+    W = np.real_if_close(np.linalg.inv(right)[left_out, :])
+    transverse = np.real(np.eye(n) - V @ W)
+    # An orthonormal basis T of the transverse subspace (the projector's range), and the
+    # dynamics in its coordinates xi = T' P x.
+    T = np.linalg.svd(transverse)[0][:, : n - neutral]
+    K_reduced = lqr_gain(T.T @ A @ T, T.T @ transverse @ B, T.T @ Q @ T, R)
+    return K_reduced @ T.T @ transverse
+
+
+def lqr_gain_for_gait(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, neutral: int = 0) -> np.ndarray:
+    """:func:`lqr_gain`, or where its iteration does not settle and the gait has
+    ``neutral`` structural multipliers at 1, :func:`transverse_lqr_gain`. Where the plain
+    design settles its gain is kept, so results made with it stand.
+
+    Parameters
+    ----------
+    A, B, Q, R : numpy.ndarray
+        As :func:`lqr_gain`.
+    neutral : int
+        The gait's structural multipliers at 1 (0 for none).
+
+    Raises
+    ------
+    ValueError
+        If neither design settles.
+    """
+    try:
+        return lqr_gain(A, B, Q, R)
+    except ValueError:
+        if neutral <= 0:
+            raise
+        return transverse_lqr_gain(A, B, Q, R, neutral)
+
+
 def closed_loop_multipliers(A: np.ndarray, B: np.ndarray, K: np.ndarray) -> np.ndarray:
     """Eigenvalues of A + B K, the linearised closed-loop map."""
     return np.linalg.eigvals(A + B @ K)

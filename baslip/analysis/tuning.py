@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from baslip.analysis.feedback import closed_loop_multipliers, control_rank, deadbeat_gain, lqr_gain
+from baslip.analysis.feedback import closed_loop_multipliers, control_rank, deadbeat_gain, lqr_gain_for_gait
 from baslip.model.dynamics import APEX
 from baslip.model.quantities import NOMINAL
 
@@ -84,7 +84,7 @@ def lqr_candidates(A: np.ndarray, B: np.ndarray, scale: np.ndarray,
     for exponents in itertools.product(WEIGHT_EXPONENTS, repeat=APEX.size):
         Q = np.diag(10.0 ** np.array(exponents) / apex_scale**2)
         try:
-            K = lqr_gain(A, B, Q, R)
+            K = lqr_gain_for_gait(A, B, Q, R, neutral)
         except ValueError:
             continue
         radius = transverse_radius(A, B, K, neutral)

@@ -43,7 +43,7 @@ from baslip.analysis.feedback import (
     closed_loop_multipliers,
     control_rank,
     control_scale,
-    lqr_gain,
+    lqr_gain_for_gait,
     run_closed_loop,
     run_closed_loop_many,
 )
@@ -252,7 +252,8 @@ def feedback_for(study: Controllers, context: dict, A, B, scale, rmap: ReturnMap
     widths = np.array([dict(study.perturbation).get(n, 0.0) for n in APEX.names])
     B_adapted, scale_adapted = B[:, adapted], scale[adapted]
     if study.lqr_scale:
-        K = full(lqr_gain(A, B_adapted, lqr_weights(study), np.diag(1 / scale_adapted**2)))
+        K = full(lqr_gain_for_gait(A, B_adapted, lqr_weights(study), np.diag(1 / scale_adapted**2),
+                                     context["neutral"]))
         radius = transverse_radius(A, B, K, context["neutral"])
         return FeedbackChoice("lqr", K, (), radius, None, 1, "LQR weights given by the problem (lqr_scale)")
     pilot_box = min(study.boxes, key=lambda b: abs(math.log(b / 4.0)))  # the box nearest 4x
