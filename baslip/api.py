@@ -201,7 +201,7 @@ def solve_and_write(problem: Problem, out: Path, quiet: bool = True) -> FixedPoi
             orbit = "" if problem.strides == 1 else f", {problem.strides}-stride orbits"
             _log.info(f"{problem.name}: loading the compiled model and NLP ({s.nodes} nodes x {s.substeps} RK4 "
                       f"steps per stance phase{orbit}; the first run on a machine compiles them)...")
-        solver = solver_for(problem)
+        solver = solver_for(problem, few_calls=True)  # one gait: see FixedPointSolver
         solver.nlp_for(problem.strides)
         if not quiet:
             _log.info(f"{problem.name}: solving ({problem.objective}) and verifying...")
