@@ -22,14 +22,12 @@ does this for a list of Functions at once:
   with one line on stderr naming the reason (once per reason, in a study too): slower,
   same results. Setting ``BASLIP_NO_COMPILE=1`` or passing ``enabled=False`` returns
   them silently.
-* A library that a run calls only a few times (``enabled=FEW_CALLS``) is loaded at its
-  own optimisation level if the cache holds that, and is otherwise compiled (or loaded)
-  at :data:`QUICK_OPTIMISATION`: gcc's quickest, with the same numbers.
+* A library that a run calls only a few times (``enabled=FEW_CALLS``) is compiled at
+  gcc's quickest level unless the cache holds it at its own (same numbers).
 * What each library loaded inside :func:`recording_code` runs on is recorded, for
   provenance: compiled C, or the virtual machine and why.
 * The compiler's version (part of every key) is asked once per process and compiler.
-* Building, compiling and loading count as the calling thread's set-up
-  (:mod:`baslip.engine.setuptime`), which results report apart from their solve time.
+* Building, compiling and loading count as set-up (:mod:`baslip.engine.setuptime`).
 
 The flags keep results IEEE-exact: no ``-ffast-math``, no ``-march=native``, and
 ``-ffp-contract=off`` so that no compiler fuses ``a*b + c`` into one FMA (GCC does by
@@ -180,12 +178,10 @@ _SWITCHED_OFF = "compiling switched off"
 #: but at :data:`QUICK_OPTIMISATION` unless the cache holds it at its own level already.
 #: Studies, continuation and anything else that calls a library many times pass None.
 FEW_CALLS = "few calls"
-#: gcc's level for :data:`FEW_CALLS`. Measured on the 2-core machine (busy): one step
-#: count's stride Jacobian, 1.16 MB of C, compiles in 2.0 s at -O0 against 21.5 s at -O1
-#: and runs in 18 ms against 6 ms; the quick-start solve's four libraries at -O0 give its
-#: gait, residual and multipliers equal to the bit to those of the tuned ones (the same
-#: IEEE operations in the same order: no -ffast-math, no FMA contraction), and the
-#: virtual machine's too, where one Jacobian costs 90 ms and building it 0.2 s.
+#: gcc's level for :data:`FEW_CALLS`. On the 2-core machine (busy): one step count's stride
+#: Jacobian, 1.16 MB of C, compiles in 2.0 s at -O0 against 21.5 s at -O1 and runs in 18 ms
+#: against 6 ms (90 ms in the virtual machine); the quick start's gait, residual and
+#: multipliers are the same to the bit (no -ffast-math, no FMA contraction).
 QUICK_OPTIMISATION = "-O0"
 
 
@@ -196,7 +192,7 @@ def note_switched_off(name: str, enabled: bool | str | None) -> None:
 
 
 def compile_functions(
-    name: str, functions: Sequence[ca.Function], *, enabled: bool | None = None
+    name: str, functions: Sequence[ca.Function], *, enabled: bool | str | None = None
 ) -> dict[str, ca.Function]:
     """Return {f.name(): callable Function} for each input function, compiled to C and loaded from the disk cache when possible, else the originals (CasADi virtual machine).
 
@@ -371,7 +367,7 @@ def compile_kernels(
     build: Callable[[], Sequence[ca.Function]],
     sources: Sequence[pathlib.Path],
     *,
-    enabled: bool | None = None,
+    enabled: bool | str | None = None,
     settings: str = "",
     optimisation: str = OPTIMISATION,
     generated: str | None = None,
@@ -398,6 +394,23 @@ def cached_kernels(name: str, names: Sequence[str], sources: Sequence[pathlib.Pa
         return _load_cached(name, names, [*_read(sources), settings.encode()], _native_kernels, optimisation)
 
 
+def cached_library(name: str, names: Sequence[str], sources: Sequence[pathlib.Path], *,
+                   optimisation: str = OPTIMISATION) -> dict[str, ca.Function] | None:
+    """The Functions :func:`compile_library` would return, if the cache already holds an
+    intact library of them (loaded, without building anything), else None."""
+    with setting_up():
+        return _load_cached(name, names, _read(sources), _load, optimisation)
+
+
+def library_file(name: str, names: Sequence[str], sources: Sequence[pathlib.Path], *,
+                 optimisation: str = OPTIMISATION) -> pathlib.Path | None:
+    """Where :func:`compile_library`'s library of this key lives in the cache (whether or
+    not it is there yet); None without a compiler or a cache folder."""
+    with contextlib.suppress(_NoCompiler):
+        return _library_path(name, names, _read(sources), optimisation)[0]
+    return None
+
+
 def _load_cached(name, names, fingerprint: Sequence[bytes], load, optimisation: str):
     """The library of this key loaded from the cache if it holds an intact copy, else None."""
     with contextlib.suppress(_NoCompiler):
@@ -415,7 +428,7 @@ def compile_library(
     build: Callable[[], Sequence[ca.Function]],
     sources: Sequence[pathlib.Path],
     *,
-    enabled: bool | None = None,
+    enabled: bool | str | None = None,
     optimisation: str = OPTIMISATION,
 ) -> dict[str, ca.Function]:
     """As :func:`compile_kernels`, but as CasADi Functions (``casadi.external``), for
