@@ -238,7 +238,6 @@ class StrideFunctions:
 
     def __init__(self, law: HipLaw = PD, compile: bool | str | None = None):
         self.law = law
-        self.flow = StanceFlow(law)
         # The Jacobians first, so that their compile (the longest) starts at once.
         self._jacobians = KernelsLater(library_name("baslip_stride_jacobians", law), _jacobian_names(),
                                        self._all_jacobians, sources(), optimisation=JACOBIAN_OPTIMISATION,
@@ -249,6 +248,12 @@ class StrideFunctions:
         self.scout = self.functions["stance_scout"]
         self.plan = self.functions["stance_plan"]
         self._compile = compile
+
+    @functools.cached_property
+    def flow(self) -> StanceFlow:
+        """The symbolic stance flow the functions are built from (not built where the cache
+        holds them)."""
+        return StanceFlow(self.law)
 
     def final(self, n: int) -> Kernel:
         """(X, u, p, guesses) -> (apex, durations, diagnostics) with ``n`` steps a phase."""
