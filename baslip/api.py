@@ -27,7 +27,6 @@ from baslip.gait.fixedpoint import FixedPointResult
 from baslip.gait.from_problem import solve_problem, solver_for
 from baslip.problem.reader import Problem, load_problem
 from baslip.results import RunResults, open_results, read_into_memory
-from baslip.studies.runner import check_scheduler
 
 _log = logger(__name__)
 
@@ -136,6 +135,8 @@ def check_run(problem: Problem, out: Path | None, sources: Path, scheduler: str 
     if scheduler is not None:
         if problem.study is None:
             raise NothingToSchedule("--scheduler", f"{problem.name} has no study to run on a cluster")
+        from baslip.studies.runner import check_scheduler  # here: a gait's run loads no worker machinery
+
         check_scheduler(scheduler)
     if out is not None:
         check_folder(problem, out, fresh)

@@ -53,7 +53,6 @@ from collections.abc import Callable, Iterator, Sequence
 
 import casadi as ca
 
-from baslip.children import compiler_preexec, in_own_group
 from baslip.diagnostics import logger
 from baslip.engine.cachefiles import COMPILER_TIMEOUT, build_lock, clear_stale
 from baslip.engine.native import Kernel, NativeKernel, VirtualMachineKernel
@@ -275,6 +274,8 @@ def _run(command: list[str]) -> subprocess.CompletedProcess:
     the whole group when this process ends (see :mod:`baslip.children`): a killed run
     leaves no gcc or cc1 behind. A timeout or an interrupt kills the group too.
     """
+    from baslip.children import compiler_preexec, in_own_group  # here: a warm run starts no process
+
     linux = sys.platform.startswith("linux")
     argv = in_own_group(command) if linux else command
     preexec = compiler_preexec(os.getpid()) if linux else None
