@@ -232,7 +232,8 @@ class FixedPointResult:
         from baslip.engine.returnmap import ReturnMap, Tolerances
         from baslip.engine.trajectory import motion
 
-        return motion(ReturnMap(Tolerances(1e-10, 1e-10), law=self.law), self.X, self.u, self.params, strides, samples)
+        return motion(ReturnMap(Tolerances(1e-10, 1e-10), compile=FEW_CALLS, law=self.law), self.X, self.u, self.params,
+                      strides, samples)
 
     def plot(self, strides: int = 2):
         """A matplotlib Figure of the gait: CoM path, trunk angle and ground reaction force
@@ -311,8 +312,7 @@ class FixedPointSolver:
     law : HipLaw
         The stance hip law; every spec solved must be under this law.
     few_calls : bool
-        True for a solver of one gait: its return maps compile at gcc's quickest level (same
-        numbers; :data:`~baslip.engine.codegen.FEW_CALLS`), the NLP that IPOPT iterates at its own.
+        True for one gait: its return maps compile at gcc's quickest level (same numbers; ``FEW_CALLS``).
     """
 
     def __init__(self, options: ShootingOptions = ShootingOptions(), law: HipLaw = PD, few_calls: bool = False):
