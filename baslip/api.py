@@ -27,7 +27,6 @@ from baslip.gait.fixedpoint import FixedPointResult
 from baslip.gait.from_problem import solve_problem, solver_for
 from baslip.problem.reader import Problem, load_problem
 from baslip.results import RunResults, open_results, read_into_memory
-from baslip.studies.runner import check_scheduler
 
 _log = logger(__name__)
 
@@ -137,6 +136,8 @@ def check_run(problem: Problem, out: Path | None, sources: Path, scheduler: str 
     if scheduler is not None:
         if problem.study is None:
             raise NothingToSchedule("--scheduler", f"{problem.name} has no study to run on a cluster")
+        from baslip.studies.runner import check_scheduler  # here: a gait's run loads no worker machinery
+
         check_scheduler(scheduler)
     if out is not None:
         check_folder(problem, out, fresh)
@@ -202,7 +203,7 @@ def solve_and_write(problem: Problem, out: Path, quiet: bool = True) -> FixedPoi
             orbit = "" if problem.strides == 1 else f", {problem.strides}-stride orbits"
             _log.info(f"{problem.name}: loading the compiled model and NLP ({s.nodes} nodes x {s.substeps} RK4 "
                       f"steps per stance phase{orbit}; the first run on a machine compiles them)...")
-        solver = solver_for(problem)
+        solver = solver_for(problem, few_calls=True)  # one gait: see FixedPointSolver
         solver.nlp_for(problem.strides)
         if not quiet:
             _log.info(f"{problem.name}: solving ({problem.objective}) and verifying...")

@@ -35,8 +35,9 @@ def running_point():
     return np.array([0.4, -np.pi / 2 + 0.02, 0.5, 0.1]), np.array([0.1, 0.01, 0.2, 0.0, 0.15])
 
 
-#: Modules a single gait's run should not import: the studies' and matplotlib.
-HEAVY_MODULES = ("matplotlib", "baslip.studies.registry", "baslip.studies.branch", "baslip.viz.figures")
+#: Modules a single gait's run should not import: the studies', their workers' and matplotlib.
+HEAVY_MODULES = ("matplotlib", "baslip.studies.registry", "baslip.studies.branch", "baslip.viz.figures",
+                 "baslip.studies.runner", "multiprocessing")
 
 
 @pytest.fixture(scope="session")

@@ -87,8 +87,34 @@ def test_without_a_compiler_the_virtual_machine_serves(cache, monkeypatch):
         np.testing.assert_allclose(got.ravel(), want, rtol=1e-15, atol=0)
 
 
-def test_with_compiling_switched_off_there_is_no_thread(cache, monkeypatch):
+def test_with_compiling_switched_off_there_is_no_thread_and_the_caller_builds_what_it_uses(cache, monkeypatch):
     monkeypatch.setenv("BASLIP_NO_COMPILE", "1")
-    later = _later()
+    built = []
+    later = KernelsLater("test_later", ["f", "f_jac"], lambda: built.append(1) or _functions(),
+                         [pathlib.Path(__file__)])
     assert later._thread is None and not cache.exists()
-    assert all(isinstance(k, VirtualMachineKernel) for k in later.get().values())
+    assert later.get() is None and built == []  # nothing built for functions the caller may never use
+
+
+def test_a_library_of_few_calls_compiles_quickly_unless_its_tuned_copy_is_cached(cache, monkeypatch):
+    """FEW_CALLS (a one-gait run): gcc's quickest level when the cache lacks the library, with
+    the same numbers to the bit; the library at its own level once the cache holds it."""
+    built, loaded = [], []
+    build, native = codegen._build, codegen._native_kernels
+    monkeypatch.setattr(codegen, "_build", lambda *a: (built.append((a[3].name, a[4])), build(*a))[1])
+    monkeypatch.setattr(codegen, "_native_kernels", lambda library, names: (loaded.append(library.name),
+                                                                            native(library, names))[1])
+
+    def few_calls():
+        return KernelsLater("test_later", ["f", "f_jac"], _functions, [pathlib.Path(__file__)], optimisation="-O1",
+                            enabled=codegen.FEW_CALLS)
+
+    quick = few_calls().get()
+    assert [level for _, level in built] == [codegen.QUICK_OPTIMISATION]
+    tuned = _later("-O1").get()
+    assert [level for _, level in built] == [codegen.QUICK_OPTIMISATION, "-O1"]
+    for a, b in zip(_values(quick), _values(tuned)):
+        np.testing.assert_array_equal(a, b)
+    again = few_calls()
+    assert again._thread is None and len(built) == 2  # loaded, nothing compiled
+    assert loaded[-1] == built[1][0]  # the tuned library

@@ -95,7 +95,8 @@ def test_compiled_functions_match_the_virtual_machine(cache, caplog):
 
 
 def test_second_call_loads_from_the_cache_without_compiling(cache, tmp_path, monkeypatch, caplog):
-    """The compiler is only asked for its version (part of the key), never to compile."""
+    """The compiler is asked for its version (part of the key) once per process, and the
+    second call does not run it at all."""
     log = tmp_path / "cc.log"
     wrapper = tmp_path / "cc"
     wrapper.write_text(f'#!/bin/sh\necho "$@" >> {log}\nexec gcc "$@"\n')
@@ -107,9 +108,10 @@ def test_second_call_loads_from_the_cache_without_compiling(cache, tmp_path, mon
     mtime = library.stat().st_mtime_ns
     assert sum("-shared" in line for line in log.read_text().splitlines()) == 1
 
+    assert log.read_text().splitlines().count("--version") == 1
     log.unlink()
     again = compile_functions("test_lib", make_functions())  # rebuilt, equal Functions
-    assert log.read_text().splitlines() == ["--version"]
+    assert not log.exists()
     assert library.stat().st_mtime_ns == mtime
     assert libraries(cache) == [library.name]
     assert_same_results(functions, again)
@@ -165,6 +167,22 @@ def test_a_long_compile_is_never_silent_for_more_than_10_s_and_quiet_silences_it
     quiet = fake_clock(shown=False)
     compile_functions("test_lib", make_functions(gain=0.02))
     assert quiet.said == [] and quiet.time == 47.0 and quiet.running() == 0
+
+
+def test_the_compiler_version_is_asked_without_a_shell(cache, tmp_path, monkeypatch):
+    """The probe runs the compiler itself (no ``sh -c`` wrapper), once per process."""
+    import baslip.engine.codegen as codegen
+
+    commands = []
+    run = subprocess.run
+    monkeypatch.setattr(codegen.subprocess, "run", lambda command, **kw: (commands.append(command), run(command, **kw))[1])
+    wrapper = tmp_path / "cc"
+    wrapper.write_text('#!/bin/sh\nexec gcc "$@"\n')
+    wrapper.chmod(0o755)
+    monkeypatch.setenv("CC", str(wrapper))
+    compile_functions("test_lib", make_functions())
+    compile_functions("test_lib", make_functions(0.02))
+    assert commands == [[str(wrapper), "--version"]]
 
 
 def test_changed_function_gets_its_own_library(cache):
@@ -423,7 +441,7 @@ def test_a_killed_first_compile_leaves_no_process_and_the_next_build_clears_its_
 def test_stale_temporaries_of_other_libraries_are_cleared_once_old(cache):
     """A killed build of a library that is never built again leaves its temporaries; any
     build removes those older than STALE_AFTER, and leaves younger ones (a live build)."""
-    from baslip.engine.codegen import STALE_AFTER
+    from baslip.engine.cachefiles import STALE_AFTER
 
     cache.mkdir()
     old, young = cache / ".other-0123.abc.tmp", cache / ".other-0123.def.cc"

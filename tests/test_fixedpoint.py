@@ -55,12 +55,40 @@ def test_result_record_has_exactly_the_documented_keys(downward):
         "name", "status", "solver", "params", "hip_law", "apex", "control", "durations",
         "energy", "residual", "eigenvalues", "spectral_radius", "stable",
     ]
-    assert set(record["solver"]) == {"return_status", "iterations", "time_s"}
+    assert set(record["solver"]) == {"return_status", "iterations", "time_s", "compile_s"}
     assert set(record["durations"]) == {"descent", "compression", "decompression", "ascent"}
     assert len(record["eigenvalues"]) == 4 and all(len(pair) == 2 for pair in record["eigenvalues"])
     radius = max(math.hypot(*pair) for pair in record["eigenvalues"])
     assert record["spectral_radius"] == pytest.approx(radius)  # no trivial multipliers here
     assert record["stable"] == (radius < 1)
+
+
+def test_set_up_is_timed_apart_from_the_solve_and_reported_once(monkeypatch):
+    """A library compiled on the way counts in compile_s, its own summary line, and not in
+    time_s; the next solve reports no set-up (a fake clock: nothing waits)."""
+    from baslip import FixedPointSolver
+    from baslip.engine import setuptime
+
+    clock = [1000.0]
+    monkeypatch.setattr(setuptime.time, "perf_counter", lambda: clock[0])
+    solver = FixedPointSolver(few_calls=True)
+    simulate = solver.verify_map.simulate
+
+    def compile_then_simulate(*arguments):
+        with setuptime.setting_up():
+            clock[0] += 30.0  # gcc, say
+        clock[0] += 0.5  # the re-simulation itself
+        return simulate(*arguments)
+
+    monkeypatch.setattr(solver.verify_map, "simulate", compile_then_simulate)
+    spec = FixedPointSpec(Params(), fixed={"z": 0.4, "ydot": 0.5}, guess=DOWNWARD_GUESS, bounds=HANGING)
+    first = solver.solve(spec, name="downward")
+    assert first.converged
+    assert first.solver.compile_s == pytest.approx(30.0) and first.solver.time_s == pytest.approx(0.5)
+    assert "  compile  30.00 s (" in first.summary() and ", 0.50 s" in first.summary()
+    monkeypatch.setattr(solver.verify_map, "simulate", simulate)
+    again = solver.solve(spec, name="downward")
+    assert again.solver.compile_s == 0.0 and again.solver.time_s == 0.0
 
 
 def test_fixed_energy_is_held(solver):

@@ -65,3 +65,34 @@ def test_nlp_solution_is_a_fixed_point_to_rk4_accuracy(solver, downward_spec):
 def test_unknown_hessian_is_refused():
     with pytest.raises(ValueError, match="hessian"):
         ShootingNLP(ShootingOptions(hessian="newton"))
+
+
+def test_a_warm_nlp_takes_its_sizes_and_bounds_from_beside_its_library_and_solves_the_same(solver, downward_spec,
+                                                                                         monkeypatch):
+    """With the library cached, the facts kept beside it replace the symbolic graph (which
+    is then not built), and give the same bounds, sizes and solution as the graph."""
+    import baslip.gait.shooting as shooting
+
+    monkeypatch.setattr(shooting, "read_facts", lambda *arguments, **keywords: None)
+    from_graph = ShootingNLP()  # facts unread: the graph is built (and the facts written)
+    monkeypatch.undo()
+    monkeypatch.setattr(ShootingNLP, "_build", lambda self, compile: pytest.fail("the graph was built"))
+    warm = ShootingNLP()
+    for name in ("_n_w", "_n_orbit", "_periodicity_row", "_energy_row"):
+        assert getattr(warm, name) == getattr(from_graph, name)
+    np.testing.assert_array_equal(warm._lbg, from_graph._lbg)
+    np.testing.assert_array_equal(warm._ubg, from_graph._ubg)
+    a, b = (nlp.solve(downward_spec, rmap=solver.residual_map) for nlp in (from_graph, warm))
+    assert a.return_status == b.return_status == "Solve_Succeeded"
+    np.testing.assert_array_equal(a.w, b.w)
+
+
+def test_facts_of_another_margin_are_not_taken(monkeypatch):
+    """The constraints' bounds hold the transversality margin, which the library's name
+    does not: an NLP of another margin builds its own graph."""
+    ShootingNLP()  # the library and its facts are there
+    built = []
+    build = ShootingNLP._build
+    monkeypatch.setattr(ShootingNLP, "_build", lambda self, compile: (built.append(1), build(self, compile))[1])
+    other = ShootingNLP(ShootingOptions(margin=2e-3))
+    assert built == [1] and other._ubg.min() == -2e-3

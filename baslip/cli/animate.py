@@ -15,6 +15,7 @@ import numpy as np
 
 from baslip.cli.common import OneLineParser
 from baslip.diagnostics import show_on_stderr
+from baslip.engine.codegen import FEW_CALLS
 from baslip.engine.returnmap import ReturnMap, Tolerances
 from baslip.engine.trajectory import stride_trajectory
 from baslip.gait.from_problem import solve_start
@@ -47,7 +48,7 @@ def main(argv: list[str] | None = None, prog: str = "python -m baslip.animate") 
         if not result.converged:
             print(f"error: {path}: no verified fixed point to animate ({result.message})", file=sys.stderr)
             return 1
-        rmap = ReturnMap(Tolerances(1e-10, 1e-10), law=problem.hip_law)  # the problem's own hip law
+        rmap = ReturnMap(Tolerances(1e-10, 1e-10), compile=FEW_CALLS, law=problem.hip_law)  # its own law; a few strides
         trajectory = stride_trajectory(rmap, result.X, result.u, problem.params)
         verdict = "stable" if result.stable else "unstable"
         title = (f"{problem.name}: theta_h = {np.degrees(result.apex['theta_h']):.1f} deg, "

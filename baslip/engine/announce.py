@@ -18,8 +18,9 @@ ANNOUNCE_BYTES = 200_000
 #: and the power of the size it grows with (superlinearly: large functions cost the
 #: optimiser more per line). Fitted to compiles of baslip's libraries there: at -O3
 #: 0.25 MB in 2.3 s and 0.64 MB in 10.1 s (and the 4 MB stability NLP in about 180 s), at
-#: -O1 1.1 MB in 5.6 s and 2.84 MB in 30 s.
-SECONDS_PER_MB = {"-O3": 20.6, "-O1": 5.7}
+#: -O1 1.1 MB in 5.6 s and 2.84 MB in 30 s, at -O0 (a one-gait run's return maps) one
+#: step count's Jacobian, 1.16 MB in 2.0 s.
+SECONDS_PER_MB = {"-O3": 20.6, "-O1": 5.7, "-O0": 1.6}
 SIZE_POWER = 1.6
 
 

@@ -16,13 +16,25 @@ from collections.abc import Callable, Sequence
 
 import casadi as ca
 
-from baslip.engine.codegen import OPTIMISATION, cached_kernels, compile_kernels, compiling, generate_c
+from baslip.engine.codegen import (
+    FEW_CALLS,
+    OPTIMISATION,
+    QUICK_OPTIMISATION,
+    cached_kernels,
+    compile_kernels,
+    compiling,
+    generate_c,
+    note_switched_off,
+)
 from baslip.engine.native import Kernel
+from baslip.engine.setuptime import setting_up
 
 
 class KernelsLater:
     """The kernels of :func:`~baslip.engine.codegen.compile_kernels`, compiled in a thread
-    when the cache lacks them, and waited for on first use.
+    when the cache lacks them, and waited for on first use; or none at all with compiling
+    switched off: the caller then builds only the functions it uses, in the virtual
+    machine, when it uses them.
 
     Parameters
     ----------
@@ -32,14 +44,17 @@ class KernelsLater:
 
     def __init__(self, name: str, names: Sequence[str], build: Callable[[], Sequence[ca.Function]],
                  sources: Sequence[pathlib.Path], *, settings: str = "", optimisation: str = OPTIMISATION,
-                 enabled: bool | None = None):
+                 enabled: bool | str | None = None):
         self._kernels: dict[str, Kernel] | None = None
         self._failure: BaseException | None = None
         self._thread: threading.Thread | None = None
-        if not compiling(enabled):  # the virtual machine's kernels, at once
-            self._kernels = compile_kernels(name, names, build, sources, enabled=enabled, settings=settings)
+        if not compiling(enabled):  # the caller's functions in the virtual machine
+            note_switched_off(name, enabled)
             return
         self._kernels = cached_kernels(name, names, sources, settings=settings, optimisation=optimisation)
+        if self._kernels is None and enabled == FEW_CALLS:
+            optimisation = QUICK_OPTIMISATION
+            self._kernels = cached_kernels(name, names, sources, settings=settings, optimisation=optimisation)
         if self._kernels is not None:
             return
         functions = build()
@@ -55,12 +70,13 @@ class KernelsLater:
         self._thread = threading.Thread(target=compile_now, name=f"compile-{name}", daemon=True)
         self._thread.start()
 
-    def get(self) -> dict[str, Kernel]:
-        """The kernels, once their library is compiled and loaded (or their fallback)."""
+    def get(self) -> dict[str, Kernel] | None:
+        """The kernels, once their library is compiled and loaded (or their fallback); None
+        where the caller's functions are to run in the virtual machine."""
         if self._thread is not None:
-            self._thread.join()
+            with setting_up():  # waiting for the library counts as set-up, not as work
+                self._thread.join()
             self._thread = None
         if self._failure is not None:
             raise self._failure
-        assert self._kernels is not None
         return self._kernels

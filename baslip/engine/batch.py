@@ -47,7 +47,7 @@ from baslip.model.dynamics import APEX
 class BatchEngine:
     """Strides of many (X, u) under one parameter vector, ``threads`` at a time."""
 
-    def __init__(self, engine: CompiledEngine, threads: int = 2, compile: bool | None = None):
+    def __init__(self, engine: CompiledEngine, threads: int = 2, compile: bool | str | None = None):
         self.engine = engine
         # Each lane owns its engine and kernels, its careful path included: a compiled
         # kernel's work memory must not be shared by two threads at once.

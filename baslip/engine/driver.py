@@ -110,7 +110,7 @@ class CompiledEngine:
     ``None``.
     """
 
-    def __init__(self, tolerance: float, compile: bool | None = None, law: HipLaw = PD,
+    def __init__(self, tolerance: float, compile: bool | str | None = None, law: HipLaw = PD,
                  functions: StrideFunctions | None = None):
         self.tolerance = tolerance
         self.law = law

@@ -134,10 +134,12 @@ class EventMap:
     cannot guarantee its accuracy. Inputs are numeric vectors that passed
     :func:`~baslip.engine.outcome.precheck`; ``t_guess`` is its touchdown time guess [s].
     ``compile`` forces the C route of the stride's value on or off; None follows the
-    environment (see :func:`baslip.engine.codegen.compile_kernels`). ``law`` is the hip law.
+    environment (see :func:`baslip.engine.codegen.compile_kernels`), and
+    :data:`~baslip.engine.codegen.IF_CACHED` compiles nothing. ``law`` is the hip law.
     """
 
-    def __init__(self, tolerances: Tolerances, plugin: str = "erk", compile: bool | None = None, law: HipLaw = PD):
+    def __init__(self, tolerances: Tolerances, plugin: str = "erk", compile: bool | str | None = None,
+                 law: HipLaw = PD):
         self.tolerances = tolerances
         self.plugin = plugin
         self.law = law

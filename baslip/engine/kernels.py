@@ -44,8 +44,9 @@ from baslip.engine import dop853 as flow
 from baslip.engine import outcome as _outcome_module
 from baslip.engine.background import KernelsLater
 from baslip.engine.codegen import compile_kernels, compiling, library_name, module_files
-from baslip.engine.native import Kernel
+from baslip.engine.native import Kernel, VirtualMachineKernel
 from baslip.engine.outcome import COLLAPSE_FRACTION
+from baslip.engine.setuptime import setting_up
 from baslip.model import dynamics as _dynamics
 from baslip.model import hiplaw as _hiplaw
 from baslip.model import layout as _layout
@@ -227,24 +228,32 @@ class StrideFunctions:
 
     ``law``: the hip law; each law has its own libraries, named after it.
     ``compile``: True or False forces the C route on or off; None follows the
-    environment (see :func:`baslip.engine.codegen.compile_functions`).
+    environment (see :func:`baslip.engine.codegen.compile_functions`), as does
+    :data:`~baslip.engine.codegen.FEW_CALLS`, for a run that calls the engine a few times.
 
     The Jacobians are a library of their own, compiled at :data:`JACOBIAN_OPTIMISATION`
     and, on a first run, in a thread while the process goes on (a solve first asks for
-    them after IPOPT has run): they are most of the engine's C."""
+    them after IPOPT has run): they are most of the engine's C. Where they run in the
+    virtual machine instead, each step count's Jacobian is built on first use."""
 
-    def __init__(self, law: HipLaw = PD, compile: bool | None = None):
+    def __init__(self, law: HipLaw = PD, compile: bool | str | None = None):
         self.law = law
-        self.flow = StanceFlow(law)
         # The Jacobians first, so that their compile (the longest) starts at once.
         self._jacobians = KernelsLater(library_name("baslip_stride_jacobians", law), _jacobian_names(),
                                        self._all_jacobians, sources(), optimisation=JACOBIAN_OPTIMISATION,
                                        enabled=compile)
+        self._virtual_jacobians: dict[int, Kernel] = {}
         self.functions = compile_kernels(library_name("baslip_stride", law), _names(), self._passes, sources(),
                                          enabled=compile)
         self.scout = self.functions["stance_scout"]
         self.plan = self.functions["stance_plan"]
         self._compile = compile
+
+    @functools.cached_property
+    def flow(self) -> StanceFlow:
+        """The symbolic stance flow the functions are built from (not built where the cache
+        holds them)."""
+        return StanceFlow(self.law)
 
     def final(self, n: int) -> Kernel:
         """(X, u, p, guesses) -> (apex, durations, diagnostics) with ``n`` steps a phase."""
@@ -252,7 +261,13 @@ class StrideFunctions:
 
     def jacobian(self, n: int) -> Kernel:
         """(X, u, p, guesses) -> (dr/d(X, u, p) 4 x (4 + controls + 6), apex, durations, diagnostics)."""
-        return self._jacobians.get()[f"stride_jacobian_{n}"]
+        compiled = self._jacobians.get()
+        if compiled is not None:
+            return compiled[f"stride_jacobian_{n}"]
+        if n not in self._virtual_jacobians:  # this step count's alone, in the virtual machine
+            with setting_up():
+                self._virtual_jacobians[n] = VirtualMachineKernel(self._jacobian(_final_pass(self.flow, n)))
+        return self._virtual_jacobians[n]
 
     def hessian_vector(self, n: int, lane: int = 0) -> Kernel:
         """(X, u, p, guesses, w, s) -> H s, with H the Hessian of w . apex in (X, u, p):

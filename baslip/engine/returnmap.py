@@ -82,8 +82,11 @@ class ReturnMap:
         The engine: ``"compiled"``, ``"erk"`` or ``"rosenbrock"``; by default the compiled
         engine down to 1e-12, ``"erk"`` below. Raises ValueError for the compiled engine
         below 1e-12.
-    compile : bool, optional
-        Force the C route on or off; None follows ``BASLIP_NO_COMPILE``.
+    compile : bool or str, optional
+        Force the C route on or off; None follows ``BASLIP_NO_COMPILE``, and so does
+        :data:`~baslip.engine.codegen.FEW_CALLS`, for a map that the run calls only a few
+        times (one gait's polish, check and multipliers): its libraries then compile at
+        gcc's quickest level unless the cache holds them at their own (same numbers).
     law : HipLaw
         The stance hip law whose controls ``u`` holds.
     hip_law : str, optional
@@ -99,8 +102,8 @@ class ReturnMap:
     >>> vpp_map = ReturnMap(hip_law="vpp")              # u = (r_vpp, theta_td)
     """
 
-    def __init__(self, tolerances: Tolerances = Tolerances(), plugin: str | None = None, compile: bool | None = None,
-                 law: HipLaw = PD, *, hip_law: str | None = None):
+    def __init__(self, tolerances: Tolerances = Tolerances(), plugin: str | None = None,
+                 compile: bool | str | None = None, law: HipLaw = PD, *, hip_law: str | None = None):
         if hip_law is not None:
             law = _named_law(hip_law, law)
         self.tolerances = tolerances

@@ -12,7 +12,6 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import os
-import socket
 import sys
 import tempfile
 import time
@@ -67,7 +66,7 @@ def hold(folder: Path):
         handle.seek(0)
         handle.truncate()
         command = " ".join(Path(sys.argv[0]).name if i == 0 else a for i, a in enumerate(sys.argv))
-        handle.write(f"process {os.getpid()} on {socket.gethostname()} ({command})\n")
+        handle.write(f"process {os.getpid()} on {os.uname().nodename} ({command})\n")
         handle.flush()
         yield
     finally:

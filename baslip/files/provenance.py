@@ -23,7 +23,7 @@ import glob
 import hashlib
 import json
 import os
-import platform
+import sys
 from importlib import metadata
 
 import casadi as ca
@@ -81,7 +81,7 @@ def versions() -> dict:
         "casadi": ca.__version__,  # type: ignore[attr-defined]
         "ipopt": ipopt_version(),
         "numpy": np.__version__,
-        "python": platform.python_version(),
+        "python": sys.version.split()[0],  # platform.python_version()'s, without importing platform
     }
 
 

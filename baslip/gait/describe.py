@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import math
+from html import escape
+
+from baslip.model.quantities import UNITS
 
 
 def summary_text(result) -> str:
@@ -13,6 +16,7 @@ def summary_text(result) -> str:
         f"{result.name}: {result.status} ({result.message})",
         f"  IPOPT {result.solver.return_status} in {result.solver.iterations} iterations, "
         f"Newton polish {result.polish_iterations} steps, {result.solver.time_s:.2f} s",
+        f"  compile  {result.solver.compile_s:.2f} s (code generation, gcc and loading of the compiled libraries)",
         f"  apex     z = {a['z']:.6f} m, theta_h = {a['theta_h'] * deg:.4f} deg, "
         f"ydot = {a['ydot']:.6f} m/s, theta_h_dot = {a['theta_h_dot'] * deg:.4f} deg/s",
         f"  control  {_controls_text(c, result.law.units)}" + ("" if result.law.name == "pd" else f" ({result.law.name})"),
@@ -46,3 +50,26 @@ def _control_text(name: str, value: float, unit: str) -> str:
     if unit.startswith("rad"):
         return f"{name} = {math.degrees(value):.4f} deg{unit[len('rad'):]}"
     return f"{name} = {value:.6g} {unit}"
+
+
+def html_table(result) -> str:
+    """The result as a small HTML table, for notebooks: angles in degrees."""
+    rows = [("status", f"{result.status} ({result.message})")]
+    rows += [_html_quantity(n, v) for n, v in {**result.apex, **result.control}.items()]
+    rows += [("energy [J]", f"{result.energy:.6g}")]
+    if result.residual is not None:
+        rows.append(("residual eps", f"{result.residual:.2e}"))
+    if result.stability is not None:
+        rows.append(("multipliers", ", ".join(f"{m.value:.4g}" for m in result.stability.multipliers)))
+        rows.append(("spectral radius", f"{result.spectral_radius:.6g} ({'stable' if result.stable else 'unstable'})"))
+    body = "".join(f"<tr><th style='text-align:left'>{escape(k)}</th><td>{escape(v)}</td></tr>" for k, v in rows)
+    return (f"<b>{escape(result.name)}</b><table>{body}</table><small>angles in degrees; Python values (result.apex, "
+            "result.control) are SI units and radians</small>")
+
+
+def _html_quantity(name: str, value: float) -> tuple[str, str]:
+    """(``name [unit]``, value) of a row of the HTML table: angles in degrees, as people read them."""
+    unit = UNITS[name]
+    if unit.startswith("rad"):
+        return f"{name} [deg{unit[len('rad'):]}]", f"{math.degrees(value):.6g}"
+    return f"{name} [{unit}]", f"{value:.6g}"

@@ -15,13 +15,14 @@
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
 
+from baslip.engine.codegen import FEW_CALLS
 from baslip.engine.returnmap import PHASES, ReturnMap, Tolerances
+from baslip.engine.setuptime import Stopwatch, setting_up, setup_seconds
 from baslip.gait.polish import Polish
 from baslip.gait.polish import eps as _eps
 from baslip.gait.shooting import FixedPointSpec, NlpSolution, ShootingNLP, ShootingOptions, torque_effort
@@ -29,7 +30,7 @@ from baslip.gait.stability import Multiplier, Stability, classify
 from baslip.gait.tries import IpoptTry, ended, first_try, told
 from baslip.model.dynamics import APEX, Params
 from baslip.model.hiplaw import PD, HipLaw
-from baslip.model.quantities import NOMINAL, STABILITY_OBJECTIVES, UNITS
+from baslip.model.quantities import NOMINAL, STABILITY_OBJECTIVES
 from baslip.status import VERIFY_EPS, Status
 
 #: Tolerances of the independent verification map.
@@ -41,7 +42,7 @@ ACCEPTED_IPOPT = ("Solve_Succeeded", "Solved_To_Acceptable_Level", "Feasible_Poi
 
 @dataclass(frozen=True)
 class SolverReport:
-    """What IPOPT said, plus the wall time of the whole solve [s].
+    """What IPOPT said, the wall time of the solve [s] and that of its set-up [s].
 
     Attributes
     ----------
@@ -50,16 +51,22 @@ class SolverReport:
     iterations : int
         IPOPT's iterations, over both tries when the exact-Hessian NLP had a second one.
     time_s : float
-        Wall time [s] of the whole solve: NLP, polish and verification (not building the NLP).
+        Wall time [s] of the solve: NLP, polish, verification and stability, without the
+        set-up of ``compile_s``.
     spectral_bound : float or None
         The stability NLP's bound on the multipliers (on its own discretisation;
         dimensionless), or None for other objectives.
+    compile_s : float
+        Wall time [s] of the set-up this solve waited for: code generation, gcc (on a
+        first run) and loading the compiled libraries; the solver's own set-up is counted
+        with its first solve (:mod:`baslip.engine.setuptime`).
     """
 
     return_status: str
     iterations: int
     time_s: float
     spectral_bound: float | None = None  # the stability NLP's bound on the multipliers (its own discretisation)
+    compile_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -179,18 +186,9 @@ class FixedPointResult:
         return f"<FixedPointResult {self.name}: {self.status}, {verdict}{radius}{eps}>"
 
     def _repr_html_(self) -> str:
-        from html import escape
+        from baslip.gait.describe import html_table
 
-        rows = [("status", f"{self.status} ({self.message})")]
-        rows += [_html_quantity(n, v) for n, v in {**self.apex, **self.control}.items()]
-        rows += [("energy [J]", f"{self.energy:.6g}")]
-        if self.residual is not None:
-            rows.append(("residual eps", f"{self.residual:.2e}"))
-        if self.stability is not None:
-            rows.append(("multipliers", ", ".join(f"{m.value:.4g}" for m in self.stability.multipliers)))
-            rows.append(("spectral radius", f"{self.spectral_radius:.6g} ({'stable' if self.stable else 'unstable'})"))
-        body = "".join(f"<tr><th style='text-align:left'>{escape(k)}</th><td>{escape(v)}</td></tr>" for k, v in rows)
-        return f"<b>{escape(self.name)}</b><table>{body}</table><small>angles in degrees; Python values (result.apex, result.control) are SI units and radians</small>"
+        return html_table(self)
 
     def summary(self) -> str:
         """A short human-readable account (as the command line prints it)."""
@@ -235,7 +233,8 @@ class FixedPointResult:
         from baslip.engine.returnmap import ReturnMap, Tolerances
         from baslip.engine.trajectory import motion
 
-        return motion(ReturnMap(Tolerances(1e-10, 1e-10), law=self.law), self.X, self.u, self.params, strides, samples)
+        return motion(ReturnMap(Tolerances(1e-10, 1e-10), compile=FEW_CALLS, law=self.law), self.X, self.u, self.params,
+                      strides, samples)
 
     def plot(self, strides: int = 2):
         """A matplotlib Figure of the gait: CoM path, trunk angle and ground reaction force
@@ -276,6 +275,7 @@ class FixedPointResult:
                 "return_status": self.solver.return_status,
                 "iterations": self.solver.iterations,
                 "time_s": self.solver.time_s,
+                "compile_s": self.solver.compile_s,
                 **({} if self.solver.spectral_bound is None else {"spectral_bound": self.solver.spectral_bound}),
             },
             "params": self.params.to_dict(),
@@ -312,19 +312,24 @@ class FixedPointSolver:
         The NLP's discretisation (shooting nodes, substeps, Hessian) and IPOPT's options.
     law : HipLaw
         The stance hip law; every spec solved must be under this law.
+    few_calls : bool
+        True for one gait: its return maps compile at gcc's quickest level (same numbers; ``FEW_CALLS``).
     """
 
-    def __init__(self, options: ShootingOptions = ShootingOptions(), law: HipLaw = PD):
+    def __init__(self, options: ShootingOptions = ShootingOptions(), law: HipLaw = PD, few_calls: bool = False):
         self.options = options
         self.law = law
-        # The engine first: on a first run its Jacobians compile on the other core while
-        # the verification's map and the NLP compile on this one.
-        self.residual_map = ReturnMap(Tolerances(1e-12, 1e-12), law=law)
-        # The compiled engine's Jacobian at 1e-12 costs a few ms once per solve; a second
-        # map at 1e-10 would cost a second build of the engine in every process.
-        self.jacobian_map = self.residual_map
-        self.verify_map = ReturnMap(VERIFY_TOLERANCES, plugin="rosenbrock", law=law)
-        self.nlp = ShootingNLP(options, law=law)
+        self._unreported_setup = setup_seconds()  # the set-up not yet reported with a solve
+        self._compile = FEW_CALLS if few_calls else None
+        with setting_up():
+            # The engine first: on a first run its Jacobians compile on the other core while
+            # the verification's map and the NLP compile on this one.
+            self.residual_map = ReturnMap(Tolerances(1e-12, 1e-12), compile=self._compile, law=law)
+            # The compiled engine's Jacobian at 1e-12 costs a few ms once per solve; a second
+            # map at 1e-10 would cost a second build of the engine in every process.
+            self.jacobian_map = self.residual_map
+            self.verify_map = ReturnMap(VERIFY_TOLERANCES, "rosenbrock", self._compile, law)
+            self.nlp = ShootingNLP(options, law=law)
         self._nlps: dict[tuple[int, str], ShootingNLP] = {}
         self._polish = Polish(self.residual_map, self.jacobian_map)
 
@@ -353,8 +358,8 @@ class FixedPointSolver:
         """
         if spec.objective in STABILITY_OBJECTIVES:
             return self._solve_stable(spec, name, w0)
-        nlp = self.nlp_for(spec.strides)  # built once, outside the timed solve
-        start = time.perf_counter()
+        nlp = self.nlp_for(spec.strides)  # built once; its set-up is reported apart from the solve
+        start = Stopwatch.start(self._unreported_setup)
         sol = self._run_nlp(nlp, spec, w0, attempt=first_try(nlp.options.hessian))
         if sol.return_status not in ACCEPTED_IPOPT and nlp.options.hessian != "exact":
             # The fast NLP drops the constraints' curvature; from a poor start the exact
@@ -370,8 +375,8 @@ class FixedPointSolver:
     def _solve_stable(self, spec: FixedPointSpec, name: str, w0: np.ndarray | None) -> FixedPointResult:
         if spec.strides != 1:
             raise ValueError(f"objective {spec.objective} is for one-stride orbits, not {spec.strides}")
+        start = Stopwatch.start(self._unreported_setup)
         stable_nlp = self.stable_nlp()
-        start = time.perf_counter()
         if w0 is None:
             orbit = self.solve(replace(spec, objective="nearest_guess"), name)
             if orbit.nlp_w is None or orbit.solver.return_status not in ACCEPTED_IPOPT:
@@ -400,7 +405,8 @@ class FixedPointSolver:
             ipopt["acceptable_tol"] = max(acceptable, 100 * STABLE_NLP_TOLERANCE)
             ipopt.update(STABLE_NLP_FIRST_HESSIAN)
             options = replace(self.options, hessian="limited-memory", spectral_bound=True, ipopt=ipopt)
-            self._nlps[key] = ShootingNLP(options, law=self.law)
+            with setting_up():
+                self._nlps[key] = ShootingNLP(options, law=self.law)
         return self._nlps[key]
 
     def verify_point(self, spec: FixedPointSpec, X, u, name: str = "problem") -> FixedPointResult:
@@ -425,12 +431,12 @@ class FixedPointSolver:
         """
         if spec.law is not self.law:
             raise ValueError(f"this solver is built for hip law {self.law.name}, not {spec.law.name}")
-        start = time.perf_counter()
+        start = Stopwatch.start(self._unreported_setup)
         X, u = np.asarray(X, dtype=float), np.asarray(u, dtype=float)
         given = NlpSolution(X, u, np.full(len(PHASES), np.nan), "not run (point given)", 0, 0.0)
         return self._polish_and_verify(spec, name, given, start)
 
-    def _polish_and_verify(self, spec: FixedPointSpec, name: str, sol: NlpSolution, start: float) -> FixedPointResult:
+    def _polish_and_verify(self, spec: FixedPointSpec, name: str, sol: NlpSolution, start: Stopwatch) -> FixedPointResult:
         X, u, iterations, note = self._polish.run_in_bounds(spec, sol.X, sol.u)
         check = self.verify_map.simulate(X, u, spec.params, spec.strides)
         if check.fall is not None:
@@ -461,7 +467,8 @@ class FixedPointSolver:
         options = replace(self.options, hessian="exact") if exact else self.options
         key = (strides, options.hessian)
         if key not in self._nlps:
-            self._nlps[key] = self.nlp if key == (1, self.options.hessian) else ShootingNLP(options, strides, law=self.law)
+            with setting_up():
+                self._nlps[key] = self.nlp if key == (1, self.options.hessian) else ShootingNLP(options, strides, law=self.law)
         return self._nlps[key]
 
     def _run_nlp(self, nlp: ShootingNLP, spec: FixedPointSpec, w0, ipopt=None, attempt=IpoptTry()) -> NlpSolution:
@@ -514,6 +521,12 @@ class FixedPointSolver:
         """
         return self._polish.energy(X, params)
 
+    def _report(self, sol: NlpSolution, start: Stopwatch) -> SolverReport:
+        """IPOPT's account of ``sol``, timed from ``start``; the set-up so far is reported here."""
+        solve_s, setup_s = start.split()
+        self._unreported_setup = setup_seconds()
+        return SolverReport(sol.return_status, sol.iterations, solve_s, sol.spectral_bound, setup_s)
+
     def _result(self, spec, name, status, message, sol, start, X, u, polish_iterations=0, check=None, stability=None):
         if check is not None and check.fall is None:
             durations = {ph: check.durations[0][ph] for ph in PHASES}
@@ -529,7 +542,7 @@ class FixedPointSolver:
             name=name,
             status=status,
             message=message,
-            solver=SolverReport(sol.return_status, sol.iterations, time.perf_counter() - start, sol.spectral_bound),
+            solver=self._report(sol, start),
             params=spec.params,
             X=np.asarray(X, dtype=float),
             u=np.asarray(u, dtype=float),
@@ -589,11 +602,3 @@ def _describe(rmap: ReturnMap) -> str:
 def _first_line(err: Exception) -> str:
     lines = str(err).strip().splitlines()
     return lines[-1] if lines else type(err).__name__
-
-
-def _html_quantity(name: str, value: float) -> tuple[str, str]:
-    """(``name [unit]``, value) of a row of the HTML table: angles in degrees, as people read them."""
-    unit = UNITS[name]
-    if unit.startswith("rad"):
-        return f"{name} [deg{unit[len('rad'):]}]", f"{math.degrees(value):.6g}"
-    return f"{name} [{unit}]", f"{value:.6g}"

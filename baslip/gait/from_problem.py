@@ -32,9 +32,10 @@ def fixed_point_spec(problem: Problem) -> FixedPointSpec:
     )
 
 
-def solver_for(problem: Problem) -> FixedPointSolver:
-    """A solver built with the discretisation and IPOPT settings ``problem`` asks for."""
-    return FixedPointSolver(shooting_options(problem), law=problem.hip_law)
+def solver_for(problem: Problem, few_calls: bool = False) -> FixedPointSolver:
+    """A solver built with the discretisation and IPOPT settings ``problem`` asks for;
+    ``few_calls`` for one gait's solve (see :class:`~baslip.gait.fixedpoint.FixedPointSolver`)."""
+    return FixedPointSolver(shooting_options(problem), law=problem.hip_law, few_calls=few_calls)
 
 
 def solve_problem(problem: Problem, solver: FixedPointSolver | None = None) -> FixedPointResult:
@@ -47,7 +48,8 @@ def solve_problem(problem: Problem, solver: FixedPointSolver | None = None) -> F
         :func:`baslip.run`).
     solver : FixedPointSolver, optional
         A built solver, to reuse across problems; its own settings are then used, not
-        the problem's ``solver:`` section.
+        the problem's ``solver:`` section. Without one, a solver of one gait is built
+        (``few_calls``: libraries it would call a few times are not compiled).
 
     Returns
     -------
@@ -69,4 +71,4 @@ def solve_problem(problem: Problem, solver: FixedPointSolver | None = None) -> F
 def solve_start(problem: Problem, solver: FixedPointSolver | None = None) -> FixedPointResult:
     """Solve and verify the problem's own fixed point, whatever else it holds: the gait a
     study or a branch starts from."""
-    return (solver or solver_for(problem)).solve(fixed_point_spec(problem), name=problem.name)
+    return (solver or solver_for(problem, few_calls=True)).solve(fixed_point_spec(problem), name=problem.name)

@@ -30,6 +30,7 @@ functions are compiled to C like the stride engine, so IPOPT's iterations run in
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import pathlib
 import sys
@@ -40,11 +41,13 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from baslip.engine.codegen import compile_library, library_name, module_files
+from baslip.engine.codegen import cached_library, compile_library, library_name, module_files
 from baslip.engine.kernels import StanceFlow, stance_clearances
 from baslip.engine.kernels import sources as kernel_sources
+from baslip.engine.libraryfacts import read_facts, write_facts
 from baslip.engine.returnmap import PHASES, ReturnMap, Stride
 from baslip.gait import monodromy as _monodromy
+from baslip.gait import nlpfunctions as _nlpfunctions
 from baslip.gait.ipopt_threads import pin_ipopt_threads
 from baslip.gait.monodromy import (
     SCHUR,
@@ -54,6 +57,7 @@ from baslip.gait.monodromy import (
     schur_start,
     structural_multipliers,
 )
+from baslip.gait.nlpfunctions import NLP_FUNCTIONS, nlp_functions
 from baslip.model import quantities as _quantities
 from baslip.model.dynamics import (
     APEX,
@@ -211,12 +215,44 @@ class ShootingNLP:
         self.strides = strides
         self.law = law
         self.design = design_names(law)
-        self.interval = _rk4_interval(1, law)  # for torque_effort, a reporting quadrature
-        self._stance = StanceFlow(law)
-        self._interval = self._shooting_interval()
-        self._build(compile)
+        if not self._load(compile):  # no graph to build where the cache holds library and facts
+            self._build(compile)
+        self._solvers: dict[tuple, ca.Function] = {(): self._nlpsol(self.functions, {})}
 
     # -- construction ------------------------------------------------------------------
+
+    @functools.cached_property
+    def interval(self) -> ca.Function:
+        """One RK4 step of stance with its tau^2 integral, for :func:`torque_effort`."""
+        return _rk4_interval(1, self.law)
+
+    @functools.cached_property
+    def _stance(self) -> StanceFlow:
+        return StanceFlow(self.law)
+
+    @functools.cached_property
+    def _library(self) -> str:
+        """The name of the NLP's compiled library (its discretisation, law and Hessian)."""
+        o = self.options
+        return (library_name("baslip_nlp", self.law) + f"_{self.strides}_{o.nodes}x{o.substeps}_{o.scheme}_"
+                f"{o.hessian.replace('-', '_')}{'_stable' if o.spectral_bound else ''}")
+
+    def _load(self, compile: bool | None) -> bool:
+        """Whether the cache holds the NLP's library and its sizes and bounds beside it, now
+        loaded (:mod:`baslip.engine.libraryfacts`); the stability NLP's pieces need its graph."""
+        if self.options.spectral_bound:
+            return False
+        facts = read_facts(self._library, NLP_FUNCTIONS, _nlp_sources(), optimisation=NLP_OPTIMISATION, enabled=compile)
+        if facts is None or facts.get("margin") != self.options.margin:  # the bounds hold the margin
+            return False
+        functions = cached_library(self._library, NLP_FUNCTIONS, _nlp_sources(), optimisation=NLP_OPTIMISATION)
+        if functions is None:
+            return False
+        self.functions = functions
+        self._n_w, self._n_orbit = facts["n_w"], facts["n_orbit"]
+        self._periodicity_row, self._energy_row = facts["periodicity_row"], facts["energy_row"]
+        self._lbg, self._ubg = np.array(facts["lbg"], dtype=float), np.array(facts["ubg"], dtype=float)
+        return True
 
     def _shooting_interval(self) -> ca.Function:
         """One shooting interval, ``substeps`` steps of the scheme: (x0, h, theta) -> end state."""
@@ -229,6 +265,7 @@ class ShootingNLP:
         return ca.Function("shooting_interval", [x0, h, theta], [end])
 
     def _build(self, compile: bool | None) -> None:
+        self._interval = self._shooting_interval()
         u, p = self.law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
         guess, weights = ca.MX.sym("guess", len(self.design)), ca.MX.sym("weights", 2)
         constraints: list[tuple[ca.MX, float, float]] = []
@@ -272,13 +309,15 @@ class ShootingNLP:
         self._lbg = np.concatenate([np.full(c[0].numel(), c[1], dtype=float) for c in constraints])
         self._ubg = np.concatenate([np.full(c[0].numel(), c[2], dtype=float) for c in constraints])
         self.functions = compile_library(  # objective, constraints and derivatives
-            library_name("baslip_nlp", self.law) + f"_{self.strides}_{self.options.nodes}x{self.options.substeps}_{self.options.scheme}_"
-            f"{self.options.hessian.replace('-', '_')}{'_stable' if self.options.spectral_bound else ''}",
-            [f"nlp_{n}" for n in ("fg", "grad_f", "jac_g", "hess_l")],
-            lambda: _nlp_functions(w, params, weights, distance, ca.vertcat(*effort), bound, g, self.options.hessian),
+            self._library, NLP_FUNCTIONS,
+            lambda: nlp_functions(w, params, weights, distance, ca.vertcat(*effort), bound, g, self.options.hessian),
             _nlp_sources(), enabled=compile, optimisation=NLP_OPTIMISATION,
         )
-        self._solvers: dict[tuple, ca.Function] = {(): self._nlpsol(self.functions, {})}
+        if not self.options.spectral_bound:
+            write_facts(self._library, NLP_FUNCTIONS, _nlp_sources(), {
+                "margin": self.options.margin, "n_w": self._n_w, "n_orbit": self._n_orbit,
+                "periodicity_row": self._periodicity_row, "energy_row": self._energy_row,
+                "lbg": self._lbg.tolist(), "ubg": self._ubg.tolist()}, optimisation=NLP_OPTIMISATION)
 
     def _stability(self, w, X0, u, p, shot, constraints, constrain):
         """The stability NLP's part (:mod:`baslip.gait.monodromy`): the sensitivity nodes
@@ -558,28 +597,6 @@ def _effort_residuals(law: HipLaw, states, u, p, h):
     return ca.vec(tau * ca.sqrt(h * weights))
 
 
-def _nlp_functions(w, params, weights, distance, effort, bound, g, kind: str) -> list[ca.Function]:
-    """The NLP's objective and constraints, their first derivatives, and the Hessian that
-    :data:`HESSIANS` names by ``kind`` (for ``limited-memory`` it is built but unused).
-    ``bound`` is the stability NLP's bound on the multipliers (0 elsewhere), minimised
-    with weight 1."""
-    f = weights[0] * distance + weights[1] * ca.sumsqr(effort) + bound
-    lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", g.numel())
-    if kind == "exact":
-        hessian = ca.hessian(lam_f * f + ca.dot(lam_g, g), w)[0]
-    else:  # exact for the distance term, Gauss-Newton (2 J^T J) for the torque term
-        effort_jacobian = ca.jacobian(effort, w)
-        hessian = lam_f * (weights[0] * ca.hessian(distance, w)[0]
-                           + 2 * weights[1] * ca.mtimes(effort_jacobian.T, effort_jacobian))
-    return [
-        ca.Function("nlp_fg", [w, params], [f, g], ["x", "p"], ["f", "g"]),
-        ca.Function("nlp_grad_f", [w, params], [f, ca.gradient(f, w)], ["x", "p"], ["f", "grad_f_x"]),
-        ca.Function("nlp_jac_g", [w, params], [g, ca.jacobian(g, w)], ["x", "p"], ["g", "jac_g_x"]),
-        ca.Function("nlp_hess_l", [w, params, lam_f, lam_g], [ca.triu(hessian)],
-                    ["x", "p", "lam_f", "lam_g"], ["hess_gamma_x_x"]),
-    ]
-
-
 def _nlp_sources() -> list[pathlib.Path]:
     """The modules the NLP is derived from: the compiled library's key."""
-    return [*kernel_sources(), *module_files(_quantities, _monodromy, sys.modules[__name__])]
+    return [*kernel_sources(), *module_files(_quantities, _monodromy, _nlpfunctions, sys.modules[__name__])]

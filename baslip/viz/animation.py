@@ -22,6 +22,7 @@ import numpy as np  # noqa: E402
 from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
+from baslip.engine.codegen import FEW_CALLS  # noqa: E402
 from baslip.engine.returnmap import ReturnMap, Tolerances  # noqa: E402
 from baslip.engine.trajectory import Trajectory, stride_trajectory  # noqa: E402
 from baslip.model.dynamics import Params  # noqa: E402
@@ -116,7 +117,8 @@ class GaitAnimation:
 def notebook_animation(X, u, params: Params, title: str, strides: int = 2, law: HipLaw = PD) -> GaitAnimation:
     """The gait from apex ``X`` under control ``u`` of hip law ``law``, ``strides`` strides
     in slow motion, as a :class:`GaitAnimation`."""
-    trajectory = stride_trajectory(ReturnMap(Tolerances(1e-10, 1e-10), law=law), X, u, params, strides=strides)
+    rmap = ReturnMap(Tolerances(1e-10, 1e-10), compile=FEW_CALLS, law=law)  # a few strides: see FEW_CALLS
+    trajectory = stride_trajectory(rmap, X, u, params, strides=strides)
     fig, animation = _animation(trajectory, params, title)
     plt.close(fig)  # drawn by the animation alone: a notebook shows no extra still frame
     return GaitAnimation(fig, animation, title)
