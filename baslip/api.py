@@ -93,8 +93,7 @@ def run(problem: Problem | str | Path, out: str | Path | None = None, *, jobs: i
     where = Path(sources) if sources is not None else (folder.parent if folder is not None else Path("results"))
     check_run(problem, folder, where, scheduler, fresh)
     if folder is None and problem.study is None and problem.continuation is None:
-        with progress_hidden(not progress):
-            return solve_problem(problem)  # a gait written nowhere needs no folder at all
+        return solve_problem(problem, progress=progress)  # a gait written nowhere needs no folder at all
     with progress_hidden(not progress), _place(folder, problem.name) as target:
         result = _run_into(problem, target, where, jobs=jobs, lanes=lanes, scheduler=scheduler, fresh=fresh,
                            quiet=not progress, kept=folder is not None)

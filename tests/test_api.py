@@ -14,6 +14,8 @@ import contextlib
 import csv
 import io
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -170,3 +172,30 @@ def test_a_gait_run_from_python_loads_neither_the_studies_nor_matplotlib(tmp_pat
     the command's does (``test_solve.py``): they are imported only by the runs that use them."""
     statement = f"import baslip; result = type(baslip.run('problems/downward.yaml', {str(tmp_path / 'downward')!r})).__name__"
     assert heavy_modules_after(statement) == ("FixedPointResult", [])
+
+
+def test_solve_problem_shows_progress_unless_asked_not_to_and_leaves_the_level_as_it_was():
+    """A script calling solve_problem alone, with no logging set up, hears its progress (a
+    first run's compiles, IPOPT's second try) on stderr, as ``baslip.run`` does; with
+    ``progress=False`` nothing below a warning is shown while it runs, and the level is
+    restored after."""
+    script = (
+        "import logging, baslip\n"
+        "from baslip.diagnostics import logger\n"
+        "from baslip.gait.fixedpoint import FixedPointSolver as solver\n"
+        "shown = []\n"
+        "probe = logger('baslip.probe')\n"
+        "solve = solver.solve\n"
+        "def solve_and_probe(self, *a, **k):\n"
+        "    shown.append(probe.isEnabledFor(logging.INFO))\n"
+        "    return solve(self, *a, **k)\n"
+        "solver.solve = solve_and_probe\n"
+        "problem = baslip.load_problem('downward')\n"
+        "baslip.solve_problem(problem, progress=False)\n"
+        "after_quiet = probe.isEnabledFor(logging.INFO)\n"
+        "assert baslip.solve_problem(problem).status == 'converged'\n"
+        "print(shown, after_quiet)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["[False,", "True]", "False"]

@@ -7,6 +7,7 @@
 
 from __future__ import annotations
 
+from baslip.diagnostics import progress_hidden, show_on_stderr
 from baslip.errors import ProblemKindError
 from baslip.gait.fixedpoint import FixedPointResult, FixedPointSolver
 from baslip.gait.shooting import FixedPointSpec, ShootingOptions, ipopt_options
@@ -38,7 +39,7 @@ def solver_for(problem: Problem, few_calls: bool = False) -> FixedPointSolver:
     return FixedPointSolver(shooting_options(problem), law=problem.hip_law, few_calls=few_calls)
 
 
-def solve_problem(problem: Problem, solver: FixedPointSolver | None = None) -> FixedPointResult:
+def solve_problem(problem: Problem, solver: FixedPointSolver | None = None, *, progress: bool = True) -> FixedPointResult:
     """Solve and verify the gait of ``problem``.
 
     Parameters
@@ -50,6 +51,10 @@ def solve_problem(problem: Problem, solver: FixedPointSolver | None = None) -> F
         A built solver, to reuse across problems; its own settings are then used, not
         the problem's ``solver:`` section. Without one, a solver of one gait is built
         (``few_calls``: libraries it would call a few times are not compiled).
+    progress : bool
+        Show progress on stderr (a compile's announcement and heartbeat, IPOPT's second
+        try), as :func:`baslip.run` does; unless the application configured logging
+        itself, whose handlers then decide.
 
     Returns
     -------
@@ -65,7 +70,10 @@ def solve_problem(problem: Problem, solver: FixedPointSolver | None = None) -> F
         if getattr(problem, section) is not None:
             raise ProblemKindError(section, f"problem {problem.name!r} holds a {section}, which solve_problem "
                                    "does not run; use baslip.run(problem) for it")
-    return solve_start(problem, solver)
+    if progress:
+        show_on_stderr()
+    with progress_hidden(not progress):
+        return solve_start(problem, solver)
 
 
 def solve_start(problem: Problem, solver: FixedPointSolver | None = None) -> FixedPointResult:
