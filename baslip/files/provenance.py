@@ -24,13 +24,13 @@ import hashlib
 import json
 import os
 import sys
-from importlib import metadata
 
 import casadi as ca
 import numpy as np
 
 from baslip.model.hiplaw import PD, HipLaw
 from baslip.problem.reader import Problem
+from baslip.version import __version__
 
 
 def resolved_problem(problem: Problem) -> dict:
@@ -72,12 +72,8 @@ def problem_hash(problem: Problem) -> str:
 
 def versions() -> dict:
     """Versions of the software that computes the results."""
-    try:
-        baslip_version = metadata.version("baslip")
-    except metadata.PackageNotFoundError:
-        baslip_version = "unknown"
     return {
-        "baslip": baslip_version,
+        "baslip": __version__,
         "casadi": ca.__version__,  # type: ignore[attr-defined]
         "ipopt": ipopt_version(),
         "numpy": np.__version__,
