@@ -4,6 +4,7 @@ Every converged result must survive an independent re-simulation at rtol = atol 
 with eps (thesis eq. 4.1) <= 1e-10; anything else is reported as not verified or failed.
 """
 
+import dataclasses
 import math
 
 import numpy as np
@@ -53,9 +54,10 @@ def test_result_record_has_exactly_the_documented_keys(downward):
     record = downward.to_json_dict()
     assert list(record) == [
         "name", "status", "solver", "params", "hip_law", "apex", "control", "durations",
-        "energy", "residual", "eigenvalues", "spectral_radius", "stable",
+        "energy", "residual", "eigenvalues", "spectral_radius", "stable", "on_bounds", "diagnosis",
     ]
-    assert set(record["solver"]) == {"return_status", "iterations", "time_s"}
+    assert set(record["solver"]) == {"return_status", "iterations", "time_s", "tries"}
+    assert record["diagnosis"] is None and record["on_bounds"] == []
     assert set(record["durations"]) == {"descent", "compression", "decompression", "ascent"}
     assert len(record["eigenvalues"]) == 4 and all(len(pair) == 2 for pair in record["eigenvalues"])
     radius = max(math.hypot(*pair) for pair in record["eigenvalues"])
@@ -106,6 +108,56 @@ def test_ipopt_failure_is_reported_not_raised(solver):
     assert result.status == "failed"
     assert result.solver.return_status not in ACCEPTED_IPOPT
     assert result.stability is None and result.to_json_dict()["eigenvalues"] is None
+
+
+def test_a_failure_reports_each_ipopt_try_and_what_binds(solver):
+    """The default Hessian's failure gets a second try with the exact one; both are
+    reported, their iterations adding up to the total, and the summary says so."""
+    spec = FixedPointSpec(Params(), fixed={"z": 0.4, "ydot": 0.5, "energy": 1.0}, guess=DOWNWARD_GUESS, bounds=HANGING)
+    result = solver.solve(spec)
+    tries = result.to_json_dict()["solver"]["tries"]
+    assert [t["settings"] for t in tries] == [{"hessian": "objective"}, {"hessian": "exact"}]
+    assert sum(t["iterations"] for t in tries) == result.solver.iterations
+    assert tries[-1]["return_status"] == result.solver.return_status
+    assert f"IPOPT: try 1 (hessian objective) {tries[0]['return_status']} in {tries[0]['iterations']} iterations; try 2" \
+        in result.summary()
+    assert result.diagnosis is not None and result.to_json_dict()["diagnosis"]["violated"]
+
+
+@pytest.fixture(scope="module")
+def human_at_the_foot_clearance():
+    """The human body at z = 1.05 m and 3 m/s under VPP (issue 56): no gait lets the foot
+    clear the ground at apex with the touchdown angle it needs."""
+    from baslip.gait.from_problem import solve_problem
+
+    text = load_problem("problems/vpp_human.yaml")
+    return solve_problem(dataclasses.replace(text, name="vpp_human_slow",
+                                             fix={"z": 1.05, "ydot": 3.0, "r_vpp": 0.1}))
+
+
+def test_a_failure_at_the_foot_clearance_limit_names_it_and_how_to_move_it(human_at_the_foot_clearance):
+    result = human_at_the_foot_clearance
+    assert result.status == "failed", result.message
+    theta_td_limit = math.degrees(math.acos((1.05 - 0.1 * math.sin(result.X[1])) / 1.0))  # about 18.19 deg
+    assert math.degrees(result.control["theta_td"]) == pytest.approx(theta_td_limit, abs=0.01)
+    binding = {limit["name"] for limit in result.to_json_dict()["diagnosis"]["binding"]}
+    assert "foot clearance at apex" in binding
+    summary = result.summary()
+    assert "binding  foot clearance at apex" in summary
+    assert f"keeps theta_td above {theta_td_limit:.2f} deg" in summary and "raise z (z > 1.055 m" in summary
+
+
+def test_a_gait_on_a_bound_says_so(solver, downward):
+    """Bounding theta_h where the free gait has it puts the verified gait on that bound;
+    result.json and the summary name the quantity, its value and the bound."""
+    theta_h = downward.apex["theta_h"]
+    spec = FixedPointSpec(Params(), fixed={"z": 0.4, "ydot": 0.5}, guess=DOWNWARD_GUESS,
+                          bounds={"theta_h": (-math.pi, theta_h)})
+    result = solver.verify_point(spec, downward.X, downward.u)
+    assert result.status == "converged", result.message
+    assert result.to_json_dict()["on_bounds"] == [{"name": "theta_h", "value": theta_h, "bound": theta_h, "unit": "rad"}]
+    assert f"on bound theta_h = {math.degrees(theta_h):.6g} deg" in result.summary()
+    assert downward.on_bounds == ()  # inside (-100, -80) deg: on no bound
 
 
 def test_disagreeing_re_simulation_is_not_verified(solver):
