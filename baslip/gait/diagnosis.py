@@ -239,6 +239,6 @@ def _shown(value: float, unit: str) -> str:
     """A value for people: angles in degrees, the rest in their SI unit."""
     if unit.startswith("rad"):
         return f"{math.degrees(value):.6g} deg{unit[len('rad'):]}"
-    if unit in ("", "SI"):
+    if not unit:
         return f"{value:.4g}"
     return f"{value:.4g} {unit}"

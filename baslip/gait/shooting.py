@@ -230,7 +230,8 @@ class ShootingNLP:
         constraints: list[tuple[ca.MX, float, float]] = []
         labels: list[RowLabel] = []
 
-        def constrain(expr, lo, hi, name: str | tuple[str, ...] = "a row of the stability NLP", unit: str = ""):
+        def constrain(expr, lo, hi, name: str | tuple[str, ...] = "a row of the stability NLP",
+                      unit: str | tuple[str, ...] = ""):
             expr = ca.vec(expr)
             constraints.append((expr, lo, hi))
             labels.extend(row_labels(name, unit, expr.numel()))
@@ -242,7 +243,8 @@ class ShootingNLP:
             comp_nodes = ca.MX.sym(f"compression_nodes{k}", STANCE.size, self.options.nodes)
             decomp_nodes = ca.MX.sym(f"decompression_nodes{k}", STANCE.size, self.options.nodes)
             if apex_next is not None:
-                constrain(apex_next - X, 0, 0, tuple(f"join of strides {k} and {k + 1} in {n}" for n in APEX.names))
+                constrain(apex_next - X, 0, 0, tuple(f"join of strides {k} and {k + 1} in {n}" for n in APEX.names),
+                          APEX_UNITS)
             stride = f"stride {k + 1}: " if self.strides > 1 else ""
             apex_next, stride_effort = shoot_stride(self._stance, self._interval, self.options.margin, X, u, p, T,
                                                      comp_nodes, decomp_nodes, named(constrain, stride))
@@ -253,7 +255,7 @@ class ShootingNLP:
             blocks += ([] if k == 0 else [X]) + [T, ca.vec(comp_nodes), ca.vec(decomp_nodes)]
         X0 = apexes[0]
         self._periodicity_row = sum(c[0].numel() for c in constraints)
-        constrain(apex_next - X0, 0, 0, tuple(f"periodicity of {n}" for n in APEX.names))  # the orbit closes
+        constrain(apex_next - X0, 0, 0, tuple(f"periodicity of {n}" for n in APEX.names), APEX_UNITS)  # the orbit closes
         self._energy_row = sum(c[0].numel() for c in constraints)
         constrain(apex_energy(X0, p), -ca.inf, ca.inf, "apex energy", "J")  # bounded or fixed per problem
 
@@ -486,6 +488,10 @@ class ShootingNLP:
                             int(stats["iter_count"])),),
             spectral_bound=float(w[self._bound_index]) if self.options.spectral_bound else None,
         )
+
+
+#: The unit of each apex coordinate, for the names of the rows that join and close the orbit.
+APEX_UNITS = tuple(UNITS[name] for name in APEX.names)
 
 
 def implied_periodicity(spec: FixedPointSpec) -> tuple[str, ...]:

@@ -51,23 +51,30 @@ class RowValues:
 
 @dataclass(frozen=True)
 class RowLabel:
-    """What one row of the NLP's constraints is: its name and unit (``SI`` for a row of
-    several units, such as a node's continuity)."""
+    """What one row of the NLP's constraints is: its name and SI unit (empty for a
+    dimensionless row)."""
 
     name: str
     unit: str
 
 
-def row_labels(name: str | tuple[str, ...], unit: str, rows: int) -> list[RowLabel]:
-    """A label per row: the names given, or one name numbered when it covers several rows."""
-    if isinstance(name, tuple):
-        return [RowLabel(n, unit) for n in name]
-    return [RowLabel(name if rows == 1 else f"{name} [{i}]", unit) for i in range(rows)]
+def row_labels(name: str | tuple[str, ...], unit: str | tuple[str, ...], rows: int) -> list[RowLabel]:
+    """A label per row: the names (and units) given, or one name numbered when it covers
+    several rows."""
+    names = name if isinstance(name, tuple) else tuple(name if rows == 1 else f"{name} [{i}]" for i in range(rows))
+    units = unit if isinstance(unit, tuple) else (unit,) * rows
+    return [RowLabel(n, u) for n, u in zip(names, units, strict=True)]
 
 
-def node_names(what: str, nodes: int) -> tuple[str, ...]:
-    """Row names of the continuity of ``nodes`` stance nodes, every state coordinate of each."""
-    return tuple(f"{what} at node {k + 1} in {n}" for k in range(nodes) for n in STANCE.names)
+#: The unit of each stance state coordinate (:data:`baslip.model.dynamics.STANCE`).
+STANCE_UNITS = ("m", "rad", "rad", "m/s", "rad/s", "rad/s")
+
+
+def node_names(what: str, nodes: int) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """Row names and units of the continuity of ``nodes`` stance nodes, every state
+    coordinate of each."""
+    names = tuple(f"{what} at node {k + 1} in {n}" for k in range(nodes) for n in STANCE.names)
+    return names, STANCE_UNITS * nodes
 
 
 def named(constrain, prefix: str):
@@ -75,7 +82,7 @@ def named(constrain, prefix: str):
     if not prefix:
         return constrain
 
-    def prefixed(expr, lo, hi, name, unit=""):
+    def prefixed(expr, lo, hi, name, unit: str | tuple[str, ...] = ""):
         named = tuple(prefix + n for n in name) if isinstance(name, tuple) else prefix + name
         return constrain(expr, lo, hi, named, unit)
 
@@ -103,7 +110,7 @@ def shoot_stride(stance: StanceFlow, interval: ca.Function, margin: float, X, u,
 
     starts_c = ca.horzcat(x_td, comp_nodes[:, :-1])
     ends_c = interval.map(n)(starts_c, ca.repmat(t_compression / n, 1, n), theta)
-    constrain(comp_nodes - ends_c, 0, 0, node_names("continuity of compression", n), "SI")
+    constrain(comp_nodes - ends_c, 0, 0, *node_names("continuity of compression", n))
     bottom = comp_nodes[:, -1]
     constrain(bottom_guard(bottom), 0, 0, "rhodot at the bottom", "m/s")
     rho_accel = STANCE.get(stance.rhs(bottom, ca.vertcat(u, p)), "rhodot")
@@ -114,7 +121,7 @@ def shoot_stride(stance: StanceFlow, interval: ca.Function, margin: float, X, u,
 
     starts_d = ca.horzcat(bottom, decomp_nodes[:, :-1])
     ends_d = interval.map(n)(starts_d, ca.repmat(t_decompression / n, 1, n), theta)
-    constrain(decomp_nodes - ends_d, 0, 0, node_names("continuity of decompression", n), "SI")
+    constrain(decomp_nodes - ends_d, 0, 0, *node_names("continuity of decompression", n))
     x_lo = decomp_nodes[:, -1]
     constrain(liftoff_guard(x_lo, p), 0, 0, "rho - rho0 at liftoff", "m")
     constrain(STANCE.get(x_lo, "rhodot"), margin, ca.inf, "rhodot at liftoff", "m/s")
