@@ -2,7 +2,8 @@
 
 At IPOPT's last iterate (:meth:`baslip.gait.shooting.ShootingNLP.rows_at`) a limit
 *binds* when an inequality row or a variable's bound is met to within
-:data:`ACTIVE_TOLERANCE` of its scale, and a row is *violated* when it misses its limit by
+:data:`ACTIVE_TOLERANCE` of its scale (when none does, those within
+:data:`NEAR_TOLERANCE` are *near*), and a row is *violated* when it misses its limit by
 more; each named limit with its value becomes a :class:`Limit`, and the limits that have a
 known remedy become suggestions (what to change, in degrees for angles). A verified gait's
 design quantities on their bounds are listed the same way (:func:`limits_on_bounds`).
@@ -25,6 +26,10 @@ from baslip.model.quantities import NOMINAL, UNITS
 #: speeds by sqrt(g rho0), times by sqrt(rho0 / g), ...). IPOPT's interior point stops a
 #: few 1e-6 m inside a binding foot clearance at human scale (rho0 = 1 m).
 ACTIVE_TOLERANCE = 1e-4
+#: When nothing binds (IPOPT stopped at its iteration limit, say), the limits met to
+#: within this fraction of their scale are named as near: 1 mm of foot clearance at
+#: human scale.
+NEAR_TOLERANCE = 1e-3
 #: A design quantity is on its bound when within this fraction of the bound's scale (the
 #: larger of |bound| and the quantity's nominal scale); the polish keeps a bound it meets
 #: exactly, so this only absorbs round-off.
@@ -72,6 +77,8 @@ class Diagnosis:
     ----------
     binding : tuple of Limit
         Inequality rows and variable bounds met at the last iterate.
+    near : tuple of Limit
+        When none binds, those within :data:`NEAR_TOLERANCE` of their limit.
     violated : tuple of Limit
         The rows missed by the most (scaled), at most :data:`VIOLATED_SHOWN`.
     suggestions : tuple of str
@@ -79,6 +86,7 @@ class Diagnosis:
     """
 
     binding: tuple[Limit, ...]
+    near: tuple[Limit, ...]
     violated: tuple[Limit, ...]
     suggestions: tuple[str, ...]
 
@@ -87,15 +95,18 @@ class Diagnosis:
         lines = []
         if self.binding:
             lines.append("  binding  " + "; ".join(limit.text() for limit in self.binding))
+        if self.near:
+            lines.append("  near     " + "; ".join(limit.text() for limit in self.near))
         if self.violated:
             lines.append("  violated " + "; ".join(limit.text() for limit in self.violated))
         lines += [f"  suggest  {text}" for text in self.suggestions]
         return lines
 
     def to_json_dict(self) -> dict:
-        """result.json's ``diagnosis``: ``binding`` and ``violated`` lists of
+        """result.json's ``diagnosis``: ``binding``, ``near`` and ``violated`` lists of
         ``{name, value, bound, unit}`` (SI units and radians) and ``suggestions``."""
         return {"binding": [limit.to_json_dict() for limit in self.binding],
+                "near": [limit.to_json_dict() for limit in self.near],
                 "violated": [limit.to_json_dict() for limit in self.violated],
                 "suggestions": list(self.suggestions)}
 
@@ -104,18 +115,19 @@ def diagnose(rows: RowValues, spec: FixedPointSpec) -> Diagnosis:
     """The limits binding and the rows violated at ``rows`` (an NLP point of ``spec``),
     with suggestions."""
     scale = _Scales(spec.params)
-    binding = [*_binding_rows(rows.rows, rows.g, rows.lbg, rows.ubg, scale),
-               *_binding_rows(rows.variables, rows.w, rows.lbx, rows.ubx, scale)]
+    binding = _limits_within(rows, scale, ACTIVE_TOLERANCE)
+    near = [] if binding else _limits_within(rows, scale, NEAR_TOLERANCE)
     violated = _violated_rows(rows, scale)
     design = dict(zip(spec.design, rows.w[: len(spec.design)]))
-    at_apex = any(limit.name.endswith(FOOT_AT_APEX) for limit in binding)
+    limits = binding or near
+    at_apex = any(limit.name.endswith(FOOT_AT_APEX) for limit in limits)
     # A foot on the ground at apex stays there through a descent that then vanishes: one remedy.
-    explained = [limit for limit in binding if not (at_apex and _within_descent(limit.name))]
+    explained = [limit for limit in limits if not (at_apex and _within_descent(limit.name))]
     suggestions = tuple(dict.fromkeys(s for limit in explained for s in _suggestions(limit, spec, design)))
     if not suggestions and violated:
         suggestions = (f"no limit binds and {violated[0].name} stays off: start from a guess nearer a gait "
                        "(docs/guides/guesses.md) or change the fixed values",)
-    return Diagnosis(tuple(binding), tuple(violated), suggestions)
+    return Diagnosis(tuple(binding), tuple(near), tuple(violated), suggestions)
 
 
 def diagnose_nlp(nlp: ShootingNLP | None, spec: FixedPointSpec, solution: NlpSolution) -> Diagnosis | None:
@@ -154,9 +166,16 @@ class _Scales:
         return {"m": length, "m/s": length / time, "m/s^2": p.g, "s": time, "J": p.m * p.g * length}.get(unit, 1.0)
 
 
-def _binding_rows(labels: Iterable[RowLabel], values, lower, upper, scale: _Scales) -> list[Limit]:
-    """The named rows whose value meets a finite limit to within its tolerance; equal
-    limits (an equality row, a fixed variable) are always met or violated, never binding."""
+def _limits_within(rows: RowValues, scale: _Scales, tolerance: float) -> list[Limit]:
+    """The inequality rows and variable bounds met to within ``tolerance`` of their scale."""
+    return [*_binding_rows(rows.rows, rows.g, rows.lbg, rows.ubg, scale, tolerance),
+            *_binding_rows(rows.variables, rows.w, rows.lbx, rows.ubx, scale, tolerance)]
+
+
+def _binding_rows(labels: Iterable[RowLabel], values, lower, upper, scale: _Scales, tolerance: float) -> list[Limit]:
+    """The named rows whose value meets a finite limit to within ``tolerance`` of its
+    scale; equal limits (an equality row, a fixed variable) are always met or violated,
+    never binding."""
     found = []
     for label, value, lo, hi in zip(labels, values, lower, upper):
         if not label.name or lo == hi:
@@ -164,7 +183,7 @@ def _binding_rows(labels: Iterable[RowLabel], values, lower, upper, scale: _Scal
         for bound in (lo, hi):
             # A design quantity's scale is its bound's size or its nominal scale; a row's, its unit's.
             size = max(abs(bound), NOMINAL[label.name]) if label.name in NOMINAL else scale.of(label.unit)
-            if math.isfinite(bound) and abs(value - bound) <= ACTIVE_TOLERANCE * size:
+            if math.isfinite(bound) and abs(value - bound) <= tolerance * size:
                 found.append(Limit(label.name, float(value), float(bound), label.unit))
     return found
 
@@ -226,7 +245,7 @@ def _foot_at_apex(spec: FixedPointSpec, design: dict[str, float]) -> str:
     needed = hip_drop + p.rho0 * math.cos(flatter)
     text = (f"the foot only just clears the ground at apex (it clears when z > d sin(theta_h) + rho0 cos(theta_td)); "
             f"at z = {z:.4g} m and theta_h = {math.degrees(theta_h):.4g} deg that keeps theta_td above "
-            f"{least:.2f} deg, where it sits ({math.degrees(theta_td):.4f} deg)")
+            f"{least:.2f} deg (it is {math.degrees(theta_td):.4f} deg)")
     if "z" in spec.fixed or "theta_td" not in spec.fixed:
         text += (f", and the gait wants a flatter leg: raise z (z > {needed:.4g} m lets theta_td go to "
                  f"{math.degrees(flatter):.2f} deg)")
