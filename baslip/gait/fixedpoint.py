@@ -23,7 +23,7 @@ import numpy as np
 
 from baslip.engine.returnmap import PHASES, ReturnMap, Tolerances
 from baslip.gait.diagnosis import Diagnosis, Limit, diagnose_nlp, limits_on_bounds
-from baslip.gait.ipopt_report import SolverReport
+from baslip.gait.ipopt_report import IpoptTry, SolverReport
 from baslip.gait.polish import Polish
 from baslip.gait.polish import eps as _eps
 from baslip.gait.shooting import FixedPointSpec, NlpSolution, ShootingNLP, ShootingOptions, torque_effort
@@ -464,8 +464,9 @@ class FixedPointSolver:
         try:
             return nlp.solve(spec, w0=w0, rmap=self.residual_map, ipopt=ipopt)
         except RuntimeError as err:  # CasADi could not even run IPOPT
+            status = f"Error: {_first_line(err)}"
             return NlpSolution(spec.start_design()[: APEX.size], spec.start_design()[APEX.size :],
-                               np.full(len(PHASES), np.nan), f"Error: {_first_line(err)}", 0, 0.0)
+                               np.full(len(PHASES), np.nan), status, 0, 0.0, tries=(IpoptTry(nlp.try_settings(ipopt), status, 0),))
 
     # -- pieces --------------------------------------------------------------------------
 

@@ -153,7 +153,7 @@ class NlpSolution:
     time_s: float
     w: np.ndarray | None = None  # every NLP variable, to warm-start a neighbouring solve
     spectral_bound: float | None = None  # the stability NLP's bound on the multipliers' moduli
-    tries: tuple[IpoptTry, ...] = ()  # each run of IPOPT that led here, when the caller tried more than one
+    tries: tuple[IpoptTry, ...] = ()  # the runs of IPOPT that led here: this one, after any earlier tries
 
 
 def _rk4_interval(substeps: int, law: HipLaw) -> ca.Function:
@@ -445,6 +445,11 @@ class ShootingNLP:
             labels[t0 : t0 + len(PHASES)] = [RowLabel(f"{phase} duration{stride}", "s") for phase in PHASES]
         return tuple(labels)
 
+    def try_settings(self, ipopt: Mapping[str, object] | None = None) -> dict[str, object]:
+        """What sets a run of IPOPT with ``ipopt`` over the options' settings apart: the
+        Hessian, and those settings."""
+        return {"hessian": self.options.hessian, **dict(ipopt or {})}
+
     def _solver(self, changed: Mapping[str, object]) -> ca.Function:
         """IPOPT with ``changed`` over the options' settings, built on first use."""
         key = tuple(sorted(changed.items()))
@@ -484,8 +489,7 @@ class ShootingNLP:
             iterations=int(stats["iter_count"]),
             time_s=elapsed,
             w=w,
-            tries=(IpoptTry({"hessian": self.options.hessian, **dict(ipopt or {})}, str(stats["return_status"]),
-                            int(stats["iter_count"])),),
+            tries=(IpoptTry(self.try_settings(ipopt), str(stats["return_status"]), int(stats["iter_count"])),),
             spectral_bound=float(w[self._bound_index]) if self.options.spectral_bound else None,
         )
 
