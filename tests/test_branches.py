@@ -239,3 +239,18 @@ def test_second_derivatives_agree_with_differences_of_the_ad_jacobians(name):
 ])
 def test_a_vanishing_phase_is_named_as_grazing_with_its_duration(durations, named):
     assert grazing_phase(durations, 1.05, stride=2) == named
+
+
+def test_an_orbit_that_falls_with_its_foot_at_the_ground_at_apex_is_named_as_grazing(slip_branch):
+    """A stride whose foot starts 1e-13 m below the ground falls at once (the foot below
+    ground at apex), yet the branch it ends is grazing: its descent has vanished."""
+    system, branch = slip_branch
+    X, u, params, lam = system.unpack(branch.points[0].v)
+    theta_td = system.spec.law.control_dict(u)["theta_td"]
+    X = X.copy()
+    X[0] = params.d * math.sin(X[1]) + params.rho0 * math.cos(theta_td) - 1e-13
+    assert system.residual_map.simulate(X, u, params, 1).fall is not None
+    named = system.grazing(system.pack(X, u, lam))
+    assert named is not None and named.startswith("grazing: the foot is at the ground at the apex of stride 1")
+    X[0] += 1e-3  # a millimetre clear: a stride with a descent, not grazing
+    assert system.grazing(system.pack(X, u, lam)) is None

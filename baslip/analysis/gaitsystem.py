@@ -63,6 +63,21 @@ def grazing_phase(durations: Mapping[str, float], z: float, stride: int = 1) -> 
     return None
 
 
+#: A foot this close to the ground at apex (a fraction of rho0) touches it there: the
+#: descent has vanished, and the stride may fall where the event cannot be resolved.
+TOUCHING_FRACTION = 1e-9
+
+
+def _touching_at_apex(X: np.ndarray, theta_td: float, params: Params) -> str | None:
+    """The grazing of an orbit whose stride falls because its foot is at the ground at
+    apex (clearance z - d sin(theta_h) - rho0 cos(theta_td) within
+    :data:`TOUCHING_FRACTION` of rho0), or None."""
+    clearance = X[0] - params.d * np.sin(X[1]) - params.rho0 * np.cos(theta_td)
+    if abs(clearance) > TOUCHING_FRACTION * params.rho0:
+        return None
+    return f"grazing: the foot is at the ground at the apex of stride 1 (clearance {clearance:.2g} m): the descent vanishes (0 ms)"
+
+
 def _ms(seconds: float) -> str:
     """A duration in milliseconds, for people."""
     return f"{1e3 * seconds:.3g} ms"
@@ -417,7 +432,7 @@ class FixedPointSystem:
         X, u, params, _ = self.unpack(v)
         orbit = self.residual_map.simulate(X, u, params, self.spec.strides)
         if orbit.fall is not None:
-            return None
+            return _touching_at_apex(X, self.spec.law.control_dict(u)["theta_td"], params)
         for k, durations in enumerate(orbit.durations):
             found = grazing_phase(durations, orbit.apexes[k][0], k + 1)
             if found:
