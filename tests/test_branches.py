@@ -15,7 +15,7 @@ import pytest
 from slip import slip_apex_map, slip_fixed_point  # the independent SLIP (tests/ is on sys.path)
 
 from baslip.analysis.continuation import Settings, continue_branch, switch_branch
-from baslip.analysis.gaitsystem import FixedPointSystem, NearestGuessSystem, branch_system
+from baslip.analysis.gaitsystem import FixedPointSystem, NearestGuessSystem, branch_system, grazing_phase
 from baslip.gait.fixedpoint import minimal_period
 from baslip.gait.from_problem import fixed_point_spec, solver_for
 from baslip.gait.shooting import FixedPointSpec
@@ -222,3 +222,35 @@ def test_second_derivatives_agree_with_differences_of_the_ad_jacobians(name):
     reference = np.column_stack([weights @ differenced(points.jacobian, j) for j in range(len(v))])
     assert np.linalg.norm(hessian - reference) <= 1e-5 * np.linalg.norm(reference)
     assert np.allclose(hessian, hessian.T, rtol=0, atol=1e-9 * np.abs(hessian).max())
+
+
+@pytest.mark.parametrize(("durations", "named"), [
+    # The runner barely leaves the ground: both flight phases vanish together, so neither
+    # is a small share of the flight, but the flight is of the stride.
+    ({"descent": 1.7e-7, "compression": 0.1, "decompression": 0.1, "ascent": 2.0e-7},
+     "grazing: the flight of stride 2 vanishes (descent 0.00017 ms and ascent 0.0002 ms of a 200 ms stride)"),
+    ({"descent": 1.7e-7, "compression": 0.1, "decompression": 0.1, "ascent": 0.02},
+     "grazing: the apex of stride 2 (z = 1.05 m) is at the touchdown height (descent 0.00017 ms of a 20 ms flight)"),
+    ({"descent": 0.02, "compression": 0.1, "decompression": 0.1, "ascent": 1e-5},
+     "grazing: the liftoff of stride 2 is at the apex height: the ascent vanishes (ascent 0.01 ms of a 20 ms flight)"),
+    ({"descent": 0.02, "compression": 1e-4, "decompression": 0.1, "ascent": 0.02},
+     "grazing: the compression of stride 2 lasts 0.1 ms of a 100 ms stance"),
+    ({"descent": 0.02, "compression": 0.1, "decompression": 0.1, "ascent": 0.02}, None),
+])
+def test_a_vanishing_phase_is_named_as_grazing_with_its_duration(durations, named):
+    assert grazing_phase(durations, 1.05, stride=2) == named
+
+
+def test_an_orbit_that_falls_with_its_foot_at_the_ground_at_apex_is_named_as_grazing(slip_branch):
+    """A stride whose foot starts 1e-13 m below the ground falls at once (the foot below
+    ground at apex), yet the branch it ends is grazing: its descent has vanished."""
+    system, branch = slip_branch
+    X, u, params, lam = system.unpack(branch.points[0].v)
+    theta_td = system.spec.law.control_dict(u)["theta_td"]
+    X = X.copy()
+    X[0] = params.d * math.sin(X[1]) + params.rho0 * math.cos(theta_td) - 1e-13
+    assert system.residual_map.simulate(X, u, params, 1).fall is not None
+    named = system.grazing(system.pack(X, u, lam))
+    assert named is not None and named.startswith("grazing: the foot is at the ground at the apex of stride 1")
+    X[0] += 1e-3  # a millimetre clear: a stride with a descent, not grazing
+    assert system.grazing(system.pack(X, u, lam)) is None

@@ -53,9 +53,10 @@ def test_result_record_has_exactly_the_documented_keys(downward):
     record = downward.to_json_dict()
     assert list(record) == [
         "name", "status", "solver", "params", "hip_law", "apex", "control", "durations",
-        "energy", "residual", "eigenvalues", "spectral_radius", "stable",
+        "energy", "residual", "eigenvalues", "spectral_radius", "stable", "on_bounds", "diagnosis",
     ]
-    assert set(record["solver"]) == {"return_status", "iterations", "time_s", "compile_s"}
+    assert set(record["solver"]) == {"return_status", "iterations", "time_s", "compile_s", "tries"}
+    assert record["diagnosis"] is None and record["on_bounds"] == []
     assert set(record["durations"]) == {"descent", "compression", "decompression", "ascent"}
     assert len(record["eigenvalues"]) == 4 and all(len(pair) == 2 for pair in record["eigenvalues"])
     radius = max(math.hypot(*pair) for pair in record["eigenvalues"])
@@ -136,6 +137,74 @@ def test_ipopt_failure_is_reported_not_raised(solver):
     assert result.stability is None and result.to_json_dict()["eigenvalues"] is None
 
 
+def test_a_failure_reports_each_ipopt_try_and_what_binds(solver):
+    """The default Hessian's failure gets a second try with the exact one; both are
+    reported, their iterations adding up to the total, and the summary says so."""
+    spec = FixedPointSpec(Params(), fixed={"z": 0.4, "ydot": 0.5, "energy": 1.0}, guess=DOWNWARD_GUESS, bounds=HANGING)
+    result = solver.solve(spec)
+    tries = result.to_json_dict()["solver"]["tries"]
+    assert [t["settings"] for t in tries] == [{"hessian": "objective"}, {"hessian": "exact"}]
+    assert sum(t["iterations"] for t in tries) == result.solver.iterations
+    assert tries[-1]["return_status"] == result.solver.return_status
+    assert f"IPOPT: try 1 (hessian objective) {tries[0]['return_status']} in {tries[0]['iterations']} iterations; try 2" \
+        in result.summary()
+    assert result.diagnosis is not None and result.to_json_dict()["diagnosis"]["violated"]
+
+
+HUMAN_AT_3_M_S = {
+    "params": {"m": 80.0, "I": 4.58, "k": 20000.0, "rho0": 1.0, "d": 0.1, "g": 9.81},
+    "fix": {"z": 1.05, "ydot": 3.0},
+    "guess": {"theta_h": "90 deg", "theta_h_dot": -0.1, "theta_td": "23.6 deg"},
+}
+
+
+@pytest.fixture(scope="module", params=["vpp", "pd"])
+def human_at_the_foot_clearance(request):
+    """The human body at z = 1.05 m and 3 m/s (issue 56), under each law from the
+    human-scale guess of problems/vpp_human.yaml: no gait lets the foot clear the ground
+    at apex with the touchdown angle it needs."""
+    from baslip.gait.from_problem import solve_problem
+    from baslip.problem.reader import parse_problem
+
+    law = request.param
+    data = {**HUMAN_AT_3_M_S, "hip_law": law}
+    if law == "vpp":
+        data["fix"] = {**data["fix"], "r_vpp": 0.1}
+    return solve_problem(parse_problem(data, f"{law}_human_slow"))
+
+
+def test_a_failure_at_the_foot_clearance_limit_names_it_and_how_to_move_it(human_at_the_foot_clearance):
+    """Under VPP IPOPT finds the problem infeasible with theta_td on the limit; under PD it
+    runs out of iterations 0.6 mm from it. Either way the limit is named (binding or
+    near) and the summary gives the least theta_td in degrees and the height to aim for."""
+    result = human_at_the_foot_clearance
+    assert result.status == "failed", result.message
+    theta_td_limit = math.degrees(math.acos((1.05 - 0.1 * math.sin(result.X[1])) / 1.0))  # about 18.19 deg
+    assert math.degrees(result.control["theta_td"]) == pytest.approx(theta_td_limit, abs=0.15)
+    diagnosis = result.to_json_dict()["diagnosis"]
+    named = {limit["name"] for limit in diagnosis["binding"] or diagnosis["near"]}
+    assert "foot clearance at apex" in named
+    summary = result.summary()
+    assert "foot clearance at apex = " in summary
+    assert f"keeps theta_td above {theta_td_limit:.2f} deg" in summary and "raise z (z > 1.055 m" in summary
+    if result.law.name == "vpp":
+        assert result.solver.return_status == "Infeasible_Problem_Detected"
+        assert "binding  foot clearance at apex" in summary
+
+
+def test_a_gait_on_a_bound_says_so(solver, downward):
+    """Bounding theta_h where the free gait has it puts the verified gait on that bound;
+    result.json and the summary name the quantity, its value and the bound."""
+    theta_h = downward.apex["theta_h"]
+    spec = FixedPointSpec(Params(), fixed={"z": 0.4, "ydot": 0.5}, guess=DOWNWARD_GUESS,
+                          bounds={"theta_h": (-math.pi, theta_h)})
+    result = solver.verify_point(spec, downward.X, downward.u)
+    assert result.status == "converged", result.message
+    assert result.to_json_dict()["on_bounds"] == [{"name": "theta_h", "value": theta_h, "bound": theta_h, "unit": "rad"}]
+    assert f"on bound theta_h = {math.degrees(theta_h):.6g} deg" in result.summary()
+    assert downward.on_bounds == ()  # inside (-100, -80) deg: on no bound
+
+
 def test_disagreeing_re_simulation_is_not_verified(solver):
     """If the independent map disagrees (here: a deliberately loose one), nothing converges."""
     spec = FixedPointSpec(Params(), fixed={"z": 0.4, "ydot": 0.5}, guess=DOWNWARD_GUESS, bounds=HANGING)
@@ -147,6 +216,8 @@ def test_disagreeing_re_simulation_is_not_verified(solver):
         solver.verify_map = strict
     assert result.status == "not_verified" and "eps" in result.message
     assert result.residual > 1e-10 and result.stability is None
+    # Explained from IPOPT's point, which met every row: nothing violated.
+    assert result.diagnosis is not None and result.diagnosis.violated == ()
 
 
 def test_an_energy_bound_holds_after_the_polish(solver):

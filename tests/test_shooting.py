@@ -70,7 +70,8 @@ def test_unknown_hessian_is_refused():
 def test_a_warm_nlp_takes_its_sizes_and_bounds_from_beside_its_library_and_solves_the_same(solver, downward_spec,
                                                                                          monkeypatch):
     """With the library cached, the facts kept beside it replace the symbolic graph (which
-    is then not built), and give the same bounds, sizes and solution as the graph."""
+    is then not built), and give the same bounds, sizes, row names and solution as the
+    graph (the names explain a failure's binding rows)."""
     import baslip.gait.shooting as shooting
 
     monkeypatch.setattr(shooting, "read_facts", lambda *arguments, **keywords: None)
@@ -78,7 +79,7 @@ def test_a_warm_nlp_takes_its_sizes_and_bounds_from_beside_its_library_and_solve
     monkeypatch.undo()
     monkeypatch.setattr(ShootingNLP, "_build", lambda self, compile: pytest.fail("the graph was built"))
     warm = ShootingNLP()
-    for name in ("_n_w", "_n_orbit", "_periodicity_row", "_energy_row"):
+    for name in ("_n_w", "_n_orbit", "_periodicity_row", "_energy_row", "row_labels"):
         assert getattr(warm, name) == getattr(from_graph, name)
     np.testing.assert_array_equal(warm._lbg, from_graph._lbg)
     np.testing.assert_array_equal(warm._ubg, from_graph._ubg)

@@ -20,7 +20,7 @@ from baslip.engine.codegen import cache_dir
 ROOT = Path(__file__).resolve().parents[1]
 RESULT_KEYS = [
     "name", "status", "solver", "params", "hip_law", "apex", "control", "durations",
-    "energy", "residual", "eigenvalues", "spectral_radius", "stable", "provenance",
+    "energy", "residual", "eigenvalues", "spectral_radius", "stable", "on_bounds", "diagnosis", "provenance",
 ]
 
 

@@ -16,6 +16,7 @@ their value), so that arclength steps are balanced.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import replace
 
 import casadi as ca
@@ -37,6 +38,49 @@ GRAZING_FRACTION = 0.02
 #: derivatives where the stride has none (orbits of several strides; strides the
 #: compiled engine cannot vouch for).
 CURVATURE_STEP = 1e-6
+
+
+def grazing_phase(durations: Mapping[str, float], z: float, stride: int = 1) -> str | None:
+    """Which phase of a stride (``durations`` [s] by phase, from the apex at height ``z``
+    [m]) is vanishing, named with its duration, or None: the whole flight (under
+    :data:`GRAZING_FRACTION` of the stride: the runner barely leaves the ground), the
+    descent or the ascent (under that fraction of the flight: the apex at the touchdown or
+    liftoff height), or a stance phase (under that fraction of the stance)."""
+    flight = durations["descent"] + durations["ascent"]
+    stance = durations["compression"] + durations["decompression"]
+    if flight < GRAZING_FRACTION * (flight + stance):
+        return (f"grazing: the flight of stride {stride} vanishes (descent {_ms(durations['descent'])} and ascent "
+                f"{_ms(durations['ascent'])} of a {_ms(flight + stance)} stride)")
+    if durations["descent"] < GRAZING_FRACTION * flight:
+        return (f"grazing: the apex of stride {stride} (z = {z:.6g} m) is at the touchdown height "
+                f"(descent {_ms(durations['descent'])} of a {_ms(flight)} flight)")
+    if durations["ascent"] < GRAZING_FRACTION * flight:
+        return (f"grazing: the liftoff of stride {stride} is at the apex height: the ascent vanishes "
+                f"(ascent {_ms(durations['ascent'])} of a {_ms(flight)} flight)")
+    for phase in ("compression", "decompression"):
+        if durations[phase] < GRAZING_FRACTION * stance:
+            return f"grazing: the {phase} of stride {stride} lasts {_ms(durations[phase])} of a {_ms(stance)} stance"
+    return None
+
+
+#: A foot this close to the ground at apex (a fraction of rho0) touches it there: the
+#: descent has vanished, and the stride may fall where the event cannot be resolved.
+TOUCHING_FRACTION = 1e-9
+
+
+def _touching_at_apex(X: np.ndarray, theta_td: float, params: Params) -> str | None:
+    """The grazing of an orbit whose stride falls because its foot is at the ground at
+    apex (clearance z - d sin(theta_h) - rho0 cos(theta_td) within
+    :data:`TOUCHING_FRACTION` of rho0), or None."""
+    clearance = X[0] - params.d * np.sin(X[1]) - params.rho0 * np.cos(theta_td)
+    if abs(clearance) > TOUCHING_FRACTION * params.rho0:
+        return None
+    return f"grazing: the foot is at the ground at the apex of stride 1 (clearance {clearance:.2g} m): the descent vanishes (0 ms)"
+
+
+def _ms(seconds: float) -> str:
+    """A duration in milliseconds, for people."""
+    return f"{1e3 * seconds:.3g} ms"
 
 
 def branch_system(spec: FixedPointSpec, parameter: str, residual_map: ReturnMap, jacobian_map: ReturnMap,
@@ -383,22 +427,16 @@ class FixedPointSystem:
         return None
 
     def grazing(self, v: np.ndarray) -> str | None:
-        """If the orbit at ``v`` is close to grazing, where: an apex at the touchdown
-        height (its descent lasting under :data:`GRAZING_FRACTION` of its flight) or a
-        stance phase shrinking to nothing. None otherwise (or if the orbit falls)."""
+        """If the orbit at ``v`` is close to grazing, which phase vanishes and how long it
+        lasts (see :func:`grazing_phase`). None otherwise (or if the orbit falls)."""
         X, u, params, _ = self.unpack(v)
         orbit = self.residual_map.simulate(X, u, params, self.spec.strides)
         if orbit.fall is not None:
-            return None
-        for k, d in enumerate(orbit.durations):
-            flight = d["descent"] + d["ascent"]
-            if d["descent"] < GRAZING_FRACTION * flight:
-                return (f"grazing: the apex of stride {k + 1} (z = {orbit.apexes[k][0]:.6g} m) is at the touchdown "
-                        f"height (descent {1e3 * d['descent']:.3g} ms of a {1e3 * flight:.3g} ms flight)")
-            stance = d["compression"] + d["decompression"]
-            for phase in ("compression", "decompression"):
-                if d[phase] < GRAZING_FRACTION * stance:
-                    return f"grazing: the {phase} of stride {k + 1} lasts {1e3 * d[phase]:.3g} ms of a {1e3 * stance:.3g} ms stance"
+            return _touching_at_apex(X, self.spec.law.control_dict(u)["theta_td"], params)
+        for k, durations in enumerate(orbit.durations):
+            found = grazing_phase(durations, orbit.apexes[k][0], k + 1)
+            if found:
+                return found
         return None
 
     def multipliers(self, v: np.ndarray) -> tuple[np.ndarray, list[bool]]:

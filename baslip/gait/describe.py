@@ -22,6 +22,7 @@ def summary_text(result) -> str:
         f"  control  {_controls_text(c, result.law.units)}" + ("" if result.law.name == "pd" else f" ({result.law.name})"),
         f"  energy   {result.energy:.9g} J",
     ]
+    lines += _explained(result)
     if result.orbit is not None:
         apexes = "; ".join(f"z = {X[0]:.6f} m, ydot = {X[2]:.6f} m/s" for X in result.orbit)
         lines.append(f"  orbit    {result.strides} strides, apexes: {apexes}")
@@ -39,6 +40,19 @@ def summary_text(result) -> str:
         lines.append(f"  multipliers{of_map} {', '.join(parts)}")
         lines.append(f"  spectral radius {result.spectral_radius:.6g} -> {verdict}")
     return "\n".join(lines)
+
+
+def _explained(result) -> list[str]:
+    """The lines that explain a result: IPOPT's tries when there were several, the
+    quantities on a bound, and a failure's diagnosis (binding limits, suggestions)."""
+    lines = []
+    if len(result.solver.tries) > 1:
+        lines.append("  IPOPT: " + "; ".join(t.text(n) for n, t in enumerate(result.solver.tries, start=1)))
+    if result.on_bounds:
+        lines.append("  on bound " + "; ".join(limit.text() for limit in result.on_bounds))
+    if result.diagnosis is not None:
+        lines += result.diagnosis.lines()
+    return lines
 
 
 def _controls_text(control: dict[str, float], units) -> str:

@@ -23,11 +23,13 @@ import numpy as np
 from baslip.engine.codegen import FEW_CALLS
 from baslip.engine.returnmap import PHASES, ReturnMap, Tolerances
 from baslip.engine.setuptime import Stopwatch, setting_up, setup_seconds
+from baslip.gait.diagnosis import Diagnosis, Limit, diagnose_nlp, limits_on_bounds
+from baslip.gait.ipopt_report import IpoptTry, SolverReport
 from baslip.gait.polish import Polish
 from baslip.gait.polish import eps as _eps
 from baslip.gait.shooting import FixedPointSpec, NlpSolution, ShootingNLP, ShootingOptions, torque_effort
 from baslip.gait.stability import Multiplier, Stability, classify
-from baslip.gait.tries import IpoptTry, ended, first_try, told
+from baslip.gait.tries import IpoptAttempt, ended, first_try, told
 from baslip.model.dynamics import APEX, Params
 from baslip.model.hiplaw import PD, HipLaw
 from baslip.model.quantities import NOMINAL, STABILITY_OBJECTIVES
@@ -38,35 +40,6 @@ VERIFY_TOLERANCES = Tolerances(rtol=1e-12, atol=1e-12)
 #: IPOPT outcomes whose point goes on to polish and verification ("Feasible_Point_Found"
 #: is IPOPT's success for square problems, e.g. the SLIP limit at fixed energy).
 ACCEPTED_IPOPT = ("Solve_Succeeded", "Solved_To_Acceptable_Level", "Feasible_Point_Found")
-
-
-@dataclass(frozen=True)
-class SolverReport:
-    """What IPOPT said, the wall time of the solve [s] and that of its set-up [s].
-
-    Attributes
-    ----------
-    return_status : str
-        IPOPT's return status (``Solve_Succeeded``, ...), or why IPOPT did not run.
-    iterations : int
-        IPOPT's iterations, over both tries when the exact-Hessian NLP had a second one.
-    time_s : float
-        Wall time [s] of the solve: NLP, polish, verification and stability, without the
-        set-up of ``compile_s``.
-    spectral_bound : float or None
-        The stability NLP's bound on the multipliers (on its own discretisation;
-        dimensionless), or None for other objectives.
-    compile_s : float
-        Wall time [s] of the set-up this solve waited for: code generation, gcc (on a
-        first run) and loading the compiled libraries; the solver's own set-up is counted
-        with its first solve (:mod:`baslip.engine.setuptime`).
-    """
-
-    return_status: str
-    iterations: int
-    time_s: float
-    spectral_bound: float | None = None  # the stability NLP's bound on the multipliers (its own discretisation)
-    compile_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -117,6 +90,12 @@ class FixedPointResult:
         stride or when the orbit falls.
     law : HipLaw
         The hip law whose controls ``u`` holds.
+    diagnosis : Diagnosis or None
+        Why IPOPT failed or the answer did not verify: the limits binding at IPOPT's last
+        iterate and what to change; None for a verified gait.
+    on_bounds : tuple of Limit
+        The free design quantities the polished point sits on a bound of (empty for a
+        failed solve, whose diagnosis names them).
     """
 
     name: str
@@ -136,6 +115,8 @@ class FixedPointResult:
     strides: int = 1  # the orbit's period asked for, in strides
     orbit: np.ndarray | None = None  # strides x 4: the apexes of a multi-stride orbit, X first
     law: HipLaw = PD  # the hip law whose controls ``u`` holds
+    diagnosis: Diagnosis | None = None  # why a failed or unverified solve is no gait
+    on_bounds: tuple[Limit, ...] = ()  # free design quantities on a bound
 
     @property
     def converged(self) -> bool:
@@ -277,6 +258,7 @@ class FixedPointResult:
                 "time_s": self.solver.time_s,
                 "compile_s": self.solver.compile_s,
                 **({} if self.solver.spectral_bound is None else {"spectral_bound": self.solver.spectral_bound}),
+                "tries": [t.to_json_dict() for t in self.solver.tries],
             },
             "params": self.params.to_dict(),
             "hip_law": self.law.name,
@@ -288,6 +270,8 @@ class FixedPointResult:
             "eigenvalues": None if eigenvalues is None else [[ev.real, ev.imag] for ev in eigenvalues],
             "spectral_radius": self.spectral_radius,
             "stable": self.stable,
+            "on_bounds": [limit.to_json_dict() for limit in self.on_bounds],
+            "diagnosis": None if self.diagnosis is None else self.diagnosis.to_json_dict(),
         } | self._orbit_json()
 
     def _orbit_json(self) -> dict:
@@ -365,12 +349,14 @@ class FixedPointSolver:
             # The fast NLP drops the constraints' curvature; from a poor start the exact
             # Hessian sometimes succeeds where it fails (measured in docs/background/stability.md), so it gets
             # a second try, from the same start.
-            retry = self._run_nlp(self.nlp_for(spec.strides, exact=True), spec, w0,
-                                  attempt=IpoptTry(2, 2, "exact Hessian", ended(sol)))
-            sol = replace(retry, iterations=sol.iterations + retry.iterations)
+            nlp = self.nlp_for(spec.strides, exact=True)
+            retry = self._run_nlp(nlp, spec, w0, attempt=IpoptAttempt(2, 2, "exact Hessian", ended(sol)))
+            sol = replace(retry, iterations=sol.iterations + retry.iterations,
+                          tries=sol.tries + retry.tries)
         if sol.return_status not in ACCEPTED_IPOPT:
-            return self._result(spec, name, Status.FAILED, f"IPOPT: {sol.return_status}", sol, start, sol.X, sol.u)
-        return self._polish_and_verify(spec, name, sol, start)
+            return self._result(spec, name, Status.FAILED, f"IPOPT: {sol.return_status}", sol, start, sol.X, sol.u,
+                                diagnosis=diagnose_nlp(nlp, spec, sol))
+        return self._polish_and_verify(spec, name, sol, start, nlp)
 
     def _solve_stable(self, spec: FixedPointSpec, name: str, w0: np.ndarray | None) -> FixedPointResult:
         if spec.strides != 1:
@@ -382,15 +368,16 @@ class FixedPointSolver:
             if orbit.nlp_w is None or orbit.solver.return_status not in ACCEPTED_IPOPT:
                 return replace(orbit, message=f"no periodic orbit to start the stability NLP from: {orbit.message}")
             w0 = orbit.nlp_w
-        sol = self._run_nlp(stable_nlp, spec, w0, attempt=IpoptTry(1, 2, "stability NLP"))
+        sol = self._run_nlp(stable_nlp, spec, w0, attempt=IpoptAttempt(1, 2, "stability NLP"))
         if sol.return_status != "Solve_Succeeded":  # a second try from the same start: STABLE_NLP_RETRY
             retry = self._run_nlp(stable_nlp, spec, w0, STABLE_NLP_RETRY,
-                                  IpoptTry(2, 2, "stability NLP, IPOPT's own first Hessian", ended(sol)))
-            sol = replace(min(sol, retry, key=_stable_nlp_rank), iterations=sol.iterations + retry.iterations)
+                                  IpoptAttempt(2, 2, "stability NLP, IPOPT's own first Hessian", ended(sol)))
+            sol = replace(min(sol, retry, key=_stable_nlp_rank), iterations=sol.iterations + retry.iterations,
+                          tries=sol.tries + retry.tries)
         if sol.return_status not in ACCEPTED_IPOPT:
             return self._result(spec, name, Status.FAILED, f"IPOPT (stability NLP): {sol.return_status}", sol, start,
-                                sol.X, sol.u)
-        return self._polish_and_verify(spec, name, sol, start)
+                                sol.X, sol.u, diagnosis=diagnose_nlp(stable_nlp, spec, sol))
+        return self._polish_and_verify(spec, name, sol, start, stable_nlp)
 
     def stable_nlp(self) -> ShootingNLP:
         """The stability NLP (one stride, IPOPT's quasi-Newton Hessian: its exact Hessian
@@ -436,16 +423,21 @@ class FixedPointSolver:
         given = NlpSolution(X, u, np.full(len(PHASES), np.nan), "not run (point given)", 0, 0.0)
         return self._polish_and_verify(spec, name, given, start)
 
-    def _polish_and_verify(self, spec: FixedPointSpec, name: str, sol: NlpSolution, start: Stopwatch) -> FixedPointResult:
+    def _polish_and_verify(self, spec: FixedPointSpec, name: str, sol: NlpSolution, start: Stopwatch,
+                           nlp: ShootingNLP | None = None) -> FixedPointResult:
+        """Polish IPOPT's point (``sol``, from ``nlp``: the NLP that explains a point that
+        does not verify), re-simulate it independently and classify its stability."""
         X, u, iterations, note = self._polish.run_in_bounds(spec, sol.X, sol.u)
         check = self.verify_map.simulate(X, u, spec.params, spec.strides)
         if check.fall is not None:
-            return self._result(spec, name, Status.NOT_VERIFIED, f"re-simulation falls: {check.fall.value}", sol, start, X, u, iterations)
+            return self._result(spec, name, Status.NOT_VERIFIED, f"re-simulation falls: {check.fall.value}", sol, start, X, u, iterations,
+                                diagnosis=diagnose_nlp(nlp, spec, sol))
         eps = _eps(check.apexes[-1], X)
         problem = self._violation(spec, X, u)
         if eps > VERIFY_EPS or problem:
             what = f"eps = {eps:.2e} > {VERIFY_EPS:g}" if eps > VERIFY_EPS else problem
-            return self._result(spec, name, Status.NOT_VERIFIED, f"re-simulation: {what}{note}", sol, start, X, u, iterations, check)
+            return self._result(spec, name, Status.NOT_VERIFIED, f"re-simulation: {what}{note}", sol, start, X, u, iterations, check,
+                                diagnosis=diagnose_nlp(nlp, spec, sol))
         stability = classify(self.jacobian_map.jacobians(X, u, spec.params, spec.strides)[0], spec.params, u, self.law)
         message = "verified fixed point" if spec.strides == 1 else f"verified {spec.strides}-stride orbit"
         period = minimal_period(check.apexes)
@@ -471,13 +463,14 @@ class FixedPointSolver:
                 self._nlps[key] = self.nlp if key == (1, self.options.hessian) else ShootingNLP(options, strides, law=self.law)
         return self._nlps[key]
 
-    def _run_nlp(self, nlp: ShootingNLP, spec: FixedPointSpec, w0, ipopt=None, attempt=IpoptTry()) -> NlpSolution:
+    def _run_nlp(self, nlp: ShootingNLP, spec: FixedPointSpec, w0, ipopt=None, attempt=IpoptAttempt()) -> NlpSolution:
         try:
             with told(attempt):
                 return nlp.solve(spec, w0=w0, rmap=self.residual_map, ipopt=ipopt)
         except RuntimeError as err:  # CasADi could not even run IPOPT
+            status = f"Error: {_first_line(err)}"
             return NlpSolution(spec.start_design()[: APEX.size], spec.start_design()[APEX.size :],
-                               np.full(len(PHASES), np.nan), f"Error: {_first_line(err)}", 0, 0.0)
+                               np.full(len(PHASES), np.nan), status, 0, 0.0, tries=(IpoptTry(nlp.try_settings(ipopt), status, 0),))
 
     # -- pieces --------------------------------------------------------------------------
 
@@ -525,18 +518,19 @@ class FixedPointSolver:
         """IPOPT's account of ``sol``, timed from ``start``; the set-up so far is reported here."""
         solve_s, setup_s = start.split()
         self._unreported_setup = setup_seconds()
-        return SolverReport(sol.return_status, sol.iterations, solve_s, sol.spectral_bound, setup_s)
+        return SolverReport(sol.return_status, sol.iterations, solve_s, sol.spectral_bound, sol.tries, setup_s)
 
-    def _result(self, spec, name, status, message, sol, start, X, u, polish_iterations=0, check=None, stability=None):
+    def _result(self, spec, name, status, message, sol, start, X, u, polish_iterations=0, check=None, stability=None,
+                diagnosis=None):
         if check is not None and check.fall is None:
             durations = {ph: check.durations[0][ph] for ph in PHASES}
-            residual, source = _eps(check.apexes[-1], X), f"independent re-simulation ({_describe(self.verify_map)})"
+            residual, source = _eps(check.apexes[-1], X), f"independent re-simulation ({self.verify_map.describe()})"
             orbit = check.apexes[:-1] if spec.strides > 1 else None
         else:
             durations = dict(zip(PHASES, map(float, sol.durations)))
             probe = self.residual_map.simulate(X, u, spec.params, spec.strides)
             residual = _eps(probe.apexes[-1], X) if probe.fall is None else None
-            source = f"return map ({_describe(self.residual_map)})" if probe.fall is None else ""
+            source = f"return map ({self.residual_map.describe()})" if probe.fall is None else ""
             orbit = probe.apexes[:-1] if spec.strides > 1 and probe.fall is None else None
         return FixedPointResult(
             name=name,
@@ -556,6 +550,8 @@ class FixedPointSolver:
             strides=spec.strides,
             orbit=orbit,
             law=self.law,
+            diagnosis=diagnosis,
+            on_bounds=() if status == Status.FAILED else limits_on_bounds(spec, X, u),
         )
 
 
@@ -593,10 +589,6 @@ def minimal_period(apexes: np.ndarray) -> int:
         if n % k == 0 and _eps(apexes[k], apexes[0]) <= SAME_APEX:
             return k
     return n
-
-
-def _describe(rmap: ReturnMap) -> str:
-    return rmap.describe()
 
 
 def _first_line(err: Exception) -> str:

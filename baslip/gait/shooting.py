@@ -42,12 +42,14 @@ import casadi as ca
 import numpy as np
 
 from baslip.engine.codegen import cached_library, compile_library, library_name, module_files
-from baslip.engine.kernels import StanceFlow, stance_clearances
+from baslip.engine.kernels import StanceFlow
 from baslip.engine.kernels import sources as kernel_sources
 from baslip.engine.libraryfacts import read_facts, write_facts
 from baslip.engine.returnmap import PHASES, ReturnMap, Stride
 from baslip.gait import monodromy as _monodromy
 from baslip.gait import nlpfunctions as _nlpfunctions
+from baslip.gait import shot_stride as _shot_stride
+from baslip.gait.ipopt_report import IpoptTry
 from baslip.gait.ipopt_threads import pin_ipopt_threads
 from baslip.gait.monodromy import (
     SCHUR,
@@ -58,26 +60,28 @@ from baslip.gait.monodromy import (
     structural_multipliers,
 )
 from baslip.gait.nlpfunctions import NLP_FUNCTIONS, nlp_functions
+from baslip.gait.shot_stride import RowLabel, RowValues, named, row_labels, shoot_stride
 from baslip.model import quantities as _quantities
 from baslip.model.dynamics import (
     APEX,
-    FLIGHT,
     PARAMS,
     STANCE,
     Params,
     apex_energy,
     apex_to_flight,
     ballistic_flight,
-    bottom_guard,
-    liftoff_guard,
-    liftoff_map,
     stance_dynamics,
-    touchdown_guard,
-    touchdown_guard_rate,
     touchdown_map,
 )
 from baslip.model.hiplaw import PD, HipLaw, touchdown_angle
-from baslip.model.quantities import NOMINAL, OBJECTIVES, design_names, physical_range, start_value
+from baslip.model.quantities import (
+    NOMINAL,
+    OBJECTIVES,
+    UNITS,
+    design_names,
+    physical_range,
+    start_value,
+)
 from baslip.model.quantities import implied_periodicity as structurally_implied
 from baslip.problem.reader import SolverSettings
 
@@ -162,6 +166,7 @@ class NlpSolution:
     time_s: float
     w: np.ndarray | None = None  # every NLP variable, to warm-start a neighbouring solve
     spectral_bound: float | None = None  # the stability NLP's bound on the multipliers' moduli
+    tries: tuple[IpoptTry, ...] = ()  # the runs of IPOPT that led here: this one, after any earlier tries
 
 
 def _rk4_interval(substeps: int, law: HipLaw) -> ca.Function:
@@ -238,12 +243,12 @@ class ShootingNLP:
                 f"{o.hessian.replace('-', '_')}{'_stable' if o.spectral_bound else ''}")
 
     def _load(self, compile: bool | None) -> bool:
-        """Whether the cache holds the NLP's library and its sizes and bounds beside it, now
+        """Whether the cache holds the NLP's library and its sizes, bounds and row names beside it, now
         loaded (:mod:`baslip.engine.libraryfacts`); the stability NLP's pieces need its graph."""
         if self.options.spectral_bound:
             return False
         facts = read_facts(self._library, NLP_FUNCTIONS, _nlp_sources(), optimisation=NLP_OPTIMISATION, enabled=compile)
-        if facts is None or facts.get("margin") != self.options.margin:  # the bounds hold the margin
+        if facts is None or facts.get("margin") != self.options.margin or "rows" not in facts:  # the bounds hold the margin
             return False
         functions = cached_library(self._library, NLP_FUNCTIONS, _nlp_sources(), optimisation=NLP_OPTIMISATION)
         if functions is None:
@@ -252,6 +257,7 @@ class ShootingNLP:
         self._n_w, self._n_orbit = facts["n_w"], facts["n_orbit"]
         self._periodicity_row, self._energy_row = facts["periodicity_row"], facts["energy_row"]
         self._lbg, self._ubg = np.array(facts["lbg"], dtype=float), np.array(facts["ubg"], dtype=float)
+        self.row_labels = tuple(RowLabel(name, unit) for name, unit in facts["rows"])
         return True
 
     def _shooting_interval(self) -> ca.Function:
@@ -269,9 +275,13 @@ class ShootingNLP:
         u, p = self.law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
         guess, weights = ca.MX.sym("guess", len(self.design)), ca.MX.sym("weights", 2)
         constraints: list[tuple[ca.MX, float, float]] = []
+        labels: list[RowLabel] = []
 
-        def constrain(expr, lo, hi):
-            constraints.append((ca.vec(expr), lo, hi))
+        def constrain(expr, lo, hi, name: str | tuple[str, ...] = "a row of the stability NLP",
+                      unit: str | tuple[str, ...] = ""):
+            expr = ca.vec(expr)
+            constraints.append((expr, lo, hi))
+            labels.extend(row_labels(name, unit, expr.numel()))
 
         apexes, blocks, effort, apex_next, shot = [], [], [], None, []
         for k in range(self.strides):
@@ -280,9 +290,11 @@ class ShootingNLP:
             comp_nodes = ca.MX.sym(f"compression_nodes{k}", STANCE.size, self.options.nodes)
             decomp_nodes = ca.MX.sym(f"decompression_nodes{k}", STANCE.size, self.options.nodes)
             if apex_next is not None:
-                constrain(apex_next - X, 0, 0)  # strides join
-            apex_next, stride_effort = _shoot_stride(self._stance, self._interval, self.options, X, u, p, T,
-                                                     comp_nodes, decomp_nodes, constrain)
+                constrain(apex_next - X, 0, 0, tuple(f"join of strides {k} and {k + 1} in {n}" for n in APEX.names),
+                          APEX_UNITS)
+            stride = f"stride {k + 1}: " if self.strides > 1 else ""
+            apex_next, stride_effort = shoot_stride(self._stance, self._interval, self.options.margin, X, u, p, T,
+                                                     comp_nodes, decomp_nodes, named(constrain, stride))
             effort.append(stride_effort)
             apexes.append(X)
             shot.append((T, comp_nodes, decomp_nodes))
@@ -290,9 +302,9 @@ class ShootingNLP:
             blocks += ([] if k == 0 else [X]) + [T, ca.vec(comp_nodes), ca.vec(decomp_nodes)]
         X0 = apexes[0]
         self._periodicity_row = sum(c[0].numel() for c in constraints)
-        constrain(apex_next - X0, 0, 0)  # the orbit closes
+        constrain(apex_next - X0, 0, 0, tuple(f"periodicity of {n}" for n in APEX.names), APEX_UNITS)  # the orbit closes
         self._energy_row = sum(c[0].numel() for c in constraints)
-        constrain(apex_energy(X0, p), -ca.inf, ca.inf)  # bounded or fixed per problem
+        constrain(apex_energy(X0, p), -ca.inf, ca.inf, "apex energy", "J")  # bounded or fixed per problem
 
         design = ca.vertcat(X0, u)
         scale = ca.DM([NOMINAL[name] for name in self.design])
@@ -308,6 +320,7 @@ class ShootingNLP:
         g = ca.vertcat(*(c[0] for c in constraints))
         self._lbg = np.concatenate([np.full(c[0].numel(), c[1], dtype=float) for c in constraints])
         self._ubg = np.concatenate([np.full(c[0].numel(), c[2], dtype=float) for c in constraints])
+        self.row_labels = tuple(labels)
         self.functions = compile_library(  # objective, constraints and derivatives
             self._library, NLP_FUNCTIONS,
             lambda: nlp_functions(w, params, weights, distance, ca.vertcat(*effort), bound, g, self.options.hessian),
@@ -317,7 +330,8 @@ class ShootingNLP:
             write_facts(self._library, NLP_FUNCTIONS, _nlp_sources(), {
                 "margin": self.options.margin, "n_w": self._n_w, "n_orbit": self._n_orbit,
                 "periodicity_row": self._periodicity_row, "energy_row": self._energy_row,
-                "lbg": self._lbg.tolist(), "ubg": self._ubg.tolist()}, optimisation=NLP_OPTIMISATION)
+                "lbg": self._lbg.tolist(), "ubg": self._ubg.tolist(),
+                "rows": [[label.name, label.unit] for label in self.row_labels]}, optimisation=NLP_OPTIMISATION)
 
     def _stability(self, w, X0, u, p, shot, constraints, constrain):
         """The stability NLP's part (:mod:`baslip.gait.monodromy`): the sensitivity nodes
@@ -365,6 +379,11 @@ class ShootingNLP:
         return ca.nlpsol("periodic_orbit", "ipopt", {"x": w, "p": params, "f": f, "g": g}, options)  # type: ignore[dict-item, arg-type]
 
     # -- solving -----------------------------------------------------------------------
+
+    @property
+    def variable_count(self) -> int:
+        """How many variables the NLP has (the length of a point ``w``)."""
+        return self._n_w
 
     @property
     def _bound_index(self) -> int:
@@ -440,6 +459,47 @@ class ShootingNLP:
             self._guess_nodes_fn = ca.Function("guess_nodes", [X, u, p, T], [comp, decomp])
         return self._guess_nodes_fn
 
+    def _constraint_bounds(self, spec: FixedPointSpec) -> tuple[np.ndarray, np.ndarray]:
+        """(lbg, ubg) of the constraints for ``spec``: its energy bound or value, and the
+        periodicity rows that structure implies left free."""
+        lbg, ubg = self._lbg.copy(), self._ubg.copy()
+        energy_bounds = spec.bounds.get("energy", (-np.inf, np.inf))
+        if "energy" in spec.fixed:
+            energy_bounds = (spec.fixed["energy"], spec.fixed["energy"])
+        lbg[self._energy_row], ubg[self._energy_row] = energy_bounds
+        for name in implied_periodicity(spec):
+            row = self._periodicity_row + APEX.index(name)
+            lbg[row], ubg[row] = -np.inf, np.inf
+        return lbg, ubg
+
+    def _parameters(self, spec: FixedPointSpec) -> np.ndarray:
+        """The NLP's parameter vector for ``spec``: model parameters, guess and objective weights."""
+        return np.concatenate([spec.params.vector(), spec.start_design(), np.array(OBJECTIVES[spec.objective])])
+
+    def rows_at(self, spec: FixedPointSpec, w: np.ndarray) -> RowValues:
+        """Every constraint row and variable bound of the NLP for ``spec`` at the point ``w``
+        (IPOPT's last iterate, say), with their names and limits."""
+        g = np.asarray(self.functions["nlp_fg"](np.asarray(w, dtype=float), self._parameters(spec))[1]).ravel()
+        lbg, ubg = self._constraint_bounds(spec)
+        lbx, ubx = self._bounds(spec)
+        return RowValues(self.row_labels, g, lbg, ubg, self._variable_labels(), np.asarray(w, dtype=float), lbx, ubx)
+
+    def _variable_labels(self) -> tuple[RowLabel, ...]:
+        """Name and unit of every NLP variable whose bound can bind: the design quantities
+        and the phase durations (the shooting nodes and stability variables are unbounded)."""
+        labels = [RowLabel(name, UNITS[name]) for name in self.design]
+        labels += [RowLabel("", "")] * (self._n_w - len(labels))
+        for k in range(self.strides):
+            t0 = self._durations_index(k)
+            stride = f" of stride {k + 1}" if self.strides > 1 else ""
+            labels[t0 : t0 + len(PHASES)] = [RowLabel(f"{phase} duration{stride}", "s") for phase in PHASES]
+        return tuple(labels)
+
+    def try_settings(self, ipopt: Mapping[str, object] | None = None) -> dict[str, object]:
+        """What sets a run of IPOPT with ``ipopt`` over the options' settings apart: the
+        Hessian, and those settings."""
+        return {"hessian": self.options.hessian, **dict(ipopt or {})}
+
     def _solver(self, changed: Mapping[str, object]) -> ca.Function:
         """IPOPT with ``changed`` over the options' settings, built on first use."""
         key = tuple(sorted(changed.items()))
@@ -458,17 +518,8 @@ class ShootingNLP:
         w0 = self.initial_guess(spec, rmap) if w0 is None else self._with_stability_start(np.asarray(w0, dtype=float), spec)
         lbx, ubx = self._bounds(spec)
         w0 = np.clip(w0, lbx, ubx)
-        guess = spec.start_design()
-        weights = np.array(OBJECTIVES[spec.objective])
-        lbg, ubg = self._lbg.copy(), self._ubg.copy()
-        energy_bounds = spec.bounds.get("energy", (-np.inf, np.inf))
-        if "energy" in spec.fixed:
-            energy_bounds = (spec.fixed["energy"], spec.fixed["energy"])
-        lbg[self._energy_row], ubg[self._energy_row] = energy_bounds
-        for name in implied_periodicity(spec):
-            row = self._periodicity_row + APEX.index(name)
-            lbg[row], ubg[row] = -np.inf, np.inf
-        params = np.concatenate([spec.params.vector(), guess, weights])
+        lbg, ubg = self._constraint_bounds(spec)
+        params = self._parameters(spec)
         start = time.perf_counter()
         # CasADi warns on stderr when a trial point gives NaN; IPOPT recovers or reports a
         # failure status, which is what the caller sees.
@@ -488,62 +539,13 @@ class ShootingNLP:
             iterations=int(stats["iter_count"]),
             time_s=elapsed,
             w=w,
+            tries=(IpoptTry(self.try_settings(ipopt), str(stats["return_status"]), int(stats["iter_count"])),),
             spectral_bound=float(w[self._bound_index]) if self.options.spectral_bound else None,
         )
 
 
-def _shoot_stride(stance: StanceFlow, interval: ca.Function, opt: ShootingOptions, X, u, p, T, comp_nodes,
-                  decomp_nodes, constrain):
-    """Constrain one shot stride from apex ``X`` through ``constrain(expr, lo, hi)``; return
-    its next apex and the residuals r whose sum of squares is its tau^2 integral
-    [N^2 m^2 s] by the trapezoidal rule over the nodes."""
-    n = opt.nodes
-    t_descent, t_compression, t_decompression, t_ascent = (T[i] for i in range(len(PHASES)))
-    theta = ca.repmat(ca.vertcat(u, p), 1, n)
-    theta_td = touchdown_angle(u)
-    apex_flight = apex_to_flight(X)
-    # Descent: the foot stays above ground until it crosses zero, falling.
-    for fraction in (0.0, 0.25, 0.5, 0.75):
-        constrain(touchdown_guard(ballistic_flight(apex_flight, fraction * t_descent, p), theta_td, p), 0, ca.inf)
-    at_touchdown = ballistic_flight(apex_flight, t_descent, p)
-    constrain(touchdown_guard(at_touchdown, theta_td, p), 0, 0)
-    constrain(touchdown_guard_rate(at_touchdown, p), -ca.inf, -opt.margin)
-    x_td = touchdown_map(at_touchdown, theta_td, p)
-
-    starts_c = ca.horzcat(x_td, comp_nodes[:, :-1])
-    ends_c = interval.map(n)(starts_c, ca.repmat(t_compression / n, 1, n), theta)
-    constrain(comp_nodes - ends_c, 0, 0)
-    bottom = comp_nodes[:, -1]
-    constrain(bottom_guard(bottom), 0, 0)
-    rho_accel = STANCE.get(stance.rhs(bottom, ca.vertcat(u, p)), "rhodot")
-    constrain(rho_accel, opt.margin, ca.inf)
-    # The leg shortens from touchdown (transversally) until the bottom.
-    constrain(bottom_guard(x_td), -ca.inf, -opt.margin)
-    constrain(bottom_guard(comp_nodes[:, :-1]), -ca.inf, 0)
-
-    starts_d = ca.horzcat(bottom, decomp_nodes[:, :-1])
-    ends_d = interval.map(n)(starts_d, ca.repmat(t_decompression / n, 1, n), theta)
-    constrain(decomp_nodes - ends_d, 0, 0)
-    x_lo = decomp_nodes[:, -1]
-    constrain(liftoff_guard(x_lo, p), 0, 0)
-    constrain(STANCE.get(x_lo, "rhodot"), opt.margin, ca.inf)
-    # The leg stays compressed until liftoff.
-    constrain(liftoff_guard(starts_d[:, 1:], p), -ca.inf, 0)
-    # CoM, hip and leg clear of the ground at the nodes (smooth constraints; the
-    # compiled map checks every stage point when it polishes and re-simulates).
-    for nodes in (comp_nodes, decomp_nodes):
-        for k in range(n):
-            constrain(stance_clearances(nodes[:, k], ca.vertcat(u, p)), 0, ca.inf)
-
-    at_liftoff = liftoff_map(x_lo, p)
-    constrain(FLIGHT.get(at_liftoff, "zdot"), opt.margin, ca.inf)
-    at_apex = ballistic_flight(at_liftoff, t_ascent, p)
-    constrain(FLIGHT.get(at_apex, "zdot"), 0, 0)  # apex guard
-    apex_next = ca.vertcat(*(FLIGHT.get(at_apex, name) for name in APEX.names))
-    law = stance.law
-    effort = ca.vertcat(_effort_residuals(law, ca.horzcat(x_td, comp_nodes), u, p, t_compression / n),
-                        _effort_residuals(law, ca.horzcat(bottom, decomp_nodes), u, p, t_decompression / n))
-    return apex_next, effort
+#: The unit of each apex coordinate, for the names of the rows that join and close the orbit.
+APEX_UNITS = tuple(UNITS[name] for name in APEX.names)
 
 
 def implied_periodicity(spec: FixedPointSpec) -> tuple[str, ...]:
@@ -589,14 +591,6 @@ def _guess_durations(X, u, params: Params, stride: Stride | None) -> np.ndarray:
     return np.array([t_down, quarter, quarter, t_down])
 
 
-def _effort_residuals(law: HipLaw, states, u, p, h):
-    """r with sum(r^2) = the trapezoidal tau^2 integral over states h apart."""
-    tau = law.torque(states, u, p)
-    weights = ca.DM.ones(1, states.size2())
-    weights[0], weights[-1] = 0.5, 0.5
-    return ca.vec(tau * ca.sqrt(h * weights))
-
-
 def _nlp_sources() -> list[pathlib.Path]:
     """The modules the NLP is derived from: the compiled library's key."""
-    return [*kernel_sources(), *module_files(_quantities, _monodromy, _nlpfunctions, sys.modules[__name__])]
+    return [*kernel_sources(), *module_files(_quantities, _monodromy, _nlpfunctions, _shot_stride, sys.modules[__name__])]

@@ -18,7 +18,7 @@ _log = logger(__name__)
 
 
 @dataclass(frozen=True)
-class IpoptTry:
+class IpoptAttempt:
     """One IPOPT try of a solve.
 
     Attributes
@@ -45,7 +45,7 @@ class IpoptTry:
 
 
 @contextlib.contextmanager
-def told(attempt: IpoptTry) -> Iterator[None]:
+def told(attempt: IpoptAttempt) -> Iterator[None]:
     """Announce ``attempt`` if it is not the first, and say every few seconds that it
     still runs while the block does."""
     if attempt.number > 1:
@@ -54,10 +54,10 @@ def told(attempt: IpoptTry) -> Iterator[None]:
         yield
 
 
-def first_try(hessian: str) -> IpoptTry:
+def first_try(hessian: str) -> IpoptAttempt:
     """The first try of a shooting NLP whose Hessian is ``hessian``: an exact-Hessian
     second try may follow unless it is exact already."""
-    return IpoptTry(1, 1 if hessian == "exact" else 2, f"{hessian} Hessian")
+    return IpoptAttempt(1, 1 if hessian == "exact" else 2, f"{hessian} Hessian")
 
 
 def ended(solution) -> str:
