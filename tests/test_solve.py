@@ -249,6 +249,10 @@ def test_each_cached_library_cut_short_is_rebuilt_and_the_solve_succeeds(tmp_pat
     assert proc.returncode == 0, proc.stderr[-800:]
     assert "virtual machine" not in proc.stderr, proc.stderr
     restored = [path for path, content in whole.items() if path.read_bytes() == content]
-    assert len(restored) == 1  # the one the solve needed was rebuilt, the same bytes again
+    built = [path for path in cache.glob(f"{library}-*.so") if path not in whole]
+    # The one the solve needed was rebuilt: the same bytes again, or, where only the copy
+    # at the normal level was there (cut short), one at the quick start's level (a gait
+    # of one solve compiles its return maps at -O0 unless an intact tuned copy is cached).
+    assert len(restored) + len(built) == 1, (restored, built)
     code = json.loads((tmp_path / "out" / "result.json").read_text())["provenance"]["code"]
     assert all(route.startswith("compiled C") for route in code.values())
