@@ -25,7 +25,7 @@ from baslip.files.provenance import provenance
 from baslip.files.runs import check_folder, clear_run
 from baslip.gait.fixedpoint import FixedPointResult
 from baslip.gait.from_problem import solve_problem, solver_for
-from baslip.problem.reader import Problem, load_problem
+from baslip.problem.reader import Problem, check_problem, load_problem
 from baslip.results import RunResults, open_results, read_into_memory
 
 _log = logger(__name__)
@@ -87,8 +87,8 @@ def run(problem: Problem | str | Path, out: str | Path | None = None, *, jobs: i
     """
     if progress:
         show_on_stderr()
-    if not isinstance(problem, Problem):
-        problem = load_problem(Path(problem))
+    # A Problem built in Python is checked as a file would be (Problem(...) checks nothing).
+    problem = check_problem(problem) if isinstance(problem, Problem) else load_problem(Path(problem))
     folder = None if out is None else Path(out)
     where = Path(sources) if sources is not None else (folder.parent if folder is not None else Path("results"))
     check_run(problem, folder, where, scheduler, fresh)

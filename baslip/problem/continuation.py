@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 from baslip.errors import ProblemError
@@ -63,7 +63,10 @@ CONTINUATION_KEYS = ("parameter", "range", "step", "max_points", "direction", "p
 
 
 def parse_continuation(value: Any) -> ContinuationSpec:
-    """Validate a ``continuation`` mapping."""
+    """Validate a ``continuation`` mapping, or a :class:`ContinuationSpec` built in Python
+    (checked as its mapping form, :func:`continuation_mapping`, would be)."""
+    if isinstance(value, ContinuationSpec):
+        value = continuation_mapping(value)
     raw = mapping(value, "continuation", CONTINUATION_KEYS)
     parameter = _continued(raw.get("parameter"), "continuation.parameter")
     lo, hi = _continuation_range(raw.get("range"), parameter, "continuation.range")
@@ -87,6 +90,31 @@ def parse_continuation(value: Any) -> ContinuationSpec:
     if curves and switch is not None:
         raise ProblemError("continuation.switch", "a continuation either switches branches or follows curves, not both")
     return ContinuationSpec(parameter, lo, hi, step, max_points, direction, plot, switch, **curves)
+
+
+def continuation_mapping(spec: ContinuationSpec) -> dict[str, Any]:
+    """The ``continuation`` section a problem file would hold for ``spec``: its ranges as
+    ``[lo, hi]``, and a field left at its default left out, as a file would leave it (the
+    curve keys among them, so that a spec with only some of them is refused as a file
+    with only some would be).
+
+    Parameters
+    ----------
+    spec : ContinuationSpec
+        A continuation, possibly built in Python with any values.
+    """
+    data: dict[str, Any] = {"parameter": spec.parameter, "range": [spec.lo, spec.hi]}
+    for name in ("step", "max_points", "direction", "plot", "switch", "second", "follow", "starts"):
+        value, default = getattr(spec, name), _DEFAULTS[name]
+        if not (type(value) is type(default) and value == default):
+            data[name] = list(value) if isinstance(value, tuple) else value
+    if (spec.second_lo, spec.second_hi) != (_DEFAULTS["second_lo"], _DEFAULTS["second_hi"]):
+        data["second_range"] = [spec.second_lo, spec.second_hi]
+    return data
+
+
+#: The default of each field of a continuation.
+_DEFAULTS = {f.name: f.default for f in fields(ContinuationSpec)}
 
 
 def _continued(name: Any, key: str) -> str:

@@ -45,7 +45,7 @@ from baslip.model.quantities import (
 )
 from baslip.problem.continuation import ContinuationSpec, check_continuation, parse_continuation
 from baslip.problem.shipped import find_problem
-from baslip.problem.study import ADAPTED_CONTROLS, STUDY_KINDS, Atlas, Basin, Optimal, Study, Sweep, parse_study
+from baslip.problem.study import ADAPTED_CONTROLS, Atlas, Basin, Optimal, Study, Sweep, parse_study
 from baslip.problem.text import UnreadableText, clip, excerpt, read_yaml
 from baslip.problem.values import mapping, physical
 from baslip.problem.values import number as _number
@@ -161,8 +161,11 @@ class Problem:
         """A new problem with ``changes`` to its top-level keys, checked like a problem file.
 
         Values are given as in a problem file (``fix={"z": 0.45}``, ``params={"k": 2000}``,
-        ``study={...}``), or as the objects the problem holds (``params=Params(k=2000)``).
-        Raises :class:`ProblemError` with the same one-line message a file would get.
+        ``study={...}``), or as the objects the problem holds (``params=Params(k=2000)``,
+        ``study=Controllers(...)``, ``continuation=ContinuationSpec(...)``, ``fix=p.fix``,
+        ``bounds=p.bounds`` with its open ends); an object is checked as its mapping form
+        would be. Raises :class:`ProblemError` with the same one-line message a file
+        would get.
 
         Parameters
         ----------
@@ -214,8 +217,9 @@ def load_problem(path: str | Path) -> Problem:
 def parse_problem(data: Any, default_name: str = "problem") -> Problem:
     """Validate a problem given as plain data (as read from YAML).
 
-    ``params`` and ``solver`` may also be given as :class:`Params` and
-    :class:`SolverSettings` objects; they are checked like their mappings.
+    ``params``, ``solver``, ``study`` and ``continuation`` may also be given as the
+    objects a problem holds (:class:`Params`, :class:`SolverSettings`, a study,
+    :class:`ContinuationSpec`); they are checked like their mappings.
 
     Parameters
     ----------
@@ -249,6 +253,13 @@ def replace_problem(problem: Problem, **changes: Any) -> Problem:
             raise ProblemError(clip(str(key)), f"unknown key (expected one of {', '.join(TOP_LEVEL_KEYS)})")
     fields = {key: _FIELDS[key](value) for key, value in changes.items()}
     return _checked(dataclasses.replace(problem, **fields))
+
+
+def check_problem(problem: Problem) -> Problem:
+    """``problem`` checked whole, each top-level value as a problem file's would be: for a
+    problem built in Python by ``Problem(...)``, which checks nothing itself. Raises
+    :class:`ProblemError` naming the key; returns the problem as the reader makes it."""
+    return replace_problem(problem, **{f.name: getattr(problem, f.name) for f in dataclasses.fields(problem)})
 
 
 def _checked(problem: Problem) -> Problem:
@@ -319,9 +330,10 @@ def _objective(value: Any) -> str:
     return value
 
 
-def _optional(parse: Callable[[Any], Any], kinds: tuple[type, ...]) -> Callable[[Any], Any]:
-    """A section's parser that also takes its parsed form (or None, for no section)."""
-    return lambda value: value if value is None or isinstance(value, kinds) else parse(value)
+def _optional(parse: Callable[[Any], Any]) -> Callable[[Any], Any]:
+    """A section's parser that also takes None, for no section. The parser checks an object
+    built in Python (a study, a continuation) as its mapping form, like a file's."""
+    return lambda value: None if value is None else parse(value)
 
 
 # --- pieces -------------------------------------------------------------------------------
@@ -346,13 +358,20 @@ def _bounds(value: Any) -> dict[str, tuple[float, float]]:
         if not isinstance(pair, (list, tuple)) or len(pair) != 2:
             raise ProblemError(key, f"expected [lo, hi] (null for no bound), got {excerpt(pair)}")
         # A missing end is the physical limit; a written one must lie within the range
-        # (the body's: :func:`_check_ranges`).
-        lo = -math.inf if pair[0] is None else _number(pair[0], key)
-        hi = math.inf if pair[1] is None else _number(pair[1], key)
+        # (the body's: :func:`_check_ranges`). The open ends a problem holds (-inf, inf)
+        # mean the same, so that its own bounds can be given back.
+        lo, hi = (_bound_end(end, key, open_end) for end, open_end in zip(pair, (-math.inf, math.inf)))
         if lo > hi:
             raise ProblemError(key, f"lower bound {lo:g} exceeds upper bound {hi:g}")
         bounds[name] = (lo, hi)
     return bounds
+
+
+def _bound_end(value: Any, key: str, open_end: float) -> float:
+    """One end of a bound: None, or the open end itself (-inf below, inf above), for none."""
+    if value is None or (isinstance(value, float) and value == open_end):
+        return open_end
+    return _number(value, key)
 
 
 def _strides(value: Any) -> int:
@@ -394,8 +413,8 @@ _FIELDS: dict[str, Callable[[Any], Any]] = {
     "objective": _objective,
     "strides": lambda v: _strides(v),
     "solver": lambda v: _solver(dataclasses.asdict(v) if isinstance(v, SolverSettings) else v),
-    "study": _optional(lambda v: _study(v), STUDY_KINDS),
-    "continuation": _optional(lambda v: parse_continuation(v), (ContinuationSpec,)),
+    "study": _optional(_study),
+    "continuation": _optional(parse_continuation),
 }
 
 

@@ -30,8 +30,10 @@ Kinds:
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from baslip.errors import ProblemError
@@ -205,7 +207,10 @@ STUDY_KEYS = {
 
 
 def parse_study(data) -> Study:
-    """Validate a ``study`` mapping into its frozen dataclass."""
+    """Validate a ``study`` mapping, or a study object built in Python, into its frozen
+    dataclass; an object is checked as its mapping form (:func:`study_mapping`) would be."""
+    if isinstance(data, STUDY_KINDS):
+        data = study_mapping(data)
     if not isinstance(data, dict):
         raise StudyError("study", f"expected a mapping, got {type(data).__name__}")
     kind = data.get("kind")
@@ -286,6 +291,56 @@ def parse_study(data) -> Study:
     )
 
 
+def study_mapping(study: Study) -> dict:
+    """The ``study`` section a problem file would hold for ``study``: a field left at its
+    default is left out, as a file would leave it (an atlas's ``max_radius`` then follows
+    its ``radius``), and the grid's axes stay :class:`Axis` objects (:func:`_axes` checks
+    their values).
+
+    Parameters
+    ----------
+    study : Study
+        A study object, possibly built in Python with any values.
+
+    Raises
+    ------
+    StudyError
+        If its ``kind`` is not its class's.
+    """
+    kind = type(study).kind
+    if study.kind != kind:
+        raise StudyError("study.kind", f"a {type(study).__name__} study has kind {kind}, got {excerpt(study.kind)}")
+    data: dict = {"kind": kind}
+    for entry in dataclasses.fields(study):
+        value = getattr(study, entry.name)
+        at_default = type(value) is type(entry.default) and value == entry.default
+        if entry.name != "kind" and not at_default:
+            key = _FILE_KEYS.get(entry.name, entry.name)
+            data[key] = _file_value(value, f"study.{key}")
+    return data
+
+
+#: The file's key of a study field that is named otherwise in the dataclass.
+_FILE_KEYS = {"axes": "vary"}
+
+
+def _file_value(value, key: str):
+    """A field's value as a file writes it: pairs as a mapping, a sequence as a list (a
+    grid's axes and an (ydot, z) point as the reader wants them); others as they are."""
+    if isinstance(value, Mapping):
+        return dict(value)
+    if not isinstance(value, (tuple, list)):
+        return value
+    if key in ("study.stable_at", "study.unstable_at") and len(value) == 2:
+        return {"ydot": value[0], "z": value[1]}
+    if value and all(isinstance(v, (tuple, list)) and len(v) == 2 and isinstance(v[0], str) for v in value):
+        names = [v[0] for v in value]
+        if len(set(names)) < len(names):
+            raise StudyError(key, f"names a quantity more than once: {excerpt(names)}")
+        return dict(value)
+    return value if key in ("study.vary", "study.grid") else list(value)
+
+
 def _atlas(data, axes: tuple[Axis, ...]) -> Atlas:
     radius = _size(data.get("radius", 0.3), "study.radius", 1e-3, 10.0)
     max_radius = _size(data.get("max_radius", max(1.5, radius)), "study.max_radius", radius, 10.0)
@@ -319,6 +374,10 @@ def _size(value, key, lo: float, hi: float) -> float:
 
 
 def _axes(data, key, allowed) -> tuple[Axis, ...]:
+    """The axes of a file's ``{name: [start, stop, step]}``, or those of a study built in
+    Python (a sequence of :class:`Axis`), checked alike."""
+    if isinstance(data, (tuple, list)) and data and all(isinstance(a, Axis) for a in data):
+        return _given_axes(data, key, allowed)
     if not isinstance(data, dict) or not data:
         raise StudyError(key, "expected a mapping of quantity to [start, stop, step]")
     axes = []
@@ -343,6 +402,28 @@ def _axes(data, key, allowed) -> tuple[Axis, ...]:
                              "swept values are rounded; take a step of at least that")
         axes.append(Axis(name, values))
     return tuple(axes)
+
+
+def _given_axes(axes, key, allowed) -> tuple[Axis, ...]:
+    """Axes built in Python: known, distinct quantities, each with 1 to
+    :data:`MAX_AXIS_VALUES` finite values that increase, and stay distinct once rounded to
+    :data:`VALUE_DECIMALS` decimals (as a file's grid does)."""
+    checked = []
+    for axis in axes:
+        where = f"{key}.{clip(str(axis.name))}"
+        if not isinstance(axis.name, str) or axis.name not in allowed:
+            raise StudyError(where, f"unknown quantity (expected one of {', '.join(allowed)})")
+        if any(a.name == axis.name for a in checked):
+            raise StudyError(where, "is swept twice")
+        sized = hasattr(axis.values, "__len__") and not isinstance(axis.values, (str, bytes, Mapping))
+        if not sized or not 1 <= len(axis.values) <= MAX_AXIS_VALUES:
+            raise StudyError(where, f"expected 1 to {MAX_AXIS_VALUES} values, got {excerpt(axis.values)}")
+        values = tuple(round(number(v, where), VALUE_DECIMALS) for v in axis.values)
+        if any(b <= a for a, b in zip(values, values[1:])):
+            raise StudyError(where, f"expected increasing values, {10.0 ** -VALUE_DECIMALS:g} apart at least "
+                             f"(swept values are rounded to that), got {excerpt(axis.values)}")
+        checked.append(Axis(axis.name, values))
+    return tuple(checked)
 
 
 #: How an optimal study goes from each start to the most stable gait near it: the descent

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Mapping
 from typing import Any
 
 from baslip.errors import ProblemError
@@ -63,9 +64,10 @@ def _with_unit(text: str, key: str, quantity: str) -> float:
 
 
 def mapping(value: Any, key: str, allowed: tuple[str, ...]) -> dict[str, Any]:
-    """``value`` if it is a mapping whose keys are all in ``allowed``; ``key`` names it."""
+    """``value`` as a dict, if it is a mapping (a dict, or a read-only one a problem holds)
+    whose keys are all in ``allowed``; ``key`` names it."""
     where = key or "the problem file"
-    if not isinstance(value, dict):
+    if not isinstance(value, Mapping):
         raise ProblemError(key, f"expected a mapping for {where}, got {type(value).__name__}")
     for name in value:
         dotted = f"{key}.{clip(str(name))}" if key else clip(str(name))
@@ -73,7 +75,7 @@ def mapping(value: Any, key: str, allowed: tuple[str, ...]) -> dict[str, Any]:
             raise ProblemError(dotted, f"a key must be a plain name, not a {name.kind}")
         if name not in allowed:
             raise ProblemError(dotted, f"unknown key (expected one of {', '.join(allowed)})")
-    return value
+    return dict(value)
 
 
 def physical(name: str, value: float, key: str, params: Params = THESIS_BODY) -> float:
