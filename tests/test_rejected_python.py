@@ -14,13 +14,13 @@ import threading
 from pathlib import Path
 
 import pytest
+from processes import descendants
 
 import baslip
 from baslip.errors import InputError
 from baslip.problem.continuation import ContinuationSpec
 from baslip.problem.reader import check_problem, load_problem
 from baslip.problem.study import Axis, Controllers, Sweep
-from processes import descendants
 
 ROOT = Path(__file__).resolve().parents[1]
 NAN, INF = math.nan, math.inf
@@ -246,7 +246,7 @@ def test_a_nan_perturbation_of_a_controllers_study_is_refused_before_it_runs(tmp
 
 def test_a_continuation_with_a_nan_step_is_refused_before_it_runs(tmp_path):
     problem = shipped("continuation_downward_height")
-    built = dataclasses.replace(problem, continuation=dataclasses.replace(problem.continuation, step=NAN))
+    built = dataclasses.replace(problem, continuation=ContinuationSpec("z", 0.3, 0.6, step=NAN, direction="both"))
     error = refused(lambda: baslip.run(built, out=tmp_path / "out", progress=False), "continuation.step")
     assert error.key == "continuation.step"
     assert not (tmp_path / "out").exists()

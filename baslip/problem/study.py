@@ -408,7 +408,7 @@ def _given_axes(axes, key, allowed) -> tuple[Axis, ...]:
     """Axes built in Python: known, distinct quantities, each with 1 to
     :data:`MAX_AXIS_VALUES` finite values that increase, and stay distinct once rounded to
     :data:`VALUE_DECIMALS` decimals (as a file's grid does)."""
-    checked = []
+    checked: list[Axis] = []
     for axis in axes:
         where = f"{key}.{clip(str(axis.name))}"
         if not isinstance(axis.name, str) or axis.name not in allowed:
