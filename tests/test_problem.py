@@ -346,3 +346,13 @@ def test_a_refused_continuation_name_lists_the_accepted_ones(continuation, key, 
         parse_problem(with_(continuation=continuation, guess={"Kp": 0.0}))
     assert caught.value.key == key
     assert all(re.search(rf"\b{name}\b", caught.value.message) for name in names), caught.value.message
+
+
+def test_an_infinite_end_of_a_bound_written_in_a_file_is_no_bound(tmp_path):
+    """-.inf below and .inf above mean what null means; the other way round they are refused."""
+    path = tmp_path / "open.yaml"
+    path.write_text("fix: {z: 0.4, ydot: 0.5}\nbounds: {z: [-.inf, 0.6], ydot: [0.1, .inf]}\n")
+    assert dict(load_problem(path).bounds) == {"z": (-math.inf, 0.6), "ydot": (0.1, math.inf)}
+    path.write_text("fix: {z: 0.4, ydot: 0.5}\nbounds: {z: [.inf, 0.6]}\n")
+    with pytest.raises(ProblemError, match="^bounds.z: expected a finite number"):
+        load_problem(path)
