@@ -44,6 +44,10 @@ class UnreadableText(InputError):
 MAX_INTEGER_BITS = 1024
 
 
+#: Levels of nesting a message's key names.
+_KEY_LEVELS = 4
+
+
 class UnreadableData(ProblemError):
     """Plain data (a problem given from Python) that no problem file could hold."""
 
@@ -67,15 +71,17 @@ def check_plain_data(data: Any) -> None:
         if count[0] > MAX_VALUES:
             raise UnreadableData(key, f"the problem holds more than {MAX_VALUES} values")
         if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > MAX_INTEGER_BITS:
-            raise UnreadableData(key, f"an integer of more than {MAX_INTEGER_BITS} bits is beyond a float's range")
+            raise UnreadableData(key, f"too large: an integer of more than {MAX_INTEGER_BITS} bits is beyond a float's range")
         if not isinstance(value, (list, tuple, dict)):
             return
         if depth >= MAX_DEPTH:
             raise UnreadableData(key, f"nested more than {MAX_DEPTH} levels deep (or a list that contains itself)")
         items = value.items() if isinstance(value, dict) else enumerate(value)
         for name, item in items:
-            # The key names the entry's first two levels: deeper ones would make it long.
-            walk(item, key if depth >= 2 else f"{key}.{clip(str(name))}" if key else clip(str(name)), depth + 1)
+            # The key names the entry's first levels (as deep as a problem file's keys go):
+            # a key of every level of a deep nest would be long.
+            walk(item, key if depth >= _KEY_LEVELS else f"{key}.{clip(str(name))}" if key else clip(str(name)),
+                 depth + 1)
 
     walk(data, "", 0)
 
