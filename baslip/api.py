@@ -17,8 +17,9 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from baslip.diagnostics import logger, progress_hidden, show_on_stderr
+from baslip.engine.arguments import shown, whole_number
 from baslip.engine.codegen import recording_code
-from baslip.errors import InputError
+from baslip.errors import ArgumentError, InputError
 from baslip.files.atomic import write_result
 from baslip.files.lock import hold, unwritable
 from baslip.files.provenance import provenance
@@ -26,6 +27,7 @@ from baslip.files.runs import check_folder, clear_run
 from baslip.gait.fixedpoint import FixedPointResult
 from baslip.gait.from_problem import solve_problem, solver_for
 from baslip.problem.reader import Problem, check_problem, load_problem
+from baslip.problem.text import path_argument
 from baslip.results import RunResults, open_results, read_into_memory
 
 _log = logger(__name__)
@@ -85,12 +87,15 @@ def run(problem: Problem | str | Path, out: str | Path | None = None, *, jobs: i
         or a study whose worker process ended before finishing its tasks (what was done is
         kept in ``out``, for a rerun to resume; without ``out`` nothing is kept).
     """
+    _check_options(out=out, jobs=jobs, lanes=lanes, scheduler=scheduler, fresh=fresh, progress=progress,
+                   sources=sources)
     if progress:
         show_on_stderr()
     # A Problem built in Python is checked as a file would be (Problem(...) checks nothing).
-    problem = check_problem(problem) if isinstance(problem, Problem) else load_problem(Path(problem))
-    folder = None if out is None else Path(out)
-    where = Path(sources) if sources is not None else (folder.parent if folder is not None else Path("results"))
+    problem = check_problem(problem) if isinstance(problem, Problem) else load_problem(path_argument(problem, "problem"))
+    folder = None if out is None else Path(path_argument(out, "out"))
+    where = Path(path_argument(sources, "sources")) if sources is not None else (
+        folder.parent if folder is not None else Path("results"))
     check_run(problem, folder, where, scheduler, fresh)
     if folder is None and problem.study is None and problem.continuation is None:
         return solve_problem(problem, progress=progress)  # a gait written nowhere needs no folder at all
@@ -100,6 +105,26 @@ def run(problem: Problem | str | Path, out: str | Path | None = None, *, jobs: i
         if folder is not None:
             return result
         return read_into_memory(target, where)
+
+
+#: The most worker processes or lanes a run takes (as ``--jobs`` and ``--lanes``).
+MAX_WORKERS = 1024
+
+
+def _check_options(*, out, jobs, lanes, scheduler, fresh, progress, sources) -> None:
+    """Refuse :func:`run`'s options of the wrong type or range, naming the option, before
+    anything is read or written."""
+    for name, value in (("jobs", jobs), ("lanes", lanes)):
+        if value is not None:
+            whole_number(value, name, 1, MAX_WORKERS)
+    for name, value in (("out", out), ("sources", sources)):
+        if value is not None:
+            path_argument(value, name)
+    if scheduler is not None and not isinstance(scheduler, str):
+        raise ArgumentError("scheduler", f"expected an address as text, got {type(scheduler).__name__}")
+    for name, value in (("fresh", fresh), ("progress", progress)):
+        if not isinstance(value, bool):
+            raise ArgumentError(name, f"expected True or False, got {shown(value)}")
 
 
 def check_run(problem: Problem, out: Path | None, sources: Path, scheduler: str | None = None,

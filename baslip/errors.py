@@ -41,3 +41,8 @@ class ProblemKindError(InputError):
 
 class RunError(RuntimeError):
     """A solver or run that did not succeed on valid input."""
+
+
+class ArgumentError(InputError):
+    """A bad argument to a public Python function (a shape, type, range or size);
+    ``key`` names the argument."""

@@ -16,6 +16,9 @@ from html import escape
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
+from baslip.errors import InputError
+from baslip.files.rows import regular_text
+from baslip.problem.text import path_argument
 from baslip.status import Status
 
 #: Columns of text: they stay text where every row leaves them empty (a sweep without a
@@ -299,19 +302,49 @@ class RunResults:
 
 def open_results(folder: str | Path) -> RunResults:
     """The results in ``folder`` (one written by ``baslip solve``). Raises
-    FileNotFoundError if it holds no result.json.
+    FileNotFoundError if it holds no result.json, :class:`DamagedResults` (an
+    :class:`~baslip.errors.InputError` naming the file) if its result.json is not a JSON
+    object, and :class:`~baslip.errors.ArgumentError` for a ``folder`` that is no path.
 
     Parameters
     ----------
     folder : str or Path
         The run's folder; its parent is taken as the folder of the runs it read.
     """
-    folder = Path(folder)
+    folder = Path(path_argument(folder, "folder"))
     path = folder / "result.json"
     if not path.exists():
         raise FileNotFoundError(f"{path} does not exist: run the problem first")
     tables = tuple(sorted(p.stem for p in folder.glob("*.csv")))
-    return RunResults(folder, json.loads(path.read_text()), tables, sources=folder.parent)
+    return RunResults(folder, result_record(path), tables, sources=folder.parent)
+
+
+class DamagedResults(InputError):
+    """A file of a results folder that is not what baslip wrote; ``key`` is its path."""
+
+
+def result_record(path: Path) -> dict:
+    """The record of the ``result.json`` at ``path``: a JSON object in a regular UTF-8 file.
+
+    Raises
+    ------
+    DamagedResults
+        Naming the file, for a directory or a special file in its place, text that is not
+        UTF-8 or not JSON, JSON nested too deep to read, or JSON that is not an object.
+    """
+    try:
+        record = json.loads(regular_text(path))
+    except UnicodeDecodeError:
+        raise DamagedResults(str(path), "not UTF-8 text (the file is damaged)") from None
+    except json.JSONDecodeError as err:
+        raise DamagedResults(str(path), f"not JSON ({err.msg} at line {err.lineno}); the file is damaged") from None
+    except RecursionError:
+        raise DamagedResults(str(path), "JSON nested too deep to read; the file is damaged") from None
+    except ValueError as err:  # not a regular file: regular_text says what it is
+        raise DamagedResults(str(path), str(err)) from None
+    if not isinstance(record, dict):
+        raise DamagedResults(str(path), f"expected a JSON object, got {type(record).__name__} (the file is damaged)")
+    return record
 
 
 def read_into_memory(folder: Path, sources: Path | None) -> RunResults:

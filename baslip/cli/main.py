@@ -108,6 +108,8 @@ def problems(argv: list[str]) -> int:
 def trajectory(argv: list[str]) -> int:
     """Solve a single-gait problem and write its motion as CSV."""
     from baslip.engine.returnmap import RunnerFell
+    from baslip.engine.trajectory import checked_sampling
+    from baslip.errors import ArgumentError
     from baslip.files.atomic import write_files_atomically
     from baslip.gait.from_problem import solve_start
     from baslip.problem.reader import ProblemError, load_problem
@@ -119,6 +121,11 @@ def trajectory(argv: list[str]) -> int:
                         help="samples per flight phase; stance gets twice as many (default 100)")
     parser.add_argument("--out", type=Path, metavar="FILE", help="CSV file (default: <name>_trajectory.csv)")
     args = parser.parse_args(argv)
+    try:  # before the solve: a motion of too many samples would run on for hours
+        checked_sampling(args.strides, args.samples)
+    except ArgumentError as err:
+        print(f"error: --{err.key}: {err.message}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     try:
         problem = load_problem(args.problem)
     except ProblemError as err:

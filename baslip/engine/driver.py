@@ -33,7 +33,7 @@ from baslip.engine.kernels import (
     half_period,
     stiffness_rate,
 )
-from baslip.engine.outcome import PHASES, STANCE_HORIZON_HALF_PERIODS, Fall, Stride
+from baslip.engine.outcome import MAX_STANCE_STEPS, PHASES, STANCE_HORIZON_HALF_PERIODS, Fall, Stride
 from baslip.engine.recent import RecentAnswers, settle_key
 from baslip.model.dynamics import PARAMS, STANCE
 from baslip.model.hiplaw import PD, HipLaw
@@ -276,7 +276,11 @@ class CompiledEngine:
         horizon = STANCE_HORIZON_HALF_PERIODS * half_period(p)
         rho0 = float(p[_RHO0])
         t0, bottom, error, x_td, refinements = 0.0, None, 0.0, x0, SCOUT_REFINEMENTS
+        steps = 0
         while t0 < horizon:
+            steps += SCOUT_STEPS
+            if steps > MAX_STANCE_STEPS:  # the work limit: a far too stiff hip would run on for hours
+                return Fall.WORK_LIMIT
             nodes, rates, clearance, errors = self.functions.scout(x0, h, theta)
             if not (np.all(np.isfinite(nodes)) and np.all(np.isfinite(rates))):
                 # Unstable steps: the stiffness estimate missed a faster rate. Finer steps

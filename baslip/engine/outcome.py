@@ -27,6 +27,11 @@ PHASES = ("descent", "compression", "decompression", "ascent")
 COLLAPSE_FRACTION = 0.05
 #: Stance that has not ended after this many spring half-periods pi*sqrt(m/k) "never ends".
 STANCE_HORIZON_HALF_PERIODS = 40.0
+#: The work limit of one stride: the most fixed steps the compiled engine's scout takes
+#: to find the stance's events. A stride of the design box takes a few hundred to some
+#: ten thousand; one whose hip is far stiffer than its spring (Kd = 1e9 N m s/rad) would
+#: take about 1e10, and ends as :attr:`Fall.WORK_LIMIT` instead.
+MAX_STANCE_STEPS = 1_000_000
 
 
 class Fall(str, Enum):
@@ -42,6 +47,7 @@ class Fall(str, Enum):
     LIFTOFF_DESCENDING = "liftoff with zdot <= 0"
     NOT_FINITE = "non-finite state"
     INTEGRATION_FAILED = "integration failed"
+    WORK_LIMIT = f"work limit reached (stance needs more than {MAX_STANCE_STEPS:,} integration steps)"
 
 
 @dataclass(frozen=True)

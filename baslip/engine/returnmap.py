@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from baslip.engine import arguments
 from baslip.engine.eventmap import EventMap
 from baslip.engine.outcome import (  # noqa: F401  (re-exported: the public names of the return map)
     COLLAPSE_FRACTION,
@@ -35,8 +36,8 @@ from baslip.engine.outcome import (  # noqa: F401  (re-exported: the public name
     touchdown_guess,
     vec,
 )
-from baslip.errors import InputError
-from baslip.model.dynamics import APEX, PARAMS
+from baslip.errors import ArgumentError, InputError
+from baslip.model.dynamics import APEX, PARAMS, STANCE
 from baslip.model.hiplaw import HIP_LAWS, PD, HipLaw
 
 #: The compiled engine's error bound is met down to this tolerance; tighter ones use the
@@ -44,6 +45,8 @@ from baslip.model.hiplaw import HIP_LAWS, PD, HipLaw
 COMPILED_TIGHTEST = 1e-12
 #: Plugin name of the compiled engine.
 COMPILED = "compiled"
+#: Every engine a map can run on: the compiled engine and CasADi's integrators.
+PLUGINS = (COMPILED, "erk", "rosenbrock")
 #: The most terms of a seed that :meth:`ReturnMap.jacobian_gradient` takes as
 #: Hessian-vector products (one round on two threads); fuller seeds take one seeded sweep.
 PARALLEL_TERMS = 2
@@ -59,6 +62,23 @@ def _named_law(name: object, law: HipLaw) -> HipLaw:
     if law is not PD and law is not HIP_LAWS[name]:
         raise InputError("hip_law", f"{name!r} contradicts law={law.name!r}; give one of them")
     return HIP_LAWS[name]
+
+
+def _check_settings(tolerances: object, plugin: object, compile: object, law: object) -> None:
+    """Refuse a map's settings that are not of their kind: tolerances that are not finite
+    and positive, an unknown plugin, a compile switch or law of the wrong type."""
+    if not isinstance(tolerances, Tolerances):
+        raise ArgumentError("tolerances", f"expected a Tolerances, got {type(tolerances).__name__}")
+    for name in ("rtol", "atol"):
+        value = getattr(tolerances, name)
+        if not (isinstance(value, (int, float)) and not isinstance(value, bool) and 0.0 < value < 1.0):
+            raise ArgumentError(f"tolerances.{name}", f"expected a number between 0 and 1, got {arguments.shown(value)}")
+    if plugin is not None and plugin not in PLUGINS:
+        raise ArgumentError("plugin", f"expected one of {', '.join(PLUGINS)}, got {arguments.shown(plugin)}")
+    if compile is not None and not isinstance(compile, (bool, str)):
+        raise ArgumentError("compile", f"expected True, False, None or a mode, got {arguments.shown(compile)}")
+    if not isinstance(law, HipLaw):
+        raise ArgumentError("law", f"expected a HipLaw, got {type(law).__name__}")
 
 
 class ReturnMap:
@@ -80,8 +100,9 @@ class ReturnMap:
         The integrators' tolerances (default 1e-10 relative and absolute).
     plugin : str, optional
         The engine: ``"compiled"``, ``"erk"`` or ``"rosenbrock"``; by default the compiled
-        engine down to 1e-12, ``"erk"`` below. Raises ValueError for the compiled engine
-        below 1e-12.
+        engine down to 1e-12, ``"erk"`` below. Raises
+        :class:`~baslip.errors.ArgumentError` for another name, or for the compiled
+        engine below 1e-12.
     compile : bool or str, optional
         Force the C route on or off; None follows ``BASLIP_NO_COMPILE``, and so does
         :data:`~baslip.engine.codegen.FEW_CALLS`, for a map that the run calls only a few
@@ -106,13 +127,15 @@ class ReturnMap:
                  compile: bool | str | None = None, law: HipLaw = PD, *, hip_law: str | None = None):
         if hip_law is not None:
             law = _named_law(hip_law, law)
+        _check_settings(tolerances, plugin, compile, law)
         self.tolerances = tolerances
         self.law = law
         tolerance = min(tolerances.rtol, tolerances.atol)
         if plugin is None:
             plugin = COMPILED if tolerance >= COMPILED_TIGHTEST else "erk"
         if plugin == COMPILED and tolerance < COMPILED_TIGHTEST:
-            raise ValueError(f"the compiled engine guarantees tolerances down to {COMPILED_TIGHTEST:g}, not {tolerance:g}")
+            raise ArgumentError("plugin", f"the compiled engine guarantees tolerances down to {COMPILED_TIGHTEST:g}, "
+                                f"not {tolerance:g}")
         self.plugin = plugin
         self._compiled = None
         if plugin == COMPILED:
@@ -163,7 +186,7 @@ class ReturnMap:
         Stride
             The next apex and the phase durations [s], or the fall.
         """
-        X, u, p = vec(X), vec(u), param_vector(params)
+        X, u, p = self._point(X, u, params)
         fallen, t_guess = precheck(X, u, p)
         if fallen is not None:
             return fallen
@@ -173,6 +196,12 @@ class ReturnMap:
                 return result
             self.fallbacks += 1
         return self.event_map.stride(X, u, p, t_guess)
+
+    def _point(self, X, u, params, apex: str = "X") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(X, u, p) as flat float vectors, checked: 4 apex values, the law's controls and
+        the 6 parameters; raises :class:`~baslip.errors.ArgumentError` naming the argument."""
+        return (arguments.vector(X, apex, APEX.size), arguments.vector(u, "u", self.law.controls.size),
+                arguments.parameters(params))
 
     def __call__(self, X, u, params) -> np.ndarray:
         """r(X, u): the next apex; raises :class:`RunnerFell` if the stride falls."""
@@ -231,12 +260,20 @@ class ReturnMap:
             the compiled engine cannot vouch for it (or this map is an event map), as its
             Jacobian then comes from another integrator.
         """
-        S = np.asarray(S, dtype=float).reshape(APEX.size + self.law.controls.size + PARAMS.size, -1)
-        W = np.broadcast_to(np.asarray(W, dtype=float).reshape(APEX.size, -1), (APEX.size, S.shape[1]))
+        X, u, params = self._point(X, u, params)
+        S, W = self._directions_and_weights(S, W)
         if not S.shape[1]:  # no directions: nothing to evaluate
             return np.zeros((len(S), 0))
         return self._second_derivatives(lambda engine, X, u, p, t_guess: engine.stride_hessian_vectors(
             X, u, p, t_guess, W, S), X, u, params)
+
+    def _directions_and_weights(self, S, W) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`hessian_vectors`'s S as (nz, K) and W as (4, K), checked."""
+        S = arguments.columns(S, "S", APEX.size + self.law.controls.size + PARAMS.size)
+        W = arguments.columns(W, "W", APEX.size)
+        if W.shape[1] not in (1, S.shape[1]):
+            raise ArgumentError("W", f"expected shape ({APEX.size},) or ({APEX.size}, {S.shape[1]}), got {W.shape}")
+        return S, np.broadcast_to(W, (APEX.size, S.shape[1]))
 
     def jacobian_gradient(self, X, u, params, G) -> np.ndarray:
         """The gradient in z = (X, u, p) of <G, dr/dX> = sum(G * dr/dX) for a 4 x 4 seed G:
@@ -259,7 +296,10 @@ class ReturnMap:
         numpy.ndarray
             Shape (4 + controls + 6,); raises as :meth:`hessian_vectors`.
         """
-        G = np.asarray(G, dtype=float)
+        G = arguments.rows(G, "G", APEX.size, most=APEX.size)
+        if G.shape != (APEX.size, APEX.size) or not np.isfinite(G).all():
+            raise ArgumentError("G", f"expected a finite ({APEX.size}, {APEX.size}) seed, got shape {G.shape}")
+        X, u, params = self._point(X, u, params)
         left, sizes, right = np.linalg.svd(G)
         kept = sizes > 1e-14 * sizes[0] if sizes[0] > 0 else np.zeros(len(sizes), dtype=bool)  # a zero seed keeps none
         if kept.sum() > PARALLEL_TERMS:
@@ -272,7 +312,7 @@ class ReturnMap:
     def _second_derivatives(self, of_the_engine, X, u, params):
         """``of_the_engine(engine, X, u, p, t_guess)`` on the compiled engine, or the
         exceptions :meth:`hessian_vectors` names."""
-        X, u, p = vec(X), vec(u), param_vector(params)
+        X, u, p = self._point(X, u, params)
         fallen, t_guess = precheck(X, u, p)
         if fallen is not None:
             assert fallen.fall is not None
@@ -328,7 +368,7 @@ class ReturnMap:
         tuple of numpy.ndarray
             dr/dX, shape (4, 4); dr/du, shape (4, controls); the next apex, shape (4,).
         """
-        jac, apex = self._stride_jacobian(vec(X), vec(u), param_vector(params), with_parameters=False)
+        jac, apex = self._stride_jacobian(*self._point(X, u, params), with_parameters=False)
         return jac[:, : APEX.size], jac[:, APEX.size :], apex
 
     def parameter_jacobian(self, X, u, params, strides: int = 1) -> np.ndarray:
@@ -376,7 +416,8 @@ class ReturnMap:
 
     def _chained_jacobians(self, X, u, params, strides: int, with_parameters: bool):
         """Jacobians of r^n in (X, u), and in p if asked, accumulated stride by stride."""
-        X, u, p = vec(X), vec(u), param_vector(params)
+        X, u, p = self._point(X, u, params)
+        strides = arguments.whole_number(strides, "strides", 1, arguments.MAX_STRIDES)
         nx, nu = APEX.size, self.law.controls.size
         dX, du = np.eye(nx), np.zeros((nx, nu))
         dp = np.zeros((nx, PARAMS.size))
@@ -409,9 +450,11 @@ class ReturnMap:
         list of Stride
             One per row of ``X``, in order.
         """
-        X = np.atleast_2d(np.asarray(X, dtype=float))
-        U = np.broadcast_to(np.asarray(U, dtype=float), (len(X), self.law.controls.size))
-        p = param_vector(params)
+        X = arguments.rows(X, "X", APEX.size)
+        U = arguments.row_controls(U, "U", len(X), self.law.controls.size)
+        p = arguments.parameters(params)
+        if not len(X):
+            return []
         if self._compiled is None:
             return [self.stride(x, u, p) for x, u in zip(X, U)]
         if self._batch is None:
@@ -446,8 +489,13 @@ class ReturnMap:
         list of Simulation
             One per row of ``X0``, in order.
         """
-        X0 = np.atleast_2d(np.asarray(X0, dtype=float))
-        U = np.broadcast_to(np.asarray(U, dtype=float), (len(X0), self.law.controls.size))
+        X0 = arguments.rows(X0, "X0", APEX.size)
+        U = arguments.row_controls(U, "U", len(X0), self.law.controls.size)
+        strides = arguments.whole_number(strides, "strides", 1, arguments.MAX_STRIDES)
+        if len(X0) * (strides + 1) > arguments.MAX_APEXES:
+            raise ArgumentError("X0", f"{len(X0)} rows x {strides + 1} apexes exceed the limit of "
+                                f"{arguments.MAX_APEXES} apexes in one call")
+        params = arguments.parameters(params)
         apexes = [[x] for x in X0]
         durations: list[list[dict]] = [[] for _ in X0]
         falls: dict[int, tuple[Fall, int]] = {}
@@ -487,7 +535,9 @@ class ReturnMap:
         Simulation
             The apexes reached, shape (strides + 1, 4) unless a stride fell, and the fall.
         """
-        apexes = [vec(X0)]
+        X0, u, params = self._point(X0, u, params, apex="X0")
+        strides = arguments.whole_number(strides, "strides", 1, arguments.MAX_STRIDES)
+        apexes = [X0]
         durations: list[dict[str, float]] = []
         for n in range(strides):
             result = self.stride(apexes[-1], u, params)
@@ -521,7 +571,11 @@ class ReturnMap:
         numpy.ndarray
             Shape (6, n): the stance states at ``duration * k / n`` for k = 1 .. n.
         """
-        return self.event_map.stance_samples(x_touchdown, u, params, duration, n)
+        x_touchdown = arguments.vector(x_touchdown, "x_touchdown", STANCE.size)
+        u, p = arguments.vector(u, "u", self.law.controls.size), arguments.parameters(params)
+        duration = arguments.positive_number(duration, "duration", "s")
+        n = arguments.whole_number(n, "n", 1, arguments.MAX_SAMPLES)  # n = 0 would crash CasADi's integrator
+        return self.event_map.stance_samples(x_touchdown, u, p, duration, n)
 
     @staticmethod
     def touchdown_guess(X, u, p) -> float | None:
@@ -541,4 +595,5 @@ class ReturnMap:
         float or None
             The time [s] after apex of touchdown, or None if the foot cannot reach the ground.
         """
-        return touchdown_guess(X, u, p)
+        return touchdown_guess(arguments.vector(X, "X", APEX.size), arguments.vector(u, "u", np.size(u) or 1),
+                               arguments.parameters(p, "p"))

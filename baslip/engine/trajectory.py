@@ -12,7 +12,9 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from baslip.engine import arguments
 from baslip.engine.returnmap import ReturnMap, RunnerFell
+from baslip.errors import ArgumentError
 from baslip.model.dynamics import APEX, STANCE, Params, body_angle, build_model
 from baslip.model.hiplaw import ground_force, touchdown_angle
 
@@ -36,10 +38,39 @@ class Trajectory:
         return Trajectory(t=np.asarray(times), stance=self.stance[pick], **interp)
 
 
+#: Samples a stride takes per ``samples`` argument, at most: its descent, its stance's
+#: two phases and its ascent (for the limit :data:`~baslip.engine.arguments.MAX_SAMPLES`).
+PHASES_SAMPLED = 4
+
+
+def checked_sampling(strides: object, samples: object) -> tuple[int, int]:
+    """(strides, samples) of a trajectory or motion, checked: whole numbers, at least 1
+    stride and 2 samples a phase, and at most :data:`~baslip.engine.arguments.MAX_SAMPLES`
+    samples in all (4 x strides x samples); raises :class:`~baslip.errors.ArgumentError`
+    naming the argument and giving the limit."""
+    strides = arguments.whole_number(strides, "strides", 1, arguments.MAX_STRIDES)
+    samples = arguments.whole_number(samples, "samples", 2, arguments.MAX_SAMPLES)
+    total = PHASES_SAMPLED * strides * samples
+    if total > arguments.MAX_SAMPLES:
+        raise ArgumentError("samples", f"{strides} strides of {samples} samples a phase make {total:,} samples, "
+                            f"beyond the limit of {arguments.MAX_SAMPLES:,} ({PHASES_SAMPLED} x strides x samples)")
+    return strides, samples
+
+
+def _checked_start(rmap: ReturnMap, X, u, params: Params) -> tuple[np.ndarray, np.ndarray]:
+    """(X, u) as float vectors of ``rmap``'s sizes, and ``params`` a :class:`Params`."""
+    if not isinstance(params, Params):
+        raise ArgumentError("params", f"expected a Params, got {type(params).__name__}")
+    return arguments.vector(X, "X", APEX.size), arguments.vector(u, "u", rmap.law.controls.size)
+
+
 def stride_trajectory(rmap: ReturnMap, X, u, params: Params, strides: int = 2, samples: int = 40) -> Trajectory:
     """Sample ``strides`` strides from apex ``X`` [m, rad, m/s, rad/s] under control ``u``
     [SI, rad] of ``rmap``'s hip law, ``samples`` samples in each phase (descent, stance,
-    ascent), with the runner of ``params``. Raises :class:`RunnerFell` if a stride falls."""
+    ascent), with the runner of ``params``. Raises :class:`RunnerFell` if a stride falls,
+    and :class:`~baslip.errors.ArgumentError` for arguments :func:`checked_sampling` refuses."""
+    X, u = _checked_start(rmap, X, u, params)
+    strides, samples = checked_sampling(strides, samples)
     model = build_model()
     p = params.vector()
     theta_td = float(touchdown_angle(np.asarray(u)))
@@ -107,7 +138,7 @@ class TrunkRange:
     """
 
     def __init__(self, rmap: ReturnMap, samples: int = 100):
-        self.rmap, self.samples = rmap, samples
+        self.rmap, self.samples = rmap, arguments.whole_number(samples, "samples", 1, arguments.MAX_SAMPLES)
         self.model = build_model()
 
     def __call__(self, X, u, params: Params) -> tuple[float, float]:
@@ -142,6 +173,12 @@ MOTION_COLUMNS = {
 PHASE_NAMES = ("descent", "compression", "decompression", "ascent")
 
 
+class UnknownColumn(ArgumentError, KeyError):
+    """A column a :class:`Motion` does not have (a KeyError too, as for a mapping)."""
+
+    __str__ = ArgumentError.__str__  # the one line, not KeyError's quoted repr
+
+
 @dataclass(frozen=True)
 class Motion:
     """The continuous motion of ``strides`` strides, sampled in time.
@@ -168,6 +205,8 @@ class Motion:
     columns: dict
 
     def __getitem__(self, name: str) -> np.ndarray:
+        if not isinstance(name, str) or name not in self.columns:
+            raise UnknownColumn("name", f"no column {arguments.shown(name)} (expected one of {', '.join(self.columns)})")
         return self.columns[name]
 
     def __len__(self) -> int:
@@ -222,13 +261,15 @@ def _pandas():
 def motion(rmap: ReturnMap, X, u, params: Params, strides: int = 1, samples: int = 100) -> Motion:
     """The motion of ``strides`` strides from apex ``X`` [m, rad, m/s, rad/s] under control
     ``u`` [SI, rad] of ``rmap``'s hip law, for the runner of ``params``, with ``samples``
-    samples in each phase. Raises :class:`RunnerFell` if a stride falls."""
+    samples in each phase. Raises :class:`RunnerFell` if a stride falls, and
+    :class:`~baslip.errors.ArgumentError` for arguments :func:`checked_sampling` refuses."""
+    X, u = _checked_start(rmap, X, u, params)
+    strides, samples = checked_sampling(strides, samples)
     model = build_model()
     p = params.vector()
-    u = np.asarray(u, dtype=float)
     theta_td = float(touchdown_angle(u))
     rows: list[dict] = []
-    t0, y0, X = 0.0, 0.0, np.asarray(X, dtype=float)
+    t0, y0 = 0.0, 0.0
     for k in range(strides):
         stride, apex_state = _stride_from(rmap, X, u, params, y0)
         d = stride.durations

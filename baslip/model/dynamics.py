@@ -22,7 +22,9 @@ from functools import cache, wraps
 import casadi as ca
 import numpy as np
 
+from baslip.errors import ProblemError
 from baslip.model.layout import Layout
+from baslip.model.ranges import parameter_fault
 
 
 def _sx_function(*sizes: int):
@@ -78,6 +80,13 @@ class Params:
         Hip-to-CoM distance [m].
     g : float
         Gravity [m/s^2].
+
+    Raises
+    ------
+    ProblemError
+        A value that is not a finite number in its physical range
+        (:data:`baslip.model.ranges.PARAM_RANGES`), named ``params.<name>`` with the
+        problem reader's message.
     """
 
     m: float = 1.0
@@ -86,6 +95,12 @@ class Params:
     rho0: float = 0.2
     d: float = 0.04
     g: float = 9.81
+
+    def __post_init__(self):
+        for name in PARAMS.names:
+            fault = parameter_fault(name, getattr(self, name))
+            if fault is not None:
+                raise ProblemError(f"params.{name}", fault)
 
     def vector(self) -> np.ndarray:
         """The parameters in :data:`PARAMS` order (called for every stride: no asdict)."""
@@ -101,7 +116,7 @@ class Params:
         Parameters
         ----------
         **changes : float
-            New values by parameter name, SI units; they are not range-checked here.
+            New values by parameter name, SI units, checked as when built.
         """
         return replace(self, **changes)
 

@@ -11,6 +11,7 @@ from collections.abc import Mapping
 
 from baslip.model.dynamics import APEX, Params
 from baslip.model.hiplaw import HIP_LAWS, PD, HipLaw
+from baslip.model.ranges import PARAM_RANGES, PARAM_UNITS  # noqa: F401  (PARAM_RANGES: re-exported)
 
 
 def design_names(law: HipLaw = PD) -> tuple[str, ...]:
@@ -49,17 +50,6 @@ DEFAULT_BOUNDS = {
     **_every_law("bounds"),
 }
 
-#: Physical range of each model parameter: (lo, hi, whether lo itself is allowed).
-#: Mass [kg], inertia [kg m^2], stiffness [N/m], rest length [m], hip offset [m], gravity [m/s^2].
-PARAM_RANGES = {
-    "m": (0.0, 1e4, False),
-    "I": (0.0, 1e4, False),
-    "k": (0.0, 1e8, False),
-    "rho0": (0.0, 10.0, False),
-    "d": (0.0, 10.0, True),
-    "g": (0.0, 100.0, False),
-}
-
 #: Physical range of the apex energy [J] (z, ydot and theta_h_dot within their bounds
 #: and the parameters within theirs never give more).
 ENERGY_RANGE = (0.0, 1e8)
@@ -68,7 +58,7 @@ ENERGY_RANGE = (0.0, 1e8)
 #: SI unit of each quantity and parameter, for messages and axis labels.
 UNITS = {
     "z": "m", "theta_h": "rad", "ydot": "m/s", "theta_h_dot": "rad/s", **_every_law("units"),
-    "energy": "J", "m": "kg", "I": "kg m^2", "k": "N/m", "rho0": "m", "d": "m", "g": "m/s^2",
+    "energy": "J", **PARAM_UNITS,
 }
 
 

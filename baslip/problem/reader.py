@@ -46,7 +46,7 @@ from baslip.model.quantities import (
 from baslip.problem.continuation import ContinuationSpec, check_continuation, parse_continuation
 from baslip.problem.shipped import find_problem
 from baslip.problem.study import ADAPTED_CONTROLS, Atlas, Basin, Optimal, Study, Sweep, parse_study
-from baslip.problem.text import UnreadableText, clip, excerpt, read_yaml
+from baslip.problem.text import UnreadableText, check_plain_data, clip, excerpt, path_argument, read_yaml
 from baslip.problem.values import mapping, physical
 from baslip.problem.values import number as _number
 
@@ -195,7 +195,7 @@ def load_problem(path: str | Path) -> Problem:
         The file; a bare name that is no file here (``downward``, ``downward.yaml``)
         means the shipped problem of that name (``baslip problems`` lists them).
     """
-    path = find_problem(Path(path))
+    path = find_problem(Path(path_argument(path, "path")))
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -239,6 +239,7 @@ def parse_problem(data: Any, default_name: str = "problem") -> Problem:
     ProblemError
         If anything is invalid; its ``key`` names the offending entry.
     """
+    check_plain_data(data)
     top = mapping(data, "", TOP_LEVEL_KEYS)
     fields: dict[str, Any] = {key: _FIELDS[key](top[key]) for key in TOP_LEVEL_KEYS if key in top}
     fields.setdefault("name", _name(default_name))
@@ -251,6 +252,7 @@ def replace_problem(problem: Problem, **changes: Any) -> Problem:
     for key in changes:
         if key not in TOP_LEVEL_KEYS:
             raise ProblemError(clip(str(key)), f"unknown key (expected one of {', '.join(TOP_LEVEL_KEYS)})")
+    check_plain_data(changes)
     fields = {key: _FIELDS[key](value) for key, value in changes.items()}
     return _checked(dataclasses.replace(problem, **fields))
 

@@ -15,13 +15,14 @@ Beyond YAML's safe loader:
 
 from __future__ import annotations
 
+import os
 import re
 from typing import Any
 
 import yaml
 from yaml.nodes import MappingNode, ScalarNode, SequenceNode
 
-from baslip.errors import InputError
+from baslip.errors import ArgumentError, InputError, ProblemError
 
 #: Largest problem file read, in bytes (the shipped ones are 1 to 2 kB).
 MAX_BYTES = 64_000
@@ -37,6 +38,68 @@ _MERGE = "tag:yaml.org,2002:merge"
 
 class UnreadableText(InputError):
     """Text that cannot be read as a problem file; the message is one short line."""
+
+
+#: Most bits of an integer in a problem: more than a float can hold is no physical value.
+MAX_INTEGER_BITS = 1024
+
+
+#: Levels of nesting a message's key names.
+_KEY_LEVELS = 4
+
+
+class UnreadableData(ProblemError):
+    """Plain data (a problem given from Python) that no problem file could hold."""
+
+
+def check_plain_data(data: Any) -> None:
+    """Refuse plain data that no problem file could hold, before any value is read: lists
+    and mappings nested deeper than :data:`MAX_DEPTH` (a list that contains itself among
+    them), more than :data:`MAX_VALUES` values, or an integer beyond a float's range
+    (whose digits Python would refuse to print). Objects other than lists, tuples and
+    mappings are left to the schema.
+
+    Raises
+    ------
+    UnreadableData
+        Naming the dotted key of the first offending entry.
+    """
+    count = [0]
+
+    def walk(value: Any, key: str, depth: int) -> None:
+        count[0] += 1
+        if count[0] > MAX_VALUES:
+            raise UnreadableData(key, f"the problem holds more than {MAX_VALUES} values")
+        if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > MAX_INTEGER_BITS:
+            raise UnreadableData(key, f"too large: an integer of more than {MAX_INTEGER_BITS} bits is beyond a float's range")
+        if not isinstance(value, (list, tuple, dict)):
+            return
+        if depth >= MAX_DEPTH:
+            raise UnreadableData(key, f"nested more than {MAX_DEPTH} levels deep (or a list that contains itself)")
+        items = value.items() if isinstance(value, dict) else enumerate(value)
+        for name, item in items:
+            # The key names the entry's first levels (as deep as a problem file's keys go):
+            # a key of every level of a deep nest would be long.
+            walk(item, key if depth >= _KEY_LEVELS else f"{key}.{clip(str(name))}" if key else clip(str(name)),
+                 depth + 1)
+
+    walk(data, "", 0)
+
+
+def path_argument(value: Any, name: str) -> str:
+    """``value`` as a path string if it is a str or os.PathLike with no NUL in it;
+    otherwise an :class:`~baslip.errors.ArgumentError` naming the argument ``name``."""
+    try:
+        text = os.fspath(value)
+    except TypeError:
+        raise ArgumentError(name, f"expected a path, got {type(value).__name__}") from None
+    if isinstance(text, bytes):
+        raise ArgumentError(name, "expected a path as text, got bytes")
+    if "\0" in text:
+        raise ArgumentError(name, f"a path cannot hold a NUL character: {excerpt(text)}")
+    if not text:
+        raise ArgumentError(name, "expected a path, got an empty string")
+    return text
 
 
 def excerpt(value: Any, limit: int = EXCERPT) -> str:

@@ -15,7 +15,8 @@ from typing import Any
 
 from baslip.errors import ProblemError
 from baslip.model.dynamics import Params
-from baslip.model.quantities import PARAM_RANGES, THESIS_BODY, UNITS, physical_range, value_text
+from baslip.model.quantities import PARAM_RANGES, THESIS_BODY, physical_range, value_text
+from baslip.model.ranges import parameter_fault
 from baslip.problem.text import NonScalarKey, clip, excerpt
 
 #: Quantities that may be given in ``deg`` or ``rad``, and rates in ``deg/s`` or ``rad/s``.
@@ -93,13 +94,10 @@ def physical(name: str, value: float, key: str, params: Params = THESIS_BODY) ->
         The body: a design quantity's range is the thesis body's scaled to it
         (:func:`baslip.model.quantities.body_scale`).
     """
-    unit = UNITS[name]
     if name in PARAM_RANGES:
-        lo, hi, closed = PARAM_RANGES[name]
-        if value < lo or (value == lo and not closed):
-            raise ProblemError(key, f"must be {'zero or ' if closed else ''}positive, got {value:g} {unit}")
-        if value > hi:
-            raise ProblemError(key, f"{value:g} {unit} exceeds the physical range (at most {hi:g} {unit})")
+        fault = parameter_fault(name, value)
+        if fault is not None:
+            raise ProblemError(key, fault)
         return value
     lo, hi = physical_range(name, params)
     if not lo <= value <= hi:
