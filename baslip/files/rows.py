@@ -10,21 +10,16 @@ from __future__ import annotations
 
 import csv
 import os
-import stat
 from pathlib import Path
 from typing import IO
 
-#: What a path that is not a regular file is, by its stat type.
-_KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISSOCK, "a socket"),
-          (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"))
-
+from baslip.problem.text import file_kind
 
 def check_regular(path: Path) -> None:
     """Raise ValueError unless ``path`` is a regular file (after symbolic links); the
     message says what it is instead. A missing path raises FileNotFoundError."""
-    mode = os.stat(path).st_mode
-    if not stat.S_ISREG(mode):
-        kind = next((name for test, name in _KINDS if test(mode)), "not a regular file")
+    kind = file_kind(os.stat(path).st_mode)
+    if kind is not None:
         raise ValueError(f"it is {kind}, not a file")
 
 
