@@ -3,17 +3,23 @@ bools; status, reason and empty cells as strings) and small text files.
 
 Each is read only if it is a regular file: a directory, a FIFO (which would block the
 read forever) or a device in its place is refused with a ValueError naming what it is,
-as is a CSV row whose cell count differs from its header's.
+as is a damaged CSV row (:func:`row_damage`): one whose cell count differs from its
+header's, or a converged gait's whose apex state is not a finite number (a file changed
+by hand).
 """
 
 from __future__ import annotations
 
 import csv
+import math
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import IO
 
+from baslip.model.dynamics import APEX
 from baslip.problem.text import file_kind
+from baslip.status import Status
 
 def check_regular(path: Path) -> None:
     """Raise ValueError unless ``path`` is a regular file (after symbolic links); the
@@ -55,10 +61,37 @@ def _whole_rows(lines) -> list[dict[str, str]]:
     for number, cells in enumerate(lines, start=2):
         if not cells:  # a blank line, skipped as csv.DictReader does
             continue
-        if len(cells) != len(header):
-            raise ValueError(f"its line {number} has {len(cells)} cells, its header {len(header)}")
+        damage = row_damage(cells, header)
+        if damage is not None:
+            raise ValueError(f"its line {number}: {damage}")
         rows.append(dict(zip(header, cells)))
     return rows
+
+
+def row_damage(cells: Sequence[str], header: Sequence[str]) -> str | None:
+    """Why the CSV row ``cells`` under ``header`` cannot be trusted, or None if it can.
+
+    A row is damaged if its cell count differs from the header's (torn, or cells added),
+    or if it is a converged gait's (``status`` is ``converged``) and a cell of its apex
+    state (z, theta_h, ydot, theta_h_dot, where the header has them) is not a finite
+    number: baslip never writes such a row, so the file was changed by hand.
+    """
+    if len(cells) != len(header):
+        return f"it has {len(cells)} cells, its header {len(header)}"
+    row = dict(zip(header, cells))
+    if row.get("status") != Status.CONVERGED:
+        return None
+    for name in APEX.names:
+        if name in row and not _finite_number(row[name]):
+            return f"its {name} is {row[name][:20]!r}, not a finite number"
+    return None
+
+
+def _finite_number(text: str) -> bool:
+    try:
+        return math.isfinite(float(text))
+    except ValueError:
+        return False
 
 
 def _converted(row: dict[str, str]) -> dict:

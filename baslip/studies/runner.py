@@ -3,7 +3,9 @@
 * Each finished task becomes one CSV row, appended, flushed and synced at once, so an
   interruption (Ctrl-C, a kill) loses only tasks that were still running.
 * On a rerun, rows already in the CSV are skipped: a finished study does no new work. A
-  last line cut short by a kill is dropped; a file that is empty, has a torn or foreign
+  last line cut short by a kill is dropped, and so is a row that cannot be trusted (torn,
+  or a converged gait's apex state not finite: changed by hand), each with a note naming
+  its line, so that its task runs again; a file that is empty, has a torn or foreign
   header or cannot be decoded is set aside with a message and started afresh; rows with a
   repeated key are dropped (the first is kept) with a message.
 * Tasks come in a fixed number of lanes (:data:`LANES` unless a run asks for more,
@@ -41,6 +43,7 @@ from baslip.diagnostics import HEARTBEAT_S, IN_PLACE, ROOT_LOGGER, end_progress_
 from baslip.engine.codegen import leave_notices_to_parent, note_code, recording_code
 from baslip.errors import InputError
 from baslip.files.atomic import write_files_atomically
+from baslip.files.rows import row_damage
 from baslip.studies.processes import (
     Inbox,
     Reporting,
@@ -105,20 +108,31 @@ class ResumableCsv:
             return
         if lines[0] != self.columns:
             return self._set_aside("its columns are not this study's")
-        rows = [dict(zip(self.columns, cells)) for cells in lines[1:] if len(cells) == len(self.columns)]
-        dropped = len(lines) - 1 - len(rows)
+        rows = self._trusted_rows(lines[1:])
+        dropped = sum(1 for cells in lines[1:] if cells) - len(rows)
         unique, seen = [], set()
         for row in rows:
             if self.key(row) not in seen:
                 seen.add(self.key(row))
                 unique.append(row)
-        if dropped:
-            self.notes.append(f"{self.path.name}: dropped {dropped} rows with the wrong number of cells")
         if len(unique) < len(rows):
             self.notes.append(f"{self.path.name}: {len(rows) - len(unique)} rows repeat a key; kept the first of each")
         self.rows = unique
         if len(raw) != self.path.stat().st_size or dropped or len(unique) < len(rows):
             self.rewrite(self.rows)
+
+    def _trusted_rows(self, lines: list[list[str]]) -> list[dict[str, str]]:
+        """The rows of ``lines`` (the file's, after its header) that can be trusted; one
+        note for each dropped one (see :func:`~baslip.files.rows.row_damage`), whose task
+        then runs again."""
+        rows = []
+        for number, cells in enumerate(lines, start=2):
+            damage = row_damage(cells, self.columns) if cells else None
+            if damage is not None:
+                self.notes.append(f"{self.path.name}: dropped line {number} ({damage}); its task runs again")
+            elif cells:
+                rows.append(dict(zip(self.columns, cells)))
+        return rows
 
     def _set_aside(self, why: str) -> None:
         aside = self.path.with_name(f"{self.path.name}.set-aside-{time.strftime('%Y%m%dT%H%M%S')}")
