@@ -250,3 +250,19 @@ def test_a_study_stopped_short_exits_1(tmp_path):
     assert run.wait() == 1
     assert "stopped short" in run.stderr.read()
     assert json.loads((out / "result.json").read_text())["complete"] is False
+
+
+def test_a_row_changed_by_hand_is_solved_again_with_one_note(grid, tmp_path, caplog):
+    """Issue 57: a sweep whose points.csv had a row's z set to NaN resumed and kept the NaN row."""
+    problem, reference = grid
+    out = tmp_path / "changed"
+    kill_after(start(problem, out), out, 6)
+    with open(out / "points.csv", newline="") as handle:
+        table = list(csv.reader(handle))
+    z = table[0].index("z")
+    table[3][z] = "nan"
+    (out / "points.csv").write_text("".join(",".join(row) + "\n" for row in table))
+    assert main([str(problem), "--out", str(out)]) == 0
+    notes = [line for line in caplog.messages if "dropped line" in line]
+    assert notes == ["note: points.csv: dropped line 4 (its z is 'nan', not a finite number); its task runs again"]
+    assert table_without_timing(out) == table_without_timing(reference)
