@@ -325,3 +325,13 @@ def test_a_failed_rows_state_may_be_anything(tmp_path):
     path.write_text("sweep_z,z,status\n0.3,nan,failed\n0.4,,not_verified\n")
     table = ResumableCsv(path, ["sweep_z", "z", "status"], ["sweep_z"])
     assert table.done() == {("0.3",), ("0.4",)} and table.notes == []
+
+
+def test_a_state_line_cut_short_does_not_swallow_the_next(tmp_path):
+    """A full disk or a kill can leave half a line in the state log; the next state is kept whole."""
+    log = StateLog(tmp_path / ".points.csv.states")
+    log.append(("0.1",), [1.0])
+    with open(log.path, "a") as handle:
+        handle.write('{"key": ["0.2"], "sta')
+    log.append(("0.3",), [3.0])
+    assert log.read() == {("0.1",): [1.0], ("0.3",): [3.0]}

@@ -2,24 +2,31 @@
 bools; status, reason and empty cells as strings) and small text files.
 
 Each is read only if it is a regular file: a directory, a FIFO (which would block the
-read forever) or a device in its place is refused with a ValueError naming what it is,
-as is a damaged CSV row (:func:`row_damage`): one whose cell count differs from its
-header's, or a converged gait's whose apex state is not a finite number (a file changed
-by hand).
+read forever) or a device in its place is refused with a ValueError naming what it is.
+A CSV file that is damaged (not UTF-8, without its header, or with a damaged row, see
+:func:`row_damage`: one whose cell count differs from its header's, or a converged
+gait's whose apex state is not a finite number, as after a change by hand) is refused
+with :class:`DamagedTable`, naming the file and the line.
 """
 
 from __future__ import annotations
 
 import csv
+import itertools
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import IO
 
+from baslip.errors import InputError
 from baslip.model.dynamics import APEX
 from baslip.problem.text import file_kind
 from baslip.status import Status
+
+class DamagedTable(InputError):
+    """A CSV file of a run that cannot be read back as baslip wrote it."""
+
 
 def check_regular(path: Path) -> None:
     """Raise ValueError unless ``path`` is a regular file (after symbolic links); the
@@ -37,10 +44,10 @@ def regular_text(path: Path) -> str:
 
 def read_rows(path: Path) -> list[dict[str, str]]:
     """The rows of the CSV file ``path`` as dicts of strings, after checking that it is a
-    regular file and that every row has as many cells as its header."""
+    regular file and that it is whole (:class:`DamagedTable` naming it if not)."""
     check_regular(path)
     with open(path, encoding="utf-8", newline="") as handle:
-        return _whole_rows(csv.reader(handle))
+        return _whole_rows(handle, str(path))
 
 
 def read_points(path: Path) -> list[dict]:
@@ -48,24 +55,52 @@ def read_points(path: Path) -> list[dict]:
     return [_converted(row) for row in read_rows(path)]
 
 
-def points_from(handle: IO[str]) -> list[dict]:
-    """Rows of CSV text as dicts of floats (status and empty cells kept as strings)."""
-    return [_converted(row) for row in _whole_rows(csv.reader(handle))]
+def points_from(handle: IO[str], where: str) -> list[dict]:
+    """Rows of CSV text as dicts of floats (status and empty cells kept as strings);
+    ``where`` names the file in the message of :class:`DamagedTable`."""
+    return [_converted(row) for row in _whole_rows(handle, where)]
 
 
-def _whole_rows(lines) -> list[dict[str, str]]:
-    header = next(lines, None)
-    if header is None:
-        return []
-    rows = []
-    for number, cells in enumerate(lines, start=2):
-        if not cells:  # a blank line, skipped as csv.DictReader does
-            continue
-        damage = row_damage(cells, header)
-        if damage is not None:
-            raise ValueError(f"its line {number}: {damage}")
-        rows.append(dict(zip(header, cells)))
-    return rows
+def check_rows(handle: IO[str], where: str) -> None:
+    """Raise :class:`DamagedTable` naming ``where`` if the CSV text in ``handle`` is
+    damaged (see :func:`row_damage`)."""
+    _whole_rows(handle, where)
+
+
+def check_header(path: Path) -> None:
+    """Raise :class:`DamagedTable` naming ``path`` unless it is a regular file that starts
+    with a header (reading only its first line: cheap, for a folder's every table)."""
+    try:
+        check_regular(path)
+    except ValueError as err:
+        raise DamagedTable("", f"{path}: {err}") from None
+    with open(path, encoding="utf-8", newline="") as handle:
+        _whole_rows(itertools.islice(handle, 1), str(path))
+
+
+def _whole_rows(handle: Iterable[str], where: str) -> list[dict[str, str]]:
+    """The rows under the header of the CSV lines ``handle``, as dicts of strings, all
+    checked (:class:`DamagedTable` naming ``where`` and the line if one is damaged)."""
+    try:
+        lines = csv.reader(handle)
+        header = next(lines, None)
+        if header is None:
+            return []
+        if any(_number(cell) or not cell for cell in header):
+            raise DamagedTable("", f"{where}: its first line is no header (it has numbers or empty cells)")
+        rows = []
+        for number, cells in enumerate(lines, start=2):
+            if not cells:  # a blank line, skipped as csv.DictReader does
+                continue
+            damage = row_damage(cells, header)
+            if damage is not None:
+                raise DamagedTable("", f"{where}: line {number}: {damage}")
+            rows.append(dict(zip(header, cells)))
+        return rows
+    except UnicodeDecodeError:
+        raise DamagedTable("", f"{where}: it is not UTF-8 text") from None
+    except csv.Error as err:
+        raise DamagedTable("", f"{where}: it is not CSV ({err})") from None
 
 
 def row_damage(cells: Sequence[str], header: Sequence[str]) -> str | None:
@@ -88,10 +123,15 @@ def row_damage(cells: Sequence[str], header: Sequence[str]) -> str | None:
 
 
 def _finite_number(text: str) -> bool:
+    return _number(text) and math.isfinite(float(text))
+
+
+def _number(text: str) -> bool:
     try:
-        return math.isfinite(float(text))
+        float(text)
     except ValueError:
         return False
+    return True
 
 
 def _converted(row: dict[str, str]) -> dict:

@@ -42,7 +42,7 @@ import numpy as np
 from baslip.diagnostics import HEARTBEAT_S, IN_PLACE, ROOT_LOGGER, end_progress_line, heartbeat, logger
 from baslip.engine.codegen import leave_notices_to_parent, note_code, recording_code
 from baslip.errors import InputError
-from baslip.files.atomic import write_files_atomically
+from baslip.files.atomic import write_files_atomically, writing
 from baslip.files.rows import row_damage
 from baslip.studies.processes import (
     Inbox,
@@ -181,7 +181,7 @@ class ResumableCsv:
         self.states.clear()
 
     def _write_text(self, text: str, mode: str) -> None:
-        with open(self.path, mode) as handle:
+        with writing(self.path), open(self.path, mode) as handle:
             handle.write(text)
             handle.flush()
             os.fsync(handle.fileno())
@@ -195,8 +195,11 @@ class StateLog:
         self.path = path
 
     def append(self, key: tuple[str, ...], state) -> None:
-        with open(self.path, "a") as handle:
-            handle.write(json.dumps({"key": list(key), "state": state}) + "\n")
+        # After a line cut short (a kill, a full disk), start a new one: the torn line is
+        # skipped when read, and must not swallow this one.
+        with writing(self.path), open(self.path, "a+") as handle:
+            torn = handle.tell() > 0 and not _ends_a_line(self.path)
+            handle.write(("\n" if torn else "") + json.dumps({"key": list(key), "state": state}) + "\n")
             handle.flush()
             os.fsync(handle.fileno())
 
@@ -214,6 +217,12 @@ class StateLog:
 
     def clear(self) -> None:
         self.path.unlink(missing_ok=True)
+
+
+def _ends_a_line(path: Path) -> bool:
+    with open(path, "rb") as handle:
+        handle.seek(-1, os.SEEK_END)
+        return handle.read(1) == b"\n"
 
 
 def csv_text(columns: Sequence[str], rows: Sequence[dict]) -> str:
