@@ -5,8 +5,8 @@ import errno
 import json
 import math
 import os
-import shutil
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path

@@ -3,8 +3,8 @@ figures come back by the names of the files the run wrote, and show themselves."
 
 import math
 import os
-import shutil
 import re
+import shutil
 from pathlib import Path
 
 import pytest

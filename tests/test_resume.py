@@ -321,3 +321,23 @@ def test_a_study_on_a_disk_that_fills_exits_1_and_resumes_once_there_is_room(gri
     assert start(problem, out).wait() == 0
     assert table_without_timing(out) == table_without_timing(reference)
     assert json.loads((out / "result.json").read_text())["complete"] is True
+
+
+def test_a_sweep_and_a_gait_started_together_into_one_folder_give_one_run(tmp_path):
+    """Issue 57: both exited 0 and the folder held the sweep: each checked the folder before
+    either had written. The lock is now taken before the folder's kind is decided."""
+    sweep = tmp_path / "tiny_grid.yaml"
+    sweep.write_text(GRID.replace("vary: {ydot: [0.1, 1.0, 0.1], z: [0.4, 0.5, 0.05]}",
+                                  "vary: {ydot: [0.5, 0.6, 0.1], z: [0.4, 0.45, 0.05]}"))
+    gait = ROOT / "problems" / "downward.yaml"
+    for trial in range(6):
+        out = tmp_path / f"race{trial}"
+        runs = [start(sweep, out), start(gait, out)] if trial % 2 else [start(gait, out), start(sweep, out)]
+        codes = [run.wait() for run in runs]
+        assert sorted(codes) == [0, 2], [run.stderr.read() for run in runs]
+        (winner,) = [run for run in runs if run.returncode == 0]
+        (loser,) = [run for run in runs if run.returncode == 2]
+        message = loser.stderr.read()
+        assert message.count("\n") == 1 and (" is in use by process " in message or " run, not a " in message)
+        kind = json.loads((out / "result.json").read_text()).get("kind", "gait")
+        assert kind == ("sweep" if winner.args[3] == str(sweep) else "gait")

@@ -24,6 +24,7 @@ from baslip.model.dynamics import APEX
 from baslip.problem.text import file_kind
 from baslip.status import Status
 
+
 class DamagedTable(InputError):
     """A CSV file of a run that cannot be read back as baslip wrote it."""
 
