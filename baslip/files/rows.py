@@ -43,6 +43,14 @@ def regular_text(path: Path) -> str:
     return Path(path).read_text(encoding="utf-8")
 
 
+def ends_a_line(path: Path) -> bool:
+    """Whether the non-empty file ``path`` ends with a newline (else its last line was
+    cut short, by a kill or a full disk)."""
+    with open(path, "rb") as handle:
+        handle.seek(-1, os.SEEK_END)
+        return handle.read(1) == b"\n"
+
+
 def read_rows(path: Path) -> list[dict[str, str]]:
     """The rows of the CSV file ``path`` as dicts of strings, after checking that it is a
     regular file and that it is whole (:class:`DamagedTable` naming it if not)."""

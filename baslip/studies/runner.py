@@ -43,7 +43,7 @@ from baslip.diagnostics import HEARTBEAT_S, IN_PLACE, ROOT_LOGGER, end_progress_
 from baslip.engine.codegen import leave_notices_to_parent, note_code, recording_code
 from baslip.errors import InputError
 from baslip.files.atomic import write_files_atomically, writing
-from baslip.files.rows import row_damage
+from baslip.files.rows import ends_a_line, row_damage
 from baslip.studies.processes import (
     Inbox,
     Reporting,
@@ -53,6 +53,7 @@ from baslip.studies.processes import (
     stop_workers,
     worker_count,
 )
+from baslip.studies.schedulerprobe import scheduler_problem
 
 _log = logger(__name__)
 
@@ -198,7 +199,7 @@ class StateLog:
         # After a line cut short (a kill, a full disk), start a new one: the torn line is
         # skipped when read, and must not swallow this one.
         with writing(self.path), open(self.path, "a+") as handle:
-            torn = handle.tell() > 0 and not _ends_a_line(self.path)
+            torn = handle.tell() > 0 and not ends_a_line(self.path)
             handle.write(("\n" if torn else "") + json.dumps({"key": list(key), "state": state}) + "\n")
             handle.flush()
             os.fsync(handle.fileno())
@@ -217,12 +218,6 @@ class StateLog:
 
     def clear(self) -> None:
         self.path.unlink(missing_ok=True)
-
-
-def _ends_a_line(path: Path) -> bool:
-    with open(path, "rb") as handle:
-        handle.seek(-1, os.SEEK_END)
-        return handle.read(1) == b"\n"
 
 
 def csv_text(columns: Sequence[str], rows: Sequence[dict]) -> str:
@@ -380,7 +375,8 @@ DASK_CONNECT_TIMEOUT = "10s"
 
 def check_scheduler(scheduler: str) -> None:
     """Raise :class:`SchedulerError` unless Dask is installed and, for an address, its
-    scheduler answers: checked before a run creates anything."""
+    scheduler answers (first as a Dask scheduler should, :mod:`~baslip.studies.schedulerprobe`):
+    checked before a run creates anything."""
     try:
         from distributed import Client
     except ImportError:
@@ -391,6 +387,9 @@ def check_scheduler(scheduler: str) -> None:
     if scheme != "tcp":
         raise SchedulerError("--scheduler", f"{scheme}:// addresses need a security or transport set-up baslip does "
                              "not make; give tcp://HOST:PORT or local")
+    problem = scheduler_problem(scheduler)
+    if problem is not None:
+        raise SchedulerError("--scheduler", problem)
     try:
         Client(scheduler, timeout=DASK_CONNECT_TIMEOUT).close()
     except (OSError, TimeoutError, ValueError, TypeError) as err:
