@@ -173,7 +173,8 @@ def _whole_rows_by_cell(path: Path, key_count: int) -> tuple[list[tuple[tuple[st
         return [], "it is not UTF-8 CSV"
     if not lines:
         return [], "it is empty"
-    header, rows = lines[0], []
+    header = lines[0]
+    rows: list[tuple[tuple[str, ...], dict]] = []
     for number, cells in enumerate(lines[1:], start=2):
         damage = row_damage(cells, header)
         if damage is not None:
