@@ -26,7 +26,12 @@ from baslip.status import Status
 
 
 class DamagedTable(InputError):
-    """A CSV file of a run that cannot be read back as baslip wrote it."""
+    """A CSV file of a run that cannot be read back as baslip wrote it: ``where`` names
+    the file, ``why`` says what is wrong (with the line)."""
+
+    def __init__(self, where: str, why: str):
+        super().__init__("", f"{where}: {why}")
+        self.where, self.why = where, why
 
 
 def check_regular(path: Path) -> None:
@@ -82,7 +87,7 @@ def check_header(path: Path) -> None:
     try:
         check_regular(path)
     except ValueError as err:
-        raise DamagedTable("", f"{path}: {err}") from None
+        raise DamagedTable(str(path), str(err)) from None
     with open(path, encoding="utf-8", newline="") as handle:
         _whole_rows(itertools.islice(handle, 1), str(path))
 
@@ -96,20 +101,20 @@ def _whole_rows(handle: Iterable[str], where: str) -> list[dict[str, str]]:
         if header is None:
             return []
         if any(_number(cell) or not cell for cell in header):
-            raise DamagedTable("", f"{where}: its first line is no header (it has numbers or empty cells)")
+            raise DamagedTable(where, "its first line is no header (it has numbers or empty cells)")
         rows = []
         for number, cells in enumerate(lines, start=2):
             if not cells:  # a blank line, skipped as csv.DictReader does
                 continue
             damage = row_damage(cells, header)
             if damage is not None:
-                raise DamagedTable("", f"{where}: line {number}: {damage}")
+                raise DamagedTable(where, f"line {number}: {damage}")
             rows.append(dict(zip(header, cells)))
         return rows
     except UnicodeDecodeError:
-        raise DamagedTable("", f"{where}: it is not UTF-8 text") from None
+        raise DamagedTable(where, "it is not UTF-8 text") from None
     except csv.Error as err:
-        raise DamagedTable("", f"{where}: it is not CSV ({err})") from None
+        raise DamagedTable(where, f"it is not CSV ({err})") from None
 
 
 def row_damage(cells: Sequence[str], header: Sequence[str]) -> str | None:
