@@ -23,7 +23,7 @@ from baslip.errors import ArgumentError, InputError
 from baslip.files.atomic import write_result
 from baslip.files.lock import hold, unwritable
 from baslip.files.provenance import provenance
-from baslip.files.runs import check_folder, clear_run
+from baslip.files.runs import check_folder, clear_run, hold_for
 from baslip.gait.fixedpoint import FixedPointResult
 from baslip.gait.from_problem import solve_problem, solver_for
 from baslip.problem.reader import Problem, check_problem, load_problem
@@ -221,7 +221,7 @@ def solve_and_write(problem: Problem, out: Path, quiet: bool = True) -> FixedPoi
     FixedPointResult
         The verified gait, or the failure, as written.
     """
-    with hold(out), recording_code() as code:
+    with hold_for(problem, out), recording_code() as code:
         if not quiet:
             s = problem.solver
             orbit = "" if problem.strides == 1 else f", {problem.strides}-stride orbits"

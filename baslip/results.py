@@ -94,8 +94,13 @@ class RunResults:
         """
         from baslip.files.rows import points_from
 
-        with self._open(table or self._default_table()) as handle:
-            return points_from(handle)
+        name = table or self._default_table()
+        with self._open(name) as handle:
+            return points_from(handle, self._where(name))
+
+    def _where(self, table: str) -> str:
+        """The file of ``table``, for messages."""
+        return str(self.folder / f"{table}.csv") if self.folder is not None else f"{table}.csv"
 
     def _open(self, table: str) -> IO[str]:
         if self.texts is not None:
@@ -144,7 +149,11 @@ class RunResults:
         name = table or self._default_table()
         if name not in self.tables:
             raise KeyError(f"{self.folder or self.name} has no {name}.csv; it has {', '.join(self.tables) or 'no tables'}")
+        from baslip.files.rows import check_rows
+
         with self._open(name) as handle:
+            check_rows(handle, self._where(name))
+            handle.seek(0)
             frame = pandas.read_csv(handle)
         for column in frame.columns:
             values = set(frame[column].dropna().astype(str).str.lower())
@@ -304,18 +313,25 @@ def open_results(folder: str | Path) -> RunResults:
     """The results in ``folder`` (one written by ``baslip solve``). Raises
     FileNotFoundError if it holds no result.json, :class:`DamagedResults` (an
     :class:`~baslip.errors.InputError` naming the file) if its result.json is not a JSON
-    object, and :class:`~baslip.errors.ArgumentError` for a ``folder`` that is no path.
+    object, :class:`~baslip.files.rows.DamagedTable` (an ``InputError``) naming the file
+    if a table has no header or is no regular file (a table with a damaged row is refused
+    so when it is read), and :class:`~baslip.errors.ArgumentError` for a ``folder`` that
+    is no path.
 
     Parameters
     ----------
     folder : str or Path
         The run's folder; its parent is taken as the folder of the runs it read.
     """
+    from baslip.files.rows import check_header
+
     folder = Path(path_argument(folder, "folder"))
     path = folder / "result.json"
     if not path.exists():
         raise FileNotFoundError(f"{path} does not exist: run the problem first")
     tables = tuple(sorted(p.stem for p in folder.glob("*.csv")))
+    for table in tables:  # a damaged row is found when its table is read (rows, to_dataframe)
+        check_header(folder / f"{table}.csv")
     return RunResults(folder, result_record(path), tables, sources=folder.parent)
 
 

@@ -21,6 +21,7 @@ import csv
 import json
 import logging
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -391,3 +392,19 @@ def test_an_atlas_is_heard_from_every_10_s_with_its_cell_s_news_and_quiet_silenc
                              "atlas_downward: cell ydot = 0.5: 6 charts from 1 seeds"]
         assert "atlas: 0/2 done, 18 s so far, tasks running" in said
         assert clock.longest_silence(0.0, 200.0) <= 10.0
+
+
+def test_a_finished_atlas_whose_atlas_csv_lost_the_end_of_its_last_row_solves_that_cell_again(finished, tmp_path):
+    """Issue 57: such a folder stopped the rerun with "internal error: ValueError: its line 61 has 20 cells"."""
+    problem, reference = finished
+    out = tmp_path / "torn"
+    shutil.copytree(reference, out)
+    text = (out / "atlas.csv").read_text()
+    (out / "atlas.csv").write_text(text[: len(text) - 40])
+    again = run(problem, out)
+    _, err = again.communicate(timeout=1800)
+    assert again.returncode == 0, err
+    assert table(out / "atlas.csv") == table(reference / "atlas.csv")
+    assert table(out / "atlas_best.csv") == table(reference / "atlas_best.csv")
+    record = json.loads((out / "result.json").read_text())
+    assert record["done_before_this_run"] == 1 and record["done_in_this_run"] == 1  # the last cell again

@@ -1,10 +1,15 @@
 """Specification of the ``baslip`` command (baslip.cli.main) and of the notebook-facing parts of
 a result."""
 
+import errno
+import json
 import math
+import os
 import re
+import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from runs import ROOT
@@ -178,3 +183,60 @@ def test_report_on_a_folder_of_junk_is_one_line_not_a_traceback(tmp_path, capsys
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "cannot read the studies' results" in err
     assert not (tmp_path / "REPORT.md").exists()
+
+
+def test_report_on_a_damaged_table_names_the_file_and_line(tmp_path, capsys):
+    """Issue 57: a junk row stopped the report with a bare "ValueError: its line 6 has 1 cells"."""
+    shutil.copytree(ROOT / "results" / "grid_downward", tmp_path / "grid_downward")
+    points = tmp_path / "grid_downward" / "points.csv"
+    lines = points.read_text().splitlines(keepends=True)
+    points.write_text("".join([*lines[:5], "junk\n", *lines[5:]]))
+    assert main(["report", "--results", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err == f"error: --results {tmp_path}: {points}: line 6: it has 1 cells, its header 22\n"
+    assert not (tmp_path / "REPORT.md").exists()
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device"])
+def test_trajectory_never_replaces_a_device_or_a_fifo(tmp_path, capsys, kind):
+    """Issue 57: --out naming /dev/null or a named pipe replaced it with a regular file."""
+    if kind == "fifo":
+        out = tmp_path / "motion.csv"
+        os.mkfifo(out)
+    else:
+        out = Path("/dev/null")
+    before = os.stat(out)
+    assert main(["trajectory", str(ROOT / "problems" / "downward.yaml"), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    what = "a FIFO" if kind == "fifo" else "a character device"
+    assert err == f"error: --out {out} is {what}, not a file; baslip writes no file in its place\n"
+    after = os.stat(out)
+    assert (after.st_ino, after.st_mode, after.st_rdev) == (before.st_ino, before.st_mode, before.st_rdev)
+
+
+def test_a_full_disk_keeps_the_earlier_gait_whole_and_says_so_in_one_line(tmp_path, capsys, monkeypatch):
+    """Issue 57: a full disk ended in "internal error: OSError: [Errno 28]"."""
+    import baslip.files.atomic as atomic
+
+    out = tmp_path / "downward"
+    problem = str(ROOT / "problems" / "downward.yaml")
+    assert main(["solve", problem, "--out", str(out), "--quiet"]) == 0
+    earlier = (out / "result.json").read_bytes()
+    capsys.readouterr()
+
+    def full_disk(descriptor, mode="r", *args, **kwargs):
+        if "w" in mode:  # a result being written: the disk is full
+            os.close(descriptor)
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return fdopen(descriptor, mode, *args, **kwargs)
+
+    fdopen = os.fdopen
+    monkeypatch.setattr(atomic.os, "fdopen", full_disk)
+    assert main(["solve", problem, "--out", str(out), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert err == f"error: downward: no space left on device: {out / 'result.json'}\n"
+    assert (out / "result.json").read_bytes() == earlier  # kept whole
+    assert sorted(p.name for p in out.iterdir()) == ["multipliers.csv", "result.json"]
+    monkeypatch.undo()
+    assert main(["solve", problem, "--out", str(out), "--quiet"]) == 0
+    assert json.loads((out / "result.json").read_bytes())["status"] == "converged"

@@ -142,3 +142,28 @@ def test_a_local_cluster_started_by_a_script_without_a_main_guard_says_it_needs_
     assert done.returncode == 3, done.stderr[-2000:]
     assert "--scheduler: Dask's LocalCluster could not start its workers" in done.stdout
     assert 'start it under `if __name__ == "__main__":`' in done.stdout
+
+
+@pytest.fixture
+def web_server():
+    """A throwaway HTTP server on 127.0.0.1 (a free port), stopped afterwards."""
+    import http.server
+    import threading
+
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), http.server.BaseHTTPRequestHandler)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    yield f"tcp://127.0.0.1:{server.server_address[1]}"
+    server.shutdown()
+    server.server_close()
+
+
+def test_a_scheduler_address_that_is_a_web_server_is_one_line_and_exit_2(tmp_path, web_server):
+    """Issue 57: Dask's client read the server's "HTTP/1.0 400" as a message length and
+    tried to allocate 3.07 EiB."""
+    path = small_grid(tmp_path)
+    done = subprocess.run([sys.executable, "-m", "baslip.solve", str(path), "--out", str(tmp_path / "out"),
+                           "--scheduler", web_server], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2, done.stderr[-500:]
+    assert done.stderr == f"error: --scheduler: {web_server} is no Dask scheduler: nothing answered within 5 s\n"
+    assert not (tmp_path / "out").exists()

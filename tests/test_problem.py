@@ -6,6 +6,7 @@ line on stderr and exit code 2 (see test_solve.py).
 """
 
 import math
+import os
 import pickle
 import re
 
@@ -356,3 +357,37 @@ def test_an_infinite_end_of_a_bound_written_in_a_file_is_no_bound(tmp_path):
     path.write_text("fix: {z: 0.4, ydot: 0.5}\nbounds: {z: [.inf, 0.6]}\n")
     with pytest.raises(ProblemError, match="^bounds.z: expected a finite number"):
         load_problem(path)
+
+
+@pytest.mark.parametrize("tagged", ["!!float 'abc'", "!!int '0x'", "!!float ''", "!!int 'twelve'"])
+def test_a_number_tag_on_text_that_is_no_number_names_its_key(tmp_path, tagged):
+    """Issue 57: these raised ValueError from inside PyYAML's constructors."""
+    path = tmp_path / "tagged.yaml"
+    path.write_text(f"fix: {{z: 0.4, ydot: 0.5}}\nguess: {{Kp: {tagged}}}\n")
+    with pytest.raises(ProblemError) as err:
+        load_problem(path)
+    assert err.value.key == "guess.Kp" and tagged in str(err.value) and "\n" not in str(err.value)
+
+
+def test_well_formed_number_tags_still_read(tmp_path):
+    path = tmp_path / "tagged.yaml"
+    path.write_text("fix: {z: !!float '0.4', ydot: 0.5}\nsolver: {max_iter: !!int '0x10'}\n")
+    problem = load_problem(path)
+    assert problem.fix["z"] == 0.4 and problem.solver.max_iter == 16
+
+
+def test_a_fifo_as_the_problem_is_refused_without_waiting(tmp_path):
+    """Issue 57: reading a FIFO with no writer hung; it is refused before any read."""
+    fifo = tmp_path / "problem.yaml"
+    os.mkfifo(fifo)
+    with pytest.raises(ProblemError, match="is a FIFO, not a file"):
+        load_problem(fifo)
+
+
+@pytest.mark.parametrize("device", ["/dev/zero", "/dev/urandom", "/dev/null"])
+def test_a_device_as_the_problem_is_refused(device):
+    """Issue 57: /dev/zero and /dev/urandom were read until memory ran out."""
+    if not os.path.exists(device):
+        pytest.skip(f"no {device} here")
+    with pytest.raises(ProblemError, match="is a character device, not a file"):
+        load_problem(device)

@@ -2,12 +2,16 @@
 figures come back by the names of the files the run wrote, and show themselves."""
 
 import math
+import os
 import re
+import shutil
+from pathlib import Path
 
 import pytest
 from runs import ROOT
 
 from baslip import open_results
+from baslip.errors import InputError
 
 RESULTS = ROOT / "results"
 
@@ -169,3 +173,55 @@ def test_an_energy_axis_also_reads_as_the_speed_at_a_leg_length_high_apex():
     low, high = ax.get_ylim()
     assert "speed at a 1 m apex" in speed.get_ylabel()
     assert speed.get_ylim() == pytest.approx(tuple(math.sqrt(2 * (e - 80 * 9.81) / 80) for e in (low, high)))
+
+
+def damaged_copy(tmp_path, name: str, table: str, change) -> Path:
+    """A copy of results/``name`` whose ``table`` has had ``change`` (lines -> lines) done to it."""
+    folder = tmp_path / name
+    shutil.copytree(RESULTS / name, folder)
+    lines = (folder / table).read_text().splitlines(keepends=True)
+    (folder / table).write_text("".join(change(lines)))
+    return folder
+
+
+def junk_row(lines):
+    return [*lines[:5], "junk\n", *lines[5:]]
+
+
+def nan_state(lines):
+    cells = lines[3].split(",")
+    cells[lines[0].split(",").index("z")] = "nan"
+    return [*lines[:3], ",".join(cells), *lines[4:]]
+
+
+def torn_last_row(lines):
+    return [*lines[:-1], lines[-1][: len(lines[-1]) // 2]]
+
+
+@pytest.mark.parametrize("change, words", [(junk_row, "line 6: it has 1 cells"), (nan_state, "line 4: its z is 'nan'"),
+                                           (torn_last_row, "line 91: it has")])
+def test_a_damaged_table_is_refused_naming_its_file_and_line(tmp_path, change, words):
+    """Issue 57: a junk row in points.csv gave a bare ValueError from rows() and to_dataframe()
+    read it as data; a row's z set to NaN by hand was read as a gait."""
+    folder = damaged_copy(tmp_path, "grid_downward", "points.csv", change)
+    results = open_results(folder)
+    for read in (results.rows, results.to_dataframe):
+        with pytest.raises(InputError) as err:
+            read()
+        assert str(err.value).startswith(f"{folder / 'points.csv'}: {words}") and "\n" not in str(err.value)
+
+
+def test_a_table_without_its_header_is_refused_when_the_folder_is_opened(tmp_path):
+    """Issue 57: a branch.csv without its header gave KeyError."""
+    folder = damaged_copy(tmp_path, "continuation_downward_height", "branch.csv", lambda lines: lines[1:])
+    with pytest.raises(InputError, match=re.escape(f"{folder / 'branch.csv'}: its first line is no header")):
+        open_results(folder)
+
+
+def test_a_table_that_is_a_fifo_is_refused_unread(tmp_path):
+    folder = tmp_path / "grid_downward"
+    shutil.copytree(RESULTS / "grid_downward", folder)
+    (folder / "points.csv").unlink()
+    os.mkfifo(folder / "points.csv")
+    with pytest.raises(InputError, match="points.csv: it is a FIFO, not a file"):
+        open_results(folder)

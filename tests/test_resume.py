@@ -11,6 +11,7 @@
 """
 
 import csv
+import errno
 import json
 import os
 import signal
@@ -250,3 +251,93 @@ def test_a_study_stopped_short_exits_1(tmp_path):
     assert run.wait() == 1
     assert "stopped short" in run.stderr.read()
     assert json.loads((out / "result.json").read_text())["complete"] is False
+
+
+def test_a_row_changed_by_hand_is_solved_again_with_one_note(grid, tmp_path, caplog):
+    """Issue 57: a sweep whose points.csv had a row's z set to NaN resumed and kept the NaN row."""
+    problem, reference = grid
+    out = tmp_path / "changed"
+    kill_after(start(problem, out), out, 6)
+    with open(out / "points.csv", newline="") as handle:
+        table = list(csv.reader(handle))
+    z = table[0].index("z")
+    table[3][z] = "nan"
+    (out / "points.csv").write_text("".join(",".join(row) + "\n" for row in table))
+    assert main([str(problem), "--out", str(out)]) == 0
+    notes = [line for line in caplog.messages if "dropped line" in line]
+    assert notes == ["note: points.csv: dropped line 4 (its z is 'nan', not a finite number); its task runs again"]
+    assert table_without_timing(out) == table_without_timing(reference)
+
+
+def test_a_full_disk_mid_study_is_one_line_and_a_later_resume_completes(grid, tmp_path, capsys, monkeypatch):
+    """Issue 57: a full disk stopped a sweep with "internal error: OSError: [Errno 28]"."""
+    import builtins
+
+    import baslip.studies.runner as runner
+
+    problem, reference = grid
+    out = tmp_path / "full"
+    appended = []
+
+    def filling(path, mode="r", *args, **kwargs):
+        if mode == "a" and Path(path).name == "points.csv":
+            appended.append(path)
+            if len(appended) > 6:  # the seventh row finds the disk full
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return builtins.open(path, mode, *args, **kwargs)
+
+    monkeypatch.setattr(runner, "open", filling, raising=False)  # the runner's writes only
+    assert main([str(problem), "--out", str(out), "--quiet"]) == 1
+    assert capsys.readouterr().err == f"error: small_grid: no space left on device: {out / 'points.csv'}\n"
+    assert rows_written(out) == 6
+    monkeypatch.undo()
+    assert main([str(problem), "--out", str(out), "--quiet"]) == 0
+    assert table_without_timing(out) == table_without_timing(reference)
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 200 kB tmpfs, unmounted afterwards; skipped where mounting is not permitted."""
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=200k", "tmpfs", str(disk)], capture_output=True)
+    if mounted.returncode != 0:
+        pytest.skip("cannot mount a tmpfs here")
+    yield disk
+    subprocess.run(["umount", str(disk)], check=True)
+
+
+def test_a_study_on_a_disk_that_fills_exits_1_and_resumes_once_there_is_room(grid, small_disk):
+    """Issue 57: a sweep into a 200 kB filesystem once exited 0 although the disk had filled."""
+    problem, reference = grid
+    filler = small_disk / "filler"
+    filler.write_bytes(bytes(150_000))  # about 50 kB left: the rows fit, the figures do not
+    out = small_disk / "grid"
+    run = start(problem, out)
+    assert run.wait() == 1
+    err = run.stderr.read()
+    assert err.count("\n") == 1 and err.startswith("error: small_grid: no space left on device: ") and str(out) in err
+    filler.unlink()
+    assert start(problem, out).wait() == 0
+    assert table_without_timing(out) == table_without_timing(reference)
+    assert json.loads((out / "result.json").read_text())["complete"] is True
+
+
+def test_a_sweep_and_a_gait_started_together_into_one_folder_give_one_run(tmp_path):
+    """Issue 57: both exited 0 and the folder held the sweep: each checked the folder before
+    either had written. The lock is now taken before the folder's kind is decided."""
+    sweep = tmp_path / "tiny_grid.yaml"
+    sweep.write_text(GRID.replace("vary: {ydot: [0.1, 1.0, 0.1], z: [0.4, 0.5, 0.05]}",
+                                  "vary: {ydot: [0.5, 0.6, 0.1], z: [0.4, 0.45, 0.05]}"))
+    gait = ROOT / "problems" / "downward.yaml"
+    for trial in range(6):
+        out = tmp_path / f"race{trial}"
+        runs = [start(sweep, out), start(gait, out)] if trial % 2 else [start(gait, out), start(sweep, out)]
+        codes = [run.wait() for run in runs]
+        assert sorted(codes) == [0, 2], [run.stderr.read() for run in runs]
+        (winner,) = [run for run in runs if run.returncode == 0]
+        (loser,) = [run for run in runs if run.returncode == 2]
+        message = loser.stderr.read()
+        assert message.count("\n") == 1 and (" is in use by process " in message or " run, not a " in message)
+        kind = json.loads((out / "result.json").read_text()).get("kind", "gait")
+        assert kind == ("sweep" if winner.args[3] == str(sweep) else "gait")

@@ -61,7 +61,9 @@ def test_rows_with_the_wrong_number_of_cells_are_dropped(tmp_path):
     path = tmp_path / "points.csv"
     path.write_text("a,b\n0.1,1.0\n0.2\n0.3,3.0,extra\n")
     table = ResumableCsv(path, ["a", "b"], ["a"])
-    assert table.done() == {("0.1",)} and "2 rows" in table.notes[-1]
+    assert table.done() == {("0.1",)}
+    assert table.notes == ["points.csv: dropped line 3 (it has 1 cells, its header 2); its task runs again",
+                           "points.csv: dropped line 4 (it has 3 cells, its header 2); its task runs again"]
 
 
 def test_saved_states_round_trip_exactly_and_finish_orders_the_rows(tmp_path):
@@ -302,3 +304,34 @@ def test_a_task_s_progress_lines_reach_the_parent_s_progress(tmp_path, monkeypat
     report = run_tasks([[{"task": 0}, {"task": 1}], [{"task": 2}]], _noting_worker, None, table, "study", quiet=True)
     assert report.complete
     assert sorted(notes) == ["task 0: still solving", "task 1: still solving", "task 2: still solving"]
+
+
+@pytest.mark.parametrize("cell, why", [("nan", "its z is 'nan'"), ("inf", "its z is 'inf'"), ("junk", "its z is 'junk'")])
+def test_a_converged_row_whose_state_is_not_finite_is_dropped_naming_its_line(tmp_path, cell, why):
+    """Issue 57: a sweep whose points.csv had a row's z set to NaN by hand resumed and kept it."""
+    path = tmp_path / "points.csv"
+    columns = ["sweep_z", "z", "theta_h", "status"]
+    path.write_text(f"{','.join(columns)}\n0.3,0.3,1.5,converged\n0.4,{cell},1.5,converged\n0.5,0.5,1.5,converged\n")
+    table = ResumableCsv(path, columns, ["sweep_z"])
+    assert table.done() == {("0.3",), ("0.5",)}
+    (note,) = table.notes
+    assert note.startswith("points.csv: dropped line 3 (") and why in note and "runs again" in note
+    assert path.read_text() == f"{','.join(columns)}\n0.3,0.3,1.5,converged\n0.5,0.5,1.5,converged\n"
+
+
+def test_a_failed_rows_state_may_be_anything(tmp_path):
+    """Only a converged gait's apex state must be finite: a failed solve keeps its row."""
+    path = tmp_path / "points.csv"
+    path.write_text("sweep_z,z,status\n0.3,nan,failed\n0.4,,not_verified\n")
+    table = ResumableCsv(path, ["sweep_z", "z", "status"], ["sweep_z"])
+    assert table.done() == {("0.3",), ("0.4",)} and table.notes == []
+
+
+def test_a_state_line_cut_short_does_not_swallow_the_next(tmp_path):
+    """A full disk or a kill can leave half a line in the state log; the next state is kept whole."""
+    log = StateLog(tmp_path / ".points.csv.states")
+    log.append(("0.1",), [1.0])
+    with open(log.path, "a") as handle:
+        handle.write('{"key": ["0.2"], "sta')
+    log.append(("0.3",), [3.0])
+    assert log.read() == {("0.1",): [1.0], ("0.3",): [3.0]}

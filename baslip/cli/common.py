@@ -32,11 +32,17 @@ def whole_number(lo: int, hi: int):
 
 def place_refusal(option: str, place: Path, *, file: bool = False, existing: bool = False) -> str | None:
     """The one-line refusal of an output place given to ``option``, or None if it can be
-    written: a ``file`` in an existing folder, else a folder (one that must exist when
+    written: a ``file`` in an existing folder (where no device, FIFO or socket is in its
+    place), else a folder (one that must exist when
     ``existing``, else created if need be). Checked before a command does any work."""
+    from baslip.files.atomic import NotAFileToReplace, check_replaceable
     from baslip.files.lock import unwritable  # not at import: `baslip --help` stays light
 
     if file:
+        try:
+            check_replaceable(place)  # a device or a FIFO is never replaced by a file
+        except NotAFileToReplace as err:
+            return f"error: {option} {err}"
         wrong, what, folder = place.is_dir() or not place.parent.is_dir(), "not a file in an existing folder", place.parent
     else:
         wrong = not place.is_dir() if existing else place.exists() and not place.is_dir()

@@ -110,7 +110,7 @@ def trajectory(argv: list[str]) -> int:
     from baslip.engine.returnmap import RunnerFell
     from baslip.engine.trajectory import checked_sampling
     from baslip.errors import ArgumentError
-    from baslip.files.atomic import write_files_atomically
+    from baslip.files.atomic import NoSpaceLeft, NotAFileToReplace, write_files_atomically
     from baslip.gait.from_problem import solve_start
     from baslip.problem.reader import ProblemError, load_problem
 
@@ -148,7 +148,14 @@ def trajectory(argv: list[str]) -> int:
     except RunnerFell as err:
         print(f"error: {problem.name}: the runner falls ({err.fall.value})", file=sys.stderr)
         return EXIT_NOT_CONVERGED
-    write_files_atomically({out: motion.csv_text()})
+    try:
+        write_files_atomically({out: motion.csv_text()})
+    except NotAFileToReplace as err:  # put there since the check above
+        print(f"error: --out {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except NoSpaceLeft as err:
+        print(f"error: {problem.name}: {err}", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
     print(f"wrote {out}: {motion!r}")
     return EXIT_OK
 

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from baslip.cli.common import EXIT_BAD_INPUT, OneLineParser, place_refusal
 from baslip.diagnostics import show_on_stderr
+from baslip.errors import InputError
 from baslip.files.atomic import write_files_atomically
 from baslip.report.page import build_report
 
@@ -29,6 +30,9 @@ def main(argv: list[str] | None = None, prog: str = "python -m baslip.report") -
         return EXIT_BAD_INPUT
     try:
         text = build_report(args.results)
+    except InputError as err:  # a damaged table, named with its line
+        print(f"error: --results {args.results}: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     except (OSError, ValueError, KeyError, TypeError, IndexError) as err:  # the folder's files are not baslip's
         print(f"error: --results {args.results}: cannot read the studies' results there "
               f"({type(err).__name__}: {str(err).splitlines()[0][:120] if str(err) else ''})", file=sys.stderr)

@@ -139,9 +139,20 @@ def _run_shown(problem, args, out_dir: Path) -> int:
     except KeyboardInterrupt:
         print(f"{problem.name}: interrupted", file=sys.stderr)
         return EXIT_NOT_CONVERGED
-    except Exception as err:  # a bug, not a result: say so in one line, write nothing
-        print(f"error: {problem.name}: internal error: {type(err).__name__}: {err}".splitlines()[0], file=sys.stderr)
+    except Exception as err:  # a bug, not a result (or a full disk): say so in one line, write nothing
+        print(failure_line(problem.name, err, out_dir), file=sys.stderr)
         return EXIT_NOT_CONVERGED
+
+
+def failure_line(name: str, err: Exception, out_dir: Path) -> str:
+    """The one line for an exception no layer turned into a refusal or a failure: a full
+    disk met outside baslip's own writers (a figure's) names the file; anything else is a
+    bug."""
+    from baslip.files.atomic import FULL
+
+    if isinstance(err, OSError) and err.errno in FULL:
+        return f"error: {name}: no space left on device: {err.filename or out_dir}"
+    return f"error: {name}: internal error: {type(err).__name__}: {err}".splitlines()[0]
 
 
 def clear_folder(out_dir: Path) -> None:

@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 from baslip.errors import InputError
+from baslip.files.atomic import writing
 from baslip.problem.text import clip
 
 LOCK_NAME = ".baslip.lock"
@@ -66,8 +67,9 @@ def hold(folder: Path):
         handle.seek(0)
         handle.truncate()
         command = " ".join(Path(sys.argv[0]).name if i == 0 else a for i, a in enumerate(sys.argv))
-        handle.write(f"process {os.getpid()} on {os.uname().nodename} ({command})\n")
-        handle.flush()
+        with writing(path):
+            handle.write(f"process {os.getpid()} on {os.uname().nodename} ({command})\n")
+            handle.flush()
         yield
     finally:
         with contextlib.suppress(OSError):

@@ -5,15 +5,21 @@ or, for a gait or a continuation, of another problem is refused rather than mixe
 what is there; ``fresh`` clears the folder's run first. (A study of the same kind checks
 its recorded problem itself, naming the entries that changed, and resumes an unchanged
 one.)
+
+The check is made again once the folder's lock is held (:func:`hold_for`): two runs
+started at the same instant both pass the first check, made before either has written
+anything, and the second to take the lock must then see the first's run.
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
+from collections.abc import Iterator
 from pathlib import Path
 
 from baslip.errors import InputError
+from baslip.files.lock import hold
 from baslip.files.provenance import problem_hash
 from baslip.files.rows import regular_text
 from baslip.problem.reader import Problem
@@ -61,6 +67,17 @@ def check_folder(problem: Problem, folder: Path, fresh: bool) -> None:
     if new in ("gait", "continuation") and old_hash != problem_hash(problem):
         raise FolderHoldsAnotherRun("", f"output folder {folder} holds the {kind} of another problem; rerun with "
                                     "--fresh to replace it, or choose another --out")
+
+
+@contextlib.contextmanager
+def hold_for(problem: Problem, folder: Path, fresh: bool = False) -> Iterator[None]:
+    """Hold ``folder`` for writing a run of ``problem`` (:func:`~baslip.files.lock.hold`),
+    then check it (:func:`check_folder`): the lock first, so that the folder's kind is
+    decided by whichever run holds it. Raises :class:`~baslip.files.lock.FolderBusy` or
+    :class:`FolderHoldsAnotherRun`."""
+    with hold(folder):
+        check_folder(problem, folder, fresh)
+        yield
 
 
 def clear_run(folder: Path) -> None:

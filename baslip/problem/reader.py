@@ -46,7 +46,15 @@ from baslip.model.quantities import (
 from baslip.problem.continuation import ContinuationSpec, check_continuation, parse_continuation
 from baslip.problem.shipped import find_problem
 from baslip.problem.study import ADAPTED_CONTROLS, Atlas, Basin, Optimal, Study, Sweep, parse_study
-from baslip.problem.text import UnreadableText, check_plain_data, clip, excerpt, path_argument, read_yaml
+from baslip.problem.text import (
+    UnreadableText,
+    check_plain_data,
+    clip,
+    excerpt,
+    path_argument,
+    read_yaml,
+    small_file_text,
+)
 from baslip.problem.values import mapping, physical
 from baslip.problem.values import number as _number
 
@@ -197,7 +205,9 @@ def load_problem(path: str | Path) -> Problem:
     """
     path = find_problem(Path(path_argument(path, "path")))
     try:
-        text = path.read_text(encoding="utf-8")
+        text = small_file_text(path)
+    except UnreadableText as err:
+        raise ProblemError("", f"problem file {err}") from None
     except FileNotFoundError:
         shipped = " (nor the name of a shipped problem: `baslip problems` lists them)" if path.parent == Path(".") else ""
         raise ProblemError("", f"no such problem file: {path}{shipped}") from None

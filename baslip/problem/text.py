@@ -10,13 +10,17 @@ Beyond YAML's safe loader:
 * a key repeated in one mapping is an error, not "last one wins"; merge keys (``<<``)
   still work, and a mapping's own keys override merged ones as YAML intends;
 * a key that is itself a list or a mapping (``{[z, ydot]: 0.4}``) is kept as a
-  :class:`NonScalarKey`, so the schema can name the place and refuse it in one line.
+  :class:`NonScalarKey`, so the schema can name the place and refuse it in one line;
+* a number tag on text that is no such number (``!!float 'abc'``, ``!!int '0x'``) is
+  kept as a :class:`MalformedNumber`, which the schema refuses naming its key.
 """
 
 from __future__ import annotations
 
 import os
 import re
+import stat
+from pathlib import Path
 from typing import Any
 
 import yaml
@@ -102,6 +106,38 @@ def path_argument(value: Any, name: str) -> str:
     return text
 
 
+#: What a path that is not a regular file is, by its stat type.
+_KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISSOCK, "a socket"),
+          (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"))
+
+
+def file_kind(mode: int) -> str | None:
+    """What a file of ``st_mode`` ``mode`` is when it is not a regular file
+    (``"a FIFO"``, ``"a character device"``, ...); None for a regular file."""
+    if stat.S_ISREG(mode):
+        return None
+    return next((name for test, name in _KINDS if test(mode)), "not a regular file")
+
+
+def small_file_text(path: Path) -> str:
+    """The UTF-8 text of the regular file ``path``, of at most :data:`MAX_BYTES` bytes.
+
+    It is opened without blocking and checked before anything is read, so a FIFO (whose
+    read would wait for a writer forever) or a device such as ``/dev/zero`` (endless) is
+    refused with :class:`UnreadableText` saying what it is. Raises OSError (missing,
+    unreadable) and UnicodeDecodeError as reading would.
+    """
+    descriptor = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    with os.fdopen(descriptor, "rb") as handle:
+        kind = file_kind(os.fstat(descriptor).st_mode)
+        if kind is not None:
+            raise UnreadableText("", f"{path} is {kind}, not a file")
+        data = handle.read(MAX_BYTES + 1)
+    if len(data) > MAX_BYTES:
+        raise UnreadableText("", f"larger than {MAX_BYTES // 1000} kB; a problem file is a few lines")
+    return data.decode("utf-8")
+
+
 def excerpt(value: Any, limit: int = EXCERPT) -> str:
     """``repr(value)`` on one line, cut to about ``limit`` characters."""
     text = _short_repr(value, limit)
@@ -156,6 +192,20 @@ class NonScalarKey:
         return self.text
 
 
+class MalformedNumber:
+    """A value tagged ``!!int`` or ``!!float`` whose text is no such number: kept (not
+    raised while loading, where no key is known) so the schema refuses it by its key."""
+
+    def __init__(self, tag: str, text: str):
+        self.text = f"!!{tag} {clip(repr(text), 30)}"
+
+    def __str__(self) -> str:
+        return self.text
+
+    def __repr__(self) -> str:
+        return self.text
+
+
 #: YAML 1.1's implicit int and float, as PyYAML's safe loader has them, less base-60
 #: numbers: ``1:30`` stays the text it is (which the schema then refuses), not 90.
 _INT = re.compile(r"""^(?:[-+]?0b[0-1_]+
@@ -200,6 +250,22 @@ class _BoundedLoader(yaml.SafeLoader):
                 key = NonScalarKey(key_node)
             mapping[key] = self.construct_object(value_node, deep=deep)
         return mapping
+
+    def construct_yaml_int(self, node):
+        try:
+            return super().construct_yaml_int(node)
+        except (ValueError, IndexError):  # IndexError: PyYAML indexes the empty text
+            return MalformedNumber("int", node.value)
+
+    def construct_yaml_float(self, node):
+        try:
+            return super().construct_yaml_float(node)
+        except (ValueError, IndexError):
+            return MalformedNumber("float", node.value)
+
+
+_BoundedLoader.add_constructor("tag:yaml.org,2002:int", _BoundedLoader.construct_yaml_int)
+_BoundedLoader.add_constructor("tag:yaml.org,2002:float", _BoundedLoader.construct_yaml_float)
 
 
 def read_yaml(text: str) -> Any:

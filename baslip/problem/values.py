@@ -17,7 +17,7 @@ from baslip.errors import ProblemError
 from baslip.model.dynamics import Params
 from baslip.model.quantities import PARAM_RANGES, THESIS_BODY, physical_range, value_text
 from baslip.model.ranges import parameter_fault
-from baslip.problem.text import NonScalarKey, clip, excerpt
+from baslip.problem.text import MalformedNumber, NonScalarKey, clip, excerpt
 
 #: Quantities that may be given in ``deg`` or ``rad``, and rates in ``deg/s`` or ``rad/s``.
 ANGLES = ("theta_h", "theta2_des", "theta_td")
@@ -27,6 +27,8 @@ RATES = ("theta_h_dot", "theta2_dot_des")
 def number(value: Any, key: str) -> float:
     """A finite float; angles and rates may carry 'deg', 'rad', 'deg/s' or 'rad/s'."""
     quantity = key.rsplit(".", 1)[-1]
+    if isinstance(value, MalformedNumber):
+        raise ProblemError(key, f"expected a number, got {value}, whose text is no such number")
     if isinstance(value, str):
         value = _plain_or_with_unit(value, key, quantity)
     if isinstance(value, bool) or not isinstance(value, (int, float)):

@@ -26,12 +26,14 @@ so that a resumed study rebuilds the same ``atlas.csv``.
 
 from __future__ import annotations
 
+import csv
 import math
 import time
 from pathlib import Path
 
+from baslip.diagnostics import logger
 from baslip.files.atomic import write_files_atomically
-from baslip.files.rows import read_points
+from baslip.files.rows import read_points, row_damage
 from baslip.model.hiplaw import PD, HipLaw
 from baslip.model.quantities import design_names
 from baslip.problem.reader import Problem
@@ -41,6 +43,8 @@ from baslip.studies.optimal import UPRIGHT_AT_APEX, UPRIGHT_THROUGHOUT, best_gai
 from baslip.studies.runner import ResumableCsv, StateLog, Workers, csv_text, run_tasks, split_lanes
 from baslip.studies.sweep import key_column, sweep_tasks
 from baslip.viz.labels import problem_title
+
+_log = logger(__name__)
 
 
 def chart_columns(law: HipLaw = PD) -> list[str]:
@@ -100,6 +104,35 @@ class AtlasTable(ResumableCsv):
         super().__init__(path, columns, key_columns)
         self.charts = StateLog(self.path.with_name(f".{self.path.name}.charts"))
         self.cell_columns, self.law = key_columns, law
+        self._recover_products()
+
+    def _recover_products(self) -> None:
+        """A finished atlas (its cells' charts no longer logged) whose ``atlas.csv``,
+        ``atlas_boundary.csv`` or ``atlas_best.csv`` was damaged since (a row torn, or
+        changed by hand): the cells before the first damaged row get their rows back in
+        the log; that cell and the ones after it (in task order, the files' order) are
+        dropped from ``cells.csv``, with a note, and solved again."""
+        logged = self.charts.read()
+        if not self.rows or any(self.key(row) in logged for row in self.rows):
+            return  # nothing finished yet, or a study still under way: its log is whole
+        order = [self.key(row) for row in self.rows]
+        parts: dict = {key: {part: [] for part in PRODUCTS} for key in order}
+        first_bad = len(order)
+        for part, name in PRODUCTS.items():
+            rows, damage = _whole_rows_by_cell(self.path.with_name(name), len(self.cell_columns))
+            for key, row in rows:
+                if key in parts:
+                    parts[key][part].append(row)
+            if damage is not None:
+                self.notes.append(f"{name}: {damage}")
+                # The damaged row is of the last whole row's cell, or of a later one.
+                first_bad = min(first_bad, order.index(rows[-1][0]) if rows and rows[-1][0] in order else 0)
+        if first_bad == len(order):
+            return
+        for key in order[:first_bad]:
+            self.charts.append(key, parts[key])
+        self.notes.append(f"{self.path.name}: {len(order) - first_bad} cells from the damaged rows' on are solved again")
+        self.rewrite(self.rows[:first_bad])
 
     def append(self, row: dict) -> None:
         self.charts.append(self.key(row), {"charts": row["chart_rows"], "boundaries": row["boundary_rows"],
@@ -124,12 +157,40 @@ class AtlasTable(ResumableCsv):
         self.charts.clear()
 
 
+#: The files a finished atlas writes from its log, by the log's part.
+PRODUCTS = {"charts": "atlas.csv", "boundaries": "atlas_boundary.csv", "best": "atlas_best.csv"}
+
+
+def _whole_rows_by_cell(path: Path, key_count: int) -> tuple[list[tuple[tuple[str, ...], dict]], str | None]:
+    """The rows of ``path`` before its first damaged one, each as (its cell's key, its
+    cells after the key's), and what the damage is (None if there is none)."""
+    try:
+        with open(path, encoding="utf-8", newline="") as handle:
+            lines = list(csv.reader(handle))
+    except FileNotFoundError:
+        return [], "it is missing"
+    except (UnicodeDecodeError, csv.Error):
+        return [], "it is not UTF-8 CSV"
+    if not lines:
+        return [], "it is empty"
+    header = lines[0]
+    rows: list[tuple[tuple[str, ...], dict]] = []
+    for number, cells in enumerate(lines[1:], start=2):
+        damage = row_damage(cells, header)
+        if damage is not None:
+            return rows, f"line {number}: {damage}"
+        rows.append((tuple(cells[:key_count]), dict(zip(header[key_count:], cells[key_count:]))))
+    return rows, None
+
+
 def run_atlas(problem: Problem, study: Atlas, out_dir: Path, sources: Path, quiet: bool, lanes: int,
               workers: Workers) -> dict:
     """Cover the gait manifold at every cell; the answers of each, and over all cells."""
     names = [a.name for a in study.axes]
     keys = [key_column(n) for n in names]
     table = AtlasTable(out_dir / "cells.csv", keys + CELL_COLUMNS, keys, problem.hip_law)
+    for note in () if quiet else table.notes:
+        _log.warning(f"note: {note}")
     report = run_tasks(split_lanes(sweep_tasks(study), lanes), atlas_worker, (problem, quiet), table, problem.name,
                        quiet=quiet, workers=workers)
     cells = read_points(out_dir / "cells.csv")

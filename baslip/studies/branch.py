@@ -27,7 +27,7 @@ from baslip.diagnostics import end_progress_line
 from baslip.engine.codegen import recording_code
 from baslip.errors import RunError
 from baslip.files.atomic import json_text, write_files_atomically
-from baslip.files.lock import hold
+from baslip.files.runs import hold_for
 from baslip.gait.stability import STABILITY_MARGIN
 from baslip.model.dynamics import APEX
 from baslip.model.quantities import quantity_text
@@ -52,7 +52,7 @@ def run_continuation(problem, out_dir: Path, quiet: bool = False, jobs: int | No
     traced on ``jobs`` worker processes (default: one per core; the points do not depend
     on it). Raises :class:`baslip.files.lock.FolderBusy` if another process is writing
     into ``out_dir``."""
-    with hold(out_dir), recording_code() as code:
+    with hold_for(problem, out_dir), recording_code() as code:
         return _run_continuation(problem, out_dir, quiet, code, jobs)
 
 

@@ -29,10 +29,9 @@ from pathlib import Path
 from baslip.engine.codegen import recording_code
 from baslip.errors import InputError, ProblemKindError
 from baslip.files.atomic import json_text, write_files_atomically
-from baslip.files.lock import hold
 from baslip.files.provenance import changed_entries, provenance
 from baslip.files.rows import regular_text
-from baslip.files.runs import clear_run
+from baslip.files.runs import clear_run, hold_for
 from baslip.problem.reader import Problem
 from baslip.problem.study import Adaptive, Atlas, Basin, Controllers, Optimal, RandomSample, Sweep
 from baslip.studies.adaptive import run_adaptive_study
@@ -118,7 +117,7 @@ def run_study(problem: Problem, out_dir: Path, quiet: bool = False, fresh: bool 
     study = problem.study
     if study is None:
         raise ProblemKindError("study", f"problem {problem.name!r} holds no study")
-    with hold(out_dir), recording_code() as code:
+    with hold_for(problem, out_dir, fresh), recording_code() as code:
         record, earlier = _claim(problem, out_dir, fresh, lanes)
         start = time.perf_counter()
         summary = KINDS[type(study)].run(problem, study, out_dir, sources or out_dir.parent, quiet,

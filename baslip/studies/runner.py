@@ -3,7 +3,9 @@
 * Each finished task becomes one CSV row, appended, flushed and synced at once, so an
   interruption (Ctrl-C, a kill) loses only tasks that were still running.
 * On a rerun, rows already in the CSV are skipped: a finished study does no new work. A
-  last line cut short by a kill is dropped; a file that is empty, has a torn or foreign
+  last line cut short by a kill is dropped, and so is a row that cannot be trusted (torn,
+  or a converged gait's apex state not finite: changed by hand), each with a note naming
+  its line, so that its task runs again; a file that is empty, has a torn or foreign
   header or cannot be decoded is set aside with a message and started afresh; rows with a
   repeated key are dropped (the first is kept) with a message.
 * Tasks come in a fixed number of lanes (:data:`LANES` unless a run asks for more,
@@ -40,7 +42,8 @@ import numpy as np
 from baslip.diagnostics import HEARTBEAT_S, IN_PLACE, ROOT_LOGGER, end_progress_line, heartbeat, logger
 from baslip.engine.codegen import leave_notices_to_parent, note_code, recording_code
 from baslip.errors import InputError
-from baslip.files.atomic import write_files_atomically
+from baslip.files.atomic import write_files_atomically, writing
+from baslip.files.rows import ends_a_line, row_damage
 from baslip.studies.processes import (
     Inbox,
     Reporting,
@@ -50,6 +53,7 @@ from baslip.studies.processes import (
     stop_workers,
     worker_count,
 )
+from baslip.studies.schedulerprobe import scheduler_problem
 
 _log = logger(__name__)
 
@@ -105,20 +109,31 @@ class ResumableCsv:
             return
         if lines[0] != self.columns:
             return self._set_aside("its columns are not this study's")
-        rows = [dict(zip(self.columns, cells)) for cells in lines[1:] if len(cells) == len(self.columns)]
-        dropped = len(lines) - 1 - len(rows)
+        rows = self._trusted_rows(lines[1:])
+        dropped = sum(1 for cells in lines[1:] if cells) - len(rows)
         unique, seen = [], set()
         for row in rows:
             if self.key(row) not in seen:
                 seen.add(self.key(row))
                 unique.append(row)
-        if dropped:
-            self.notes.append(f"{self.path.name}: dropped {dropped} rows with the wrong number of cells")
         if len(unique) < len(rows):
             self.notes.append(f"{self.path.name}: {len(rows) - len(unique)} rows repeat a key; kept the first of each")
         self.rows = unique
         if len(raw) != self.path.stat().st_size or dropped or len(unique) < len(rows):
             self.rewrite(self.rows)
+
+    def _trusted_rows(self, lines: list[list[str]]) -> list[dict[str, str]]:
+        """The rows of ``lines`` (the file's, after its header) that can be trusted; one
+        note for each dropped one (see :func:`~baslip.files.rows.row_damage`), whose task
+        then runs again."""
+        rows = []
+        for number, cells in enumerate(lines, start=2):
+            damage = row_damage(cells, self.columns) if cells else None
+            if damage is not None:
+                self.notes.append(f"{self.path.name}: dropped line {number} ({damage}); its task runs again")
+            elif cells:
+                rows.append(dict(zip(self.columns, cells)))
+        return rows
 
     def _set_aside(self, why: str) -> None:
         aside = self.path.with_name(f"{self.path.name}.set-aside-{time.strftime('%Y%m%dT%H%M%S')}")
@@ -167,7 +182,7 @@ class ResumableCsv:
         self.states.clear()
 
     def _write_text(self, text: str, mode: str) -> None:
-        with open(self.path, mode) as handle:
+        with writing(self.path), open(self.path, mode) as handle:
             handle.write(text)
             handle.flush()
             os.fsync(handle.fileno())
@@ -181,8 +196,11 @@ class StateLog:
         self.path = path
 
     def append(self, key: tuple[str, ...], state) -> None:
-        with open(self.path, "a") as handle:
-            handle.write(json.dumps({"key": list(key), "state": state}) + "\n")
+        # After a line cut short (a kill, a full disk), start a new one: the torn line is
+        # skipped when read, and must not swallow this one.
+        with writing(self.path), open(self.path, "a+") as handle:
+            torn = handle.tell() > 0 and not ends_a_line(self.path)
+            handle.write(("\n" if torn else "") + json.dumps({"key": list(key), "state": state}) + "\n")
             handle.flush()
             os.fsync(handle.fileno())
 
@@ -357,7 +375,8 @@ DASK_CONNECT_TIMEOUT = "10s"
 
 def check_scheduler(scheduler: str) -> None:
     """Raise :class:`SchedulerError` unless Dask is installed and, for an address, its
-    scheduler answers: checked before a run creates anything."""
+    scheduler answers (first as a Dask scheduler should, :mod:`~baslip.studies.schedulerprobe`):
+    checked before a run creates anything."""
     try:
         from distributed import Client
     except ImportError:
@@ -368,6 +387,9 @@ def check_scheduler(scheduler: str) -> None:
     if scheme != "tcp":
         raise SchedulerError("--scheduler", f"{scheme}:// addresses need a security or transport set-up baslip does "
                              "not make; give tcp://HOST:PORT or local")
+    problem = scheduler_problem(scheduler)
+    if problem is not None:
+        raise SchedulerError("--scheduler", problem)
     try:
         Client(scheduler, timeout=DASK_CONNECT_TIMEOUT).close()
     except (OSError, TimeoutError, ValueError, TypeError) as err:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from baslip.errors import InputError
 from baslip.files.lock import busy
-from baslip.files.rows import read_points, regular_text
+from baslip.files.rows import DamagedTable, read_points, regular_text
 from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import PD, HipLaw
 from baslip.problem.study import RandomSample
@@ -60,6 +60,8 @@ def source_points(sources: Path, name: str, key: str, law: HipLaw = PD) -> tuple
         raise StudyInputError(key, f"{path} is not a points.csv written by baslip (it is not UTF-8 text)") from None
     except csv.Error:
         raise StudyInputError(key, f"{path} is not a points.csv written by baslip (it is not CSV)") from None
+    except DamagedTable as err:
+        raise StudyInputError(key, f"{path} is not a points.csv written by baslip ({err.why})") from None
     except ValueError as err:
         raise StudyInputError(key, f"{path} is not a points.csv written by baslip ({err})") from None
     if len(names) != 2:
@@ -101,6 +103,8 @@ def traced_boundary(sources: Path, study: RandomSample, names: tuple[str, str]):
             for n in names:
                 if not math.isfinite(row[n]):
                     raise ValueError(f"its column {n} holds {row[n]}")
+    except DamagedTable as err:
+        raise StudyInputError("study.boundary", f"{path} is not a curve.csv written by baslip ({err.why})") from None
     except UnicodeDecodeError:
         raise StudyInputError("study.boundary", f"{path} is not a curve.csv written by baslip (it is not UTF-8 text)") from None
     except (csv.Error, ValueError, TypeError) as err:
