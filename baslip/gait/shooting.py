@@ -83,7 +83,7 @@ from baslip.model.quantities import (
     start_value,
 )
 from baslip.model.quantities import implied_periodicity as structurally_implied
-from baslip.problem.reader import SolverSettings
+from baslip.problem.solver import SolverSettings
 
 #: Hessians IPOPT can be given: ``exact``, the Hessian of the Lagrangian through the
 #: intervals; ``objective``, the objective's Hessian alone (the constraints' curvature

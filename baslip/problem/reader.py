@@ -45,6 +45,7 @@ from baslip.model.quantities import (
 )
 from baslip.problem.continuation import ContinuationSpec, check_continuation, parse_continuation
 from baslip.problem.shipped import find_problem
+from baslip.problem.solver import SolverSettings, parse_solver
 from baslip.problem.study import ADAPTED_CONTROLS, Atlas, Basin, Optimal, Study, Sweep, parse_study
 from baslip.problem.text import (
     UnreadableText,
@@ -67,34 +68,6 @@ _ANY_QUANTITY = ANY_DESIGN + ("energy",)
 MAX_STRIDES = 16
 #: Most fixed points one sweep may ask for (a day of solving on two cores).
 MAX_SWEEP_POINTS = 100_000
-#: Range of IPOPT's tolerance.
-TOLERANCES = (1e-16, 1e-2)
-
-@dataclass(frozen=True)
-class SolverSettings:
-    """Discretisation and IPOPT settings.
-
-    Attributes
-    ----------
-    nodes : int
-        Shooting intervals per stance phase (2 to 200).
-    substeps : int
-        RK4 steps per interval (1 to 20).
-    max_iter : int
-        IPOPT's iteration limit (1 to 100000).
-    tol : float
-        IPOPT's tolerance (1e-16 to 1e-2).
-    print_level : int
-        IPOPT's verbosity (0 to 12).
-    """
-
-    nodes: int = 20
-    substeps: int = 1
-    max_iter: int = 300
-    tol: float = 1e-10
-    print_level: int = 0
-
-
 @dataclass(frozen=True)
 class Problem:
     """A validated fixed-point problem (values in SI units and radians).
@@ -396,24 +369,6 @@ def _study(value: Any) -> Study:
     return parse_study(value)
 
 
-def _solver(value: Any) -> SolverSettings:
-    raw = mapping(value, "solver", ("nodes", "substeps", "max_iter", "tol", "print_level"))
-    limits = {"nodes": (2, 200), "substeps": (1, 20), "max_iter": (1, 100000), "print_level": (0, 12)}
-    settings: dict[str, Any] = {}
-    for name, v in raw.items():
-        key = f"solver.{name}"
-        if name == "tol":
-            settings[name] = _number(v, key)
-            if not TOLERANCES[0] <= settings[name] <= TOLERANCES[1]:
-                raise ProblemError(key, f"expected a tolerance in [{TOLERANCES[0]:g}, {TOLERANCES[1]:g}], got {settings[name]:g}")
-            continue
-        lo, hi = limits[name]
-        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
-            raise ProblemError(key, f"expected an integer in [{lo}, {hi}], got {excerpt(v)}")
-        settings[name] = v
-    return SolverSettings(**settings)
-
-
 #: The parser of each top-level key's value.
 _FIELDS: dict[str, Callable[[Any], Any]] = {
     "name": _name,
@@ -424,7 +379,7 @@ _FIELDS: dict[str, Callable[[Any], Any]] = {
     "bounds": lambda v: MappingProxyType(_bounds(v)),
     "objective": _objective,
     "strides": lambda v: _strides(v),
-    "solver": lambda v: _solver(dataclasses.asdict(v) if isinstance(v, SolverSettings) else v),
+    "solver": lambda v: parse_solver(dataclasses.asdict(v) if isinstance(v, SolverSettings) else v),
     "study": _optional(_study),
     "continuation": _optional(parse_continuation),
 }
