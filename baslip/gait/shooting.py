@@ -44,8 +44,8 @@ import numpy as np
 from baslip.engine.codegen import cached_library, compile_library, library_name, module_files
 from baslip.engine.kernels import StanceFlow
 from baslip.engine.kernels import sources as kernel_sources
-from baslip.engine.libraryfacts import read_facts, write_facts
 from baslip.engine.returnmap import PHASES, ReturnMap, Stride
+from baslip.engine.sidecar import read_facts, write_facts
 from baslip.gait import monodromy as _monodromy
 from baslip.gait import nlpfunctions as _nlpfunctions
 from baslip.gait import shot_stride as _shot_stride
@@ -244,7 +244,7 @@ class ShootingNLP:
 
     def _load(self, compile: bool | None) -> bool:
         """Whether the cache holds the NLP's library and its sizes, bounds and row names beside it, now
-        loaded (:mod:`baslip.engine.libraryfacts`); the stability NLP's pieces need its graph."""
+        loaded (:mod:`baslip.engine.sidecar`); the stability NLP's pieces need its graph."""
         if self.options.spectral_bound:
             return False
         facts = read_facts(self._library, NLP_FUNCTIONS, _nlp_sources(), optimisation=NLP_OPTIMISATION, enabled=compile)

@@ -1,10 +1,11 @@
-"""What a caller needs of a compiled library besides its functions, kept beside it.
+"""What a caller needs of a compiled library besides its functions, kept beside it in a
+JSON sidecar file.
 
 An NLP's library holds its objective and constraints, but IPOPT also needs the NLP's sizes
 and the constraints' bounds. Those come from the symbolic graph the library was generated
 from, which a warm process would otherwise rebuild only to read them (about a third of
 a warm solve's set-up, issue 56). They are written once, as JSON beside the library
-(``<library>.json``, atomically), under the library's own key: whatever changes the
+(a file named after the library, written atomically), under the library's own key: whatever changes the
 library changes its file name, so facts and library cannot disagree. Missing or unreadable
 facts are not an error: the caller rebuilds the graph, as on a first run.
 """
