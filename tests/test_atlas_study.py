@@ -373,7 +373,8 @@ def test_an_atlas_is_heard_from_every_10_s_with_its_cell_s_news_and_quiet_silenc
 
     from baslip.studies import atlascell
     from baslip.studies.atlas import atlas_worker
-    from baslip.studies.runner import Progress, ResumableCsv
+    from baslip.studies.progress import Progress
+    from baslip.studies.runner import ResumableCsv
 
     monkeypatch.setattr(atlascell, "CellAtlas", _SlowCell)
     problem = load_problem(ROOT / "problems" / "atlas_downward.yaml")

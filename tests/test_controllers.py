@@ -10,7 +10,8 @@ from baslip import diagnostics
 from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import PD
 from baslip.studies import controllers
-from baslip.studies.runner import Progress, ResumableCsv
+from baslip.studies.progress import Progress
+from baslip.studies.runner import ResumableCsv
 
 
 def _slow_lockstep(rmap, params, controller, starts, X, strides, tolerance, settle):

@@ -19,7 +19,8 @@ import pytest
 from processes import gone
 from runs import ROOT
 
-from baslip.studies.runner import RATE_WINDOW_S, Progress, ResumableCsv, StateLog
+from baslip.studies.progress import RATE_WINDOW_S, Progress
+from baslip.studies.runner import ResumableCsv, StateLog
 
 
 def test_an_empty_file_gets_its_header_back(tmp_path):

@@ -21,17 +21,14 @@
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import io
 import json
 import logging
 import os
 import signal
-import sys
 import threading
 import time
-from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -39,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from baslip.diagnostics import HEARTBEAT_S, IN_PLACE, ROOT_LOGGER, end_progress_line, heartbeat, logger
+from baslip.diagnostics import ROOT_LOGGER, logger
 from baslip.engine.codegen import leave_notices_to_parent, note_code, recording_code
 from baslip.errors import InputError
 from baslip.files.atomic import write_files_atomically, writing
@@ -53,6 +50,7 @@ from baslip.studies.processes import (
     stop_workers,
     worker_count,
 )
+from baslip.studies.progress import Progress
 from baslip.studies.schedulerprobe import scheduler_problem
 
 _log = logger(__name__)
@@ -408,7 +406,7 @@ def run_lanes_on_dask(todo, worker, context, table, label, quiet, skipped, total
     Workers must be able to import baslip; the problem travels with each lane, as data.
     """
     try:
-        from distributed import Client, LocalCluster, Queue
+        from distributed import Client, LocalCluster
     except ImportError:
         raise SchedulerError("--scheduler", "needs Dask: pip install 'baslip[dask]'") from None
     cluster = None
@@ -425,27 +423,40 @@ def run_lanes_on_dask(todo, worker, context, table, label, quiet, skipped, total
         raise SchedulerError("--scheduler", f"Dask's LocalCluster could not start its workers ({err}); they import the "
                              "script that started the run, so a script must start it under "
                              "`if __name__ == \"__main__\":`") from None
-    with client:
-        queue = Queue(f"baslip-rows-{os.getpid()}-{time.time_ns()}", client=client)
-        futures = [client.submit(_lane_on_dask, worker, lane, context, queue, pure=False, retries=DASK_RETRIES)
-                   for lane in todo]
-        progress = Progress(label, total, quiet)
+    # The client closes before its cluster: a client whose scheduler went first keeps
+    # trying to reach it, and its attempts end in "Future exception was never retrieved
+    # ... TimeoutError" on stderr after the run.
+    try:
+        with client:
+            return _collect_from_dask(client, todo, worker, context, table, Progress(label, total, quiet), skipped,
+                                      start)
+    finally:
+        if cluster is not None:
+            cluster.close()
 
-        def next_row():
-            while True:
-                try:
-                    return queue.get(timeout=1.0)
-                except TimeoutError:
-                    failed = [f for f in futures if f.status == "error"]
-                    if failed:
-                        raise WorkerDied(f"a Dask task failed: {failed[0].exception()}") from None
 
-        try:
-            return _collect(next_row, len(todo), table, progress, skipped, start, seen=table.done())
-        finally:
-            client.cancel(futures)
-            if cluster is not None:
-                cluster.close()
+def _collect_from_dask(client, todo, worker, context, table, progress, skipped: int, start: float):
+    """Submit each lane of ``todo`` as a Dask task and write the rows they stream back
+    through a Dask queue (see :func:`_collect`); cancel what still runs at the end."""
+    from distributed import Queue
+
+    queue = Queue(f"baslip-rows-{os.getpid()}-{time.time_ns()}", client=client)
+    futures = [client.submit(_lane_on_dask, worker, lane, context, queue, pure=False, retries=DASK_RETRIES)
+               for lane in todo]
+
+    def next_row():
+        while True:
+            try:
+                return queue.get(timeout=1.0)
+            except TimeoutError:
+                failed = [f for f in futures if f.status == "error"]
+                if failed:
+                    raise WorkerDied(f"a Dask task failed: {failed[0].exception()}") from None
+
+    try:
+        return _collect(next_row, len(todo), table, progress, skipped, start, seen=table.done())
+    finally:
+        client.cancel(futures)
 
 
 def _lane_on_dask(worker, lane, context, queue) -> None:
@@ -518,77 +529,3 @@ def split_lanes(tasks: Sequence[dict], n: int = LANES) -> list[list[dict]]:
     """``n`` contiguous lanes of nearly equal length, in order."""
     size = -(-len(tasks) // n) if tasks else 1
     return [list(tasks[i : i + size]) for i in range(0, len(tasks), size)]
-
-
-#: Characters of the progress bar on a terminal.
-BAR_WIDTH = 30
-#: Seconds of recent progress from which the rate and time left are estimated.
-RATE_WINDOW_S = 60.0
-
-
-class Progress:
-    """Progress on stderr: a bar rewritten in place on a terminal, and a plain line at
-    most every ``every_s`` seconds otherwise, so that log files stay readable. (A small
-    bar of our own rather than tqdm: no dependency, and the counts include the tasks
-    done before a resume.) The rate is that of the last :data:`RATE_WINDOW_S` seconds: a
-    study whose tasks differ in cost (the controllers study's batched runs, then its
-    re-solves) would otherwise promise the fast tasks' pace for the slow ones."""
-
-    def __init__(self, label: str, total: int, quiet: bool, every_s: float = HEARTBEAT_S):
-        self.label, self.total, self.quiet, self.every_s = label, total, quiet, every_s
-        self.terminal = sys.stderr.isatty()
-        self._last = -every_s
-        self._history: deque[tuple[float, int]] = deque([(0.0, 0)])
-        self._done = 0
-        self._note = ""
-
-    def running(self, done: int = 0):
-        """A context in which the state is said again at least every 10 s (with the time
-        so far and the latest note from inside a task), even while no task finishes: a
-        task may take minutes. ``done``: the tasks done before (on a resume)."""
-        self._done = done
-        if self.quiet:
-            return contextlib.nullcontext()
-        _log.info(f"{self.label}: {done}/{self.total} done, starting the rest", extra=IN_PLACE if self.terminal else None)
-        return heartbeat(_log, self._still, in_place=self.terminal)
-
-    def _still(self, elapsed: float) -> str:
-        text = f"{self.label}: {self._done}/{self.total} done, {elapsed:.0f} s so far, tasks running"
-        return f"{text}; {self._note}" if self._note else text
-
-    def note(self, text: str) -> None:
-        """Keep ``text``, news from inside a running task, for the next line."""
-        self._note = text
-
-    def rate(self, ran: int, elapsed: float) -> float:
-        """Tasks a second over the last :data:`RATE_WINDOW_S` seconds (since the start
-        while younger), once ``ran`` tasks have run by ``elapsed`` seconds."""
-        while len(self._history) > 1 and elapsed - self._history[1][0] >= RATE_WINDOW_S:
-            self._history.popleft()
-        then, ran_then = self._history[0]
-        self._history.append((elapsed, ran))
-        return (ran - ran_then) / (elapsed - then) if elapsed > then else 0.0
-
-    def update(self, done: int, ran: int, elapsed: float) -> None:
-        self._done, self._note = done, ""  # a task ended: its news are old
-        if self.quiet:
-            return
-        rate = self.rate(ran, elapsed)
-        eta = (self.total - done) / rate if rate > 0 else float("inf")
-        text = f"{self.label}: {done}/{self.total} done, {rate:.2f}/s, about {eta:.0f} s left"
-        if self.terminal:  # a bar, rewritten in place
-            filled = int(BAR_WIDTH * done / self.total) if self.total else BAR_WIDTH
-            bar = "#" * filled + "-" * (BAR_WIDTH - filled)
-            _log.info(f"{self.label} [{bar}] {done}/{self.total}, {rate:.2f}/s, about {eta:.0f} s left", extra=IN_PLACE)
-        elif elapsed - self._last >= self.every_s or done == self.total:
-            self._last = elapsed
-            _log.info(text)
-
-    def interrupted(self, done: int, why: str = "interrupted") -> None:
-        # "done", not "saved": a run without an output folder keeps none of them.
-        if not self.quiet:
-            _log.warning(f"{self.label}: {why}; {done} of {self.total} rows were done")
-
-    def close(self) -> None:
-        if not self.quiet:
-            end_progress_line()
