@@ -179,6 +179,29 @@ class UnknownColumn(ArgumentError, KeyError):
     __str__ = ArgumentError.__str__  # the one line, not KeyError's quoted repr
 
 
+def _check_motion_columns(columns: object) -> None:
+    """Raise :class:`ArgumentError` (naming ``columns``) unless ``columns`` maps exactly
+    the names of :data:`MOTION_COLUMNS` to one-dimensional arrays of one length."""
+    if not isinstance(columns, dict):
+        raise ArgumentError("columns", f"expected a dict of column name to array, got {type(columns).__name__}")
+    if set(columns) != set(MOTION_COLUMNS):
+        missing = [n for n in MOTION_COLUMNS if n not in columns]
+        extra = [arguments.shown(n) for n in columns if n not in MOTION_COLUMNS]
+        what = [f"missing {_first(missing)}"] * bool(missing) + [f"unknown {_first(extra)}"] * bool(extra)
+        raise ArgumentError("columns", f"expected the {len(MOTION_COLUMNS)} columns of MOTION_COLUMNS: {'; '.join(what)}")
+    length = np.shape(columns["t"])
+    odd = [n for n, v in columns.items() if np.ndim(v) != 1 or np.shape(v) != length]
+    if odd:
+        raise ArgumentError("columns", f"every column must be one-dimensional, as long as t ({length[0] if length else 0} "
+                            f"samples): not {_first(odd)}")
+
+
+def _first(names: list[str], most: int = 4) -> str:
+    """The first ``most`` of ``names``, joined, and how many more there are."""
+    shown = ", ".join(names[:most])
+    return shown + (f" and {len(names) - most} more" if len(names) > most else "")
+
+
 @dataclass(frozen=True)
 class Motion:
     """The continuous motion of ``strides`` strides, sampled in time.
@@ -203,6 +226,9 @@ class Motion:
     """
 
     columns: dict
+
+    def __post_init__(self) -> None:
+        _check_motion_columns(self.columns)
 
     def __getitem__(self, name: str) -> np.ndarray:
         if not isinstance(name, str) or name not in self.columns:
