@@ -1,5 +1,6 @@
 """Studies on a Dask cluster (baslip.studies.runner.run_lanes_on_dask): the same rows as a
-local run, even when a worker is killed halfway and its lane is run again."""
+local run, even when a worker is killed halfway and its lane is run again, or the run
+itself is killed and resumed."""
 
 import csv
 import json
@@ -9,6 +10,7 @@ import subprocess
 import sys
 import time
 
+import numpy as np
 import pytest
 
 distributed = pytest.importorskip("distributed")
@@ -114,6 +116,26 @@ def test_a_run_killed_on_a_cluster_resumes_to_the_same_rows(tmp_path, local_rows
         assert second.returncode == 0, second.stderr
     summary = json.loads((out / "result.json").read_text())
     assert summary["complete"] and summary["done_before_this_run"] == cut
+    assert rows_of(out) == local_rows
+
+
+def test_a_run_on_its_own_local_cluster_killed_at_random_moments_resumes_quietly_to_the_same_rows(tmp_path, local_rows):
+    """``--scheduler local`` killed (SIGKILL) at six seeded moments over a run's length,
+    each time resumed: the last run ends with the rows of a local run and, quiet, writes
+    nothing on stderr (once a client outlived its cluster and left a TimeoutError there)."""
+    path = small_grid(tmp_path)
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "baslip.solve", str(path), "--out", str(out), "--quiet", "--scheduler", "local"]
+    for moment in np.random.default_rng(57).uniform(0.5, 5.0, 6):
+        run = subprocess.Popen(command, stderr=subprocess.DEVNULL)
+        try:
+            run.wait(timeout=moment)
+        except subprocess.TimeoutExpired:
+            run.kill()
+            run.wait()
+    last = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    assert last.returncode == 0 and last.stderr == "", last.stderr
+    assert json.loads((out / "result.json").read_text())["complete"]
     assert rows_of(out) == local_rows
 
 
