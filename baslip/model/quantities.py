@@ -141,6 +141,18 @@ def physical_range(name: str, params: Params = THESIS_BODY) -> tuple[float, floa
 DEFAULT_GUESS = {"z": 0.4, "theta_h": math.pi / 2, "ydot": 0.5, "theta_h_dot": 0.0, **_every_law("defaults")}
 
 
+#: What a problem may ask of the trunk at the apex: pointing up, hanging down, or either.
+POSTURES = ("upright", "hanging", "any")
+#: The trunk's apex angle theta_h [rad] that each posture allows: up or down, by at most
+#: 80 deg from the vertical.
+POSTURE_BOUNDS = {"upright": (math.radians(10), math.radians(170)), "hanging": (math.radians(-170), math.radians(-10))}
+
+
+def posture_of(theta_h: float) -> str:
+    """``upright`` if the trunk at apex angle ``theta_h`` [rad] points up, else ``hanging``."""
+    return "upright" if math.sin(theta_h) > 0 else "hanging"
+
+
 def default_guess(name: str, params: Params = THESIS_BODY) -> float:
     """Default starting value of design quantity ``name`` for the body ``params``: the
     thesis body's :data:`DEFAULT_GUESS` scaled by :func:`body_scale` (SI units, radians)."""
