@@ -90,6 +90,8 @@ CASES.append(("bounds.theta_td outside", dump(put(base("downward"), "bounds.thet
 CASES.append(("bounds.speed", dump(put(base("downward"), "bounds.speed", [0, 1])), "bounds.speed"))
 for label, value in {"unknown": "fastest", "list": ["min_torque"], "number": 3, "null": None}.items():
     CASES.append((f"objective={label}", dump(put(base("downward"), "objective", value)), "objective"))
+for label, value in {"unknown": "sideways", "list": ["upright"], "number": 1, "null": None}.items():
+    CASES.append((f"posture={label}", dump(put(base("downward"), "posture", value)), "posture"))
 for label, value in {"zero": 0, "17": 17, "float": 2.5, "text": "2", "bool": True, "huge": 10**400}.items():
     CASES.append((f"strides={label}", dump(put(base("downward"), "strides", value)), "strides"))
 for name, values in {

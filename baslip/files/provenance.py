@@ -62,6 +62,8 @@ def problem_hash(problem: Problem) -> str:
     record["solver"].pop("print_level")
     if record.get("hip_law") == PD.name:
         record.pop("hip_law")
+    if record.get("posture") == "any":  # added after results were committed: unset, left out
+        record.pop("posture")
     study = record.get("study")
     if isinstance(study, dict):
         for key, unset in ADDED_STUDY_KEYS.get(str(study.get("kind")), {}).items():

@@ -7,11 +7,17 @@
 
 from __future__ import annotations
 
-from baslip.diagnostics import progress_hidden, show_on_stderr
+from dataclasses import replace
+
+from baslip.diagnostics import logger, progress_hidden, show_on_stderr
 from baslip.errors import ProblemKindError
+from baslip.gait.anybody import start_from_body
 from baslip.gait.fixedpoint import FixedPointResult, FixedPointSolver
 from baslip.gait.shooting import FixedPointSpec, ShootingOptions, ipopt_options
+from baslip.model.quantities import POSTURE_BOUNDS
 from baslip.problem.reader import Problem
+
+_log = logger(__name__)
 
 
 def shooting_options(problem: Problem) -> ShootingOptions:
@@ -21,12 +27,13 @@ def shooting_options(problem: Problem) -> ShootingOptions:
 
 
 def fixed_point_spec(problem: Problem) -> FixedPointSpec:
-    """What the NLP solves for a problem."""
+    """What the NLP solves for a problem (its posture bounding theta_h unless its bounds do)."""
+    posture = {"theta_h": POSTURE_BOUNDS[problem.posture]} if problem.posture in POSTURE_BOUNDS else {}
     return FixedPointSpec(
         params=problem.params,
         fixed=dict(problem.fix),
         guess=problem.full_guess(),
-        bounds=dict(problem.bounds),
+        bounds={**posture, **problem.bounds},
         objective=problem.objective,
         strides=problem.strides,
         law=problem.hip_law,
@@ -78,5 +85,15 @@ def solve_problem(problem: Problem, solver: FixedPointSolver | None = None, *, p
 
 def solve_start(problem: Problem, solver: FixedPointSolver | None = None) -> FixedPointResult:
     """Solve and verify the problem's own fixed point, whatever else it holds: the gait a
-    study or a branch starts from."""
-    return (solver or solver_for(problem, few_calls=True)).solve(fixed_point_spec(problem), name=problem.name)
+    study or a branch starts from. A problem of one stride with no guess at all starts
+    from the body alone (:func:`~baslip.gait.anybody.start_from_body`), or, where no path
+    reaches it, from the default guess."""
+    solver = solver or solver_for(problem, few_calls=True)
+    spec = fixed_point_spec(problem)
+    if not problem.guess and problem.strides == 1:
+        found = start_from_body(spec, solver, problem.posture)
+        if found.guess is not None:
+            spec = replace(spec, guess=dict(found.guess))
+        else:
+            _log.warning(f"note: no start from the body alone ({found.origin}); starting from the default guess")
+    return solver.solve(spec, name=problem.name)

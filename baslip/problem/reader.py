@@ -34,6 +34,7 @@ from baslip.model.hiplaw import HIP_LAWS, PD, HipLaw
 from baslip.model.quantities import (
     ANY_DESIGN,
     OBJECTIVES,
+    POSTURES,
     STABILITY_OBJECTIVES,
     design_names,
     implied_periodicity,
@@ -59,8 +60,8 @@ from baslip.problem.text import (
 from baslip.problem.values import mapping, physical
 from baslip.problem.values import number as _number
 
-TOP_LEVEL_KEYS = ("name", "params", "hip_law", "fix", "guess", "bounds", "objective", "strides", "solver", "study",
-                  "continuation")
+TOP_LEVEL_KEYS = ("name", "params", "hip_law", "fix", "guess", "bounds", "posture", "objective", "strides", "solver",
+                  "study", "continuation")
 #: What fix, guess and bounds may name under some hip law; :func:`_check_law` then holds
 #: each problem to its own law's.
 _ANY_QUANTITY = ANY_DESIGN + ("energy",)
@@ -84,9 +85,13 @@ class Problem:
         Fixed values of design quantities (apex state, controls) or of the apex ``energy``
         [J], SI units and radians.
     guess : Mapping of str to float
-        Starting values of design quantities that are not fixed.
+        Starting values of design quantities that are not fixed. With none at all, a
+        problem's own gait starts from the body alone (:mod:`baslip.gait.anybody`).
     bounds : Mapping of str to tuple of float
         (lo, hi) bounds by quantity, infinite where a file gave null.
+    posture : str
+        The trunk at the apex: ``upright``, ``hanging`` or ``any`` (the default);
+        ``upright`` and ``hanging`` bound theta_h unless ``bounds`` does.
     objective : str
         ``nearest_guess``, ``min_torque``, ``feasibility`` or ``least_spectral_radius``.
     strides : int
@@ -105,6 +110,7 @@ class Problem:
     fix: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
     guess: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=lambda: MappingProxyType({}))
+    posture: str = "any"  # the trunk at the apex: upright, hanging or any
     objective: str = "nearest_guess"
     strides: int = 1  # period of the orbit in strides; fix and guess refer to its first apex
     solver: SolverSettings = SolverSettings()
@@ -359,6 +365,12 @@ def _bound_end(value: Any, key: str, open_end: float) -> float:
     return _number(value, key)
 
 
+def _posture(value: Any) -> str:
+    if value not in POSTURES:
+        raise ProblemError("posture", f"expected one of {', '.join(POSTURES)}, got {excerpt(value)}")
+    return value
+
+
 def _strides(value: Any) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_STRIDES:
         raise ProblemError("strides", f"expected an integer in [1, {MAX_STRIDES}], got {excerpt(value)}")
@@ -377,6 +389,7 @@ _FIELDS: dict[str, Callable[[Any], Any]] = {
     "fix": lambda v: MappingProxyType(_quantities(v, "fix", _ANY_QUANTITY)),
     "guess": lambda v: MappingProxyType(_quantities(v, "guess", ANY_DESIGN)),
     "bounds": lambda v: MappingProxyType(_bounds(v)),
+    "posture": lambda v: _posture(v),
     "objective": _objective,
     "strides": lambda v: _strides(v),
     "solver": lambda v: parse_solver(dataclasses.asdict(v) if isinstance(v, SolverSettings) else v),
@@ -444,8 +457,12 @@ def _check_touchdown_angle(problem: Problem) -> None:
 
 
 def _check_foot_clearance(problem: Problem) -> None:
-    """The foot, with the leg at theta_td, lies above ground at the apex."""
+    """The foot, with the leg at theta_td, lies above ground at the apex. Not checked where
+    the angles are neither fixed nor guessed (a start from the body alone chooses them; its
+    solve names the clearance if that is what stops it)."""
     if {"z", "theta_h", "theta_td"} & set(_swept(problem)):
+        return
+    if not problem.guess and not {"theta_h", "theta_td"} <= set(problem.fix):
         return
     z, theta_h, theta_td = (problem.start_value(n) for n in ("z", "theta_h", "theta_td"))
     p = problem.params

@@ -1,0 +1,169 @@
+"""A gait's start from the body alone: a shipped gait carried to the body, or continued to it.
+
+A problem with no guess gets its start here (:func:`start_from_body`):
+
+1. **Scaling.** The shipped gaits (:mod:`baslip.gait.knowngaits`) under the problem's
+   hip law and posture are ranked by how far their normalised body and fixed values lie
+   from the problem's. A gait of a body with the same groups, at the same normalised fixed
+   values, carries over exactly (:func:`baslip.model.similarity.carried`).
+2. **Homotopy.** Otherwise the gait is continued along the straight path, in the
+   dimensionless groups and the normalised fixed values, from the shipped gait to the
+   problem, at the normalised body: each step a fixed-point solve warm-started from the
+   last, verified by the independent re-simulation, a failed step halved (down to
+   :data:`SMALLEST_STEP`). Folds on the way are not turned: a path that meets one breaks
+   there, and the next shipped gait is tried.
+
+What comes back is the start at the problem's own body; the problem's solve then polishes
+and verifies it there, with the problem's bounds.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+
+from baslip.diagnostics import logger
+from baslip.gait.fixedpoint import FixedPointSolver
+from baslip.gait.knowngaits import KnownGait, known_gaits
+from baslip.gait.shooting import FixedPointSpec
+from baslip.model.dynamics import APEX
+from baslip.model.quantities import NOMINAL, POSTURE_BOUNDS, posture_of
+from baslip.model.similarity import Groups, body_with, carried, groups, normalised_body
+from baslip.status import Status
+
+_log = logger(__name__)
+
+#: Smallest step along a homotopy path (as a share of the whole path) before it is given up.
+SMALLEST_STEP = 1 / 64
+#: Shipped gaits tried, nearest first, before the search gives up.
+TRIED_GAITS = 2
+
+
+@dataclass(frozen=True)
+class FoundStart:
+    """A start found from the body alone, or why there is none.
+
+    Attributes
+    ----------
+    guess : Mapping of str to float or None
+        Every design quantity not fixed, at the problem's body (SI units, radians); None
+        if no path reached the problem.
+    origin : str
+        How it was found (the shipped gait, scaled or continued in how many steps), or
+        why none was.
+    steps : int
+        Fixed-point solves made along the paths.
+    """
+
+    guess: Mapping[str, float] | None
+    origin: str
+    steps: int = 0
+
+
+def start_from_body(spec: FixedPointSpec, solver: FixedPointSolver, posture: str = "any") -> FoundStart:
+    """A start for ``spec`` (one stride, no guess needed) from the shipped gaits.
+
+    Parameters
+    ----------
+    spec : FixedPointSpec
+        The problem: its body, hip law and fixed values (its guess is not read).
+    solver : FixedPointSolver
+        Solves the steps of a path; built for ``spec.law``.
+    posture : str
+        ``upright``, ``hanging`` or ``any``: the trunk at the apex.
+
+    Returns
+    -------
+    FoundStart
+    """
+    candidates = ranked_gaits(spec, posture)
+    if not candidates:
+        return FoundStart(None, f"baslip ships no {posture} gait under the {spec.law.name} law to start from")
+    failures, steps = [], 0
+    for gait in candidates[:TRIED_GAITS]:
+        found = _continued(gait, spec, solver)
+        steps += found.steps
+        if found.guess is not None:
+            return replace(found, steps=steps)
+        failures.append(found.origin)
+    return FoundStart(None, "; ".join(failures), steps)
+
+
+def ranked_gaits(spec: FixedPointSpec, posture: str = "any") -> list[KnownGait]:
+    """The shipped gaits under ``spec``'s law (and ``posture``, unless ``any``), nearest
+    to ``spec`` first (:func:`path_length`)."""
+    law_gaits = [g for g in known_gaits() if g.law == spec.law.name and posture in ("any", g.posture)]
+    return sorted(law_gaits, key=lambda g: path_length(g, spec))
+
+
+def path_length(gait: KnownGait, spec: FixedPointSpec) -> float:
+    """How far ``gait`` lies from ``spec``: its groups' distance plus its fixed values'
+    distances (at the normalised body, in units of their nominal scales)."""
+    target = _fixed_at(spec, normalised_body(spec.params))
+    return groups(spec.params).distance(gait.groups) + sum(
+        abs(gait.values[n] - v) / NOMINAL[n] for n, v in target.items())
+
+
+def _fixed_at(spec: FixedPointSpec, body) -> dict[str, float]:
+    """The design quantities ``spec`` fixes, carried to ``body``."""
+    return carried({n: v for n, v in spec.fixed.items() if n in spec.design}, spec.params, body)
+
+
+def _continued(gait: KnownGait, spec: FixedPointSpec, solver: FixedPointSolver) -> FoundStart:
+    """Continue ``gait`` along the straight path to ``spec`` at the normalised body."""
+    end_body = normalised_body(spec.params)
+    start_fixed = {n: gait.values[n] for n in _fixed_at(spec, end_body)}
+    end_fixed = _fixed_at(spec, end_body)
+    path = _Path(gait.groups, groups(spec.params), start_fixed, end_fixed)
+    values, s, step, steps = dict(gait.values), 0.0, 1.0, 0
+    while s < 1.0:
+        step = min(step, 1.0 - s)
+        point = _solved(path, s + step, values, spec, solver)
+        steps += 1
+        if point is not None:
+            values, s, step = point, s + step, 2 * step
+            if s < 1.0:
+                _log.info(f"start: the shipped gait {gait.name!r} continued {s:.0%} of the way to this body")
+            continue
+        step /= 2
+        if step < SMALLEST_STEP:
+            return FoundStart(None, f"the path from the shipped gait {gait.name!r} broke at {s:.0%} of the way", steps)
+    guess = carried({n: v for n, v in values.items() if n not in spec.fixed}, end_body, spec.params)
+    how = "carried over exactly" if steps == 1 and path.is_exact() else f"continued in {steps} solve{'s' * (steps > 1)}"
+    _log.info(f"start: the shipped gait {gait.name!r}, {how}")
+    return FoundStart(guess, f"from the shipped gait {gait.name!r}, {how}", steps)
+
+
+@dataclass(frozen=True)
+class _Path:
+    """The straight path in the groups and the normalised fixed values."""
+
+    start_groups: Groups
+    end_groups: Groups
+    start_fixed: Mapping[str, float]
+    end_fixed: Mapping[str, float]
+
+    def at(self, s: float) -> tuple[Groups, dict[str, float]]:
+        fixed = {n: a + s * (self.end_fixed[n] - a) for n, a in self.start_fixed.items()}
+        return self.start_groups.interpolated(self.end_groups, s), fixed
+
+    def is_exact(self) -> bool:
+        """Whether the path has no length: its two ends are the same normalised problem."""
+        same_fixed = all(math.isclose(self.start_fixed[n], self.end_fixed[n], rel_tol=1e-12, abs_tol=1e-15)
+                         for n in self.start_fixed)
+        return self.start_groups.distance(self.end_groups) < 1e-12 and same_fixed
+
+
+def _solved(path: _Path, s: float, values: Mapping[str, float], spec: FixedPointSpec,
+            solver: FixedPointSolver) -> dict[str, float] | None:
+    """The verified gait at ``s`` along ``path``, from ``values`` (None if none is found)."""
+    groups_s, fixed = path.at(s)
+    posture = posture_of(values["theta_h"])
+    step_spec = FixedPointSpec(params=body_with(groups_s), fixed=fixed,
+                               guess={n: v for n, v in values.items() if n not in fixed},
+                               bounds={"theta_h": POSTURE_BOUNDS[posture]}, objective="nearest_guess", law=spec.law)
+    result = solver.solve(step_spec, name="start from the body")
+    if result.status != Status.CONVERGED:
+        return None
+    return {**dict(zip(APEX.names, map(float, result.X))), **dict(zip(spec.law.controls.names, map(float, result.u)))}
