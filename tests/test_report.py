@@ -380,3 +380,14 @@ def test_a_folder_of_a_users_own_runs_is_told_plainly_and_beside_the_thesis_comp
     shutil.copytree(RESULTS / "speed_sweep", tmp_path / "speed_sweep")  # a shipped study: the comparison too
     text = build_report(tmp_path)
     assert "## Sec. 4.3" in text and "## Other runs in this folder" in text and "### speed_sweep" not in text
+
+
+def test_the_body_claim_verifies_each_human_gait_again_and_claims_no_more_than_its_search():
+    from baslip.report.bodies import HUMAN_GAITS, body_claims
+    from baslip.report.evidence import Evidence
+
+    text = body_claims(Evidence(Path(__file__).resolve().parents[1] / "results"))[0]
+    for name in HUMAN_GAITS:
+        entry = text[text.index(f"{name} ("):].split("; residual", 1)[1]
+        assert float(entry.split("eps = ")[1].split(" ")[0]) <= 1e-10  # re-simulated here
+    assert "0 of 3 stable" in text and "not that no stable one exists" in text

@@ -15,6 +15,7 @@ from pathlib import Path
 from baslip.problem.shipped import shipped_problems
 from baslip.report.atlas import SCHUR_FROM_ATLAS
 from baslip.report.beyond import branch_sections, curve_sections, upright_section
+from baslip.report.bodies import body_claims
 from baslip.report.evidence import Evidence
 from baslip.report.thesis import (
     adaptive_claims,
@@ -83,6 +84,7 @@ def thesis_report(results: Path) -> str:
         ("Can an upright BA-SLIP run stably?", upright_section(ev)),
         ("Beyond the thesis: branches of fixed points and their bifurcations", branch_sections(ev)),
         ("Beyond the thesis: bifurcation curves in two parameters", curve_sections(ev)),
+        ("Beyond the thesis: other bodies, from the body alone", body_claims(ev)),
     ]
     body = "".join(f"## {title}\n\n" + "\n".join(parts) + "\n" for title, parts in sections)
     return HEADER + verdict_table(body) + body
