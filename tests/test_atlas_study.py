@@ -12,6 +12,7 @@ manifold it covers (:mod:`baslip.analysis.gaitatlas`):
   meanings of upright read off their trunk range;
 * a study killed after its first cell and run again writes the same atlas.csv;
 * a cell says on stderr what it is doing: covering, verifying, polishing;
+* a cell of a problem with no guess seeds from the body alone;
 * under the VPP law, z's periodicity row (implied at its symmetric gaits) is left out, so
   the equations keep full rank, and every committed chart is a symmetric fixed point of
   the independent simulation in all four rows.
@@ -191,6 +192,18 @@ def test_a_cell_logs_what_it_is_doing_phase_by_phase(caplog):
     assert lines and all(line.startswith("atlas_downward: cell ydot = 0.5, z = 0.4: ") for line in lines)
     assert any(line.endswith(f"{row['charts']} charts covered; finishing their independent verification") for line in lines)
     assert any(line.endswith("polishing (any): descent 1 of 1") for line in lines)
+
+
+def test_a_cell_of_a_problem_with_no_guess_seeds_from_the_body_alone(caplog):
+    """The hanging atlas at 0.5 m/s, 0.4 m with its guess removed: the cell's first seed is
+    the shipped gait carried there, and its charts are verified fixed points."""
+    caplog.set_level(logging.INFO, logger="baslip")
+    problem = load_problem(ROOT / "problems" / "atlas_downward.yaml").replace(guess={}, posture="hanging")
+    study = replace(problem.study, seeds=1, max_charts=4, polish=0, iterations=2)
+    row = CellAtlas(problem, study).run({"sweep_ydot": 0.5, "sweep_z": 0.4})
+    assert "start: the shipped gait 'downward'" in caplog.text and "no start from the body alone" not in caplog.text
+    assert row["seeds_failed"] == 0 and row["charts"] >= 2
+    assert all(c["status"] == "converged" and c["theta_h"] < 0 for c in row["chart_rows"])
 
 
 @pytest.mark.parametrize("change, key", [

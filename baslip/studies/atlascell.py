@@ -17,6 +17,7 @@ from baslip.analysis.descent import StabilityDescent, random_start
 from baslip.analysis.gaitatlas import ChartChecker, ChartReport, GaitManifold, chart_report
 from baslip.diagnostics import logger
 from baslip.engine.returnmap import ReturnMap, RunnerFell, Tolerances
+from baslip.gait.anybody import start_from_body
 from baslip.gait.from_problem import fixed_point_spec, solver_for
 from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import HipLaw
@@ -59,7 +60,7 @@ class CellAtlas:
     def run(self, task: dict) -> dict:
         """The cells.csv row of ``task``, with ``charts`` and ``boundaries`` (row lists)."""
         held = {a.name: task[key_column(a.name)] for a in self.study.axes}
-        spec = replace(self.base, fixed={**self.base.fixed, **held})
+        spec = self._started(replace(self.base, fixed={**self.base.fixed, **held}))
         manifold = GaitManifold(spec, self.solver.residual_map, self.jacobian_map)
         rng = task_rng(self.study, {**task, "start": 0})
         say = self._progress(held)
@@ -109,6 +110,18 @@ class CellAtlas:
                 _log.info(f"{self.problem.name}: cell {cell}: {text}")
 
         return say
+
+    def _started(self, spec):
+        """``spec`` with its guess from the body alone where the problem gives none
+        (:func:`~baslip.gait.anybody.start_from_body`): every seed of the cell then starts
+        from the gait found there."""
+        if self.problem.guess or self.problem.strides != 1:
+            return spec
+        found = start_from_body(spec, self.solver, self.problem.posture)
+        if found.guess is None:
+            _log.warning(f"note: no start from the body alone ({found.origin}); the seeds start from the default guess")
+            return spec
+        return replace(spec, guess=dict(found.guess))
 
     def _seed(self, spec, manifold: GaitManifold, rng) -> np.ndarray | None:
         """An independent, verified gait in atlas coordinates (None if the solve failed):
