@@ -382,12 +382,17 @@ def test_a_folder_of_a_users_own_runs_is_told_plainly_and_beside_the_thesis_comp
     assert "## Sec. 4.3" in text and "## Other runs in this folder" in text and "### speed_sweep" not in text
 
 
-def test_the_body_claim_verifies_each_human_gait_again_and_claims_no_more_than_its_search():
+def test_the_body_claims_verify_each_human_gait_again_and_claim_no_more_than_their_searches():
     from baslip.report.bodies import HUMAN_GAITS, body_claims
     from baslip.report.evidence import Evidence
 
-    text = body_claims(Evidence(Path(__file__).resolve().parents[1] / "results"))[0]
+    text, atlas = body_claims(Evidence(Path(__file__).resolve().parents[1] / "results"))
     for name in HUMAN_GAITS:
         entry = text[text.index(f"{name} ("):].split("; residual", 1)[1]
         assert float(entry.split("eps = ")[1].split(" ")[0]) <= 1e-10  # re-simulated here
     assert "0 of 3 stable" in text and "not that no stable one exists" in text
+    # the one-cell atlas: its best gait re-simulated here, stable, and the covering said
+    assert float(atlas.split("independent re-simulation eps = ")[1].split(" ")[0]) <= 1e-10
+    radius = float(atlas.split("most stable polished gait: spectral radius ")[1].split(",")[0])
+    assert radius < 1 and "a stable PD gait of the human body exists" in atlas
+    assert "not covered whole" in atlas and "200 charts" in atlas
