@@ -54,11 +54,6 @@ class KnownGait:
         """The normalised body it is a gait of."""
         return body_with(self.groups)
 
-    def on(self, params: Params) -> dict[str, float]:
-        """Its values carried to a body of the same size as ``params`` (exact for a body
-        of the same groups, a start for another)."""
-        return carried(self.values, self.body, params)
-
 
 def known_gait_from_result(record: Mapping) -> KnownGait:
     """The catalogue entry of a verified gait's ``result.json`` record."""
