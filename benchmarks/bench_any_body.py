@@ -15,7 +15,7 @@ verified gait and with a stable one per law and posture, each failure's reason, 
 Every solve is a new input (no memo); times are wall seconds in this process, the first
 solve of each law (its set-up) reported apart.
 
-    python benchmarks/bench_any_body.py [--bodies 50] [--seed 58]
+    python benchmarks/bench_any_body.py [--bodies 50] [--seed 58] [--part 1|2]
 """
 
 from __future__ import annotations
@@ -105,6 +105,7 @@ def other_proportions(count: int, rng, solvers: dict) -> None:
                 fixed = {"z": z, "ydot": ydot, **({"r_vpp": 0.1 * body.rho0} if law == "vpp" else {})}
                 problem = Problem(name="other", params=body, hip_law=HIP_LAWS[law], fix=fixed, posture=posture)
                 result, seconds = timed_solve(problem, solvers)
+                print(f"    {label}, Froude {froude}: {result.status} in {seconds:.2f} s", flush=True)
                 times.append(seconds)
                 tally[label][0] += 1
                 if result.status == Status.CONVERGED:
@@ -126,10 +127,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--bodies", type=int, default=50)
     parser.add_argument("--seed", type=int, default=58)
+    parser.add_argument("--part", type=int, choices=(1, 2), help="run only this part")
     args = parser.parse_args()
     rng, solvers = np.random.default_rng(args.seed), {}
-    scaled_bodies(args.bodies, rng, solvers)
-    other_proportions(args.bodies, rng, solvers)
+    if args.part in (None, 1):
+        scaled_bodies(args.bodies, rng, solvers)
+    if args.part in (None, 2):
+        other_proportions(args.bodies, np.random.default_rng(args.seed + 1), solvers)
 
 
 if __name__ == "__main__":
