@@ -6,6 +6,7 @@ solver fails; exit 2, one line on stderr naming the key and nothing written for 
 
 import csv
 import json
+import math
 import os
 import shutil
 import subprocess
@@ -126,7 +127,7 @@ BAD_INPUTS = {
     "stiffness": ("params: {k: 0}\n", "params.k"),
     "rest_length": ("params: {rho0: 0}\n", "params.rho0"),
     "gravity": ("params: {g: -9.81}\n", "params.g"),
-    "foot_below_ground": ("fix: {z: 0.1}\n", "fix.z"),
+    "foot_below_ground": ("fix: {z: 0.1}\nguess: {theta_td: \"6 deg\"}\n", "fix.z"),
     "fixed_outside_bounds": ("fix: {z: 0.9}\nbounds: {z: [0.3, 0.7]}\n", "fix.z"),
     "malformed": ("fix: {z: 0.4\n", "malformed YAML"),
     "energy_too_low": ("fix: {z: 0.4, ydot: 0.5, energy: 1.0}\n", "fix.energy"),
@@ -256,3 +257,15 @@ def test_each_cached_library_cut_short_is_rebuilt_and_the_solve_succeeds(tmp_pat
     assert len(restored) + len(built) == 1, (restored, built)
     code = json.loads((tmp_path / "out" / "result.json").read_text())["provenance"]["code"]
     assert all(route.startswith("compiled C") for route in code.values())
+
+
+def test_a_low_apex_with_no_guess_is_left_to_the_search_which_finds_a_steep_leg(tmp_path, capsys):
+    """z = 0.1 m refuses the default angles (the foot below ground at the apex), but with no
+    guess the angles are the search's: from the body alone it finds a verified gait there,
+    the leg touching down more than 45 deg from vertical."""
+    problem = tmp_path / "low.yaml"
+    problem.write_text("name: low\nfix: {z: 0.1}\n")
+    assert main([str(problem), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    record = json.loads((tmp_path / "out" / "result.json").read_text())
+    assert record["status"] == "converged" and record["residual"] <= 1e-10
+    assert record["control"]["theta_td"] > math.radians(45)
