@@ -4,9 +4,10 @@ again ends with the rows of an uninterrupted run.
 For each kind (sweep, random sample, basin, optimal, adaptive, atlas, controllers,
 continuation and curve; :mod:`killcases`) a small study is run once uninterrupted. Then
 it is started and sent SIGKILL at 20 moments drawn (seeded) uniformly over the
-uninterrupted run's wall time, each start resuming the folder the last one left. When a
-resumed start finishes before its moment, the round is over and the moment goes to a
-fresh folder (a moment later than a whole run is no kill). After every round:
+uninterrupted run's wall time (dealt between two chains that run side by side), each
+start resuming the folder the last one left. When a resumed start finishes before its
+moment, the round is over and the moment goes to a fresh folder (a moment later than a
+whole run is no kill). After every round:
 
 * each table holds exactly the uninterrupted run's rows, timing columns aside, in the
   same order: no row repeated, none missing, none different;
