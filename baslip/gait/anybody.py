@@ -90,6 +90,16 @@ def start_from_body(spec: FixedPointSpec, solver: FixedPointSolver, posture: str
     return FoundStart(None, "; ".join(failures), steps)
 
 
+def started_from_body(spec: FixedPointSpec, solver: FixedPointSolver, posture: str = "any") -> FixedPointSpec:
+    """``spec`` with the guess found from the body alone (:func:`start_from_body`); where
+    none is found, ``spec`` as it is (its default guess), with a note saying why."""
+    found = start_from_body(spec, solver, posture)
+    if found.guess is None:
+        _log.warning(f"note: no start from the body alone ({found.origin}); starting from the default guess")
+        return spec
+    return replace(spec, guess=dict(found.guess))
+
+
 def ranked_gaits(spec: FixedPointSpec, posture: str = "any") -> list[KnownGait]:
     """The shipped gaits under ``spec``'s law (and ``posture``, unless ``any``), nearest
     to ``spec`` first (:func:`path_length`)."""

@@ -7,17 +7,13 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
-
-from baslip.diagnostics import logger, progress_hidden, show_on_stderr
+from baslip.diagnostics import progress_hidden, show_on_stderr
 from baslip.errors import ProblemKindError
-from baslip.gait.anybody import start_from_body
+from baslip.gait.anybody import started_from_body
 from baslip.gait.fixedpoint import FixedPointResult, FixedPointSolver
 from baslip.gait.shooting import FixedPointSpec, ShootingOptions, ipopt_options
 from baslip.model.quantities import POSTURE_BOUNDS
 from baslip.problem.reader import Problem
-
-_log = logger(__name__)
 
 
 def shooting_options(problem: Problem) -> ShootingOptions:
@@ -91,9 +87,5 @@ def solve_start(problem: Problem, solver: FixedPointSolver | None = None) -> Fix
     solver = solver or solver_for(problem, few_calls=True)
     spec = fixed_point_spec(problem)
     if not problem.guess and problem.strides == 1:
-        found = start_from_body(spec, solver, problem.posture)
-        if found.guess is not None:
-            spec = replace(spec, guess=dict(found.guess))
-        else:
-            _log.warning(f"note: no start from the body alone ({found.origin}); starting from the default guess")
+        spec = started_from_body(spec, solver, problem.posture)
     return solver.solve(spec, name=problem.name)

@@ -17,7 +17,7 @@ from baslip.analysis.descent import StabilityDescent, random_start
 from baslip.analysis.gaitatlas import ChartChecker, ChartReport, GaitManifold, chart_report
 from baslip.diagnostics import logger
 from baslip.engine.returnmap import ReturnMap, RunnerFell, Tolerances
-from baslip.gait.anybody import start_from_body
+from baslip.gait.anybody import started_from_body
 from baslip.gait.from_problem import fixed_point_spec, solver_for
 from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import HipLaw
@@ -117,11 +117,7 @@ class CellAtlas:
         from the gait found there."""
         if self.problem.guess or self.problem.strides != 1:
             return spec
-        found = start_from_body(spec, self.solver, self.problem.posture)
-        if found.guess is None:
-            _log.warning(f"note: no start from the body alone ({found.origin}); the seeds start from the default guess")
-            return spec
-        return replace(spec, guess=dict(found.guess))
+        return started_from_body(spec, self.solver, self.problem.posture)
 
     def _seed(self, spec, manifold: GaitManifold, rng) -> np.ndarray | None:
         """An independent, verified gait in atlas coordinates (None if the solve failed):
