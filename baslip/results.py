@@ -206,7 +206,7 @@ class RunResults:
             from baslip.viz.adaptive import adaptive_figures
 
             adaptive_figures(self.rows("strides"), None, problem=self._title())
-        elif self.kind == "atlas":
+        elif self.kind in ("atlas", "families"):
             from baslip.viz.atlasmap import atlas_figure
 
             plot = self.record["provenance"]["problem"]["study"]["plot"]
@@ -378,6 +378,7 @@ def run_summary_text(record: dict) -> str:
     if "kind" in record:
         counts = ", ".join(f"{k} {v}" for k, v in record.items() if isinstance(v, int) and not isinstance(v, bool))
         lines = [f"{name}: {record['kind']} study {'complete' if record.get('complete', True) else 'incomplete'}: {counts}"]
+        lines += record.get("answer", {}).get("lines", [])  # a families study's answer, in words
         for row in record.get("not_solved", [])[:10]:
             where = ", ".join(f"{k[len('sweep_'):]} = {v:g}" for k, v in row.items() if k.startswith("sweep_"))
             lines.append(f"  no fixed point at {where}: {row['status']} ({row['reason']})")

@@ -47,7 +47,7 @@ from baslip.model.quantities import (
 from baslip.problem.continuation import ContinuationSpec, check_continuation, parse_continuation
 from baslip.problem.shipped import find_problem
 from baslip.problem.solver import SolverSettings, parse_solver
-from baslip.problem.study import ADAPTED_CONTROLS, Atlas, Basin, Optimal, Study, Sweep, parse_study
+from baslip.problem.study import ADAPTED_CONTROLS, Atlas, Basin, Families, Optimal, Study, Sweep, parse_study
 from baslip.problem.text import (
     UnreadableText,
     check_plain_data,
@@ -540,6 +540,9 @@ def _check_atlas(problem: Problem) -> None:
     study = problem.study
     if not isinstance(study, Atlas):
         return
+    if isinstance(study, Families) and not any(n in problem.fix for n in problem.design):
+        raise ProblemError("fix", "a families study answers at the problem's own cell: fix its speed and apex "
+                           "height (fix: {ydot: ..., z: ...})")
     held = set(problem.fix) | {a.name for a in study.axes}
     free = [name for name in problem.design if name not in held]
     # Rows implied by structure (z's under a law of positions only) leave a dimension more.

@@ -25,7 +25,11 @@ Kinds:
   ``max_radius`` size the charts (atlas units), ``max_charts`` caps each cell,
   ``max_spectral_radius`` stops the covering at charts more unstable than it, and
   ``plot`` names the two quantities of its figure; ``polish`` descents of at most
-  ``iterations`` steps each start from the least local minima of the radius.
+  ``iterations`` steps each start from the least local minima of the radius;
+* ``families``: which gaits exist at the problem's own cell and the most stable one: an
+  atlas of that one cell with a short budget (its keys are the atlas's but ``vary``),
+  answered with the pieces found, the best gait and how wide the search was
+  (:mod:`baslip.studies.families`).
 """
 
 from __future__ import annotations
@@ -151,10 +155,26 @@ class Atlas:
     max_radius: float = 1.5
     max_charts: int = 3000  # per cell
     max_spectral_radius: float | None = None  # charts above it are made but not grown from (None: no cap)
-    plot: tuple[str, str] = ("Kp", "Kd")
+    plot: tuple[str, ...] = ("Kp", "Kd")  # two quantities
     polish: int = 3  # stability descents per cell, from the least local minima of the radius (0: none)
     iterations: int = 60  # most quasi-Newton iterations of each polishing descent
     kind: str = "atlas"
+
+
+@dataclass(frozen=True)
+class Families(Atlas):
+    """``kind: families``: which gaits exist at the problem's own cell (its fixed values),
+    and the most stable one: an atlas of that one cell (:class:`Atlas`, whose keys it
+    takes but ``vary``) with a short budget, answered by
+    :mod:`baslip.studies.families`. Its ``axes`` are empty: the cell is the problem's."""
+
+    axes: tuple[Axis, ...] = ()
+    plot: tuple[str, ...] = ()  # the figure's two quantities; () for the first two free ones, gains first
+    seeds: int = 6
+    max_charts: int = 120
+    polish: int = 2
+    iterations: int = 40
+    kind: str = "families"
 
 
 @dataclass(frozen=True)
@@ -188,10 +208,10 @@ class Controllers:
         return min(dict(self.solve_samples).get(controller, self.samples), self.samples)
 
 
-Study = Sweep | RandomSample | Basin | Adaptive | Optimal | Controllers | Atlas
+Study = Sweep | RandomSample | Basin | Adaptive | Optimal | Controllers | Atlas | Families
 #: The study classes, for ``isinstance``.
-STUDY_KINDS = (Sweep, RandomSample, Basin, Adaptive, Optimal, Controllers, Atlas)
-KINDS = ("sweep", "random", "basin", "adaptive", "optimal", "controllers", "atlas")
+STUDY_KINDS = (Sweep, RandomSample, Basin, Adaptive, Optimal, Controllers, Atlas, Families)
+KINDS = ("sweep", "random", "basin", "adaptive", "optimal", "controllers", "atlas", "families")
 #: The keys each study kind accepts (docs/guides/problem-files.md documents each).
 STUDY_KEYS = {
     "sweep": ("kind", "vary"),
@@ -203,6 +223,8 @@ STUDY_KEYS = {
                     "boxes", "controllers", "horizon", "solve_samples"),
     "atlas": ("kind", "vary", "seeds", "seed", "radius", "max_radius", "max_charts", "max_spectral_radius", "plot",
               "polish", "iterations"),
+    "families": ("kind", "seeds", "seed", "radius", "max_radius", "max_charts", "max_spectral_radius", "plot",
+                 "polish", "iterations"),
 }
 
 
@@ -244,6 +266,8 @@ def parse_study(data) -> Study:
             iterations=_integer(data.get("iterations", 60), "study.iterations", 1, 10000),
             method=_method(data.get("method", "descent")),
         )
+    if kind == "families":
+        return _atlas(data, (), Families)
     if kind == "random":
         return RandomSample(
             region=_name(data.get("region"), "study.region"),
@@ -341,28 +365,33 @@ def _file_value(value, key: str):
     return value if key in ("study.vary", "study.grid") else list(value)
 
 
-def _atlas(data, axes: tuple[Axis, ...]) -> Atlas:
+def _atlas(data, axes: tuple[Axis, ...], kind: type[Atlas] = Atlas) -> Atlas:
+    """An atlas (or a families study, ``kind``) of ``axes`` from ``data``, each key at
+    the kind's default where ``data`` leaves it out."""
+    default = {entry.name: entry.default for entry in dataclasses.fields(kind)}
     radius = _size(data.get("radius", 0.3), "study.radius", 1e-3, 10.0)
     max_radius = _size(data.get("max_radius", max(1.5, radius)), "study.max_radius", radius, 10.0)
-    plot = data.get("plot", ["Kp", "Kd"])
-    if (not isinstance(plot, (list, tuple)) or len(plot) != 2 or not all(isinstance(n, str) for n in plot)
+    plot = data.get("plot", list(kind.plot))
+    if kind is Families and "plot" not in data:
+        pass  # chosen at the run, from what the problem leaves free
+    elif (not isinstance(plot, (list, tuple)) or len(plot) != 2 or not all(isinstance(n, str) for n in plot)
             or len(set(plot)) != 2):
         raise StudyError("study.plot", f"expected two different quantities, got {excerpt(plot)}")
     for name in plot:
         if name not in ANY_DESIGN:
             raise StudyError("study.plot", f"unknown quantity {clip(name)!r} (expected two of {', '.join(ANY_DESIGN)})")
-    return Atlas(
+    return kind(
         axes,
-        seeds=_integer(data.get("seeds", 24), "study.seeds", 1, 10000),
+        seeds=_integer(data.get("seeds", default["seeds"]), "study.seeds", 1, 10000),
         seed=_integer(data.get("seed", 0), "study.seed", 0, 2**31 - 1),
         radius=radius,
         max_radius=max_radius,
-        max_charts=_integer(data.get("max_charts", 3000), "study.max_charts", 1, 100000),
+        max_charts=_integer(data.get("max_charts", default["max_charts"]), "study.max_charts", 1, 100000),
         max_spectral_radius=(_size(data["max_spectral_radius"], "study.max_spectral_radius", 1.0, 1e6)
                              if "max_spectral_radius" in data else None),
-        plot=(plot[0], plot[1]),
-        polish=_integer(data.get("polish", 3), "study.polish", 0, 100),
-        iterations=_integer(data.get("iterations", 60), "study.iterations", 1, 10000),
+        plot=tuple(plot),
+        polish=_integer(data.get("polish", default["polish"]), "study.polish", 0, 100),
+        iterations=_integer(data.get("iterations", default["iterations"]), "study.iterations", 1, 10000),
     )
 
 

@@ -200,7 +200,7 @@ def run_atlas(problem: Problem, study: Atlas, out_dir: Path, sources: Path, quie
         from baslip.viz.figures import trunk_motion_figure
 
         charts = read_points(out_dir / "atlas.csv")
-        atlas_figure(charts, names, study.plot, out_dir, problem_title(problem))
+        atlas_figure(charts, names, (study.plot[0], study.plot[1]), out_dir, problem_title(problem))
         best = read_points(out_dir / "atlas_best.csv")
         if best:  # none without polishing (polish: 0)
             trunk_motion_figure(best_gait_motions(best, names, problem.params, count=2 * len(cells), note=_meaning,

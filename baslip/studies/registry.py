@@ -1,6 +1,6 @@
 """Run a study of a problem file: claim its folder, dispatch to its kind, record the result.
 
-Each kind of study (sweep, random, basin, adaptive, optimal, controllers, atlas) lives in its own
+Each kind of study (sweep, random, basin, adaptive, optimal, controllers, atlas, families) lives in its own
 module, with its tasks, its worker and its run together; :data:`KINDS` maps the class of
 a ``study:`` section to it. A study writes into its folder ``results/<name>/``:
 
@@ -33,12 +33,13 @@ from baslip.files.provenance import changed_entries, provenance
 from baslip.files.rows import regular_text
 from baslip.files.runs import clear_run, hold_for
 from baslip.problem.reader import Problem
-from baslip.problem.study import Adaptive, Atlas, Basin, Controllers, Optimal, RandomSample, Sweep
+from baslip.problem.study import Adaptive, Atlas, Basin, Controllers, Families, Optimal, RandomSample, Sweep
 from baslip.studies.adaptive import run_adaptive_study
 from baslip.studies.atlas import run_atlas
 from baslip.studies.basin import check_basin, run_basin
 from baslip.studies.common import StudyFailed
 from baslip.studies.controllers import adds_starts, run_controllers
+from baslip.studies.families import run_families
 from baslip.studies.optimal import run_optimal
 from baslip.studies.processes import WorkerDied
 from baslip.studies.runner import LANES, Workers
@@ -71,6 +72,8 @@ class StudyKind:
     grows: Callable[[dict, dict], bool] | None = None
 
 
+#: The tables of an atlas, and of a families study (an atlas of one cell).
+ATLAS_FILES = ("cells.csv", "atlas.csv", "atlas_boundary.csv", "atlas_best.csv")
 #: Every kind of study, by the class of its ``study:`` section.
 KINDS: dict[type, StudyKind] = {
     Sweep: StudyKind(run_sweep, ("points.csv",)),
@@ -79,7 +82,8 @@ KINDS: dict[type, StudyKind] = {
     Adaptive: StudyKind(run_adaptive_study, ("strides.csv",)),
     Optimal: StudyKind(run_optimal, ("points.csv",)),
     Controllers: StudyKind(run_controllers, ("controllers.csv",), grows=adds_starts),
-    Atlas: StudyKind(run_atlas, ("cells.csv", "atlas.csv", "atlas_boundary.csv", "atlas_best.csv")),
+    Atlas: StudyKind(run_atlas, ATLAS_FILES),
+    Families: StudyKind(run_families, ATLAS_FILES),
 }
 #: Files any study writes besides its figures; ``--fresh`` removes them before starting.
 DATA_FILES = tuple(sorted({name for kind in KINDS.values() for name in kind.data_files}))
