@@ -12,6 +12,9 @@ BRANCHES = continuation_slip_attack continuation_downward_speed continuation_dow
 # Studies that read the curves' results.
 AFTER_CURVES = stable_region_traced
 GAITS = downward upward downward_period2 vpp vpp_human
+# The reference bodies' gaits with no guess, and which gaits exist at their cells (a minute).
+BODIES = human_pd_hanging human_pd_upright human_vpp_3ms robot_pd_hanging robot_pd_upright robot_vpp \
+	families_human_pd families_robot_pd
 # Under the virtual-pivot-point hip law: sweeps over the pivot, the speed and the height,
 # at the thesis's scale and at human scale, the human gait's branch in the pivot and its
 # period-doubling curve, the atlases and the stability-optimal search.
@@ -21,7 +24,7 @@ VPP_STUDIES = vpp_sweep_thesis vpp_sweep_thesis_low vpp_sweep_human vpp_sweep_hu
 # the most stable upright gait the upright atlas found (its gait copied into the problem),
 # and the stability NLP's cross-checks: of the upright atlas (from drawn starts, then from
 # the atlas's polished gaits), and of the VPP descent.
-ATLASES = atlas_upright atlas_upright_capped atlas_downward controllers_upright_best optimal_upright_schur optimal_vpp_schur
+ATLASES = atlas_upright atlas_upright_capped atlas_downward atlas_human_pd controllers_upright_best optimal_upright_schur optimal_vpp_schur
 
 # The controllers compared on the shipped gaits, with basins of 4,000 starts in each of
 # five boxes for every controller: about 4 h on a 2-core machine (their committed runs:
@@ -33,7 +36,7 @@ CONTROLLERS = controllers_downward controllers_upright controllers_vpp controlle
 
 studies:
 	@for s in $(STUDIES) $(BRANCHES) $(AFTER_CURVES) $(VPP_STUDIES); do $(PY) -m baslip.solve problems/$$s.yaml || exit 1; done
-	@for g in $(GAITS); do $(PY) -m baslip.solve problems/$$g.yaml || exit 1; done
+	@for g in $(GAITS) $(BODIES); do $(PY) -m baslip.solve problems/$$g.yaml || exit 1; done
 	$(PY) -m baslip.animate problems/downward.yaml problems/upward.yaml problems/vpp_human.yaml --out results/animation
 	$(PY) -m baslip.report
 
@@ -46,4 +49,4 @@ controllers:
 	$(PY) -m baslip.report
 
 clean-studies:
-	rm -rf $(addprefix results/,$(STUDIES) $(BRANCHES) $(AFTER_CURVES) $(VPP_STUDIES)) results/animation results/REPORT.md
+	rm -rf $(addprefix results/,$(STUDIES) $(BRANCHES) $(AFTER_CURVES) $(VPP_STUDIES) $(BODIES)) results/animation results/REPORT.md

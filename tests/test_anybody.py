@@ -3,8 +3,9 @@
 * a body of the thesis's groups at another size, at the carried fixed values, takes the
   shipped gait carried over exactly, in one solve, and solves to it;
 * a problem with no guess at all solves, verified (eps <= 1e-10), at each reference body
-  (the thesis's and a human's, m 80 kg, I 4.58 kg m^2, k 20,000 N/m, rho0 1 m, d 0.1 m)
-  under PD and under VPP, with the trunk as asked (upright or hanging);
+  (the thesis's; a human's, m 80 kg, I 4.58 kg m^2, k 20,000 N/m, rho0 1 m, d 0.1 m; a
+  robot's of 2.474 kg, the Penn Jerboa's mass, leg and stiffness) under PD and under VPP,
+  with the trunk as asked (upright or hanging);
 * the shipped gaits are ranked by how far their body and fixed values lie;
 * a posture no shipped gait has under a law is said, and the solve then starts from the
   default guess;
@@ -28,6 +29,8 @@ from baslip.status import Status
 
 THESIS = Params()
 HUMAN = Params(m=80.0, I=4.58, k=20000.0, rho0=1.0, d=0.1, g=9.81)
+#: The Penn Jerboa's mass, leg and stiffness; its inertia and hip offset at the thesis's proportions.
+ROBOT = Params(m=2.474, I=0.005624, k=1607.0, rho0=0.166, d=0.0332, g=9.81)
 
 
 def problem(params: Params, law: str, fix: dict, posture: str = "any", **more) -> Problem:
@@ -55,6 +58,9 @@ CELLS = [
     ("human, PD, hanging", HUMAN, "pd", {"z": 1.06, "ydot": 3.0}, "hanging"),
     ("human, PD, upright", HUMAN, "pd", {"z": 1.06, "ydot": 3.0}, "upright"),
     ("human, VPP", HUMAN, "vpp", {"z": 1.06, "ydot": 3.0, "r_vpp": 0.1}, "any"),
+    ("robot, PD, hanging", ROBOT, "pd", {"z": 0.21, "ydot": 1.0}, "hanging"),
+    ("robot, PD, upright", ROBOT, "pd", {"z": 0.21, "ydot": 1.0}, "upright"),
+    ("robot, VPP", ROBOT, "vpp", {"z": 0.21, "ydot": 1.0, "r_vpp": 0.0166}, "any"),
 ]
 
 

@@ -382,17 +382,26 @@ def test_a_folder_of_a_users_own_runs_is_told_plainly_and_beside_the_thesis_comp
     assert "## Sec. 4.3" in text and "## Other runs in this folder" in text and "### speed_sweep" not in text
 
 
-def test_the_body_claims_verify_each_human_gait_again_and_claim_no_more_than_their_searches():
-    from baslip.report.bodies import HUMAN_GAITS, body_claims
+def test_the_body_claims_verify_each_reference_body_s_gaits_again_and_claim_no_more_than_their_searches():
+    from baslip.report.bodies import BODIES, body_claims
     from baslip.report.evidence import Evidence
 
-    text, atlas = body_claims(Evidence(Path(__file__).resolve().parents[1] / "results"))
-    for name in HUMAN_GAITS:
-        entry = text[text.index(f"{name} ("):].split("; residual", 1)[1]
-        assert float(entry.split("eps = ")[1].split(" ")[0]) <= 1e-10  # re-simulated here
-    assert "0 of 3 stable" in text and "not that no stable one exists" in text
+    human, robot, atlas, *families = body_claims(Evidence(Path(__file__).resolve().parents[1] / "results"))
+    for text, (_, names) in zip((human, robot), BODIES):
+        for name in names:
+            entry = text[text.index(f"{name} ("):].split("; residual", 1)[1]
+            assert float(entry.split("eps = ")[1].split(" ")[0]) <= 1e-10  # re-simulated here
+        assert "of 3 stable" in text and "not whether a stable one exists" in text
+    assert "m = 2.474 kg" in robot and "not published" in robot
     # the one-cell atlas: its best gait re-simulated here, stable, and the covering said
     assert float(atlas.split("independent re-simulation eps = ")[1].split(" ")[0]) <= 1e-10
-    radius = float(atlas.split("most stable polished gait: spectral radius ")[1].split(",")[0])
+    radius = float(atlas.split("most stable polished gait: spectral radius ")[1].split(" ")[0].rstrip(","))
     assert radius < 1 and "a stable PD gait of the human body exists" in atlas
     assert "not covered whole" in atlas and "200 charts" in atlas
+    # each families answer: its best gait re-simulated here; a verdict no wider than its search
+    assert len(families) == 2
+    for text in families:
+        assert float(text.split("independent re-simulation eps = ")[1].split(" ")[0]) <= 1e-10
+        radius = float(text.split("most stable polished gait: spectral radius ")[1].split(" ")[0])
+        verdict = "a stable gait exists at this cell" if radius < 1 else "no stable gait found in the search"
+        assert verdict in text and "Searched: 6 seeds" in text

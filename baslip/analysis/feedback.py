@@ -43,6 +43,8 @@ def control_scale(law: HipLaw = PD) -> np.ndarray:
     return np.array([NOMINAL[n] for n in law.controls.names])
 
 
+#: A plain LQR design counts only if it brings every multiplier this far inside the unit circle.
+STABILISED_MARGIN = 1e-6
 #: The PD law's control scale.
 CONTROL_SCALE = control_scale(PD)
 #: A re-solve stops once a step lowers its eps by less than this factor (the residual
@@ -88,7 +90,12 @@ def lqr_gain(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, iterati
         settled = np.max(np.abs(following - Hk)) <= tolerance * max(1.0, np.max(np.abs(following)))
         Hk = following
         if settled:
-            return -np.linalg.solve(R + B.T @ Hk @ B, B.T @ Hk @ A)
+            K = -np.linalg.solve(R + B.T @ Hk @ B, B.T @ Hk @ A)
+            # A mode at 1 that B cannot reach makes P grow without bound; round-off may put
+            # it a hair inside 1, where P settles, huge, on a gain that leaves it there.
+            if np.max(np.abs(np.linalg.eigvals(A + B @ K))) < 1.0 - STABILISED_MARGIN:
+                return K
+            break
     raise ValueError("the Riccati iteration does not settle: an unstable mode is not reachable")
 
 

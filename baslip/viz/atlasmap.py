@@ -36,7 +36,8 @@ def atlas_figure(charts: list[dict], names: list[str], plot: tuple[str, str], ou
     cells = sorted({tuple(c[f"sweep_{n}"] for n in names) for c in charts})
     columns = min(3, max(len(cells), 1))
     rows_count = max(1, math.ceil(len(cells) / columns))
-    fig, axes = plt.subplots(rows_count, columns, figsize=(4.6 * columns + 1.2, 3.9 * rows_count + 0.6),
+    # At least 9 in wide, so that the two title lines fit above a single cell.
+    fig, axes = plt.subplots(rows_count, columns, figsize=(max(4.6 * columns + 1.2, 9.0), 3.9 * rows_count + 0.6),
                              squeeze=False, layout="constrained")
     radii = np.array([c["spectral_radius"] for c in charts if c["status"] == "converged"], dtype=float)
     colours = radius_colours(radii)  # blues below 1, reds above
