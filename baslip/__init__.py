@@ -1,7 +1,7 @@
 """baslip: periodic running gaits of the Body-Attached SLIP and their stability.
 
 Entry points: :func:`run` for whatever a problem holds (a gait, a study, a branch or a
-curve), :func:`load_problem` and :func:`solve_problem` for one gait (or the command
+curve), :func:`families` for which gaits exist at a problem's cell and the best one, :func:`load_problem` and :func:`solve_problem` for one gait (or the command
 line ``baslip solve PROBLEM.yaml``, also ``python -m baslip.solve PROBLEM.yaml``),
 :class:`ReturnMap` for the apex return map and multi-stride simulation, and
 :class:`Params` / :class:`Control` for the numbers.
@@ -30,7 +30,7 @@ _HOMES = {
     "FixedPointResult": "baslip.gait.fixedpoint", "FixedPointSolver": "baslip.gait.fixedpoint",
     "solve_problem": "baslip.gait.from_problem",
     "RunResults": "baslip.results", "open_results": "baslip.results",
-    "run": "baslip.api",
+    "run": "baslip.api", "families": "baslip.api",
     "__version__": "baslip.version",
 }
 
@@ -54,6 +54,7 @@ __all__ = [
     "Stride",
     "Tolerances",
     "build_model",
+    "families",
     "load_problem",
     "open_results",
     "parse_problem",
@@ -64,7 +65,7 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:  # the same names, for type checkers and editors
-    from baslip.api import run
+    from baslip.api import families, run
     from baslip.engine.returnmap import Fall, ReturnMap, Simulation, Stride, Tolerances
     from baslip.errors import InputError, ProblemError, ProblemKindError, RunError
     from baslip.gait.fixedpoint import FixedPointResult, FixedPointSolver

@@ -14,12 +14,13 @@ from __future__ import annotations
 import contextlib
 import tempfile
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 
 from baslip.diagnostics import logger, progress_hidden, show_on_stderr
 from baslip.engine.arguments import shown, whole_number
 from baslip.engine.codegen import recording_code
-from baslip.errors import ArgumentError, InputError
+from baslip.errors import ArgumentError, InputError, ProblemKindError
 from baslip.files.atomic import write_result
 from baslip.files.lock import hold, unwritable
 from baslip.files.provenance import provenance
@@ -27,6 +28,7 @@ from baslip.files.runs import check_folder, clear_run, hold_for
 from baslip.gait.fixedpoint import FixedPointResult
 from baslip.gait.from_problem import solve_problem, solver_for
 from baslip.problem.reader import Problem, check_problem, load_problem
+from baslip.problem.study import Families
 from baslip.problem.text import path_argument
 from baslip.results import RunResults, open_results, read_into_memory
 
@@ -105,6 +107,50 @@ def run(problem: Problem | str | Path, out: str | Path | None = None, *, jobs: i
         if folder is not None:
             return result
         return read_into_memory(target, where)
+
+
+def families(problem: Problem | str | Path, out: str | Path | None = None, *, study: Families | None = None,
+             jobs: int | None = None, progress: bool = True) -> RunResults:
+    """Which gaits exist at ``problem``'s cell (what it fixes), and the most stable one.
+
+    Parameters
+    ----------
+    problem : Problem, str or Path
+        A gait problem (no study, no continuation), or one whose study is a families
+        study, or the path of its file. With no guess its seeds start from the body alone.
+    out : str or Path, optional
+        The folder to write the run's files into (as :func:`run`).
+    study : Families, optional
+        The budget (seeds, charts, descents); by default the problem's own families
+        study, else :class:`~baslip.problem.study.Families` at its defaults.
+    jobs : int, optional
+        Worker processes (as :func:`run`).
+    progress : bool
+        Show progress on stderr.
+
+    Returns
+    -------
+    RunResults
+        Its ``record["answer"]``: the pieces found (charts, least spectral radius, stable
+        share), the best gaits polished and verified, how wide the search was, and where
+        no gait was found, why (:mod:`baslip.studies.families`).
+
+    Raises
+    ------
+    InputError
+        As :func:`run`; also a problem holding another study or a continuation.
+    """
+    if not isinstance(problem, Problem):
+        problem = load_problem(path_argument(problem, "problem"))
+    if study is not None and not isinstance(study, Families):
+        raise ArgumentError("study", f"expected a Families study, got {type(study).__name__}")
+    held = problem.study
+    if problem.continuation is not None or (held is not None and not isinstance(held, Families)):
+        raise ProblemKindError("study", f"problem {problem.name!r} holds a {'continuation' if held is None else held.kind}"
+                               "; families asks at a gait problem's cell (leave its study and continuation out)")
+    result = run(replace(problem, study=study or held or Families()), out, jobs=jobs, progress=progress)
+    assert isinstance(result, RunResults)
+    return result
 
 
 #: The most worker processes or lanes a run takes (as ``--jobs`` and ``--lanes``).

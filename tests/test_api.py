@@ -6,6 +6,8 @@
   ``out`` the folder holds exactly the command line's files.
 * ``solve_problem`` refuses a problem that holds a study or a continuation, naming
   ``baslip.run`` (a ``baslip.ProblemKindError``); bad input to ``run`` is an ``InputError`` raised before any solve.
+* ``families`` asks at a gait problem's cell: a problem holding another study or a
+  continuation, or a budget that is no ``Families``, is refused before anything runs.
 * A gait's ``animate()`` is one type, with or without IPython: it saves as a GIF and shows
   itself in a notebook as that GIF, embedded (nothing fetched from the web).
 """
@@ -132,6 +134,18 @@ def test_solve_problem_refuses_a_study_and_names_run():
     assert caught.value.key == "study"
     with pytest.raises(ProblemKindError, match="continuation"):
         baslip.solve_problem(baslip.parse_problem(BRANCH))
+
+
+def test_families_asks_at_a_gait_problem_s_cell_and_refuses_another_study_or_a_budget_of_another_kind(tmp_path):
+    with pytest.raises(ProblemKindError) as caught:
+        baslip.families(baslip.parse_problem(SWEEP), progress=False)
+    assert caught.value.key == "study" and "sweep" in str(caught.value)
+    with pytest.raises(ProblemKindError, match="continuation"):
+        baslip.families(baslip.parse_problem(BRANCH), progress=False)
+    with pytest.raises(InputError) as caught:
+        baslip.families(baslip.parse_problem(SLIP), study="quick", progress=False)  # type: ignore[arg-type]
+    assert caught.value.key == "study"
+    assert files_in(tmp_path) == set()
 
 
 def test_bad_input_is_refused_before_anything_runs(tmp_path):

@@ -3,7 +3,8 @@ exist at one cell, and the most stable one.
 
 * it takes the atlas's keys but ``vary`` (its cell is the problem's own), with a short
   budget of its own, and refuses a problem that fixes no cell;
-* from the body alone (no guess) at the thesis's hanging cell, from Python, its answer
+* from the body alone (no guess) at the thesis's hanging cell, asked from Python
+  (``baslip.families`` with a budget of its own), its answer
   agrees with the atlas files it wrote: each piece's charts, least radius and stable
   share; its best gait is a fixed point of the independent re-simulation (eps <= 1e-10)
   no less stable than the least chart; the search it reports (region, seeds, charts,
@@ -58,8 +59,11 @@ def test_a_families_study_of_a_problem_that_fixes_no_cell_is_refused():
 @pytest.fixture(scope="module")
 def found(tmp_path_factory):
     folder = tmp_path_factory.mktemp("families") / "out"
-    problem = parse_problem(hanging_cell(seeds=2, seed=3, max_charts=12, polish=1, iterations=20))
-    return problem, baslip.run(problem, out=folder, jobs=1, progress=False), folder
+    gait = hanging_cell()
+    del gait["study"]  # a gait problem, asked at its cell from Python with a budget of its own
+    budget = Families(seeds=2, seed=3, max_charts=12, polish=1, iterations=20)
+    results = baslip.families(parse_problem(gait), out=folder, study=budget, jobs=1, progress=False)
+    return parse_problem(hanging_cell(seeds=2, seed=3, max_charts=12, polish=1, iterations=20)), results, folder
 
 
 def test_each_piece_of_the_answer_is_what_the_atlas_files_hold(found):

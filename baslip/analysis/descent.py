@@ -417,27 +417,6 @@ def _bfgs(H: np.ndarray, s: np.ndarray, y: np.ndarray) -> np.ndarray:
     return V @ H @ V.T + rho * np.outer(s, s)
 
 
-def random_start(spec: FixedPointSpec, rng: np.random.Generator) -> dict[str, float]:
-    """Gains to hold while solving a starting gait, drawn over their whole range (the
-    problem's bounds inside the physical ones): uniform in asinh(value / nominal), so that
-    gains of 0.01 and of 100 are both drawn, not only the large ones.
-
-    Only the gains (the law's ``drawn`` controls: Kp and Kd under PD, r_vpp under VPP)
-    are drawn: the rest of the start comes from the problem's guess. With everything
-    drawn, 1 start in 16 gave a fixed point at the upright (0.5 m/s, 0.4 m) cell; with the
-    gains held, 8 in 16 did, with radii from 3.6 to 1500.
-    """
-    held = {}
-    for name in spec.law.drawn:
-        if name in spec.fixed:
-            continue
-        lo, hi = spec.bounds_of(name)
-        sigma = NOMINAL[name]
-        s = rng.uniform(np.arcsinh(lo / sigma), np.arcsinh(hi / sigma))
-        held[name] = float(np.clip(sigma * np.sinh(s), lo, hi))
-    return held
-
-
 @dataclass(frozen=True)
 class OptimalGait:
     """One start of the search: the drawn gains, the fixed point solved with them held,

@@ -14,7 +14,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from baslip.analysis.descent import OptimalGait, random_start
+from baslip.analysis.descent import OptimalGait
+from baslip.gait.draws import random_start
 from baslip.gait.fixedpoint import FixedPointSolver
 from baslip.gait.monodromy import accurate_control_bounds
 from baslip.gait.shooting import FixedPointSpec

@@ -38,7 +38,7 @@ def _parser(prog: str = "python -m baslip.solve") -> argparse.ArgumentParser:
         epilog=(
             "A plain problem writes DIR/result.json and DIR/multipliers.csv.\n"
             "A problem with a study: section (kind sweep, random, basin, adaptive, optimal,\n"
-            "controllers or atlas) runs it on worker processes, resumably, and writes its CSV files,\n"
+            "controllers, atlas or families) runs it on worker processes, resumably, and writes its CSV files,\n"
             "result.json and figures; rerunning finishes an interrupted study.\n"
             "A problem with a continuation: section traces a branch of fixed points in one\n"
             "parameter (branch.csv, diagram.png) and, with second/second_range/follow, the\n"

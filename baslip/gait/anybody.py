@@ -12,6 +12,10 @@ A problem with no guess gets its start here (:func:`start_from_body`):
    last, verified by the independent re-simulation, a failed step halved (down to
    :data:`SMALLEST_STEP`). Folds on the way are not turned: a path that meets one breaks
    there, and the next shipped gait is tried.
+3. **Seeds.** Where every path breaks, the atlas's sampling at the problem's own cell:
+   :data:`SEEDS` solves from the default guess with the law's gains drawn over their
+   bounds (:func:`~baslip.gait.draws.random_start`, from :data:`SEED`) and held, each
+   verified; the first that converges is the start.
 
 What comes back is the start at the problem's own body; the problem's solve then polishes
 and verifies it there, with the problem's bounds.
@@ -23,7 +27,10 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
+import numpy as np
+
 from baslip.diagnostics import logger
+from baslip.gait.draws import random_start
 from baslip.gait.fixedpoint import FixedPointSolver
 from baslip.gait.knowngaits import KnownGait, known_gaits
 from baslip.gait.shooting import FixedPointSpec
@@ -36,8 +43,11 @@ _log = logger(__name__)
 
 #: Smallest step along a homotopy path (as a share of the whole path) before it is given up.
 SMALLEST_STEP = 1 / 64
-#: Shipped gaits tried, nearest first, before the search gives up.
+#: Shipped gaits tried, nearest first, before the drawn seeds.
 TRIED_GAITS = 2
+#: Seeds with drawn gains tried where every path breaks, and the seed of their draws.
+SEEDS = 4
+SEED = 58
 
 
 @dataclass(frozen=True)
@@ -78,16 +88,37 @@ def start_from_body(spec: FixedPointSpec, solver: FixedPointSolver, posture: str
     FoundStart
     """
     candidates = ranked_gaits(spec, posture)
-    if not candidates:
-        return FoundStart(None, f"baslip ships no {posture} gait under the {spec.law.name} law to start from")
     failures, steps = [], 0
+    if not candidates:
+        failures.append(f"baslip ships no {posture} gait under the {spec.law.name} law to start from")
     for gait in candidates[:TRIED_GAITS]:
         found = _continued(gait, spec, solver)
         steps += found.steps
         if found.guess is not None:
             return replace(found, steps=steps)
         failures.append(found.origin)
-    return FoundStart(None, "; ".join(failures), steps)
+    seeded = _seeded(spec, solver)
+    if seeded.guess is not None:
+        return replace(seeded, origin=f"{'; '.join(failures)}; {seeded.origin}", steps=steps + seeded.steps)
+    return FoundStart(None, "; ".join([*failures, seeded.origin]), steps + seeded.steps)
+
+
+def _seeded(spec: FixedPointSpec, solver: FixedPointSolver) -> FoundStart:
+    """The first of :data:`SEEDS` solves at ``spec``'s cell, from the default guess with
+    the gains drawn and held, that converges (verified)."""
+    if all(name in spec.fixed for name in spec.law.drawn):
+        return FoundStart(None, "no gains left free to draw seeds from")  # the default guess is the one start
+    rng = np.random.default_rng(SEED)
+    for number in range(1, SEEDS + 1):  # the posture's bounds are the spec's own
+        held = random_start(spec, rng)
+        result = solver.solve(replace(spec, fixed={**spec.fixed, **held}), name="start from a seed")
+        if result.status == Status.CONVERGED:
+            values = {**dict(zip(APEX.names, map(float, result.X))),
+                      **dict(zip(spec.law.controls.names, map(float, result.u)))}
+            _log.info(f"start: seed {number} of {SEEDS} at this cell (gains drawn over their bounds)")
+            return FoundStart({n: v for n, v in values.items() if n not in spec.fixed},
+                              f"from seed {number} of {SEEDS} at this cell (gains drawn over their bounds)", number)
+    return FoundStart(None, f"none of {SEEDS} seeds with drawn gains converged at this cell", SEEDS)
 
 
 def started_from_body(spec: FixedPointSpec, solver: FixedPointSolver, posture: str = "any") -> FixedPointSpec:

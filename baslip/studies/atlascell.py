@@ -13,11 +13,12 @@ import numpy as np
 from baslip import diagnostics
 from baslip.analysis.atlas import Atlas as Covering
 from baslip.analysis.atlas import AtlasSettings, cover, local_minima
-from baslip.analysis.descent import StabilityDescent, random_start
+from baslip.analysis.descent import StabilityDescent
 from baslip.analysis.gaitatlas import ChartChecker, ChartReport, GaitManifold, chart_report
 from baslip.diagnostics import logger
 from baslip.engine.returnmap import ReturnMap, RunnerFell, Tolerances
 from baslip.gait.anybody import started_from_body
+from baslip.gait.draws import random_start
 from baslip.gait.from_problem import fixed_point_spec, solver_for
 from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import HipLaw

@@ -102,8 +102,9 @@ def _steps(gait) -> int | None:
 def optimal_worker(chunk: list[dict], problem: Problem, queue) -> None:
     """Worker process: for each task not yet done, draw its start, solve, descend,
     verify, and put its row on the queue."""
-    from baslip.analysis.descent import StabilityDescent, optimise_from, random_start
+    from baslip.analysis.descent import StabilityDescent, optimise_from
     from baslip.analysis.stablenlp import stable_nlp_from
+    from baslip.gait.draws import random_start
     from baslip.gait.from_problem import fixed_point_spec, solver_for
 
     study = problem.study
