@@ -9,6 +9,8 @@
 * the shipped gaits are ranked by how far their body and fixed values lie;
 * a posture no shipped gait has under a law is said, and the solve then starts from the
   default guess;
+* where no path arrives, a seed at the cell (the nearest gait carried to the body, with
+  its own gains or with gains drawn over their bounds) is the start;
 * where no gait is found, the answer says which limit bounds it: at z = 0.9 m and 3 m/s
   the human under VPP is held by the foot's clearance at the apex.
 """
@@ -18,6 +20,7 @@ import logging
 import numpy as np
 import pytest
 
+from baslip.gait import anybody
 from baslip.gait.anybody import path_length, ranked_gaits, start_from_body
 from baslip.gait.from_problem import fixed_point_spec, solve_problem, solver_for
 from baslip.gait.knowngaits import known_gaits
@@ -89,6 +92,17 @@ def test_a_posture_no_shipped_gait_has_is_said_and_the_default_guess_is_used(cap
     with caplog.at_level(logging.WARNING, logger="baslip"):
         solve_problem(task, progress=False)
     assert "no start from the body alone (baslip ships no hanging gait under the vpp law" in caplog.text
+
+
+def test_where_no_path_arrives_a_seed_with_drawn_gains_at_the_cell_is_the_start(monkeypatch):
+    monkeypatch.setattr(anybody, "TRIED_GAITS", 0)  # as if every path broke
+    task = problem(THESIS, "pd", {"z": 0.4, "ydot": 0.5, "theta2_dot_des": 0.0}, "hanging")
+    solver = solver_for(task, few_calls=True)
+    found = start_from_body(fixed_point_spec(task), solver, "hanging")
+    assert found.guess is not None and "from seed" in found.origin and "at this cell" in found.origin
+    assert 1 <= found.steps <= anybody.SEEDS and found.guess["theta_h"] < 0
+    result = solve_problem(task, solver, progress=False)
+    assert result.status == Status.CONVERGED and result.residual <= 1e-10
 
 
 def test_where_no_gait_is_found_the_binding_limit_is_named():

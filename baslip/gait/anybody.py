@@ -13,7 +13,8 @@ A problem with no guess gets its start here (:func:`start_from_body`):
    :data:`SMALLEST_STEP`). Folds on the way are not turned: a path that meets one breaks
    there, and the next shipped gait is tried.
 3. **Seeds.** Where every path breaks, the atlas's sampling at the problem's own cell:
-   :data:`SEEDS` solves from the default guess with the law's gains drawn over their
+   up to :data:`SEEDS` solves from the nearest shipped gait carried to the body (not to its
+   groups or cell), first with its own gains, then with the law's gains drawn over their
    bounds (:func:`~baslip.gait.draws.random_start`, from :data:`SEED`) and held, each
    verified; the first that converges is the start.
 
@@ -45,8 +46,9 @@ _log = logger(__name__)
 SMALLEST_STEP = 1 / 64
 #: Shipped gaits tried, nearest first, before the drawn seeds.
 TRIED_GAITS = 2
-#: Seeds with drawn gains tried where every path breaks, and the seed of their draws.
-SEEDS = 4
+#: Seeds tried at the cell where every path breaks (the first with the nearest gait's own
+#: gains, the rest with gains drawn), and the seed of their draws.
+SEEDS = 6
 SEED = 58
 
 
@@ -97,28 +99,33 @@ def start_from_body(spec: FixedPointSpec, solver: FixedPointSolver, posture: str
         if found.guess is not None:
             return replace(found, steps=steps)
         failures.append(found.origin)
-    seeded = _seeded(spec, solver)
+    seeded = _seeded(spec, solver, candidates[0] if candidates else None)
     if seeded.guess is not None:
         return replace(seeded, origin=f"{'; '.join(failures)}; {seeded.origin}", steps=steps + seeded.steps)
     return FoundStart(None, "; ".join([*failures, seeded.origin]), steps + seeded.steps)
 
 
-def _seeded(spec: FixedPointSpec, solver: FixedPointSolver) -> FoundStart:
-    """The first of :data:`SEEDS` solves at ``spec``'s cell, from the default guess with
-    the gains drawn and held, that converges (verified)."""
-    if all(name in spec.fixed for name in spec.law.drawn):
-        return FoundStart(None, "no gains left free to draw seeds from")  # the default guess is the one start
+def _seeded(spec: FixedPointSpec, solver: FixedPointSolver, nearest: KnownGait | None) -> FoundStart:
+    """The first solve at ``spec``'s cell that converges (verified), from the ``nearest``
+    shipped gait carried to the body (not to its groups or cell: a start, not an answer;
+    else the default guess): first as it is, then with the gains drawn and held, up to
+    :data:`SEEDS` seeds in all."""
+    guess = {} if nearest is None else {
+        n: v for n, v in carried(nearest.values, body_with(nearest.groups), spec.params).items() if n not in spec.fixed}
     rng = np.random.default_rng(SEED)
-    for number in range(1, SEEDS + 1):  # the posture's bounds are the spec's own
-        held = random_start(spec, rng)
-        result = solver.solve(replace(spec, fixed={**spec.fixed, **held}), name="start from a seed")
+    drawn = not all(name in spec.fixed for name in spec.law.drawn)
+    for number in range(1, (SEEDS if drawn else 1) + 1):  # the posture's bounds are the spec's own
+        held = random_start(spec, rng) if number > 1 else {}
+        how = "its gains drawn over their bounds" if held else "the nearest shipped gait carried to the body"
+        seed = replace(spec, fixed={**spec.fixed, **held}, guess={n: v for n, v in guess.items() if n not in held})
+        result = solver.solve(seed, name="start from a seed")
         if result.status == Status.CONVERGED:
             values = {**dict(zip(APEX.names, map(float, result.X))),
                       **dict(zip(spec.law.controls.names, map(float, result.u)))}
-            _log.info(f"start: seed {number} of {SEEDS} at this cell (gains drawn over their bounds)")
+            _log.info(f"start: seed {number} at this cell ({how})")
             return FoundStart({n: v for n, v in values.items() if n not in spec.fixed},
-                              f"from seed {number} of {SEEDS} at this cell (gains drawn over their bounds)", number)
-    return FoundStart(None, f"none of {SEEDS} seeds with drawn gains converged at this cell", SEEDS)
+                              f"from seed {number} at this cell ({how})", number)
+    return FoundStart(None, f"none of {number} seeds converged at this cell", number)
 
 
 def started_from_body(spec: FixedPointSpec, solver: FixedPointSolver, posture: str = "any") -> FixedPointSpec:
