@@ -3,7 +3,10 @@
 Part 1, scaled bodies: bodies of the thesis's groups at random sizes (length x 0.1-10,
 mass x 0.1-100, log-uniform), each asked for the shipped thesis gaits' cells carried to
 it (downward: PD hanging; upward: PD upright; vpp: VPP), with no guess. A gait counts when
-it is verified; its spectral radius is compared with the shipped gait's.
+it is verified; its spectral radius is compared with the shipped gait's. Then, for the
+first ``--families`` of those bodies, a families study (default budget) at the downward
+cell carried to the body: its most stable gait against the thesis body's own families
+study there (the same budget), and its wall time.
 
 Part 2, bodies of other proportions: groups drawn uniformly over a box (k rho0/(m g) in
 [10, 40], I/(m rho0^2) in [0.03, 0.15], d/rho0 in [0, 0.25]) at human size (80 kg, 1 m),
@@ -15,7 +18,7 @@ verified gait and with a stable one per law and posture, each failure's reason, 
 Every solve is a new input (no memo); times are wall seconds in this process, the first
 solve of each law (its set-up) reported apart.
 
-    python benchmarks/bench_any_body.py [--bodies 50] [--seed 58] [--part 1|2]
+    python benchmarks/bench_any_body.py [--bodies 50] [--families 10] [--seed 58] [--part 1|2]
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import time
 
 import numpy as np
 
+from baslip.api import families
 from baslip.gait.fixedpoint import FixedPointSolver
 from baslip.gait.from_problem import shooting_options, solve_problem
 from baslip.gait.knowngaits import known_gaits
@@ -63,14 +67,15 @@ def reason(result) -> str:
     return result.message
 
 
-def scaled_bodies(count: int, rng, solvers: dict) -> None:
+def scaled_bodies(count: int, rng, solvers: dict) -> list[Params]:
     print(f"Part 1: {count} bodies of the thesis's groups at random sizes, the shipped gaits' cells, no guess")
     shipped = [g for g in known_gaits() if g.groups.distance(groups(THESIS)) < 1e-12]
     reference = {g.name: _radius(g, solvers) for g in shipped}
-    found, times, worst = 0, [], 0.0
+    found, times, worst, bodies = 0, [], 0.0, []
     for _ in range(count):
         length, mass = math.exp(rng.uniform(math.log(0.1), math.log(10))), math.exp(rng.uniform(math.log(0.1), math.log(100)))
         body = body_with(groups(THESIS), size=Params(m=mass, rho0=0.2 * length, g=9.81))
+        bodies.append(body)
         for gait in shipped:
             values = carried(gait.values, THESIS, body)
             fixed = {n: values[n] for n in ("z", "ydot", "r_vpp") if n in values}
@@ -82,7 +87,38 @@ def scaled_bodies(count: int, rng, solvers: dict) -> None:
                 worst = max(worst, abs(result.spectral_radius - reference[gait.name]) / reference[gait.name])
     print(f"  verified gaits: {found} of {count * len(shipped)}; largest relative change of the spectral radius "
           f"against the shipped gait: {worst:.1e}; time a solve: median {statistics.median(times):.2f} s, "
-          f"max {max(times):.2f} s")
+          f"max {max(times):.2f} s; over 5 s: {sum(t > 5 for t in times)}")
+    return bodies
+
+
+def scaled_families(bodies: list[Params]) -> None:
+    """The families study at the downward cell carried to each body, against the thesis
+    body's own (the same budget)."""
+    downward = next(g for g in known_gaits() if g.name == "downward")
+    print(f"\n  families at the downward cell carried to the body, default budget ({len(bodies)} bodies + the thesis's):")
+    thesis_best, _ = _best_of_families(THESIS, downward)
+    print(f"    thesis body: most stable {thesis_best:.6g}")
+    ratios, times = [], []
+    for body in bodies:
+        best, seconds = _best_of_families(body, downward)
+        times.append(seconds)
+        ratios.append(best / thesis_best if best is not None else math.inf)
+        print(f"    m = {body.m:.3g} kg, rho0 = {body.rho0:.3g} m: most stable {best}, {seconds:.1f} s", flush=True)
+    print(f"    at least as stable as the thesis body's (ratio <= 1 + 1e-6): {sum(r <= 1 + 1e-6 for r in ratios)} of "
+          f"{len(ratios)}; ratio min {min(ratios):.6g}, max {max(ratios):.6g}; time a cell: median "
+          f"{statistics.median(times):.1f} s, max {max(times):.1f} s")
+
+
+def _best_of_families(body: Params, gait) -> tuple[float | None, float]:
+    """The least polished radius of a families study at ``gait``'s cell carried to ``body``
+    (None if none), and its wall seconds."""
+    values = carried(gait.values, THESIS, body)
+    problem = Problem(name="scaled_families", params=body, hip_law=HIP_LAWS[gait.law], posture=gait.posture,
+                      fix={"z": values["z"], "ydot": values["ydot"], "theta2_dot_des": 0.0})
+    start = time.perf_counter()
+    answer = families(problem, progress=False, jobs=1).record["answer"]
+    seconds = time.perf_counter() - start
+    return min((b["spectral_radius"] for b in answer["best"]), default=None), seconds
 
 
 def _radius(gait, solvers: dict) -> float:
@@ -126,12 +162,14 @@ def other_proportions(count: int, rng, solvers: dict) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--bodies", type=int, default=50)
+    parser.add_argument("--families", type=int, default=10, help="bodies of part 1 given a families study")
     parser.add_argument("--seed", type=int, default=58)
     parser.add_argument("--part", type=int, choices=(1, 2), help="run only this part")
     args = parser.parse_args()
     rng, solvers = np.random.default_rng(args.seed), {}
     if args.part in (None, 1):
-        scaled_bodies(args.bodies, rng, solvers)
+        bodies = scaled_bodies(args.bodies, rng, solvers)
+        scaled_families(bodies[: args.families])
     if args.part in (None, 2):
         other_proportions(args.bodies, np.random.default_rng(args.seed + 1), solvers)
 

@@ -246,6 +246,29 @@ def test_without_second_derivatives_the_descent_is_a_compass_search_on_the_radiu
         assert eps(solver.residual_map(step.X, step.u, Params()), step.X) <= 1e-12
 
 
+def test_where_a_step_s_end_has_no_second_derivatives_the_compass_search_goes_on_from_there(downward, monkeypatch):
+    """The gradient at an accepted step's end may be out of the compiled engine's reach,
+    though the start's was not: the descent then goes on by compass search from its last
+    point and says so, rather than failing (it failed an atlas cell's polish)."""
+    problem, solver, spec, X, u = downward
+    descent = StabilityDescent(solver.residual_map)
+    gradient, calls = descent.gradient, []
+
+    def only_at_the_start(*args):
+        calls.append(1)
+        if len(calls) > 1:
+            raise NoSecondDerivatives("the compiled engine cannot vouch for this stride")
+        return gradient(*args)
+
+    monkeypatch.setattr(descent, "gradient", only_at_the_start)
+    found = descent.run(spec, X, u)
+    assert "no second derivatives at a step's end" in found.stop_reason
+    radii = [s.spectral_radius for s in found.steps]
+    assert radii == sorted(radii, reverse=True) and radii[-1] < radii[0]
+    for step in found.steps:
+        assert eps(solver.residual_map(step.X, step.u, Params()), step.X) <= 1e-12
+
+
 def test_a_failed_start_is_reported_not_descended(downward):
     problem, solver, spec, X, u = downward
     descent = StabilityDescent(solver.residual_map)

@@ -2,7 +2,8 @@
 
 A study's CSV survives anything a kill or a crash can leave: a row cut short, an empty
 file, a torn header, junk, repeated keys. What cannot be repaired is set aside, never
-lost and never an internal error. Workers never outlive the process that started them.
+lost and never an internal error. Workers never outlive the process that started them,
+and a task that fails in its worker fails the run, saying why.
 The time left is estimated from the recent pace, not the pace since the start.
 """
 
@@ -239,6 +240,30 @@ def test_a_worker_that_fails_midway_is_a_failure_with_its_rows_kept(tmp_path):
     assert "exit code 7 before finishing its tasks" in report.worker_failure
     kept = ResumableCsv(tmp_path / "points.csv", ["task", "value"], ["task"]).done()
     assert len(kept) == report.ran >= 1
+
+
+def _row_then_raise(lane, context, queue) -> None:
+    """A worker function that sends its lane's first row, then raises (ending its lane as
+    every worker does, with None, on the way out)."""
+    try:
+        queue.put({"task": lane[0]["task"], "value": 1.0, "state": None})
+        raise ArithmeticError("the stride cannot be vouched for")
+    finally:
+        queue.put(None)
+
+
+def test_a_task_that_raises_in_its_worker_is_a_failure_that_says_why_with_its_rows_kept(tmp_path, capfd):
+    """The lane's end (None) that its worker sends on the way out of an exception is not
+    taken for a finished lane: the run is a failure naming the exception, not a complete
+    result with tasks missing, and the worker's stderr holds no traceback."""
+    from baslip.studies.runner import run_tasks
+
+    table = ResumableCsv(tmp_path / "points.csv", ["task", "value"], ["task"])
+    report = run_tasks([[{"task": 0}, {"task": 1}]], _row_then_raise, None, table, "test", quiet=True)
+    assert not report.complete and not report.interrupted
+    assert report.worker_failure == "a task failed in its worker: ArithmeticError: the stride cannot be vouched for"
+    assert "Traceback" not in capfd.readouterr().err
+    assert len(ResumableCsv(tmp_path / "points.csv", ["task", "value"], ["task"]).done()) == report.ran == 1
 
 
 def test_a_study_whose_tasks_take_minutes_is_heard_from_every_10_s_and_quiet_silences_it(tmp_path, fake_clock):

@@ -203,7 +203,10 @@ class StabilityDescent:
             # Only a bare gradient step (no curvature learnt yet) may be lengthened: a BFGS
             # step's own length already carries what the updates learnt.
             bare = bool(np.array_equal(inverse_hessian, np.eye(chart.size)))
-            found = self._line_search(spec, design, chart, direction, reduced, phi, stretch, bare)
+            try:
+                found = self._line_search(spec, design, chart, direction, reduced, phi, stretch, bare)
+            except NoSecondDerivatives:  # the step's end has no gradient: the compass search goes on
+                return self._compass_after(spec, steps, "no second derivatives at a step's end; ", norm, evaluations)
             evaluations += found[-1]
             stretch = 1.0
             if found[0] is None:

@@ -71,10 +71,28 @@ class Reporting:
         self._sent: dict[str, str] = {}
 
     def put(self, item) -> None:
+        if item is None:  # a lane's end: sent by end() once the lane's function has returned
+            return
+        self._send_code()
+        self._send(item)
+
+    def end(self, failure: str | None = None) -> None:
+        """Send the lane's end: None, or, if its function raised, :class:`LaneFailed`."""
+        self._send_code()
+        self._send(None if failure is None else LaneFailed(failure))
+
+    def _send_code(self) -> None:
         if self._used != self._sent:
             self._sent = dict(self._used)
             self._send(WorkerCode(self._sent))
-        self._send(item)
+
+
+@dataclass(frozen=True)
+class LaneFailed:
+    """A lane's function raised in its worker: what, in one line. The parent stops the run
+    with it (:class:`WorkerDied`), keeping the rows that came before."""
+
+    text: str
 
 
 def start_workers(main: Callable, arguments: Sequence[tuple], duplex: bool = False) -> tuple[list, list]:

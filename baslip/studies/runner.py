@@ -43,6 +43,7 @@ from baslip.files.atomic import write_files_atomically, writing
 from baslip.files.rows import ends_a_line, row_damage
 from baslip.studies.processes import (
     Inbox,
+    LaneFailed,
     Reporting,
     WorkerCode,
     WorkerDied,
@@ -344,6 +345,8 @@ def _collect(next_row, lanes: int, table, progress, skipped: int, start: float,
                 if row is None:
                     finished += 1
                     continue
+                if isinstance(row, LaneFailed):
+                    raise WorkerDied(f"a task failed in its worker: {row.text}")
                 if seen is not None:
                     if table.key(row) in seen:
                         continue
@@ -463,7 +466,7 @@ def _lane_on_dask(worker, lane, context, queue) -> None:
     """A Dask task: one lane, rows onto the Dask queue, then what ran, then None."""
     leave_notices_to_parent()
     with recording_code() as used:
-        worker(lane, context, Reporting(queue.put, used))
+        run_lane(worker, lane, context, Reporting(queue.put, used))
 
 
 def _worker_main(worker, lanes, context, connection) -> None:
@@ -475,7 +478,21 @@ def _worker_main(worker, lanes, context, connection) -> None:
     relay_notes(send)
     with recording_code() as used:
         for lane in lanes:
-            worker(lane, context, Reporting(send, used))
+            if not run_lane(worker, lane, context, Reporting(send, used)):
+                return  # the parent stops the run: the other lanes would not be written
+
+
+def run_lane(worker, lane: list[dict], context, reporting: Reporting) -> bool:
+    """Run one lane, then send its end: None, or why its function raised
+    (:class:`LaneFailed`, in one line; no traceback in the worker's stderr). Whether it
+    ran through."""
+    try:
+        worker(lane, context, reporting)
+    except Exception as err:  # noqa: BLE001 -- any failure of a task is the run's, told to the parent
+        reporting.end(f"{type(err).__name__}: {str(err).splitlines()[0] if str(err) else 'no message'}")
+        return False
+    reporting.end()
+    return True
 
 
 def _one_at_a_time(send: Callable[[object], None]) -> Callable[[object], None]:
