@@ -6,7 +6,8 @@ it (downward: PD hanging; upward: PD upright; vpp: VPP), with no guess. A gait c
 it is verified; its spectral radius is compared with the shipped gait's. Then, for the
 first ``--families`` of those bodies, a families study (default budget) at the downward
 cell carried to the body: its most stable gait against the thesis body's own families
-study there (the same budget), and its wall time.
+study there (the same budget) and against the committed atlas's most stable gait there,
+and its wall time.
 
 Part 2, bodies of other proportions: groups drawn uniformly over a box (k rho0/(m g) in
 [10, 40], I/(m rho0^2) in [0.03, 0.15], d/rho0 in [0, 0.25]) at human size (80 kg, 1 m),
@@ -24,9 +25,12 @@ solve of each law (its set-up) reported apart.
 from __future__ import annotations
 
 import argparse
+import json
+import logging
 import math
 import statistics
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -107,6 +111,22 @@ def scaled_families(bodies: list[Params]) -> None:
     print(f"    at least as stable as the thesis body's (ratio <= 1 + 1e-6): {sum(r <= 1 + 1e-6 for r in ratios)} of "
           f"{len(ratios)}; ratio min {min(ratios):.6g}, max {max(ratios):.6g}; time a cell: median "
           f"{statistics.median(times):.1f} s, max {max(times):.1f} s")
+    atlas = _committed_best("atlas_downward", downward)
+    if atlas is not None:
+        found = [r * thesis_best for r in ratios]
+        print(f"    against the thesis body's most stable gait there in the committed atlas_downward ({atlas:.6g}; "
+              f"24 seeds, 1,500 charts, 8 descents of 400 steps): at least as stable in "
+              f"{sum(f <= atlas * (1 + 1e-6) for f in found)} of {len(found)}")
+
+
+def _committed_best(name: str, gait) -> float | None:
+    """The least polished radius of the committed atlas ``name`` at ``gait``'s cell."""
+    path = Path(__file__).resolve().parents[1] / "results" / name / "result.json"
+    if not path.is_file():
+        return None
+    best = [b["spectral_radius"] for b in json.loads(path.read_text())["best"]
+            if math.isclose(b["ydot"], gait.values["ydot"]) and math.isclose(b["z"], gait.values["z"])]
+    return min(best, default=None)
 
 
 def _best_of_families(body: Params, gait) -> tuple[float | None, float]:
@@ -129,10 +149,31 @@ def _radius(gait, solvers: dict) -> float:
     return result.spectral_radius
 
 
+class StartOrigins(logging.Handler):
+    """How each start from the body alone was found, read off baslip.gait.anybody's lines."""
+
+    KINDS = ("carried over exactly", "continued", "seed", "default guess")
+
+    def __init__(self):
+        super().__init__(logging.INFO)
+        self.counts = dict.fromkeys(self.KINDS, 0)
+
+    def emit(self, record: logging.LogRecord) -> None:
+        text = record.getMessage()
+        if not (text.startswith("start: the shipped gait") and "of the way" not in text
+                or text.startswith("start: seed") or text.startswith("note: no start")):
+            return
+        kind = next(k for k in self.KINDS if k in text or (k == "default guess" and text.startswith("note")))
+        self.counts[kind] += 1
+
+
 def other_proportions(count: int, rng, solvers: dict) -> None:
     print(f"\nPart 2: {count} bodies of other proportions x Froude {FROUDE}, no guess")
     tally = {label: [0, 0, 0] for label, _, _ in KINDS}  # cells, verified, stable
-    failures, times = [], []
+    failures, times, origins = [], [], StartOrigins()
+    starts = logging.getLogger("baslip.gait.anybody")
+    starts.addHandler(origins)
+    starts.setLevel(logging.INFO)  # its lines, though the solves hide progress
     for _ in range(count):
         body = body_with(Groups(rng.uniform(10, 40), rng.uniform(0.03, 0.15), rng.uniform(0.0, 0.25)), size=HUMAN_SIZE)
         for froude in FROUDE:
@@ -153,7 +194,9 @@ def other_proportions(count: int, rng, solvers: dict) -> None:
                                     f"Froude {froude}: {reason(result)}")
     for label, (cells, verified, stable) in tally.items():
         print(f"  {label}: verified gait at {verified} of {cells} cells ({verified / cells:.0%}), stable at {stable}")
-    print(f"  time a solve: median {statistics.median(times):.2f} s, max {max(times):.2f} s")
+    print(f"  time a solve: median {statistics.median(times):.2f} s, max {max(times):.2f} s; "
+          f"over 5 s: {sum(t > 5 for t in times)}")
+    print("  starts: " + ", ".join(f"{kind} {number}" for kind, number in origins.counts.items()))
     print(f"  failures ({len(failures)}):")
     for line in failures:
         print(f"    {line}")

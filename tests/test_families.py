@@ -9,8 +9,9 @@ exist at one cell, and the most stable one.
   share; its best gait is a fixed point of the independent re-simulation (eps <= 1e-10)
   no less stable than the least chart; the search it reports (region, seeds, charts,
   where the covering stopped) is the one the files hold; its summary says so in words;
-* where no gait exists (the human under VPP, its apex too low for the foot to clear the
-  ground), the answer says so and names the limit that binds, with what to change.
+* where no gait exists (the human body with its apex too low for a leg within 20 deg of
+  vertical to clear the ground), the answer says so and names the limits that bind, with
+  what to change.
 """
 
 import numpy as np
@@ -41,7 +42,7 @@ def hanging_cell(**study) -> dict:
 def test_a_families_study_has_the_atlas_keys_but_vary_and_a_short_budget_of_its_own():
     study = parse_study({"kind": "families"})
     assert isinstance(study, Families) and study.axes == ()
-    assert (study.seeds, study.max_charts, study.polish, study.iterations) == (6, 120, 2, 40)
+    assert (study.seeds, study.max_charts, study.polish, study.iterations, study.compass_trials) == (6, 120, 2, 20, 40)
     assert parse_study({"kind": "families", "seeds": 3, "max_charts": 50}).max_charts == 50
     with pytest.raises(ProblemError) as refused:
         parse_study({"kind": "families", "vary": {"ydot": [0.5, 0.5, 0.1]}})
@@ -107,15 +108,17 @@ def test_the_search_it_reports_is_the_one_the_files_hold(found):
     assert "most stable" in text and "searched: 2 seeds" in text
 
 
-def test_where_the_foot_cannot_clear_the_ground_the_answer_names_the_binding_limit(tmp_path):
-    # The human body under VPP at 3 m/s with its apex 0.9 m up: the foot is held by its
-    # clearance at the apex (as the gait's own solve says: test_anybody.py).
-    problem = parse_problem({"name": "families_none", "params": HUMAN, "hip_law": "vpp",
-                             "fix": {"ydot": 3.0, "z": 0.9},
+def test_where_the_leg_cannot_reach_the_ground_steeply_enough_the_answer_names_the_binding_limits(tmp_path):
+    # The human body at 3 m/s with its apex 0.95 m up, the trunk upright (the hip at least
+    # 0.087 m above the CoM) and the leg within 20 deg of vertical (0.94 m tall at least):
+    # the foot cannot clear the ground at the apex, so no gait exists.
+    problem = parse_problem({"name": "families_none", "params": HUMAN, "posture": "upright",
+                             "fix": {"ydot": 3.0, "z": 0.95, "theta2_dot_des": 0.0},
+                             "bounds": {"theta_h": ["60 deg", "120 deg"], "theta_td": ["-20 deg", "20 deg"]},
                              "study": {"kind": "families", "seeds": 1, "max_charts": 5, "polish": 0}})
     answer = baslip.run(problem, out=tmp_path / "none", progress=False).record["answer"]
     assert answer["pieces"] == [] and answer["best"] == []
     diagnosis = answer["none_found"]["diagnosis"]
-    assert "foot clearance at apex" in [limit["name"] for limit in diagnosis["binding"]]
-    assert any("raise z" in text for text in diagnosis["suggestions"])
-    assert "no gait found" in answer["lines"][0] and "bounded by: foot clearance at apex" in answer["lines"][1]
+    assert "theta_td" in [limit["name"] for limit in diagnosis["binding"]]
+    assert any("widen bounds.theta_td" in text for text in diagnosis["suggestions"])
+    assert "no gait found" in answer["lines"][0] and "theta_td" in answer["lines"][1]

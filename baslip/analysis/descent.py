@@ -120,11 +120,14 @@ class Descent:
 class StabilityDescent:
     """Quasi-Newton descent of the multipliers' surrogate on the fixed-point manifold."""
 
-    def __init__(self, rmap: ReturnMap, max_iterations: int = 60):
+    def __init__(self, rmap: ReturnMap, max_iterations: int = 60, compass_trials: int = COMPASS.trials):
         """``rmap``: the compiled map whose strides, Jacobians and second derivatives the
         descent takes (:meth:`~baslip.engine.returnmap.ReturnMap.jacobian_gradient`: a
-        library of the map's, compiled on first use, about 80 s, then cached)."""
+        library of the map's, compiled on first use, about 80 s, then cached);
+        ``max_iterations`` quasi-Newton steps at most, then a compass search of at most
+        ``compass_trials`` trials."""
         self.rmap, self.max_iterations = rmap, max_iterations
+        self.compass = replace(COMPASS, trials=compass_trials)
         self.polish = Polish(rmap, rmap)
         # Scaled units of the design quantities of the map's hip law.
         self.scale = np.array([NOMINAL[n] for n in design_names(rmap.law)])
@@ -379,9 +382,9 @@ class StabilityDescent:
             here = _step_at(trial, dr_dX, spec)
             return here.spectral_radius, trial, here
 
-        found = compass_search(move, design, radius, chart.size, COMPASS)
+        found = compass_search(move, design, radius, chart.size, self.compass)
         stop = ("compass search on the spectral radius converged" if found.converged
-                else f"compass search on the spectral radius reached {COMPASS.trials} trials")
+                else f"compass search on the spectral radius reached {self.compass.trials} trials")
         return list(found.accepted), found.trials, stop
 
     def _retract(self, spec: FixedPointSpec, design, chart, values) -> np.ndarray | None:

@@ -158,6 +158,7 @@ class Atlas:
     plot: tuple[str, ...] = ("Kp", "Kd")  # two quantities
     polish: int = 3  # stability descents per cell, from the least local minima of the radius (0: none)
     iterations: int = 60  # most quasi-Newton iterations of each polishing descent
+    compass_trials: int = 600  # most trials of the compass search that then continues each descent
     kind: str = "atlas"
 
 
@@ -173,7 +174,8 @@ class Families(Atlas):
     seeds: int = 6
     max_charts: int = 120
     polish: int = 2
-    iterations: int = 40
+    iterations: int = 20
+    compass_trials: int = 40
     kind: str = "families"
 
 
@@ -222,9 +224,9 @@ STUDY_KEYS = {
     "controllers": ("kind", "perturbation", "samples", "seed", "strides", "tolerance", "criterion", "lqr_scale",
                     "boxes", "controllers", "horizon", "solve_samples"),
     "atlas": ("kind", "vary", "seeds", "seed", "radius", "max_radius", "max_charts", "max_spectral_radius", "plot",
-              "polish", "iterations"),
+              "polish", "iterations", "compass_trials"),
     "families": ("kind", "seeds", "seed", "radius", "max_radius", "max_charts", "max_spectral_radius", "plot",
-                 "polish", "iterations"),
+                 "polish", "iterations", "compass_trials"),
 }
 
 
@@ -392,6 +394,8 @@ def _atlas(data, axes: tuple[Axis, ...], kind: type[Atlas] = Atlas) -> Atlas:
         plot=tuple(plot),
         polish=_integer(data.get("polish", default["polish"]), "study.polish", 0, 100),
         iterations=_integer(data.get("iterations", default["iterations"]), "study.iterations", 1, 10000),
+        compass_trials=_integer(data.get("compass_trials", default["compass_trials"]), "study.compass_trials", 0,
+                                100000),
     )
 
 

@@ -51,7 +51,8 @@ class CellAtlas:
         self.solver = solver_for(problem)
         self.jacobian_map = ReturnMap(Tolerances(JACOBIAN_TOLERANCE, JACOBIAN_TOLERANCE), law=problem.hip_law)
         self.checker = ChartChecker(problem.hip_law, problem.params)
-        self.descent = StabilityDescent(self.solver.residual_map, max_iterations=study.iterations)
+        self.descent = StabilityDescent(self.solver.residual_map, max_iterations=study.iterations,
+                                        compass_trials=study.compass_trials)
         self.base = fixed_point_spec(problem)
         self.settings = AtlasSettings(radius=study.radius, max_radius=study.max_radius,
                                       min_radius=study.radius * LEAST_RADIUS_FRACTION, max_charts=study.max_charts,
