@@ -9,6 +9,9 @@ exist at one cell, and the most stable one.
   share; its best gait is a fixed point of the independent re-simulation (eps <= 1e-10)
   no less stable than the least chart; the search it reports (region, seeds, charts,
   where the covering stopped) is the one the files hold; its summary says so in words;
+* at a body of the thesis's groups at another size (x 0.25 to x 5 in length, x 0.3 to x 50
+  in mass) the answer is the thesis body's: the same charts and radii (its search is
+  measured in the body's own units);
 * where no gait exists (the human body with its apex too low for a leg within 20 deg of
   vertical to clear the ground), the answer says so and names the limits that bind, with
   what to change.
@@ -23,6 +26,8 @@ from baslip.files.rows import read_points
 from baslip.gait.from_problem import fixed_point_spec, solver_for
 from baslip.gait.polish import eps
 from baslip.model.dynamics import APEX
+from baslip.model.dynamics import Params
+from baslip.model.similarity import body_with, carried, groups
 from baslip.problem.reader import parse_problem
 from baslip.problem.study import Families, parse_study
 
@@ -106,6 +111,26 @@ def test_the_search_it_reports_is_the_one_the_files_hold(found):
     assert sum(searched["stopped"].values()) == len(read_points(folder / "atlas_boundary.csv"))
     text = results.summary()
     assert "most stable" in text and "searched: 2 seeds" in text
+
+
+def test_at_a_body_of_the_thesis_s_groups_at_another_size_the_answer_is_the_thesis_body_s():
+    """The search is measured in the body's own units (atlas charts, drawn gains, descent
+    steps, the equations' rows), so the same question at a similar body, the cell carried
+    to it, finds the same gaits: the same charts, the same radii."""
+    answers = []
+    for size in (Params(), Params(m=50.0, rho0=1.0, g=9.81), Params(m=0.3, rho0=0.05, g=9.81)):
+        body = body_with(groups(Params()), size=size)
+        cell = carried({"z": 0.4, "ydot": 0.5}, Params(), body)
+        gait = {**hanging_cell(), "params": vars(body), "fix": {**cell, "theta2_dot_des": 0.0}, "bounds": {}}
+        del gait["study"]
+        budget = Families(seeds=3, seed=3, max_charts=20, polish=1)
+        answers.append(baslip.families(parse_problem(gait), study=budget, jobs=1, progress=False).record["answer"])
+    thesis = answers[0]
+    for answer in answers[1:]:
+        assert [p["charts"] for p in answer["pieces"]] == [p["charts"] for p in thesis["pieces"]]
+        for piece, same in zip(answer["pieces"], thesis["pieces"]):
+            assert piece["least_radius"] == pytest.approx(same["least_radius"], rel=1e-8)
+        assert answer["best"][0]["spectral_radius"] == pytest.approx(thesis["best"][0]["spectral_radius"], rel=1e-6)
 
 
 def test_where_the_leg_cannot_reach_the_ground_steeply_enough_the_answer_names_the_binding_limits(tmp_path):

@@ -47,7 +47,7 @@ from baslip.gait.polish import Polish, eps, movable_quantities
 from baslip.gait.shooting import FixedPointSpec
 from baslip.gait.stability import classify
 from baslip.model.dynamics import APEX
-from baslip.model.quantities import NOMINAL, design_names
+from baslip.model.quantities import design_names, nominal
 
 #: q of the surrogate (see the module docstring).
 SURROGATE_POWER = 8
@@ -129,8 +129,10 @@ class StabilityDescent:
         self.rmap, self.max_iterations = rmap, max_iterations
         self.compass = replace(COMPASS, trials=compass_trials)
         self.polish = Polish(rmap, rmap)
-        # Scaled units of the design quantities of the map's hip law.
-        self.scale = np.array([NOMINAL[n] for n in design_names(rmap.law)])
+
+    def _scale(self, spec: FixedPointSpec) -> np.ndarray:
+        """The scaled units of the design quantities: their nominal scales at the body."""
+        return np.array([nominal(n, spec.params) for n in design_names(self.rmap.law)])
 
     # -- the objective ---------------------------------------------------------------------
 
@@ -218,7 +220,7 @@ class StabilityDescent:
                     continue
                 break
             trial, t_radius, t_phi, t_grad, length, _ = found
-            s = (trial[chart] - design[chart]) / self.scale[chart]
+            s = (trial[chart] - design[chart]) / self._scale(spec)[chart]
             t_reduced = self._reduced_gradient(spec, trial, t_grad, chart)
             design, radius, phi, grad = trial, t_radius, t_phi, t_grad
             steps.append(DescentStep(design[:NX].copy(), design[NX:].copy(), radius, phi))
@@ -310,7 +312,7 @@ class StabilityDescent:
         """The point ``length`` times ``direction`` away, pulled back onto the manifold, with
         its (radius, phi, G): None where it cannot be placed, (None, ...) where it falls,
         has no second derivatives or lacks Armijo's decrease."""
-        values = design[chart] + length * direction * self.scale[chart]
+        values = design[chart] + length * direction * self._scale(spec)[chart]
         trial = self._retract(spec, design, chart, values)
         if trial is None:
             return None
@@ -330,7 +332,7 @@ class StabilityDescent:
         """The fixed-point equations' Jacobian in the scaled design quantities (nine under
         PD, six under VPP)."""
         energy_target = self.polish.energy_target(spec, design[:NX])
-        return self.polish.equations_jacobian(spec, design[:NX], design[NX:], energy_target) * self.scale
+        return self.polish.equations_jacobian(spec, design[:NX], design[NX:], energy_target) * self._scale(spec)
 
     def _chart(self, spec: FixedPointSpec, design) -> np.ndarray:
         """Chart quantities: the free ones left after picking, column by column (greedy
@@ -356,7 +358,7 @@ class StabilityDescent:
         free = self._free(spec, design)
         rest = np.array([i for i in free if i not in chart], dtype=int)
         C = self._constraints(spec, design)
-        g = grad * self.scale
+        g = grad * self._scale(spec)
         if not rest.size:
             return g[chart]
         C_rest = C[:, rest]
@@ -372,7 +374,7 @@ class StabilityDescent:
         chart = self._chart(spec, design)
 
         def move(point, displacement):
-            trial = self._retract(spec, point, chart, point[chart] + displacement * self.scale[chart])
+            trial = self._retract(spec, point, chart, point[chart] + displacement * self._scale(spec)[chart])
             if trial is None:
                 return None
             try:

@@ -41,7 +41,7 @@ from baslip.gait.shooting import FixedPointSpec, implied_periodicity
 from baslip.gait.stability import Stability, classify
 from baslip.model.dynamics import APEX, Params
 from baslip.model.hiplaw import HipLaw
-from baslip.model.quantities import NOMINAL
+from baslip.model.quantities import body_scale, nominal
 
 #: Quantities charted in asinh(value / nominal) rather than value / nominal.
 LOGARITHMIC = ("Kp", "Kd")
@@ -69,13 +69,17 @@ class GaitManifold:
         self.names = tuple(self.design[i] for i in self.free)
         implied = implied_periodicity(spec)
         self.rows = np.array([i for i, name in enumerate(APEX.names) if name not in implied], dtype=int)
-        self.nominal = np.array([NOMINAL[name] for name in self.names])
+        self.nominal = np.array([nominal(name, spec.params) for name in self.names])  # the body's units
         self.logarithmic = np.array([name in LOGARITHMIC for name in self.names])
         self.template = np.array([spec.fixed.get(name, 0.0) for name in self.design], dtype=float)
         self.energy = spec.fixed.get("energy")
         bounds = np.array([spec.bounds_of(name) for name in self.names]).T / self.nominal
         self.atlas_bounds = np.where(self.logarithmic, np.arcsinh(bounds), bounds)
         self.p = param_vector(spec.params)
+        # The equations in the body's units (exactly 1 at the thesis's body): the same
+        # tangent bases, corrector steps and tolerances at every size of a body.
+        row_names = [APEX.names[i] for i in self.rows] + (["energy"] if self.energy is not None else [])
+        self.row_scale = np.array([body_scale(name, spec.params) for name in row_names])
         self._last_jacobian: tuple[bytes, np.ndarray] = (b"", np.zeros((0, 0)))
         self._stabilities: dict[bytes, Stability] = {}  # per chart centre: ranked by growth, then reported
 
@@ -127,7 +131,7 @@ class GaitManifold:
         rows = [(stride.apex - X)[self.rows]]
         if self.energy is not None:
             rows.append([self.polish.energy(X, self.spec.params) - self.energy])
-        return Evaluation(np.concatenate(rows))
+        return Evaluation(np.concatenate(rows) / self.row_scale)
 
     def jacobian(self, w: np.ndarray) -> np.ndarray | str:
         """dF/dw from the AD Jacobian of the compiled stride, or why not (a fall)."""
@@ -138,7 +142,7 @@ class GaitManifold:
             return f"a fall: {err}"
         self._last_jacobian = (w.tobytes(), jacobian)
         kept = np.concatenate([self.rows, np.arange(APEX.size, len(jacobian))])  # and the energy row
-        return jacobian[np.ix_(kept, self.free)] * self._design_per_atlas(w)
+        return jacobian[np.ix_(kept, self.free)] * self._design_per_atlas(w) / self.row_scale[:, None]
 
     def priority(self, w: np.ndarray) -> float:
         """The spectral radius at ``w`` (its non-trivial multipliers): the atlas grows

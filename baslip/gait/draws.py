@@ -6,13 +6,14 @@ from __future__ import annotations
 import numpy as np
 
 from baslip.gait.shooting import FixedPointSpec
-from baslip.model.quantities import NOMINAL
+from baslip.model.quantities import nominal
 
 
 def random_start(spec: FixedPointSpec, rng: np.random.Generator) -> dict[str, float]:
     """Gains to hold while solving a starting gait, drawn over their whole range (the
-    problem's bounds inside the physical ones): uniform in asinh(value / nominal), so that
-    gains of 0.01 and of 100 are both drawn, not only the large ones.
+    problem's bounds inside the physical ones): uniform in asinh(value / nominal), the
+    nominal scale the body's (:func:`~baslip.model.quantities.nominal`), so that gains of
+    0.01 and of 100 times it are both drawn, not only the large ones, alike at every size.
 
     Only the gains (the law's ``drawn`` controls: Kp and Kd under PD, r_vpp under VPP)
     are drawn: the rest of the start comes from the problem's guess. With everything
@@ -24,7 +25,7 @@ def random_start(spec: FixedPointSpec, rng: np.random.Generator) -> dict[str, fl
         if name in spec.fixed:
             continue
         lo, hi = spec.bounds_of(name)
-        sigma = NOMINAL[name]
+        sigma = nominal(name, spec.params)
         s = rng.uniform(np.arcsinh(lo / sigma), np.arcsinh(hi / sigma))
         held[name] = float(np.clip(sigma * np.sinh(s), lo, hi))
     return held

@@ -114,6 +114,14 @@ def body_scale(name: str, params: Params) -> float:
     return (params.m / THESIS_BODY.m) ** mass * length_ratio**length * time_ratio**time
 
 
+def nominal(name: str, params: Params = THESIS_BODY) -> float:
+    """The nominal scale of design quantity ``name`` at the body ``params``: the thesis
+    body's (:data:`NOMINAL`) carried to it (:func:`body_scale`), so that a search measured
+    in these units is the same search at every size of a body (exactly NOMINAL at the
+    thesis's body)."""
+    return NOMINAL[name] * body_scale(name, params)
+
+
 def physical_range(name: str, params: Params = THESIS_BODY) -> tuple[float, float]:
     """Documented range of a design quantity, ``energy`` or a model parameter.
 
