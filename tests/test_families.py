@@ -110,7 +110,7 @@ def test_the_search_it_reports_is_the_one_the_files_hold(found):
     assert searched["charts"] == len(read_points(folder / "atlas.csv")) <= 12
     assert sum(searched["stopped"].values()) == len(read_points(folder / "atlas_boundary.csv"))
     text = results.summary()
-    assert "most stable" in text and "searched: 2 seeds" in text
+    assert "most stable" in text and "searched: 2 seeds (the problem's own start, then gains Kp, Kd drawn" in text
 
 
 def test_at_a_body_of_the_thesis_s_groups_at_another_size_the_answer_is_the_thesis_body_s():

@@ -125,7 +125,7 @@ def _searched(problem: Problem, cell: dict, boundaries: list[dict]) -> dict:
         "region": {n: list(spec.bounds_of(n)) for n in free},
         "posture": problem.posture,
         "seeds": study.seeds, "seed": study.seed, "seeds_failed": int(cell["seeds_failed"]),
-        "drawn": list(problem.hip_law.drawn),
+        "drawn": [n for n in problem.hip_law.drawn if n not in spec.fixed],
         "charts": int(cell["charts"]), "max_charts": study.max_charts,
         "covered_whole": cell["complete"] is True and int(cell["charts"]) > 0,
         "stopped": dict(stops.most_common()),
@@ -148,35 +148,48 @@ def _distinct(best: list[dict]) -> list[dict]:
 
 
 def _lines(answer: dict, controls: tuple[str, ...]) -> list[str]:
-    """The answer in words."""
+    """The answer in words: what was found (or why nothing was), then how wide the search was."""
     cell = ", ".join(quantity_text(n, v, 6) for n, v in answer["cell"].items())
-    searched = answer["searched"]
-    width = (f"searched: {searched['seeds']} seeds (gains {', '.join(searched['drawn'])} drawn over their bounds; "
-             f"{searched['seeds_failed']} failed), {searched['charts']} charts of at most {searched['max_charts']}")
+    found = _none_lines(cell, answer["none_found"]) if "none_found" in answer else _found_lines(cell, answer, controls)
+    return [*found, f"  {_width_line(answer['searched'])}"]
+
+
+def _width_line(searched: dict) -> str:
+    """How wide the search was, in one line."""
+    drawn = f"then gains {', '.join(searched['drawn'])} drawn over their bounds" if searched["drawn"] else "no gains drawn"
+    line = (f"searched: {searched['seeds']} seeds (the problem's own start, {drawn}; {searched['seeds_failed']} "
+            f"failed), {searched['charts']} charts of at most {searched['max_charts']}")
     if searched["charts"]:
-        width += ((", the pieces covered whole" if searched["covered_whole"] else ", not covered whole")
-                  + "; stopped at: " + ", ".join(f"{reason} ({count})" for reason, count in searched["stopped"].items()))
-    if "none_found" in answer:
-        why = answer["none_found"]
-        lines = [f"at {cell}: no gait found ({why['message']})"]
-        if why["diagnosis"] is not None:
-            binding = why["diagnosis"]["binding"] or why["diagnosis"]["near"]
-            if binding:
-                lines.append("  bounded by: " + "; ".join(limit["name"] for limit in binding))
-            lines += [f"  suggest: {text}" for text in why["diagnosis"]["suggestions"]]
-        return [*lines, f"  {width}"]
-    lines = [f"at {cell}: {len(answer['pieces'])} piece{'s' * (len(answer['pieces']) != 1)} of gaits"]
-    for piece in answer["pieces"]:
+        line += ((", the pieces covered whole" if searched["covered_whole"] else ", not covered whole")
+                 + "; stopped at: " + ", ".join(f"{reason} ({count})" for reason, count in searched["stopped"].items()))
+    return line
+
+
+def _none_lines(cell: str, why: dict) -> list[str]:
+    """No gait found: the solve's message, the limits that bind and what to change."""
+    lines = [f"at {cell}: no gait found ({why['message']})"]
+    if why["diagnosis"] is not None:
+        binding = why["diagnosis"]["binding"] or why["diagnosis"]["near"]
+        if binding:
+            lines.append("  bounded by: " + "; ".join(limit["name"] for limit in binding))
+        lines += [f"  suggest: {text}" for text in why["diagnosis"]["suggestions"]]
+    return lines
+
+
+def _found_lines(cell: str, answer: dict, controls: tuple[str, ...]) -> list[str]:
+    """The pieces and the polished gaits."""
+    pieces, best = answer["pieces"], _distinct(answer["best"])
+    lines = [f"at {cell}: {len(pieces)} piece{'s' * (len(pieces) != 1)} of gaits"]
+    for piece in pieces:
         share = "" if piece["stable_share"] is None else f", stable share {piece['stable_share']:.1%}"
         lines.append(f"  piece {piece['piece']}: {piece['charts']} charts, least spectral radius "
                      f"{piece['least_radius']:.4g}{share}")
-    for gait in _distinct(answer["best"]):
+    for gait in best:
         what = "most stable" if gait["meaning"] == "any" else "most stable upright throughout"
-        if gait["meaning"] == "any" and len(answer["best"]) > 1 and len(_distinct(answer["best"])) == 1:
+        if len(answer["best"]) > len(best):
             what = "most stable (upright throughout)"
         values = ", ".join(quantity_text(n, gait[n], 5) for n in controls)
         lines.append(f"  {what}: spectral radius {gait['spectral_radius']:.4g} "
                      f"({'stable' if gait['stable'] else 'unstable'}), eps {gait['residual']:.1e}, {values}, trunk "
                      f"{gait['trunk_min_deg']:.1f} to {gait['trunk_max_deg']:.1f} deg")
-    return [*lines, f"  {width}"]
-
+    return lines
