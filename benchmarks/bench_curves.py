@@ -30,10 +30,10 @@ from figures import Figure, report
 
 from baslip import load_problem
 from baslip.analysis.bifurcation import CurveSystem, trace_curve
-from baslip.analysis.continuation import Settings
 from baslip.analysis.gaitsystem import branch_system
 from baslip.gait.from_problem import fixed_point_spec, solver_for
 from baslip.model.dynamics import APEX
+from baslip.numerics.continuation import Settings
 from baslip.studies.curve import CURVE_MAX_STEP
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -25,7 +25,7 @@ PACKAGE = ROOT / "baslip"
 #: (``python -m baslip.solve`` and friends) sit above the command line they call.
 LAYERS = {
     "baslip.errors": 0, "baslip.version": 0, "baslip.status": 0, "baslip.children": 0, "baslip.diagnostics": 0,
-    "baslip.model": 1,
+    "baslip.model": 1, "baslip.numerics": 1,
     "baslip.problem": 2,
     "baslip.engine": 3,
     "baslip.viz": 4,

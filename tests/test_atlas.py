@@ -24,7 +24,7 @@ from baslip.analysis.atlas import (
     local_minima,
     unit_directions,
 )
-from baslip.analysis.corrector import Evaluation
+from baslip.numerics.corrector import Evaluation
 
 
 class Sphere:

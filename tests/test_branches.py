@@ -1,4 +1,4 @@
-"""Specification of baslip.analysis.gaitsystem with baslip.analysis.continuation on the BA-SLIP itself.
+"""Specification of baslip.analysis.gaitsystem with baslip.numerics.continuation on the BA-SLIP itself.
 
 The SLIP limit (d = 0, no torque) at the energy of Seyfarth, Geyer & Herr (2003),
 J. Exp. Biol. 206:2547 (see test_slip_limit.py), continued in the touchdown angle: the
@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 from slip import slip_apex_map, slip_fixed_point  # the independent SLIP (tests/ is on sys.path)
 
-from baslip.analysis.continuation import Settings, continue_branch, switch_branch
 from baslip.analysis.gaitsystem import FixedPointSystem, NearestGuessSystem, branch_system, grazing_phase
 from baslip.gait.fixedpoint import minimal_period
 from baslip.gait.from_problem import fixed_point_spec, solver_for
 from baslip.gait.shooting import FixedPointSpec
+from baslip.numerics.continuation import Settings, continue_branch, switch_branch
 from baslip.problem.continuation import BranchError, check_branch
 from baslip.problem.reader import load_problem
 

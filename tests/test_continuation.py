@@ -1,4 +1,4 @@
-"""Specification of baslip.analysis.continuation: pseudo-arclength continuation and special points.
+"""Specification of baslip.numerics.continuation: pseudo-arclength continuation and special points.
 
 A smooth test map with known bifurcations: f(x) = mu - x^2. Its fixed points solve
 x^2 + x - mu = 0, with a fold at mu = -1/4 (x = -1/2) and, on the upper branch, a
@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from baslip.analysis.continuation import Settings, continue_branch, switch_branch
+from baslip.numerics.continuation import Settings, continue_branch, switch_branch
 
 
 class QuadraticMap:

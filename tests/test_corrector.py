@@ -1,4 +1,4 @@
-"""Specification of the atlas's corrector (:mod:`baslip.analysis.corrector`): it lands on
+"""Specification of the atlas's corrector (:mod:`baslip.numerics.corrector`): it lands on
 the manifold within the predicting chart's hyperplane; Broyden's update spares Jacobians
 (one at the solution, for its tangent, where the chart's own is good enough to start
 from); a system's rough evaluation does the far steps and F itself the last ones and the
@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from baslip.analysis.corrector import (
+from baslip.numerics.corrector import (
     DIVERGED,
     SINGULAR_FOLD,
     SINGULAR_RANK,

@@ -32,12 +32,12 @@ import pytest
 from runs import ROOT, run_problem
 
 from baslip.analysis.bifurcation import CurveSystem, trace_curve
-from baslip.analysis.continuation import Settings, continue_branch
 from baslip.analysis.gaitsystem import NearestGuessSystem, branch_system
 from baslip.cli.solve import main
 from baslip.gait.from_problem import fixed_point_spec
 from baslip.model.dynamics import APEX
 from baslip.model.quantities import DESIGN, NOMINAL
+from baslip.numerics.continuation import Settings, continue_branch
 from baslip.problem.reader import load_problem
 
 SEYFARTH_ENERGY = 1784.8  # J: 5 m/s at a 1 m apex height, m = 80 kg

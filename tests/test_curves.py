@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from baslip.analysis.bifurcation import CurveSystem, SmoothMap, bialternate, defining_matrix, defining_seed, trace_curve
-from baslip.analysis.continuation import Settings
+from baslip.numerics.continuation import Settings
 
 
 def smooth(size, expression):

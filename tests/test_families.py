@@ -25,8 +25,7 @@ from baslip.errors import ProblemError
 from baslip.files.rows import read_points
 from baslip.gait.from_problem import fixed_point_spec, solver_for
 from baslip.gait.polish import eps
-from baslip.model.dynamics import APEX
-from baslip.model.dynamics import Params
+from baslip.model.dynamics import APEX, Params
 from baslip.model.similarity import body_with, carried, groups
 from baslip.problem.reader import parse_problem
 from baslip.problem.study import Families, parse_study

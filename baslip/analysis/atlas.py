@@ -19,7 +19,7 @@ describe for COCO's ``atlas_kd``, simplified where baslip's dimensions (k = 1 to
   The atlas grows from the charts with uncovered directions, oldest first (or, if the
   system ranks its points, most interesting first): a new centre
   is predicted at w0 + h T d (h = R) and corrected by Newton's method on
-  [F(w) = 0, T^T (w - w_pred) = 0], a square system (:mod:`baslip.analysis.corrector`:
+  [F(w) = 0, T^T (w - w_pred) = 0], a square system (:mod:`baslip.numerics.corrector`:
   the chart's own Jacobian, updated by Broyden's formula, refreshed where convergence is
   slow, and a fresh Jacobian's step halved until the residual falls). Where Newton
   fails, the step turns the tangent by more than :attr:`AtlasSettings.max_turn` or lands
@@ -62,7 +62,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from baslip.analysis.corrector import SINGULAR_RANK, ManifoldSystem, correct, kind_of, project_seed
+from baslip.numerics.corrector import SINGULAR_RANK, ManifoldSystem, correct, kind_of, project_seed
 
 #: Boundary directions of a chart of a 2-dimensional manifold (every 30 deg).
 DIRECTIONS_2D = 12

@@ -8,7 +8,7 @@ equilibria*, 2000)::
     F(w, l1, l2) = 0    the fixed-point equations: n equations, n unknowns w
     g(w, l1, l2) = 0    one test function
 
-with the pseudo-arclength engine of :mod:`baslip.analysis.continuation`. g is the last component
+with the pseudo-arclength engine of :mod:`baslip.numerics.continuation`. g is the last component
 of the solution of the bordered system::
 
     [ M    b ] [ phi ]   [ 0 ]
@@ -54,8 +54,8 @@ from dataclasses import replace
 import casadi as ca
 import numpy as np
 
-from baslip.analysis.continuation import Branch, CorrectionFailed, Point, Settings, continue_branch, join
 from baslip.gait.stability import without_symmetry_direction, without_symmetry_multiplier
+from baslip.numerics.continuation import Branch, CorrectionFailed, Point, Settings, continue_branch, join
 
 #: The curves that can be followed.
 CURVE_TYPES = ("fold", "period_doubling", "neimark_sacker")
@@ -127,7 +127,7 @@ def _product(values) -> float:
 
 
 class CurveSystem:
-    """The extended system F = 0, g = 0 of a curve of ``kind`` for :mod:`baslip.analysis.continuation`.
+    """The extended system F = 0, g = 0 of a curve of ``kind`` for :mod:`baslip.numerics.continuation`.
 
     ``base`` gives the fixed-point equations in two parameters: ``residual(v)`` (n),
     ``jacobian(v)`` (n x (n + 2)), ``multipliers(v)`` and ``map_jacobian(v, shift)``,
@@ -142,7 +142,7 @@ class CurveSystem:
 
     #: Its Jacobian needs the map's second derivatives, many times a residual's cost: the
     #: continuation's corrector updates the last point's instead (see
-    #: :func:`baslip.analysis.continuation.correct_updated`).
+    #: :func:`baslip.numerics.continuation.correct_updated`).
     costly_jacobian = True
 
     def __init__(self, base, kind: str):
@@ -399,7 +399,7 @@ def trace_curve(curve: CurveSystem, v: np.ndarray, settings: Settings,
     settings : Settings
         Steps, the two parameters' ranges and the corrector's tolerances.
     accept, progress : callable
-        As :func:`baslip.analysis.continuation.continue_branch`'s.
+        As :func:`baslip.numerics.continuation.continue_branch`'s.
     explain : callable
         ``explain(half)``: the words for why a half of the curve stopped.
 

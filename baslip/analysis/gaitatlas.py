@@ -31,7 +31,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from baslip.analysis.corrector import Evaluation
 from baslip.engine.outcome import precheck, strides_can_start
 from baslip.engine.returnmap import ReturnMap, RunnerFell, Tolerances, param_vector
 from baslip.engine.trajectory import TrunkRange
@@ -42,6 +41,7 @@ from baslip.gait.stability import Stability, classify
 from baslip.model.dynamics import APEX, Params
 from baslip.model.hiplaw import HipLaw
 from baslip.model.quantities import body_scale, nominal
+from baslip.numerics.corrector import Evaluation
 
 #: Quantities charted in asinh(value / nominal) rather than value / nominal.
 LOGARITHMIC = ("Kp", "Kd")

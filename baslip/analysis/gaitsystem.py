@@ -22,13 +22,13 @@ from dataclasses import replace
 import casadi as ca
 import numpy as np
 
-from baslip.analysis.continuation import CorrectionFailed, Point
 from baslip.engine.returnmap import NoSecondDerivatives, ReturnMap, RunnerFell
 from baslip.gait.fixedpoint import VERIFY_EPS, minimal_period
 from baslip.gait.shooting import FixedPointSpec, implied_periodicity
 from baslip.gait.stability import classify
 from baslip.model.dynamics import APEX, PARAMS, Params, apex_energy
 from baslip.model.quantities import NOMINAL
+from baslip.numerics.continuation import CorrectionFailed, Point
 from baslip.problem.continuation import BranchError, branch_shape, check_branch, check_parameter
 
 #: A phase lasting less than this fraction of its flight (descent) or stance (compression,
@@ -280,7 +280,7 @@ class FixedPointSystem:
 
     def crossing_veto(self, kind: str, a: Point, b: Point) -> bool:
         """Sign changes between branch points ``a`` and ``b`` that are no ``kind`` point: on
-        symmetric gaits, a fold (:func:`baslip.analysis.continuation.test_functions`) whose
+        symmetric gaits, a fold (:func:`baslip.numerics.continuation.test_functions`) whose
         count of complex pairs changes, a pair meeting at +1 (at r_vpp = 0, where the trunk
         spins freely) rather than a real multiplier crossing it."""
         return kind == "fold" and self.symmetric and a.tests["complex_pairs"] != b.tests["complex_pairs"]
@@ -511,7 +511,7 @@ class NearestGuessSystem:
         self.multiplier_scale = max(1.0, float(np.linalg.norm(per_parameter, 2)))
         v[columns] /= self.multiplier_scale
         if len(self.parameters) == 1:
-            from baslip.analysis.continuation import Settings, correct
+            from baslip.numerics.continuation import Settings, correct
 
             held = np.zeros(len(v))
             held[-1] = 1.0

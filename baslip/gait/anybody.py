@@ -10,8 +10,10 @@ A problem with no guess gets its start here (:func:`start_from_body`):
    dimensionless groups and the normalised fixed values, from the shipped gait to the
    problem, at the normalised body: each step a fixed-point solve warm-started from the
    last, verified by the independent re-simulation, a failed step halved (down to
-   :data:`SMALLEST_STEP`). Folds on the way are not turned: a path that meets one breaks
-   there, and the next shipped gait is tried.
+   :data:`SMALLEST_STEP`); where the steps break (at a fold of the path, where s turns
+   back), the last verified gait is followed by pseudo-arclength continuation in s
+   (:mod:`baslip.gait.homotopy`), which turns the fold and goes on to the problem if the
+   branch comes back; otherwise the next shipped gait is tried.
 3. **Seeds.** Where every path breaks, the atlas's sampling at the problem's own cell:
    up to :data:`SEEDS` solves from the nearest shipped gait carried to the body (not to its
    groups or cell), first with its own gains, then with the law's gains drawn over their
@@ -24,7 +26,6 @@ and verifies it there, with the problem's bounds.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
@@ -33,11 +34,12 @@ import numpy as np
 from baslip.diagnostics import logger
 from baslip.gait.draws import random_start
 from baslip.gait.fixedpoint import FixedPointSolver
+from baslip.gait.homotopy import StraightPath, follow_path
 from baslip.gait.knowngaits import KnownGait, known_gaits
 from baslip.gait.shooting import FixedPointSpec
 from baslip.model.dynamics import APEX
 from baslip.model.quantities import NOMINAL, POSTURE_BOUNDS, posture_of
-from baslip.model.similarity import Groups, body_with, carried, groups, normalised_body
+from baslip.model.similarity import body_with, carried, groups, normalised_body
 from baslip.status import Status
 
 _log = logger(__name__)
@@ -159,11 +161,12 @@ def _fixed_at(spec: FixedPointSpec, body) -> dict[str, float]:
 
 
 def _continued(gait: KnownGait, spec: FixedPointSpec, solver: FixedPointSolver) -> FoundStart:
-    """Continue ``gait`` along the straight path to ``spec`` at the normalised body."""
+    """Continue ``gait`` along the straight path to ``spec`` at the normalised body: natural
+    steps, and where they break, pseudo-arclength through the folds
+    (:func:`~baslip.gait.homotopy.follow_path`)."""
     end_body = normalised_body(spec.params)
-    start_fixed = {n: gait.values[n] for n in _fixed_at(spec, end_body)}
     end_fixed = _fixed_at(spec, end_body)
-    path = _Path(gait.groups, groups(spec.params), start_fixed, end_fixed)
+    path = StraightPath(gait.groups, groups(spec.params), {n: gait.values[n] for n in end_fixed}, end_fixed)
     values, s, step, steps = dict(gait.values), 0.0, 1.0, 0
     while s < 1.0:
         step = min(step, 1.0 - s)
@@ -176,34 +179,33 @@ def _continued(gait: KnownGait, spec: FixedPointSpec, solver: FixedPointSolver) 
             continue
         step /= 2
         if step < SMALLEST_STEP:
-            return FoundStart(None, f"the path from the shipped gait {gait.name!r} broke at {s:.0%} of the way", steps)
-    guess = carried({n: v for n, v in values.items() if n not in spec.fixed}, end_body, spec.params)
-    how = "carried over exactly" if steps == 1 and path.is_exact() else f"continued in {steps} solve{'s' * (steps > 1)}"
+            return _followed(gait, path, values, s, spec, solver, steps)
+    return _arrived(gait, spec, values, steps, "carried over exactly" if steps == 1 and path.is_exact()
+                    else f"continued in {steps} solve{'s' * (steps > 1)}")
+
+
+def _followed(gait: KnownGait, path: StraightPath, values: dict[str, float], s: float, spec: FixedPointSpec,
+              solver: FixedPointSolver, steps: int) -> FoundStart:
+    """Where natural steps broke at ``s``: the path followed by pseudo-arclength from the
+    last verified gait ``values``, turning its folds."""
+    bounds = {"theta_h": POSTURE_BOUNDS[posture_of(values["theta_h"])]}
+    followed = follow_path(path, spec.law, values, s, solver.residual_map, bounds)
+    if followed.values is None:
+        return FoundStart(None, f"the path from the shipped gait {gait.name!r} broke at {s:.0%} of the way, and "
+                          f"pseudo-arclength from there did not reach this body: {followed.why}", steps)
+    fold = ", turning a fold" if followed.turned else ""
+    return _arrived(gait, spec, followed.values, steps, f"continued in {steps} solves, then by pseudo-arclength from "
+                    f"{s:.0%} of the way in {followed.points} points{fold}")
+
+
+def _arrived(gait: KnownGait, spec: FixedPointSpec, values: Mapping[str, float], steps: int, how: str) -> FoundStart:
+    """The start at the problem's body from the gait ``values`` at the path's end."""
+    guess = carried({n: v for n, v in values.items() if n not in spec.fixed}, normalised_body(spec.params), spec.params)
     _log.info(f"start: the shipped gait {gait.name!r}, {how}")
     return FoundStart(guess, f"from the shipped gait {gait.name!r}, {how}", steps)
 
 
-@dataclass(frozen=True)
-class _Path:
-    """The straight path in the groups and the normalised fixed values."""
-
-    start_groups: Groups
-    end_groups: Groups
-    start_fixed: Mapping[str, float]
-    end_fixed: Mapping[str, float]
-
-    def at(self, s: float) -> tuple[Groups, dict[str, float]]:
-        fixed = {n: a + s * (self.end_fixed[n] - a) for n, a in self.start_fixed.items()}
-        return self.start_groups.interpolated(self.end_groups, s), fixed
-
-    def is_exact(self) -> bool:
-        """Whether the path has no length: its two ends are the same normalised problem."""
-        same_fixed = all(math.isclose(self.start_fixed[n], self.end_fixed[n], rel_tol=1e-12, abs_tol=1e-15)
-                         for n in self.start_fixed)
-        return self.start_groups.distance(self.end_groups) < 1e-12 and same_fixed
-
-
-def _solved(path: _Path, s: float, values: Mapping[str, float], spec: FixedPointSpec,
+def _solved(path: StraightPath, s: float, values: Mapping[str, float], spec: FixedPointSpec,
             solver: FixedPointSolver) -> dict[str, float] | None:
     """The verified gait at ``s`` along ``path``, from ``values`` (None if none is found)."""
     groups_s, fixed = path.at(s)

@@ -22,7 +22,6 @@ from pathlib import Path
 
 import numpy as np
 
-from baslip.analysis.continuation import CorrectionFailed, Point, Settings, continue_branch, join, switch_branch
 from baslip.diagnostics import end_progress_line
 from baslip.engine.codegen import recording_code
 from baslip.errors import RunError
@@ -31,6 +30,7 @@ from baslip.files.runs import hold_for
 from baslip.gait.stability import STABILITY_MARGIN
 from baslip.model.dynamics import APEX
 from baslip.model.quantities import quantity_text
+from baslip.numerics.continuation import CorrectionFailed, Point, Settings, continue_branch, join, switch_branch
 from baslip.studies.curve import curve_csv, follow_curves
 from baslip.studies.traced import TracedBranch, named_stop, point_record, points_csv, progress_lines
 from baslip.viz.labels import problem_title

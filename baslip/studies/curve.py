@@ -20,12 +20,12 @@ from dataclasses import replace
 import numpy as np
 
 from baslip.analysis.bifurcation import CURVE_DIRECTIONS, CurveSystem, curve_start, stability_boundary, trace_half
-from baslip.analysis.continuation import Branch, CorrectionFailed, Point, Settings, join
 from baslip.analysis.gaitsystem import branch_system
 from baslip.diagnostics import end_progress_line
 from baslip.gait.from_problem import fixed_point_spec, solver_for
 from baslip.model.dynamics import APEX
 from baslip.model.quantities import quantity_text
+from baslip.numerics.continuation import Branch, CorrectionFailed, Point, Settings, join
 from baslip.studies.processes import map_in_processes
 from baslip.studies.traced import TracedBranch, named_stop, point_record, points_csv, progress_lines
 

@@ -14,11 +14,11 @@ import sys
 import time
 from dataclasses import dataclass
 
-from baslip.analysis.continuation import Branch
 from baslip.analysis.gaitsystem import FixedPointSystem, NearestGuessSystem
 from baslip.diagnostics import IN_PLACE, logger
 from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import PD
+from baslip.numerics.continuation import Branch
 from baslip.studies.runner import format_value
 
 _log = logger(__name__)

@@ -36,8 +36,8 @@ from typing import Protocol
 
 import numpy as np
 
-from baslip.analysis.corrector import broyden_update
 from baslip.errors import RunError
+from baslip.numerics.corrector import broyden_update
 
 SPECIAL_TYPES = ("fold", "period_doubling", "neimark_sacker", "branch_point")
 LOCATE_TOLERANCE = 1e-7  # on lambda (scaled units)
