@@ -13,7 +13,6 @@ import logging
 import queue
 import threading
 import time
-import types
 from collections.abc import Iterator
 
 from baslip import diagnostics
@@ -89,10 +88,11 @@ def collect_in_thread(worker, lane: list[dict], context, progress, table) -> tup
     """Run a study's ``worker`` on ``lane`` in a thread of this process (in place of a
     worker process, so that it shares the fake clock), its rows collected on this thread
     as a study collects them; what the collection returns."""
-    from baslip.studies.runner import _collect
+    from baslip.studies.processes import Reporting
+    from baslip.studies.runner import _collect, run_lane
 
     items: queue.Queue = queue.Queue()
-    thread = threading.Thread(target=worker, args=(lane, context, types.SimpleNamespace(put=items.put)), daemon=True)
+    thread = threading.Thread(target=run_lane, args=(worker, lane, context, Reporting(items.put, {})), daemon=True)
 
     def next_row():
         if thread.ident is None:  # started once the collection (and its heartbeat) has begun

@@ -243,8 +243,8 @@ def test_a_worker_that_fails_midway_is_a_failure_with_its_rows_kept(tmp_path):
 
 
 def _row_then_raise(lane, context, queue) -> None:
-    """A worker function that sends its lane's first row, then raises (ending its lane as
-    every worker does, with None, on the way out)."""
+    """A worker function that sends its lane's first row, then raises, putting a stray
+    None (a lane's end) on the way out."""
     try:
         queue.put({"task": lane[0]["task"], "value": 1.0, "state": None})
         raise ArithmeticError("the stride cannot be vouched for")
@@ -253,8 +253,7 @@ def _row_then_raise(lane, context, queue) -> None:
 
 
 def test_a_task_that_raises_in_its_worker_is_a_failure_that_says_why_with_its_rows_kept(tmp_path, capfd):
-    """The lane's end (None) that its worker sends on the way out of an exception is not
-    taken for a finished lane: the run is a failure naming the exception, not a complete
+    """A stray None put on the way out of an exception is not taken for the lane's end: the run is a failure naming the exception, not a complete
     result with tasks missing, and the worker's stderr holds no traceback."""
     from baslip.studies.runner import run_tasks
 
@@ -318,7 +317,6 @@ def _noting_worker(lane, context, queue) -> None:
     for task in lane:
         logger("baslip.gait.tries").info(f"task {task['task']}: still solving")
         queue.put({"task": task["task"], "value": 1.0, "state": None})
-    queue.put(None)
 
 
 def test_a_task_s_progress_lines_reach_the_parent_s_progress(tmp_path, monkeypatch):

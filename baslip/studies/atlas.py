@@ -83,16 +83,13 @@ def atlas_worker(chunk: list[dict], context: tuple[Problem, bool], queue) -> Non
     problem, quiet = context
     study = problem.study
     assert isinstance(study, Atlas)
-    try:
-        cells = CellAtlas(problem, study, quiet)
-        for task in chunk:
-            if task.get("done"):
-                continue
-            started = time.perf_counter()
-            row = cells.run(task)
-            queue.put({**row, "time_s": time.perf_counter() - started})
-    finally:
-        queue.put(None)
+    cells = CellAtlas(problem, study, quiet)
+    for task in chunk:
+        if task.get("done"):
+            continue
+        started = time.perf_counter()
+        row = cells.run(task)
+        queue.put({**row, "time_s": time.perf_counter() - started})
 
 
 class AtlasTable(ResumableCsv):

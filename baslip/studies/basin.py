@@ -98,17 +98,14 @@ def basin_worker(chunk: list[dict], context: tuple, queue) -> None:
     each row on the queue as its run ends."""
     points, params, strides, tolerance, law = context
     chunk = [task for task in chunk if not task.get("done")]  # runs are independent
-    try:
-        rmap = ReturnMap(SIMULATION_TOLERANCES, law=law)
-        X_star = np.array([points[int(task["point"])][0] for task in chunk], dtype=float)
-        u_star = np.array([points[int(task["point"])][1] for task in chunk], dtype=float)
-        X0 = X_star.copy()
-        X0[:, APEX.index("ydot")] = [task[key_column("ydot")] for task in chunk]
-        X0[:, APEX.index("z")] = [task[key_column("z")] for task in chunk]
-        for i, outcome, n, eps in run_many(rmap, X0, X_star, u_star, params, strides, tolerance):
-            queue.put({**chunk[i], "outcome": outcome, "strides_run": n, "final_eps": eps})
-    finally:
-        queue.put(None)
+    rmap = ReturnMap(SIMULATION_TOLERANCES, law=law)
+    X_star = np.array([points[int(task["point"])][0] for task in chunk], dtype=float)
+    u_star = np.array([points[int(task["point"])][1] for task in chunk], dtype=float)
+    X0 = X_star.copy()
+    X0[:, APEX.index("ydot")] = [task[key_column("ydot")] for task in chunk]
+    X0[:, APEX.index("z")] = [task[key_column("z")] for task in chunk]
+    for i, outcome, n, eps in run_many(rmap, X0, X_star, u_star, params, strides, tolerance):
+        queue.put({**chunk[i], "outcome": outcome, "strides_run": n, "final_eps": eps})
 
 
 def run_basin(problem: Problem, study: Basin, out_dir: Path, sources: Path, quiet: bool, lanes: int, workers: Workers) -> dict:

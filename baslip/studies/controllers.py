@@ -149,22 +149,19 @@ def make_controller(name: str, context: dict, rmap: ReturnMap):
 
 def controllers_worker(chunk: list[dict], context: dict, queue) -> None:
     """Worker process: the batched controllers' tasks in lockstep, then the others one by one."""
-    try:
-        rmap = ReturnMap(Tolerances(1e-12, 1e-12), law=context["law"])
-        pending = [task for task in chunk if not task.get("done")]
-        for name in BATCHED:
-            mine = [task for task in pending if task["controller"] == name]
-            if mine:
-                # news for the parent's progress line while the batch runs
-                _log.info(f"controller {name}: {len(mine)} run{'s' * (len(mine) > 1)} in lockstep")
-                for row in _batched_rows(mine, context, rmap):
-                    queue.put(row)
-        for task in pending:
-            if task["controller"] not in BATCHED:
-                _log.info(f"controller {task['controller']}: a run with its re-solves")
-                queue.put(_solved_row(task, context, rmap))
-    finally:
-        queue.put(None)
+    rmap = ReturnMap(Tolerances(1e-12, 1e-12), law=context["law"])
+    pending = [task for task in chunk if not task.get("done")]
+    for name in BATCHED:
+        mine = [task for task in pending if task["controller"] == name]
+        if mine:
+            # news for the parent's progress line while the batch runs
+            _log.info(f"controller {name}: {len(mine)} run{'s' * (len(mine) > 1)} in lockstep")
+            for row in _batched_rows(mine, context, rmap):
+                queue.put(row)
+    for task in pending:
+        if task["controller"] not in BATCHED:
+            _log.info(f"controller {task['controller']}: a run with its re-solves")
+            queue.put(_solved_row(task, context, rmap))
 
 
 def ms_per_stride(seconds: float, strides: int) -> float:

@@ -109,27 +109,24 @@ def optimal_worker(chunk: list[dict], problem: Problem, queue) -> None:
 
     study = problem.study
     assert isinstance(study, Optimal)
-    try:
-        solver = solver_for(problem)
-        descent = StabilityDescent(solver.residual_map, max_iterations=study.iterations)
-        base = fixed_point_spec(problem)
-        for task in chunk:
-            if task.get("done"):
-                continue
-            swept = {k[len("sweep_"):]: v for k, v in task.items() if k.startswith("sweep_")}
-            spec = replace(base, fixed={**base.fixed, **swept})
-            # news for the parent's progress line while this start runs (minutes, at times)
-            where = ", ".join(quantity_text(n, v, 6) for n, v in swept.items())
-            _log.info(f"start {task['start'] + 1} of {study.starts} at {where}")
-            started = time.perf_counter()
-            if study.method == "schur_nlp":
-                gait = stable_nlp_from(solver, spec, task_rng(study, task), problem.name)
-            else:
-                gait = optimise_from(solver, descent, spec, random_start(spec, task_rng(study, task)), problem.name)
-            row = optimal_row(task, gait, solver.residual_map, problem.params)
-            queue.put({**row, "time_s": time.perf_counter() - started})
-    finally:
-        queue.put(None)
+    solver = solver_for(problem)
+    descent = StabilityDescent(solver.residual_map, max_iterations=study.iterations)
+    base = fixed_point_spec(problem)
+    for task in chunk:
+        if task.get("done"):
+            continue
+        swept = {k[len("sweep_"):]: v for k, v in task.items() if k.startswith("sweep_")}
+        spec = replace(base, fixed={**base.fixed, **swept})
+        # news for the parent's progress line while this start runs (minutes, at times)
+        where = ", ".join(quantity_text(n, v, 6) for n, v in swept.items())
+        _log.info(f"start {task['start'] + 1} of {study.starts} at {where}")
+        started = time.perf_counter()
+        if study.method == "schur_nlp":
+            gait = stable_nlp_from(solver, spec, task_rng(study, task), problem.name)
+        else:
+            gait = optimise_from(solver, descent, spec, random_start(spec, task_rng(study, task)), problem.name)
+        row = optimal_row(task, gait, solver.residual_map, problem.params)
+        queue.put({**row, "time_s": time.perf_counter() - started})
 
 
 def best_gait_motions(best: list[dict], names: list[str], params, count: int = 6,

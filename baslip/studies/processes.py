@@ -71,7 +71,7 @@ class Reporting:
         self._sent: dict[str, str] = {}
 
     def put(self, item) -> None:
-        if item is None:  # a lane's end: sent by end() once the lane's function has returned
+        if item is None:  # a lane ends by end() alone, once its function has returned
             return
         self._send_code()
         self._send(item)

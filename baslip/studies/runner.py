@@ -276,8 +276,9 @@ def run_tasks(
     A lane is an ordered list of tasks that one worker takes in turn. The worker gets
     the whole lane: a task already done is marked ``done`` and carries the ``state`` it
     handed on (None if it handed on nothing), so the worker can replay it instead of
-    running it. ``worker(lane, context, queue)`` puts one row per task it ran, and then
-    None, on the queue; a row's ``state`` entry, if not None, is saved for later resumes.
+    running it. ``worker(lane, context, queue)`` puts one row per task it ran on the
+    queue, and returns (:func:`run_lane` then ends the lane, or says why its function
+    raised); a row's ``state`` entry, if not None, is saved for later resumes.
     When all tasks are done the table is put in task order (:meth:`ResumableCsv.finish`).
     """
     note = table.keep_tasks([task for lane in lanes for task in lane])
@@ -463,7 +464,7 @@ def _collect_from_dask(client, todo, worker, context, table, progress, skipped: 
 
 
 def _lane_on_dask(worker, lane, context, queue) -> None:
-    """A Dask task: one lane, rows onto the Dask queue, then what ran, then None."""
+    """A Dask task: one lane, rows onto the Dask queue, then its end (:func:`run_lane`)."""
     leave_notices_to_parent()
     with recording_code() as used:
         run_lane(worker, lane, context, Reporting(queue.put, used))

@@ -175,23 +175,20 @@ def solve_worker(chunk: list[dict], problem: Problem, queue) -> None:
     (with the IPOPT point it hands on to the next task as ``state``) on the queue."""
     from baslip.gait.from_problem import fixed_point_spec, solver_for
 
-    try:
-        solver = solver_for(problem)
-        base = fixed_point_spec(problem)
-        warm: list[np.ndarray] = []  # the lane's latest converged IPOPT points, newest first
-        for task in chunk:
-            if task.get("done"):  # solved in an earlier run: hand on what it handed on then
-                warm = handed_on(warm, task["state"])
-                continue
-            swept = {k[len("sweep_"):]: v for k, v in task.items() if k.startswith("sweep_")}
-            spec = replace(base, fixed={**base.fixed, **swept}, guess={**base.guess, **task.get("guess", {})})
-            # A task with its own guess starts from it; the others from their predecessors.
-            result = solver.solve(spec, name=problem.name) if "guess" in task else solved_from(solver, spec, problem.name, warm)
-            state = result.nlp_w.tolist() if result.converged and result.nlp_w is not None else None
-            warm = handed_on(warm, state)
-            queue.put({**result_row(task, result), "state": state})
-    finally:
-        queue.put(None)
+    solver = solver_for(problem)
+    base = fixed_point_spec(problem)
+    warm: list[np.ndarray] = []  # the lane's latest converged IPOPT points, newest first
+    for task in chunk:
+        if task.get("done"):  # solved in an earlier run: hand on what it handed on then
+            warm = handed_on(warm, task["state"])
+            continue
+        swept = {k[len("sweep_"):]: v for k, v in task.items() if k.startswith("sweep_")}
+        spec = replace(base, fixed={**base.fixed, **swept}, guess={**base.guess, **task.get("guess", {})})
+        # A task with its own guess starts from it; the others from their predecessors.
+        result = solver.solve(spec, name=problem.name) if "guess" in task else solved_from(solver, spec, problem.name, warm)
+        state = result.nlp_w.tolist() if result.converged and result.nlp_w is not None else None
+        warm = handed_on(warm, state)
+        queue.put({**result_row(task, result), "state": state})
 
 
 def handed_on(warm: list[np.ndarray], state: list[float] | None) -> list[np.ndarray]:
