@@ -37,8 +37,7 @@ from baslip.gait.fixedpoint import FixedPointSolver
 from baslip.gait.homotopy import StraightPath, follow_path
 from baslip.gait.knowngaits import KnownGait, known_gaits
 from baslip.gait.shooting import FixedPointSpec
-from baslip.model.dynamics import APEX
-from baslip.model.quantities import NOMINAL, POSTURE_BOUNDS, posture_of
+from baslip.model.quantities import NOMINAL, POSTURE_BOUNDS, design_values, posture_of
 from baslip.model.similarity import body_with, carried, groups, normalised_body
 from baslip.status import Status
 
@@ -122,8 +121,7 @@ def _seeded(spec: FixedPointSpec, solver: FixedPointSolver, nearest: KnownGait |
         seed = replace(spec, fixed={**spec.fixed, **held}, guess={n: v for n, v in guess.items() if n not in held})
         result = solver.solve(seed, name="start from a seed")
         if result.status == Status.CONVERGED:
-            values = {**dict(zip(APEX.names, map(float, result.X))),
-                      **dict(zip(spec.law.controls.names, map(float, result.u)))}
+            values = design_values(result.X, result.u, spec.law)
             _log.info(f"start: seed {number} at this cell ({how})")
             return FoundStart({n: v for n, v in values.items() if n not in spec.fixed},
                               f"from seed {number} at this cell ({how})", number)
@@ -216,4 +214,4 @@ def _solved(path: StraightPath, s: float, values: Mapping[str, float], spec: Fix
     result = solver.solve(step_spec, name="start from the body")
     if result.status != Status.CONVERGED:
         return None
-    return {**dict(zip(APEX.names, map(float, result.X))), **dict(zip(spec.law.controls.names, map(float, result.u)))}
+    return design_values(result.X, result.u, spec.law)

@@ -19,6 +19,11 @@ def design_names(law: HipLaw = PD) -> tuple[str, ...]:
     return APEX.names + law.controls.names
 
 
+def design_values(X, u, law: HipLaw = PD) -> dict[str, float]:
+    """The apex ``X`` and control ``u`` under ``law`` as floats by design quantity."""
+    return dict(zip(design_names(law), map(float, [*X, *u])))
+
+
 def quantity_names(law: HipLaw = PD) -> tuple[str, ...]:
     """Everything a problem under ``law`` can fix or bound: its design quantities and the
     apex energy [J]."""

@@ -373,15 +373,8 @@ def _atlas(data, axes: tuple[Axis, ...], kind: type[Atlas] = Atlas) -> Atlas:
     default = {entry.name: entry.default for entry in dataclasses.fields(kind)}
     radius = _size(data.get("radius", 0.3), "study.radius", 1e-3, 10.0)
     max_radius = _size(data.get("max_radius", max(1.5, radius)), "study.max_radius", radius, 10.0)
-    plot = data.get("plot", list(kind.plot))
-    if kind is Families and "plot" not in data:
-        pass  # chosen at the run, from what the problem leaves free
-    elif (not isinstance(plot, (list, tuple)) or len(plot) != 2 or not all(isinstance(n, str) for n in plot)
-            or len(set(plot)) != 2):
-        raise StudyError("study.plot", f"expected two different quantities, got {excerpt(plot)}")
-    for name in plot:
-        if name not in ANY_DESIGN:
-            raise StudyError("study.plot", f"unknown quantity {clip(name)!r} (expected two of {', '.join(ANY_DESIGN)})")
+    # A families study left without a plot chooses one at the run, from what the problem leaves free.
+    plot = _plot(data["plot"]) if "plot" in data else kind.plot
     return kind(
         axes,
         seeds=_integer(data.get("seeds", default["seeds"]), "study.seeds", 1, 10000),
@@ -391,12 +384,23 @@ def _atlas(data, axes: tuple[Axis, ...], kind: type[Atlas] = Atlas) -> Atlas:
         max_charts=_integer(data.get("max_charts", default["max_charts"]), "study.max_charts", 1, 100000),
         max_spectral_radius=(_size(data["max_spectral_radius"], "study.max_spectral_radius", 1.0, 1e6)
                              if "max_spectral_radius" in data else None),
-        plot=tuple(plot),
+        plot=plot,
         polish=_integer(data.get("polish", default["polish"]), "study.polish", 0, 100),
         iterations=_integer(data.get("iterations", default["iterations"]), "study.iterations", 1, 10000),
         compass_trials=_integer(data.get("compass_trials", default["compass_trials"]), "study.compass_trials", 0,
                                 100000),
     )
+
+
+def _plot(plot) -> tuple[str, ...]:
+    """An atlas figure's two different design quantities."""
+    if (not isinstance(plot, (list, tuple)) or len(plot) != 2 or not all(isinstance(n, str) for n in plot)
+            or len(set(plot)) != 2):
+        raise StudyError("study.plot", f"expected two different quantities, got {excerpt(plot)}")
+    for name in plot:
+        if name not in ANY_DESIGN:
+            raise StudyError("study.plot", f"unknown quantity {clip(name)!r} (expected two of {', '.join(ANY_DESIGN)})")
+    return tuple(plot)
 
 
 def _size(value, key, lo: float, hi: float) -> float:

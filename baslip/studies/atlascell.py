@@ -22,6 +22,7 @@ from baslip.gait.draws import random_start
 from baslip.gait.from_problem import fixed_point_spec, solver_for
 from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import HipLaw
+from baslip.model.quantities import design_values
 from baslip.problem.reader import Problem
 from baslip.problem.study import Atlas
 from baslip.status import VERIFY_EPS
@@ -161,8 +162,7 @@ class CellAtlas:
         """Where the descent from ``chart`` ends, verified, as a row of atlas_best.csv
         but for its meaning; None if a stride of the descent falls or its end is not verified."""
         X = np.array([chart[n] for n in APEX.names])
-        controls = self.problem.hip_law.controls.names
-        u = np.array([chart[n] for n in controls])
+        u = np.array([chart[n] for n in self.problem.hip_law.controls.names])
         try:
             found = self.descent.run(spec, X, u)
         except RunnerFell:
@@ -172,7 +172,7 @@ class CellAtlas:
             return None
         low, high = self.checker.trunk_range(end.X, end.u, spec.params)
         return {"from_chart": chart["chart"], "start_radius": chart["spectral_radius"],
-                **dict(zip(APEX.names, map(float, end.X))), **dict(zip(controls, map(float, end.u))),
+                **design_values(end.X, end.u, self.problem.hip_law),
                 "spectral_radius": end.spectral_radius, "stable": bool(end.stable),
                 "residual": end.residual, "theta_h_min": low, "theta_h_max": high,
                 **_upright(end.X, low, high), "descent_stop": found.stop_reason}
@@ -207,7 +207,7 @@ def chart_rows(atlas, reports, law: HipLaw) -> list[dict]:
     for chart, report, piece, area, near in zip(atlas.charts, reports, atlas.pieces, atlas.areas, atlas.neighbours):
         rows.append({
             "chart": chart.index, "piece": piece,
-            **dict(zip(APEX.names, map(float, report.X))), **dict(zip(law.controls.names, map(float, report.u))),
+            **design_values(report.X, report.u, law),
             "spectral_radius": report.spectral_radius, "stable": report.stable,
             "status": "converged" if report.residual <= VERIFY_EPS else "not_verified",
             "residual": report.residual, "theta_h_min": report.theta_h_min, "theta_h_max": report.theta_h_max,
