@@ -1,0 +1,385 @@
+"""Verified fixed points of a described model's return map, and their multipliers.
+
+The solve has four steps, each read from the description alone:
+
+1. **A stride from the guess** (:class:`baslip.engine.hybrid.HybridMap`) gives each mode's
+   duration and states, the NLP's start. A stride that cannot end (a guard that never
+   fires, a fall) is reported, naming the part.
+2. **The multiple-shooting NLP** (IPOPT): per mode, node states and a duration variable,
+   DOP853 steps between nodes, the guard at zero at the mode's end (and on its side of
+   zero before it), the reset into the next mode, the falls at the nodes, and the section
+   coordinates back where they started. The objective stays nearest the guess.
+3. **Newton on the return map** at the calibrated resolution (least-norm steps where more
+   quantities are free than the map has coordinates), with its exact Jacobian.
+4. **Independent verification** by CVODES (:mod:`baslip.engine.hybrid_check`): the point
+   is reported only if that map fixes it to the spec's tolerance. The multipliers are the
+   eigenvalues of the map's Jacobian in the section coordinates; one per invariant of the
+   law (energy, for a passive law) is 1 by structure and marked trivial.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from baslip.engine.dop853 import step_function
+from baslip.engine.hybrid import HybridMap, Outcome, Resolution, calibrated_resolution
+from baslip.engine.hybrid_check import IndependentStride
+from baslip.errors import RunError
+from baslip.model.description import ModelError
+from baslip.model.symbolic import ModelFunctions, model_functions
+from baslip.problem.modelspec import ModelSpec
+
+#: Newton iterations on the return map, at most.
+NEWTON_STEPS = 30
+
+
+class NoFixedPoint(RunError):
+    """The solve did not find a verified fixed point; the message says where it stopped."""
+
+
+@dataclass(frozen=True)
+class ModelGait:
+    """A verified fixed point of a described model.
+
+    Attributes
+    ----------
+    spec : ModelSpec
+        The problem.
+    values : dict
+        Every quantity's value at the gait (SI units, radians).
+    section : ndarray
+        The section coordinates of the gait.
+    multipliers : ndarray
+        Eigenvalues of d(map)/d(section coordinates).
+    trivial : tuple of bool
+        Which multipliers are 1 by structure (an invariant of the law).
+    residual : float
+        max |map(x) - x| of the engine's map, relative to max(1, |x|).
+    verification : float
+        The same of the independent CVODES map.
+    durations : tuple of float
+        Each mode's duration [s], in stride order.
+    resolution : Resolution
+        The engine's resolution: its scout's step [s] and steps per mode.
+    time_s : float
+        Wall time of the solve [s].
+    ipopt_status : str
+        How the NLP ended.
+    """
+
+    spec: ModelSpec
+    values: dict
+    section: np.ndarray
+    multipliers: np.ndarray
+    trivial: tuple[bool, ...]
+    residual: float
+    verification: float
+    durations: tuple[float, ...]
+    resolution: Resolution
+    time_s: float
+    ipopt_status: str
+
+    @property
+    def spectral_radius(self) -> float:
+        """The largest |multiplier| that is not 1 by structure."""
+        moduli = [abs(m) for m, t in zip(self.multipliers, self.trivial) if not t]
+        return float(max(moduli)) if moduli else 0.0
+
+    @property
+    def stable(self) -> bool:
+        return self.spectral_radius < 1.0
+
+    def to_dict(self) -> dict:
+        """Plain JSON types: the model, law, values, multipliers and checks."""
+        return {
+            "model": self.spec.model.name, "law": self.spec.model.law(self.spec.law).name,
+            "values": dict(self.values), "free": list(self.spec.free),
+            "multipliers": [{"re": float(m.real), "im": float(m.imag), "modulus": float(abs(m)), "trivial": t}
+                            for m, t in zip(self.multipliers, self.trivial)],
+            "spectral_radius": self.spectral_radius, "stable": self.stable,
+            "residual": self.residual, "verification": self.verification,
+            "durations_s": list(self.durations), "resolution": self.resolution.to_dict(), "time_s": self.time_s,
+            "ipopt_status": self.ipopt_status,
+        }
+
+
+class ModelSolver:
+    """Fixed points of one described model under one law (functions built once).
+
+    Parameters
+    ----------
+    spec : ModelSpec
+        Any spec of the model and law; its model and law fix what is built.
+    """
+
+    def __init__(self, spec: ModelSpec):
+        self.functions: ModelFunctions = model_functions(spec.model, spec.law)
+        self.map = HybridMap(self.functions)
+        self.check = IndependentStride(self.functions)
+        self.invariants = _invariant_sensitivities(self.functions)
+
+    # -- the quantities as vectors ------------------------------------------------------
+    def split(self, spec: ModelSpec, values: dict) -> tuple[np.ndarray, np.ndarray]:
+        """The section coordinates and theta of ``values`` by name."""
+        section = np.array([values[c] for c in spec.model.section.coordinates])
+        return section, self.functions.theta(values)
+
+    def stride(self, spec: ModelSpec, values: dict, resolution: Resolution, jacobian: bool = False) -> Outcome:
+        section, theta = self.split(spec, values)
+        return self.map.stride(section, theta, resolution, jacobian=jacobian)
+
+    def residual(self, spec: ModelSpec, values: dict, resolution: Resolution, jacobian: bool = False):
+        """map(x) - x in the section coordinates and, if asked, its Jacobian in the free
+        quantities; or the reason the stride failed."""
+        outcome = self.stride(spec, values, resolution, jacobian)
+        if not outcome.ok:
+            return outcome.failure
+        section, theta = self.split(spec, values)
+        rows = self._fixed_invariants(spec)
+        held = ([np.array(v) for v in self.invariants(section, theta)] if rows and self.invariants is not None else
+                [np.zeros((0, 1)), np.zeros((0, len(section))), np.zeros((0, len(theta)))])
+        targets = np.array(list(spec.fixed_invariants.values()))
+        # An invariant's row is relative to its value (an energy of 1e4 J is not 1e4 m).
+        weights = 1.0 / np.maximum(np.abs(targets), 1.0)
+        r = np.concatenate([outcome.end() - section, (held[0].ravel()[rows] - targets) * weights])
+        if not jacobian:
+            return r, None
+        coordinates = spec.model.section.coordinates
+        of_section, of_theta = outcome.jacobians()
+        by_section = np.vstack([of_section - np.eye(len(coordinates)), held[1][rows] * weights[:, None]])
+        by_theta = np.vstack([of_theta, held[2][rows] * weights[:, None]])
+        columns = [by_section[:, coordinates.index(name)] if name in coordinates
+                   else by_theta[:, self.functions.theta_names.index(name)] for name in spec.free]
+        return r, np.column_stack(columns) if columns else np.zeros((len(r), 0))
+
+    def equations(self, spec: ModelSpec, values: dict, resolution: Resolution, jacobian: bool = False):
+        """The independent equations of a fixed point: the section coordinates' returns
+        that :meth:`kept_rows` keeps and the fixed invariants, with the Jacobian in the
+        free quantities if asked; or the reason the stride failed."""
+        result = self.residual(spec, values, resolution, jacobian)
+        if isinstance(result, str):
+            return result
+        rows = self.kept_rows(spec, values) + list(range(len(spec.model.section.coordinates), len(result[0])))
+        return result[0][rows], None if result[1] is None else result[1][rows]
+
+    def kept_rows(self, spec: ModelSpec, values: dict) -> list[int]:
+        """The section coordinates whose return is asked for: all but one for each
+        invariant of the law, which returns them by itself (asking as well would leave
+        the equations dependent). The one left out is the invariant's steepest, scaled."""
+        coordinates = spec.model.section.coordinates
+        kept = list(range(len(coordinates)))
+        if self.invariants is None:
+            return kept
+        section, theta = self.split(spec, values)
+        gradient = np.array(self.invariants(section, theta)[1]) * np.maximum(np.abs(section), 1.0)
+        for row in gradient:
+            steepest = max(kept, key=lambda i: abs(row[i]))
+            kept.remove(steepest)
+        return kept
+
+    def multipliers(self, spec: ModelSpec, values: dict,
+                    resolution: Resolution) -> tuple[np.ndarray, tuple[bool, ...]] | str:
+        """The multipliers at ``values`` and which are 1 by structure, or why the stride failed."""
+        outcome = self.stride(spec, values, resolution, jacobian=True)
+        if not outcome.ok:
+            return outcome.failure
+        multipliers = np.linalg.eigvals(outcome.jacobians()[0])
+        return multipliers, trivial_flags(multipliers, self._invariant_count())
+
+    def verify(self, spec: ModelSpec, values: dict, resolution: Resolution) -> float | str:
+        """max |map(x) - x| of the independent CVODES stride, relative to max(1, |x|),
+        or why that stride failed."""
+        section, theta = self.split(spec, values)
+        independent = self.check.stride(section, theta, resolution.scout)
+        if isinstance(independent, str):
+            return independent
+        return float(np.max(np.abs(independent - section))) / max(1.0, float(np.max(np.abs(section))))
+
+    def _fixed_invariants(self, spec: ModelSpec) -> list[int]:
+        """Rows of the invariants Function that the spec fixes."""
+        names = [i.name for i in spec.model.invariants_of(spec.law)]
+        return [names.index(name) for name in spec.fixed_invariants]
+
+    # -- the solve -----------------------------------------------------------------------
+    def solve(self, spec: ModelSpec) -> ModelGait:
+        """The verified fixed point nearest ``spec``'s guess (see the module's docstring).
+
+        Raises
+        ------
+        ModelError
+            The stride from the guess cannot end because a guard never fires.
+        NoFixedPoint
+            The NLP, Newton or the verification did not give a verified point.
+        """
+        start = time.perf_counter()
+        values = spec.values()
+        resolution = calibrated_resolution(self.map, *self.split(spec, values), spec.tolerance)
+        first = self.map.stride(*self.split(spec, values), resolution, nodes=True)
+        if not first.ok:
+            self._refuse_start(first.failure)
+        values, status = self._shooting(spec, values, first)
+        values = self._newton(spec, values, resolution)
+        return self._verified(spec, values, resolution, status, time.perf_counter() - start)
+
+    def _refuse_start(self, failure: str) -> None:
+        if "never fired" in failure:
+            event = failure.split("guard of ", 1)[1].split(" never", 1)[0]
+            key = "model.section.guard" if event == "section" else f"model.transitions.{event}.guard"
+            raise ModelError(key, f"never fires on the stride from the guess ({failure})")
+        raise NoFixedPoint(f"the stride from the guess fails: {failure}")
+
+    def _shooting(self, spec: ModelSpec, values: dict, first: Outcome) -> tuple[dict, str]:
+        nlp = _ShootingNLP(self.functions, spec, self.kept_rows(spec, values))
+        return nlp.solve(values, first)
+
+    def _newton(self, spec: ModelSpec, values: dict, resolution: Resolution) -> dict:
+        """Newton (least-norm) steps until |r| is a hundredth of the tolerance, or stalls
+        below the tolerance (the map's own rounding)."""
+        values, previous = dict(values), np.inf
+        for _ in range(NEWTON_STEPS):
+            result = self.residual(spec, values, resolution, jacobian=True)
+            if isinstance(result, str):
+                raise NoFixedPoint(f"Newton left the gaits: {result}")
+            r, jac = result
+            scale = max(1.0, float(np.max(np.abs(self.split(spec, values)[0]))))
+            size = float(np.max(np.abs(r))) / scale
+            if size <= 0.01 * spec.tolerance or (size <= spec.tolerance and size > 0.5 * previous):
+                return values
+            previous = size
+            delta = np.linalg.lstsq(jac, -r, rcond=None)[0]
+            for name, change in zip(spec.free, delta):
+                values[name] += float(change)
+        raise NoFixedPoint(f"Newton on the return map did not converge in {NEWTON_STEPS} steps "
+                           f"(|r| = {float(np.max(np.abs(r))):.2e})")
+
+    def _verified(self, spec: ModelSpec, values: dict, resolution: Resolution, status: str,
+                  elapsed: float) -> ModelGait:
+        section, theta = self.split(spec, values)
+        outcome = self.map.stride(section, theta, resolution, jacobian=True)
+        if not outcome.ok:
+            raise NoFixedPoint(f"the stride at the polished point failed: {outcome.failure}")
+        scale = max(1.0, float(np.max(np.abs(section))))
+        residual = float(np.max(np.abs(outcome.end() - section))) / scale
+        verification = self.verify(spec, values, resolution)
+        if isinstance(verification, str):
+            raise NoFixedPoint(f"the independent stride failed: {verification}")
+        if verification > spec.tolerance:
+            raise NoFixedPoint(f"not verified: the independent stride misses the point by {verification:.2e} "
+                               f"(tolerance {spec.tolerance:.0e})")
+        multipliers = np.linalg.eigvals(outcome.jacobians()[0])
+        return ModelGait(spec, values, section, multipliers, trivial_flags(multipliers, self._invariant_count()),
+                         residual, verification, outcome.durations, resolution, elapsed + 0.0, status)
+
+    def _invariant_count(self) -> int:
+        invariants = self.functions.invariants
+        return 0 if invariants is None else invariants.size1_out(0)
+
+
+def _invariant_sensitivities(functions: ModelFunctions) -> ca.Function | None:
+    """The invariants at the section coordinates and their derivatives in them and theta."""
+    if functions.invariants is None:
+        return None
+    section = ca.SX.sym("section", len(functions.model.section.coordinates))
+    theta = ca.SX.sym("theta", len(functions.theta_names))
+    values = functions.invariants(functions.lift(section), theta)
+    return ca.Function("invariant_sens", [section, theta],
+                       [values, ca.jacobian(values, section), ca.jacobian(values, theta)])
+
+
+def trivial_flags(multipliers: np.ndarray, count: int) -> tuple[bool, ...]:
+    """Flags for the ``count`` multipliers nearest 1: those an invariant makes 1."""
+    nearest = set(np.argsort(np.abs(np.asarray(multipliers) - 1.0))[:count].tolist())
+    return tuple(i in nearest for i in range(len(multipliers)))
+
+
+class _ShootingNLP:
+    """The multiple-shooting NLP of one stride (see the module's docstring, step 2)."""
+
+    def __init__(self, functions: ModelFunctions, spec: ModelSpec, kept: list[int]):
+        self.f, self.spec, self.kept = functions, spec, kept
+        self.steps = {mode: step_function(rhs) for mode, rhs in functions.rhs.items()}
+        self.constraints: list[ca.MX] = []
+        self.lower: list[np.ndarray] = []
+        self.upper: list[np.ndarray] = []
+
+    def _constrain(self, expr: ca.MX, low: float, high: float) -> None:
+        self.constraints.append(expr)
+        self.lower.append(np.full(expr.numel(), low))
+        self.upper.append(np.full(expr.numel(), high))
+
+    def solve(self, values: dict, first: Outcome) -> tuple[dict, str]:
+        """The NLP's free quantities from the stride ``first`` at ``values``, and IPOPT's status."""
+        spec, f = self.spec, self.f
+        free = ca.MX.sym("free", len(spec.free))
+        named = {**values, **dict(zip(spec.free, ca.vertsplit(free)))}
+        theta = ca.vertcat(*[named[name] for name in f.theta_names])
+        section = ca.vertcat(*[named[c] for c in spec.model.section.coordinates])
+        start = f.lift(section)
+        self._fix_invariants(start, theta)
+        variables, starts, end = [free], [], start
+        for number, (mode, trace) in enumerate(zip(spec.model.order, first.nodes)):
+            entry = start if number == 0 else f.resets[number - 1](end, theta)
+            block, initial, end = self._mode(number, mode, trace, entry, theta)
+            variables += block
+            starts += initial
+        self._constrain(ca.vertcat(*[end[i] for i in f.section_index])[self.kept] - section[self.kept], 0.0, 0.0)
+        guess = np.array([spec.guess[name] for name in spec.free])
+        objective = ca.sumsqr((free - guess) / np.maximum(np.abs(guess), 1.0))
+        return self._run(ca.vertcat(*variables), objective, np.concatenate([guess, *starts]), first, values)
+
+    def _fix_invariants(self, start: ca.MX, theta: ca.MX) -> None:
+        fixed = self.spec.fixed_invariants
+        if fixed and self.f.invariants is not None:
+            names = [i.name for i in self.spec.model.invariants_of(self.spec.law)]
+            held = self.f.invariants(start, theta)
+            for name, value in fixed.items():
+                self._constrain(held[names.index(name)] - value, 0.0, 0.0)
+
+    def _mode(self, number: int, mode: str, trace: tuple, entry: ca.MX, theta: ca.MX):
+        """One mode's node states and duration, its constraints, their starting values
+        (the first stride's, resampled), and its end state."""
+        _, times, states = trace
+        n, width = self.spec.nodes, self.f.rhs[mode].size1_in(0)
+        guard = [*self.f.guards, self.f.section_guard][number]
+        direction = [*self.f.directions, self.spec.model.section.direction][number]
+        nodes, duration = ca.MX.sym(f"x{number}", width, n + 1), ca.MX.sym(f"T{number}")
+        self._constrain(nodes[:, 0] - entry, 0.0, 0.0)
+        for k in range(n):
+            self._constrain(nodes[:, k + 1] - self.steps[mode](nodes[:, k], duration / n, theta)[0], 0.0, 0.0)
+        self._constrain(guard(nodes[:, n], theta), 0.0, 0.0)
+        for k in range(1, n):  # on the guard's own side until the end
+            self._constrain(direction * guard(nodes[:, k], theta), -np.inf, 0.0)
+        for k in range(n + 1):
+            if mode in self.f.falls:
+                self._constrain(self.f.falls[mode](nodes[:, k], theta), 0.0, np.inf)
+        grid = np.linspace(0.0, times[-1], n + 1)
+        resampled = np.column_stack([np.interp(grid, times, states[:, i]) for i in range(width)])
+        return [ca.vec(nodes), duration], [resampled.ravel(), [times[-1]]], nodes[:, n]
+
+    def _run(self, x: ca.MX, objective: ca.MX, x0: np.ndarray, first: Outcome, values: dict) -> tuple[dict, str]:
+        spec = self.spec
+        solver = ca.nlpsol("model_shooting", "ipopt", {"x": x, "f": objective, "g": ca.vertcat(*self.constraints)},
+                           {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes", "tol": 1e-12,
+                                                            "max_iter": 500}})
+        lower, upper = self._bounds(first)
+        result = solver(x0=x0, lbx=lower, ubx=upper, lbg=np.concatenate(self.lower), ubg=np.concatenate(self.upper))
+        status = str(solver.stats()["return_status"])
+        if not solver.stats()["success"]:
+            raise NoFixedPoint(f"the shooting NLP did not converge: IPOPT {status}")
+        solution = np.array(result["x"]).ravel()[:len(spec.free)]
+        return {**values, **dict(zip(spec.free, solution.tolist()))}, status
+
+    def _bounds(self, first: Outcome) -> tuple[np.ndarray, np.ndarray]:
+        """The free quantities' ranges; the node states are free, each duration positive."""
+        spec, n = self.spec, self.spec.nodes
+        lower = [spec.range_of(name)[0] for name in spec.free]
+        upper = [spec.range_of(name)[1] for name in spec.free]
+        for mode, duration in zip(spec.model.order, first.durations):
+            width = self.f.rhs[mode].size1_in(0) * (n + 1)
+            lower += [-np.inf] * width + [1e-3 * duration]
+            upper += [np.inf] * width + [np.inf]
+        return np.array(lower), np.array(upper)

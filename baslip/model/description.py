@@ -1,0 +1,313 @@
+"""A hybrid legged model as a description: what every described-model layer reads.
+
+A :class:`Model` names its parameters, its modes (coordinates and a Lagrangian, or
+equations of motion), the transitions between them (a guard with its direction and a
+reset), the order of modes within a stride, the Poincare section and its coordinates,
+its falls, and its control laws. Nothing here integrates, optimises or reads files: the
+engine (:mod:`baslip.engine.hybrid`), the gait solver (:mod:`baslip.gait.modelsolver`) and
+the analysis (:mod:`baslip.analysis.described`) build everything from these fields.
+
+Functions of a description take named symbols: ``s`` (the mode's states, ``s.z``), ``p``
+(the parameters, ``p.m``) and ``u`` (the controls, ``u.theta_td``), each a
+:class:`Names`, and return a CasADi expression (a guard, a Lagrangian, a fall) or a
+mapping from names to expressions (forces by coordinate, a reset by target state,
+equations of motion by state). All quantities are SI and angles are radians.
+
+A guard fires when it crosses zero in its ``direction`` (+1: rising through zero, -1:
+falling), having been on the other side: a guard that starts a mode at zero and moves
+away to its firing side does not fire (the liftoff guard at touchdown, for one).
+:func:`check_model` refuses a description that cannot be run, naming the part.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from baslip.errors import InputError
+
+#: A description's function of named symbols: ``f(s, p, u)``.
+Expression = Callable[..., Any]
+
+
+class ModelError(InputError):
+    """A model description that cannot be run; ``key`` names the part (``model.modes.stance``)."""
+
+
+class Names(Mapping[str, Any]):
+    """Symbols (or numbers) by name, read as attributes: ``s.z`` is ``s["z"]``."""
+
+    def __init__(self, values: Mapping[str, Any], what: str):
+        self._values = dict(values)
+        self._what = what
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("_"):
+            raise AttributeError(name)
+        try:
+            return self._values[name]
+        except KeyError:
+            raise AttributeError(f"{self._what} has no {name!r}; it has {tuple(self._values)}") from None
+
+    def __getitem__(self, name: str) -> Any:
+        return self._values[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._values)
+
+    def __len__(self) -> int:
+        return len(self._values)
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """A parameter or control: its name, SI unit, default value and range.
+
+    Parameters
+    ----------
+    name : str
+        The name functions read it by (``p.k``, ``u.theta_td``).
+    unit : str
+        Its SI unit, e.g. ``"N/m"``, ``"rad"``, ``""`` for a pure number.
+    default : float
+        Its value where a problem gives none.
+    low, high : float
+        Its range: a problem's value outside it is refused, and a search stays inside it.
+    dimension : tuple of three floats
+        Its exponents of mass, length and time (k: (1, 0, -2)), by which a body of another
+        size scales it; angles and pure numbers are (0, 0, 0).
+    """
+
+    name: str
+    unit: str
+    default: float
+    low: float = -float("inf")
+    high: float = float("inf")
+    dimension: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Mode:
+    """A continuous phase: its coordinates, and its Lagrangian or its equations of motion.
+
+    Parameters
+    ----------
+    name : str
+        The mode's name (``"flight"``, ``"stance"``).
+    coordinates : tuple of str
+        The generalized coordinates q; the state is q followed by their rates.
+    rates : tuple of str, optional
+        The names of the rates, in the order of ``coordinates``; ``<q>_dot`` by default.
+    lagrangian : callable, optional
+        ``L(s, p, u)``, kinetic minus potential energy [J]; the equations of motion are
+        derived from it (:mod:`baslip.model.lagrange`).
+    forces : callable, optional
+        ``Q(s, p, u)``: generalized forces that are not in L (damping, thrust), by
+        coordinate name; coordinates left out get none.
+    dynamics : callable, optional
+        ``f(s, p, u)``: each state's rate by state name, instead of a Lagrangian.
+    """
+
+    name: str
+    coordinates: tuple[str, ...]
+    rates: tuple[str, ...] = ()
+    lagrangian: Expression | None = None
+    forces: Expression | None = None
+    dynamics: Expression | None = None
+
+    @property
+    def rate_names(self) -> tuple[str, ...]:
+        return self.rates or tuple(f"{q}_dot" for q in self.coordinates)
+
+    @property
+    def states(self) -> tuple[str, ...]:
+        return (*self.coordinates, *self.rate_names)
+
+
+@dataclass(frozen=True)
+class Transition:
+    """The event that ends mode ``source`` and starts mode ``target``.
+
+    Parameters
+    ----------
+    source, target : str
+        Mode names.
+    guard : callable
+        ``g(s, p, u)`` on the source mode's states; the transition fires when it crosses
+        zero in ``direction``.
+    direction : int
+        +1 (rising through zero) or -1 (falling).
+    reset : callable, optional
+        ``R(s, p, u)``: the target mode's states by name (or a sequence in its state
+        order) from the source's; None keeps the state (the two modes must share states).
+    name : str
+        What the event is called (``"touchdown"``).
+    """
+
+    source: str
+    target: str
+    guard: Expression
+    direction: int
+    reset: Expression | None = None
+    name: str = ""
+
+    @property
+    def label(self) -> str:
+        return self.name or f"{self.source}->{self.target}"
+
+
+@dataclass(frozen=True)
+class Section:
+    """The Poincare section a stride starts and ends on, and its coordinates.
+
+    Parameters
+    ----------
+    mode : str
+        The mode the section lies in: the stride's first and last.
+    guard : callable
+        ``g(s, p, u)``; the stride ends where it crosses zero in ``direction``.
+    direction : int
+        +1 or -1.
+    coordinates : tuple of str
+        The states that the return map maps (the apex: z, ydot).
+    cyclic : tuple of str
+        States dropped from the map: set to zero at the start and free at the end (y).
+    pinned : mapping of str to float
+        The states fixed on the section (the apex: zdot = 0). Every state of the mode is
+        in exactly one of ``coordinates``, ``cyclic`` and ``pinned``.
+    """
+
+    mode: str
+    guard: Expression
+    direction: int
+    coordinates: tuple[str, ...]
+    cyclic: tuple[str, ...] = ()
+    pinned: Mapping[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Fall:
+    """A way to fall: the stride fails where ``condition(s, p, u)`` < 0 in ``mode``."""
+
+    name: str
+    mode: str
+    condition: Expression
+
+
+@dataclass(frozen=True)
+class ControlLaw:
+    """A control law: its controls, and the generalized forces it applies in each mode.
+
+    Parameters
+    ----------
+    name : str
+        The law's name (``"pd"``).
+    controls : tuple of Quantity
+        The law's own controls, besides the model's shared ones.
+    forces : mapping of str to callable
+        By mode name, ``Q(s, p, u)``: forces by coordinate name.
+    """
+
+    name: str
+    controls: tuple[Quantity, ...] = ()
+    forces: Mapping[str, Expression] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Invariant:
+    """A quantity the stride conserves under some laws (energy, under a passive law):
+    each gives a multiplier that is 1 by structure."""
+
+    name: str
+    value: Expression
+    laws: tuple[str, ...] = ()  # empty: under every law
+
+
+@dataclass(frozen=True)
+class Model:
+    """A hybrid legged model.
+
+    Parameters
+    ----------
+    name : str
+        The model's name.
+    parameters : tuple of Quantity
+        Physical parameters, by which functions read ``p``.
+    modes : tuple of Mode
+        The continuous phases.
+    order : tuple of str
+        Mode names in the order of one stride, the section's mode first.
+    transitions : tuple of Transition
+        One for each consecutive pair in ``order``.
+    section : Section
+        Where a stride starts and ends.
+    laws : tuple of ControlLaw
+        The control laws; the first is the default.
+    controls : tuple of Quantity
+        Controls every law shares (a touchdown angle).
+    falls : tuple of Fall
+        Named failures.
+    invariants : tuple of Invariant
+        Conserved quantities, each a structural multiplier of 1.
+    description : str
+        One line on what the model is.
+    """
+
+    name: str
+    parameters: tuple[Quantity, ...]
+    modes: tuple[Mode, ...]
+    order: tuple[str, ...]
+    transitions: tuple[Transition, ...]
+    section: Section
+    laws: tuple[ControlLaw, ...] = (ControlLaw("passive"),)
+    controls: tuple[Quantity, ...] = ()
+    falls: tuple[Fall, ...] = ()
+    invariants: tuple[Invariant, ...] = ()
+    description: str = ""
+
+    def mode(self, name: str) -> Mode:
+        """The mode called ``name``."""
+        for mode in self.modes:
+            if mode.name == name:
+                return mode
+        raise ModelError(f"model {self.name}", f"no mode {name!r}; its modes are {[m.name for m in self.modes]}")
+
+    def law(self, name: str | None = None) -> ControlLaw:
+        """The law called ``name`` (the first if None)."""
+        if name is None:
+            return self.laws[0]
+        for law in self.laws:
+            if law.name == name:
+                return law
+        raise ModelError("law", f"{name!r} is not a law of {self.name}; its laws are {[law.name for law in self.laws]}")
+
+    def transition(self, source: str, target: str) -> Transition:
+        """The transition from ``source`` to ``target``."""
+        for transition in self.transitions:
+            if (transition.source, transition.target) == (source, target):
+                return transition
+        raise ModelError("model.transitions", f"no transition from {source!r} to {target!r}, "
+                                              f"which the stride order {self.order} needs")
+
+    def stride_transitions(self) -> tuple[Transition, ...]:
+        """The transitions of one stride, in order."""
+        return tuple(self.transition(a, b) for a, b in zip(self.order, self.order[1:]))
+
+    def controls_of(self, law: str | None = None) -> tuple[Quantity, ...]:
+        """The shared controls, then those of ``law``."""
+        return (*self.controls, *self.law(law).controls)
+
+    def invariants_of(self, law: str | None = None) -> tuple[Invariant, ...]:
+        """The invariants that hold under ``law``."""
+        name = self.law(law).name
+        return tuple(i for i in self.invariants if not i.laws or name in i.laws)
+
+    @property
+    def section_mode(self) -> Mode:
+        return self.mode(self.section.mode)
+
+    def quantities(self, law: str | None = None) -> tuple[Quantity, ...]:
+        """Every quantity a problem may name: the section coordinates (unbounded, no unit
+        check), the controls, then the parameters."""
+        return (*self.controls_of(law), *self.parameters)

@@ -1,0 +1,87 @@
+"""The built-in model descriptions against what baslip knew before them.
+
+* BA-SLIP as a description, through the generic engine, gives every committed single
+  gait's stride, Jacobians and multipliers as the compiled engine does, and its own
+  independent stride verifies each gait.
+* The SLIP as a model of its own has the self-stable band of touchdown angles that
+  baslip's SLIP limit of the BA-SLIP (d = 0, no torque) found: the committed
+  ``continuation_slip_attack``'s period doubling and fold.
+"""
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from slip import ENERGY
+
+from baslip import ReturnMap, Tolerances
+from baslip.analysis.modelfamilies import continue_model
+from baslip.engine.hybrid import HybridMap, calibrated_resolution
+from baslip.engine.hybrid_check import IndependentStride
+from baslip.gait.modelsolver import ModelSolver
+from baslip.model.catalogue.ba_slip import BA_SLIP
+from baslip.model.catalogue.slip import SLIP
+from baslip.model.dynamics import APEX, Params
+from baslip.model.hiplaw import HIP_LAWS
+from baslip.model.symbolic import model_functions
+from baslip.numerics.continuation import Settings
+from baslip.problem.modelspec import ModelSpec
+
+RESULTS = Path(__file__).resolve().parents[1] / "results"
+#: Every committed result of one single-stride gait.
+GAITS = sorted(p.parent.name for p in RESULTS.glob("*/result.json")
+               if {"apex", "control", "params", "hip_law"} <= set(json.loads(p.read_text()))
+               and json.loads(p.read_text()).get("provenance", {}).get("problem", {}).get("strides", 1) == 1)
+
+
+@pytest.fixture(scope="module")
+def described():
+    return {law: model_functions(BA_SLIP, law) for law in HIP_LAWS}
+
+
+def test_the_committed_gaits_are_many():
+    assert len(GAITS) >= 10, GAITS
+
+
+@pytest.mark.parametrize("name", GAITS)
+def test_ba_slip_as_a_description_is_the_compiled_engines_ba_slip(described, name):
+    result = json.loads((RESULTS / name / "result.json").read_text())
+    law, params = HIP_LAWS[result["hip_law"]], Params(**result["params"])
+    functions = described[law.name]
+    X = np.array([result["apex"][n] for n in APEX.names])
+    u = np.array([result["control"][n] for n in law.controls.names])
+    theta = functions.theta({**result["params"], **result["control"]})
+    hybrid = HybridMap(functions)
+    resolution = calibrated_resolution(hybrid, X, theta, 1e-12)
+    outcome = hybrid.stride(X, theta, resolution, jacobian=True)
+    engine = ReturnMap(Tolerances(1e-12, 1e-12), law=law)
+    dX, du = engine.jacobians(X, u, params)
+    scale = max(1.0, float(np.max(np.abs(X))))
+    assert np.max(np.abs(outcome.section - engine.stride(X, u, params).apex)) <= 1e-11 * scale
+    controls = [functions.theta_names.index(n) for n in law.controls.names]
+    assert np.max(np.abs(outcome.jacobian_section - dX)) <= 1e-8 * max(1.0, np.max(np.abs(dX)))
+    assert np.max(np.abs(outcome.jacobian_theta[:, controls] - du)) <= 1e-8 * max(1.0, np.max(np.abs(du)))
+    ours = np.sort_complex(np.linalg.eigvals(outcome.jacobian_section))
+    committed = np.sort_complex(np.array([complex(*e) if isinstance(e, list) else complex(e["re"], e["im"])
+                                          for e in result["eigenvalues"]]))
+    assert ours == pytest.approx(committed, abs=1e-7)
+    independent = IndependentStride(functions).stride(X, theta, resolution.scout)
+    assert np.max(np.abs(independent - X)) <= 1e-10 * scale
+
+
+def test_the_slips_self_stable_band_is_baslips_slip_limits():
+    committed = json.loads((RESULTS / "continuation_slip_attack" / "result.json").read_text())
+    edges = {p["type"]: p for p in committed["special_points"] if p["branch"] == 0}
+    spec = ModelSpec(SLIP, fixed={"energy": ENERGY, "theta_td": math.radians(21.0)}, guess={"z": 0.94, "ydot": 5.1})
+    solver = ModelSolver(spec)
+    branch = continue_model(solver, solver.solve(spec), "theta_td", (math.radians(20.0), math.radians(25.0)),
+                            Settings(step=0.05, max_step=0.2))
+    found = {p.special: p for p in branch.points if p.special}
+    for kind in ("period_doubling", "fold"):
+        assert found[kind].values["theta_td"] == pytest.approx(edges[kind]["theta_td"], abs=1e-6)
+        assert found[kind].values["z"] == pytest.approx(edges[kind]["apex"]["z"], abs=1e-6)
+        assert found[kind].verification <= 1e-10
+    stable = [p.values["theta_td"] for p in branch.points if p.spectral_radius < 1]
+    assert edges["period_doubling"]["theta_td"] - 1e-6 <= min(stable) and max(stable) <= edges["fold"]["theta_td"] + 1e-6

@@ -1,0 +1,116 @@
+"""The stride of a described model: its map against an independent SLIP, its Jacobian
+against finite differences, its energy conserved, its falls and guards named."""
+
+import math
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from slip import ENERGY, slip_apex_map
+
+from baslip.engine.hybrid import HybridMap, Resolution, calibrated_resolution
+from baslip.engine.hybrid_check import IndependentStride
+from baslip.model.catalogue.slip import SLIP
+from baslip.model.symbolic import model_functions
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples" / "models"))
+from hopper import HOPPER  # noqa: E402
+
+FINE = Resolution(0.01, 32)
+
+
+@pytest.fixture(scope="module")
+def slip():
+    return model_functions(SLIP)
+
+
+def theta(slip, attack_deg=68.0):
+    return slip.theta({"m": 80.0, "k": 2e4, "l0": 1.0, "g": 9.81, "theta_td": math.radians(90.0 - attack_deg)})
+
+
+def apex_speed(z):
+    return math.sqrt(2 * (ENERGY - 80.0 * 9.81 * z) / 80.0)
+
+
+@pytest.mark.parametrize("z", [0.95, 1.0, 1.05])
+def test_the_slip_map_is_the_independent_slips(slip, z):
+    """tests/slip.py shares no code with baslip: Cartesian coordinates, RK4 at 2e-5 s."""
+    outcome = HybridMap(slip).stride(np.array([z, apex_speed(z)]), theta(slip), FINE)
+    assert outcome.section[0] == pytest.approx(slip_apex_map(z, 68.0), abs=1e-9)
+
+
+def test_energy_is_conserved_along_the_slip_stride(slip):
+    outcome = HybridMap(slip).stride(np.array([0.95, apex_speed(0.95)]), theta(slip), FINE)
+    z, ydot = outcome.section
+    assert 0.5 * 80.0 * ydot**2 + 80.0 * 9.81 * z == pytest.approx(ENERGY, rel=1e-13)
+
+
+def test_the_jacobian_is_the_derivative_of_the_map(slip):
+    hybrid, x, th = HybridMap(slip), np.array([0.95, 5.1]), theta(slip)
+    outcome = hybrid.stride(x, th, FINE, jacobian=True)
+    for i in range(2):
+        step = np.zeros(2)
+        step[i] = 1e-6
+        central = (hybrid.stride(x + step, th, FINE).section - hybrid.stride(x - step, th, FINE).section) / 2e-6
+        assert outcome.jacobian_section[:, i] == pytest.approx(central, abs=1e-7)
+    for j in range(len(th)):
+        step = np.zeros(len(th))
+        step[j] = 1e-6 * max(1.0, abs(th[j]))
+        central = (hybrid.stride(x, th + step, FINE).section - hybrid.stride(x, th - step, FINE).section) / (2 * step[j])
+        assert outcome.jacobian_theta[:, j] == pytest.approx(central, rel=1e-5, abs=1e-7)
+
+
+def test_the_calibrated_resolution_agrees_with_the_independent_stride(slip):
+    x, th = np.array([0.95, 5.1]), theta(slip)
+    hybrid = HybridMap(slip)
+    resolution = calibrated_resolution(hybrid, x, th, 1e-12)
+    independent = IndependentStride(slip).stride(x, th, resolution.scout)
+    assert np.max(np.abs(hybrid.stride(x, th, resolution).section - independent)) < 1e-11
+
+
+def test_every_mode_takes_the_same_count_of_steps_whatever_its_length(slip):
+    """The event falls in the middle of the last of n steps: n + 1 nodes, the last at T."""
+    outcome = HybridMap(slip).stride(np.array([0.95, 5.1]), theta(slip), Resolution(0.01, 8), nodes=True)
+    for _, times, _ in outcome.nodes:
+        assert len(times) == 9
+        assert (times[-1] - times[-2]) / (times[1] - times[0]) == pytest.approx(0.5, abs=1e-6)
+
+
+def test_a_mode_durations_and_nodes_are_reported(slip):
+    outcome = HybridMap(slip).stride(np.array([0.95, 5.1]), theta(slip), FINE, nodes=True)
+    assert [mode for mode, _, _ in outcome.nodes] == ["flight", "stance", "flight"]
+    for (_, times, _), duration in zip(outcome.nodes, outcome.durations):
+        assert times[-1] == pytest.approx(duration, abs=0)
+
+
+def test_a_steep_landing_falls_with_the_falls_name(slip):
+    """Landing with the leg 80 deg from the vertical at 5 m/s: the mass hits the ground."""
+    outcome = HybridMap(slip).stride(np.array([0.3, 5.0]), theta(slip, attack_deg=10.0), FINE)
+    assert not outcome.ok and outcome.failure == "fell: mass hit the ground (mode stance)"
+
+
+def test_a_guard_that_never_fires_is_reported_with_its_event(slip):
+    never = replace(SLIP, transitions=(replace(SLIP.transitions[0], guard=lambda s, p, u: s.ydot + 10.0),
+                                       SLIP.transitions[1]))
+    outcome = HybridMap(model_functions(never)).stride(np.array([0.95, 5.1]), theta(slip), Resolution(0.05, 8))
+    assert outcome.failure.startswith("the guard of touchdown never fired")
+
+
+def test_the_hoppers_damper_takes_energy_that_its_push_gives_back():
+    f = model_functions(HOPPER)
+    hybrid = HybridMap(f)
+    values = {"m": 80.0, "k": 2e4, "c": 100.0, "l0": 1.0, "g": 9.81, "theta_td": 0.39}
+
+    def energy_change(push):
+        z, ydot = hybrid.stride(np.array([1.0, 5.0]), f.theta({**values, "push": push}), FINE).section
+        return 0.5 * 80 * ydot**2 + 80 * 9.81 * z - (0.5 * 80 * 25 + 80 * 9.81)
+
+    assert energy_change(0.0) < 0 < energy_change(0.04)
+
+
+def test_an_apex_below_the_touchdown_height_is_refused_at_once(slip):
+    """At z = 0.9 m the leg held 22 deg from the vertical already reaches below the ground."""
+    outcome = HybridMap(slip).stride(np.array([0.9, apex_speed(0.9)]), theta(slip), FINE)
+    assert outcome.failure == "mode flight starts past the guard of touchdown (it can never cross it)"

@@ -1,0 +1,65 @@
+"""Families of a described model's gaits: a branch through folds and period doublings,
+and an atlas whose every chart centre is a verified gait."""
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from slip import ENERGY
+
+from baslip.analysis.atlas import AtlasSettings
+from baslip.analysis.modelfamilies import continue_model, cover_model
+from baslip.errors import ArgumentError
+from baslip.gait.modelsolver import ModelSolver
+from baslip.model.catalogue.slip import SLIP
+from baslip.numerics.continuation import Settings
+from baslip.problem.modelspec import ModelSpec
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples" / "models"))
+from hopper import HOPPER  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def hopper():
+    spec = ModelSpec(HOPPER, fixed={"z": 1.0}, guess={"ydot": 5.0, "theta_td": 0.38, "push": 0.01},
+                     bounds={"ydot": (2.0, 12.0)})
+    solver = ModelSolver(spec)
+    return solver, solver.solve(spec)
+
+
+def test_the_hoppers_speed_branch_is_verified_throughout(hopper):
+    solver, gait = hopper
+    fixed = ModelSpec(HOPPER, fixed={"z": 1.0, "ydot": gait.values["ydot"]},
+                      guess={"theta_td": gait.values["theta_td"], "push": gait.values["push"]})
+    branch = continue_model(solver, solver.solve(fixed), "ydot", (3.0, 7.0), Settings(step=0.05, max_step=0.2))
+    speeds = [p.values["ydot"] for p in branch.points]
+    assert min(speeds) == pytest.approx(3.0) and max(speeds) == pytest.approx(7.0)
+    assert all(p.verification <= 1e-10 for p in branch.points)
+    assert np.all(np.diff(speeds) > 0)
+
+
+def test_the_hoppers_gaits_at_one_height_are_covered_by_an_atlas(hopper):
+    solver, gait = hopper
+    atlas, charts = cover_model(solver, gait, AtlasSettings(max_charts=60))
+    assert atlas.dimension == 1 and atlas.complete
+    speeds = [c.values["ydot"] for c in charts]
+    assert min(speeds) < 2.2
+    assert max(speeds) > 11.8
+    assert all(c.verification <= 1e-10 for c in charts)
+    radii = sorted(c.spectral_radius for c in charts)
+    assert radii[0] < 1.0 < radii[-1]  # the family crosses from unstable to stable gaits
+
+
+def test_an_atlas_needs_more_free_quantities_than_equations():
+    spec = ModelSpec(SLIP, fixed={"energy": ENERGY, "theta_td": math.radians(22.0)}, guess={"z": 0.95, "ydot": 5.0})
+    solver = ModelSolver(spec)
+    with pytest.raises(ArgumentError, match=r"free: an atlas needs 1 to 3 more free quantities than equations"):
+        cover_model(solver, solver.solve(spec))
+
+
+def test_a_branch_parameter_must_be_fixed(hopper):
+    solver, gait = hopper
+    with pytest.raises(ArgumentError, match=r"parameter: 'ydot' must be a fixed quantity"):
+        continue_model(solver, gait, "ydot", (3.0, 7.0))
