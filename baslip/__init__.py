@@ -30,7 +30,10 @@ _HOMES = {
     "FixedPointResult": "baslip.gait.fixedpoint", "FixedPointSolver": "baslip.gait.fixedpoint",
     "solve_problem": "baslip.gait.from_problem",
     "RunResults": "baslip.results", "open_results": "baslip.results",
-    "run": "baslip.api", "families": "baslip.api",
+    "run": "baslip.api", "families": "baslip.api", "run_model": "baslip.api",
+    "Model": "baslip.model.description", "ModelError": "baslip.model.description",
+    "ModelSpec": "baslip.problem.modelspec", "ModelSolver": "baslip.gait.modelsolver",
+    "ModelProblem": "baslip.problem.model_file", "ModelRun": "baslip.studies.modelruns",
     "__version__": "baslip.version",
 }
 
@@ -42,6 +45,12 @@ __all__ = [
     "FixedPointResult",
     "FixedPointSolver",
     "InputError",
+    "Model",
+    "ModelError",
+    "ModelProblem",
+    "ModelRun",
+    "ModelSolver",
+    "ModelSpec",
     "Params",
     "Problem",
     "ProblemError",
@@ -60,22 +69,28 @@ __all__ = [
     "parse_problem",
     "problems_dir",
     "run",
+    "run_model",
     "solve_problem",
     "__version__",
 ]
 
 if TYPE_CHECKING:  # the same names, for type checkers and editors
-    from baslip.api import families, run
+    from baslip.api import families, run, run_model
     from baslip.engine.returnmap import Fall, ReturnMap, Simulation, Stride, Tolerances
     from baslip.errors import InputError, ProblemError, ProblemKindError, RunError
     from baslip.gait.fixedpoint import FixedPointResult, FixedPointSolver
     from baslip.gait.from_problem import solve_problem
+    from baslip.gait.modelsolver import ModelSolver
+    from baslip.model.description import Model, ModelError
     from baslip.model.dynamics import APEX, Params, build_model
     from baslip.model.hiplaw import CONTROL, Control
+    from baslip.problem.model_file import ModelProblem
+    from baslip.problem.modelspec import ModelSpec
     from baslip.problem.reader import Problem, load_problem, parse_problem
     from baslip.problem.shipped import problems_dir
     from baslip.results import RunResults, open_results
     from baslip.status import Status
+    from baslip.studies.modelruns import ModelRun
     from baslip.version import __version__
 
 

@@ -20,17 +20,19 @@ from pathlib import Path
 from baslip.diagnostics import logger, progress_hidden, show_on_stderr
 from baslip.engine.arguments import shown, whole_number
 from baslip.engine.codegen import recording_code
-from baslip.errors import ArgumentError, InputError, ProblemKindError
+from baslip.errors import ArgumentError, InputError, ProblemKindError, RunError
 from baslip.files.atomic import write_result
 from baslip.files.lock import hold, unwritable
 from baslip.files.provenance import provenance
 from baslip.files.runs import check_folder, clear_run, hold_for
 from baslip.gait.fixedpoint import FixedPointResult
 from baslip.gait.from_problem import solve_problem, solver_for
+from baslip.problem.model_file import ModelProblem, load_any_problem
 from baslip.problem.reader import Problem, check_problem, load_problem
 from baslip.problem.study import Families
 from baslip.problem.text import path_argument
 from baslip.results import RunResults, open_results, read_into_memory
+from baslip.studies.modelruns import ModelRun, run_model_problem
 
 _log = logger(__name__)
 
@@ -43,15 +45,16 @@ class NothingToSchedule(InputError):
     """A scheduler was asked for, but the problem holds no study to spread over it."""
 
 
-def run(problem: Problem | str | Path, out: str | Path | None = None, *, jobs: int | None = None,
+def run(problem: Problem | ModelProblem | str | Path, out: str | Path | None = None, *, jobs: int | None = None,
         lanes: int | None = None, scheduler: str | None = None, fresh: bool = False, progress: bool = True,
-        sources: str | Path | None = None) -> FixedPointResult | RunResults:
+        sources: str | Path | None = None) -> FixedPointResult | RunResults | ModelRun:
     """Run what ``problem`` holds: its gait, its study (of any kind), or its continuation.
 
     Parameters
     ----------
-    problem : Problem, str or Path
-        A problem, or the path of a problem file.
+    problem : Problem, ModelProblem, str or Path
+        A problem, or the path of a problem file; one of a described model
+        (``model: file.py:Name``) runs as :func:`run_model` runs it.
     out : str or Path, optional
         The folder to write the run's files into: exactly those ``baslip solve --out``
         writes, resuming what is there. Without it nothing is written and nothing is
@@ -91,10 +94,16 @@ def run(problem: Problem | str | Path, out: str | Path | None = None, *, jobs: i
     """
     _check_options(out=out, jobs=jobs, lanes=lanes, scheduler=scheduler, fresh=fresh, progress=progress,
                    sources=sources)
+    if not isinstance(problem, (Problem, ModelProblem)):
+        problem = load_any_problem(path_argument(problem, "problem"))
+    if isinstance(problem, ModelProblem):
+        if scheduler is not None:
+            raise ArgumentError("scheduler", f"{problem.name} is a described model's problem, which runs in this process")
+        return run_model(problem, out, progress=progress, fresh=fresh)
     if progress:
         show_on_stderr()
     # A Problem built in Python is checked as a file would be (Problem(...) checks nothing).
-    problem = check_problem(problem) if isinstance(problem, Problem) else load_problem(path_argument(problem, "problem"))
+    problem = check_problem(problem)
     folder = None if out is None else Path(path_argument(out, "out"))
     where = Path(path_argument(sources, "sources")) if sources is not None else (
         folder.parent if folder is not None else Path("results"))
@@ -107,6 +116,60 @@ def run(problem: Problem | str | Path, out: str | Path | None = None, *, jobs: i
         if folder is not None:
             return result
         return read_into_memory(target, where)
+
+
+def run_model(problem: ModelProblem | str | Path, out: str | Path | None = None, *, progress: bool = True,
+              fresh: bool = False) -> ModelRun:
+    """Run a described model's problem: its gait, and the branch or atlas it asks for.
+
+    Parameters
+    ----------
+    problem : ModelProblem, str or Path
+        A problem (:func:`baslip.problem.model_file.parse_model_problem`), or the path of
+        a problem file whose ``model`` names a description (``file.py:Name``, ``slip``).
+    out : str or Path, optional
+        The folder to write ``result.json`` and the branch's or atlas's CSV and figure
+        into, all at once; nothing is written without it.
+    progress : bool
+        Show progress on stderr.
+    fresh : bool
+        Discard what ``out`` holds first.
+
+    Returns
+    -------
+    ModelRun
+        The verified gait, the branch or chart centres (each with its verification), and
+        ``summary()``.
+
+    Raises
+    ------
+    InputError
+        A bad problem (naming its key, ``model.<part>`` for a description that cannot run)
+        or an output folder that cannot be written.
+    RunError
+        No verified gait was found (:class:`baslip.gait.modelsolver.NoFixedPoint`).
+    """
+    if not isinstance(problem, ModelProblem):
+        loaded = load_any_problem(path_argument(problem, "problem"))
+        if not isinstance(loaded, ModelProblem):
+            raise ProblemKindError("problem", f"{loaded.name} is a BA-SLIP problem: run it with baslip.run")
+        problem = loaded
+    if progress:
+        show_on_stderr()
+    folder = None if out is None else Path(path_argument(out, "out"))
+    existed = folder is not None and folder.exists()
+    if folder is not None:
+        _check_writable(folder)
+        if fresh:
+            with hold(folder):
+                clear_run(folder)
+    try:
+        with progress_hidden(not progress):
+            return run_model_problem(problem, folder)
+    except RunError:
+        if folder is not None and not existed and not any(folder.iterdir()):
+            folder.rmdir()  # made only to check it could be written: a failure leaves nothing
+        raise
 
 
 def families(problem: Problem | str | Path, out: str | Path | None = None, *, study: Families | None = None,

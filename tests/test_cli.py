@@ -72,7 +72,8 @@ def test_problems_are_listed_and_copied_without_overwriting(tmp_path, capsys):
     (tmp_path / "downward.yaml").write_text("# mine\n")
     assert main(["problems", "--copy", str(tmp_path)]) == 0
     assert (tmp_path / "downward.yaml").read_text() == "# mine\n"
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in shipped_problems())
+    assert sorted(p.name for p in tmp_path.glob("*.yaml")) == sorted(p.name for p in shipped_problems())
+    assert (tmp_path / "models" / "hopper.py").is_file()  # the model a shipped problem names comes along
 
 
 def test_problem_descriptions_are_cut_at_a_word_with_an_ellipsis(capsys):

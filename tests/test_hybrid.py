@@ -15,7 +15,7 @@ from baslip.engine.hybrid_check import IndependentStride
 from baslip.model.catalogue.slip import SLIP
 from baslip.model.symbolic import model_functions
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples" / "models"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "problems" / "models"))
 from hopper import HOPPER  # noqa: E402
 
 FINE = Resolution(0.01, 32)

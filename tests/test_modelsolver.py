@@ -15,7 +15,7 @@ from baslip.model.catalogue.slip import SLIP
 from baslip.model.description import ModelError
 from baslip.problem.modelspec import ModelSpec
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples" / "models"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "problems" / "models"))
 from hopper import HOPPER  # noqa: E402
 
 

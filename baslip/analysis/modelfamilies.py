@@ -47,12 +47,14 @@ class _Equations:
         self.scales = _scales(spec, values, names)
         # The solver's columns are in the spec's order of free quantities; ours in names'.
         self.columns = [self.spec.free.index(n) for n in names]
+        # The returns asked for are chosen once, at the start, for the whole family.
+        self.kept = solver.kept_rows(self.spec, self.values)
 
     def point(self, v: np.ndarray) -> dict:
         return {**self.values, **dict(zip(self.names, (np.asarray(v) * self.scales).tolist()))}
 
     def evaluate(self, v: np.ndarray, jacobian: bool):
-        result = self.solver.equations(self.spec, self.point(v), self.resolution, jacobian)
+        result = self.solver.equations(self.spec, self.point(v), self.resolution, jacobian, self.kept)
         if isinstance(result, str) or not jacobian:
             return result
         return result[0], result[1][:, self.columns] * self.scales[None, :]

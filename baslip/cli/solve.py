@@ -21,7 +21,8 @@ from baslip.cli.common import EXIT_BAD_INPUT, EXIT_NOT_CONVERGED, EXIT_OK, OneLi
 from baslip.diagnostics import progress_hidden, show_on_stderr
 from baslip.errors import InputError, RunError
 from baslip.gait.describe import summary_text as summary
-from baslip.problem.reader import ProblemError, load_problem
+from baslip.problem.model_file import ModelProblem, load_any_problem
+from baslip.problem.reader import ProblemError
 from baslip.results import run_summary_text
 from baslip.status import VERIFY_EPS
 
@@ -82,10 +83,12 @@ def main(argv: list[str] | None = None, prog: str = "python -m baslip.solve") ->
     show_on_stderr()  # diagnostics (progress, notes) go through logging; show them
     args = _parser(prog).parse_args(argv)
     try:
-        problem = load_problem(args.problem)
+        problem = load_any_problem(args.problem)
     except ProblemError as err:
         print(f"error: {args.problem}: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    if isinstance(problem, ModelProblem):
+        return _run_model(problem, args)
     if args.verbose:  # print_level is not part of the problem's hash: results stay comparable
         problem = problem.replace(solver=replace(problem.solver, print_level=5))
     out_dir = args.out if args.out is not None else Path("results") / problem.name
@@ -194,6 +197,31 @@ def _run_continuation(problem, out_dir: Path, quiet: bool, jobs: int | None = No
     if missing:
         print(f"error: {problem.name}: no {' or '.join(missing)} curve was traced (see result.json)", file=sys.stderr)
         return EXIT_NOT_CONVERGED
+    return EXIT_OK
+
+
+def _run_model(problem: ModelProblem, args) -> int:
+    """A described model's problem: its gait, and its branch or atlas, written into the
+    output folder whole or not at all."""
+    if args.scheduler is not None:
+        print(f"error: --scheduler: {problem.name} is a described model's problem, which runs in this process",
+              file=sys.stderr)
+        return EXIT_BAD_INPUT
+    out_dir = args.out if args.out is not None else Path("results") / problem.name
+    from baslip.api import run_model
+
+    try:
+        with progress_hidden(args.quiet):
+            run = run_model(problem, out_dir, progress=not args.quiet, fresh=args.fresh)
+    except InputError as err:
+        print(refusal(err, args.problem), file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except RunError as err:
+        print(f"error: {problem.name}: {err}", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
+    if not args.quiet:
+        print(run.summary())
+        print(f"  wrote {', '.join(str(path) for path in run.files)}")
     return EXIT_OK
 
 

@@ -156,14 +156,18 @@ class ModelSolver:
                    else by_theta[:, self.functions.theta_names.index(name)] for name in spec.free]
         return r, np.column_stack(columns) if columns else np.zeros((len(r), 0))
 
-    def equations(self, spec: ModelSpec, values: dict, resolution: Resolution, jacobian: bool = False):
+    def equations(self, spec: ModelSpec, values: dict, resolution: Resolution, jacobian: bool = False,
+                  kept: list[int] | None = None):
         """The independent equations of a fixed point: the section coordinates' returns
-        that :meth:`kept_rows` keeps and the fixed invariants, with the Jacobian in the
-        free quantities if asked; or the reason the stride failed."""
+        that ``kept`` names (by default :meth:`kept_rows` at ``values``; a family passes
+        its own, chosen once, so that its equations do not change along it) and the fixed
+        invariants, with the Jacobian in the free quantities if asked; or the reason the
+        stride failed."""
         result = self.residual(spec, values, resolution, jacobian)
         if isinstance(result, str):
             return result
-        rows = self.kept_rows(spec, values) + list(range(len(spec.model.section.coordinates), len(result[0])))
+        kept = self.kept_rows(spec, values) if kept is None else kept
+        rows = kept + list(range(len(spec.model.section.coordinates), len(result[0])))
         return result[0][rows], None if result[1] is None else result[1][rows]
 
     def kept_rows(self, spec: ModelSpec, values: dict) -> list[int]:

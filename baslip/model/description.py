@@ -25,13 +25,13 @@ from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from baslip.errors import InputError
+from baslip.errors import ProblemError
 
 #: A description's function of named symbols: ``f(s, p, u)``.
 Expression = Callable[..., Any]
 
 
-class ModelError(InputError):
+class ModelError(ProblemError):
     """A model description that cannot be run; ``key`` names the part (``model.modes.stance``)."""
 
 
@@ -176,6 +176,8 @@ class Section:
     pinned : mapping of str to float
         The states fixed on the section (the apex: zdot = 0). Every state of the mode is
         in exactly one of ``coordinates``, ``cyclic`` and ``pinned``.
+    units : mapping of str to str
+        The SI unit of each coordinate (``"rad"`` lets a problem file give degrees).
     """
 
     mode: str
@@ -184,6 +186,7 @@ class Section:
     coordinates: tuple[str, ...]
     cyclic: tuple[str, ...] = ()
     pinned: Mapping[str, float] = field(default_factory=dict)
+    units: Mapping[str, str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -266,6 +269,10 @@ class Model:
     invariants: tuple[Invariant, ...] = ()
     description: str = ""
 
+    def __repr__(self) -> str:
+        return (f"<Model {self.name}: modes {' -> '.join(self.order)}, laws {[law.name for law in self.laws]}, "
+                f"section {self.section.coordinates}>")
+
     def mode(self, name: str) -> Mode:
         """The mode called ``name``."""
         for mode in self.modes:
@@ -308,6 +315,13 @@ class Model:
         return self.mode(self.section.mode)
 
     def quantities(self, law: str | None = None) -> tuple[Quantity, ...]:
-        """Every quantity a problem may name: the section coordinates (unbounded, no unit
-        check), the controls, then the parameters."""
+        """The controls under ``law``, then the parameters (the section coordinates are
+        states, named by :attr:`Section.coordinates`)."""
         return (*self.controls_of(law), *self.parameters)
+
+    def unit(self, name: str, law: str | None = None) -> str:
+        """The SI unit of a section coordinate, a control or a parameter ("" if none is given)."""
+        for quantity in self.quantities(law):
+            if quantity.name == name:
+                return quantity.unit
+        return self.section.units.get(name, "")

@@ -28,7 +28,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from baslip.errors import ProblemError
+from baslip.errors import ProblemError, ProblemKindError
 from baslip.model.dynamics import APEX, PARAMS, Params
 from baslip.model.hiplaw import HIP_LAWS, PD, HipLaw
 from baslip.model.quantities import (
@@ -45,18 +45,10 @@ from baslip.model.quantities import (
     value_text,
 )
 from baslip.problem.continuation import ContinuationSpec, check_continuation, parse_continuation
-from baslip.problem.shipped import find_problem
 from baslip.problem.solver import SolverSettings, parse_solver
+from baslip.problem.source import read_problem_file
 from baslip.problem.study import ADAPTED_CONTROLS, Atlas, Basin, Families, Optimal, Study, Sweep, parse_study
-from baslip.problem.text import (
-    UnreadableText,
-    check_plain_data,
-    clip,
-    excerpt,
-    path_argument,
-    read_yaml,
-    small_file_text,
-)
+from baslip.problem.text import check_plain_data, clip, excerpt
 from baslip.problem.values import mapping, physical
 from baslip.problem.values import number as _number
 
@@ -65,6 +57,8 @@ TOP_LEVEL_KEYS = ("name", "params", "hip_law", "fix", "guess", "bounds", "postur
 #: What fix, guess and bounds may name under some hip law; :func:`_check_law` then holds
 #: each problem to its own law's.
 _ANY_QUANTITY = ANY_DESIGN + ("energy",)
+#: The value of ``model`` that names the BA-SLIP itself (a problem without ``model`` is one too).
+BA_SLIP_NAME = "ba-slip"
 #: Longest orbit, in strides, that a problem may ask for.
 MAX_STRIDES = 16
 #: Most fixed points one sweep may ask for (a day of solving on two cores).
@@ -174,33 +168,29 @@ def _unpickled_problem(state: dict) -> Problem:
 
 
 def load_problem(path: str | Path) -> Problem:
-    """Read and validate a YAML problem file.
+    """Read and validate a YAML problem file of the BA-SLIP.
 
     Parameters
     ----------
     path
         The file; a bare name that is no file here (``downward``, ``downward.yaml``)
         means the shipped problem of that name (``baslip problems`` lists them).
+
+    Raises
+    ------
+    ProblemError
+        If anything is invalid; its ``key`` names the offending entry.
+    ProblemKindError
+        If the file names a described model of its own (``model: file.py:Name``), which
+        :func:`baslip.problem.model_file.load_any_problem` reads.
     """
-    path = find_problem(Path(path_argument(path, "path")))
-    try:
-        text = small_file_text(path)
-    except UnreadableText as err:
-        raise ProblemError("", f"problem file {err}") from None
-    except FileNotFoundError:
-        shipped = " (nor the name of a shipped problem: `baslip problems` lists them)" if path.parent == Path(".") else ""
-        raise ProblemError("", f"no such problem file: {path}{shipped}") from None
-    except UnicodeDecodeError:
-        raise ProblemError("", f"problem file {path} is not UTF-8 text") from None
-    except OSError as err:
-        raise ProblemError("", f"cannot read problem file {path}: {err.strerror}") from None
-    try:
-        data = read_yaml(text)
-    except UnreadableText as err:
-        raise ProblemError("", str(err)) from None
-    if data is None:
-        raise ProblemError("", "the problem file is empty (it holds only comments, '---' or null)")
-    return parse_problem(data, default_name=re.sub(r"[^A-Za-z0-9_.-]", "_", path.stem))
+    data, name, _ = read_problem_file(path)
+    if isinstance(data, Mapping) and "model" in data:
+        if data["model"] != BA_SLIP_NAME:
+            raise ProblemKindError("model", f"{excerpt(data['model'])} is a described model's problem: "
+                                            "run it with `baslip solve` or baslip.run")
+        data = {k: v for k, v in data.items() if k != "model"}
+    return parse_problem(data, default_name=name)
 
 
 def parse_problem(data: Any, default_name: str = "problem") -> Problem:

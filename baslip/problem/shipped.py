@@ -46,13 +46,20 @@ def describe(path: Path) -> str:
     return " ".join(" ".join(comment).split())
 
 
+def shipped_models() -> list[Path]:
+    """The model descriptions the shipped problems name (``models/*.py``), sorted."""
+    return sorted((problems_dir() / "models").glob("*.py"))
+
+
 def copy_problems(target: Path) -> list[Path]:
-    """Copy every shipped problem into ``target`` (created if needed), never overwriting a
-    file already there; return the files copied."""
+    """Copy every shipped problem, and the model files they name (into ``models/``), into
+    ``target`` (created if needed), never overwriting a file already there; return the
+    files copied."""
     target.mkdir(parents=True, exist_ok=True)
+    (target / "models").mkdir(exist_ok=True)
     copied = []
-    for path in shipped_problems():
-        destination = target / path.name
+    for path in [*shipped_problems(), *shipped_models()]:
+        destination = target / path.relative_to(problems_dir())
         if not destination.exists():
             shutil.copyfile(path, destination)
             copied.append(destination)

@@ -3,7 +3,8 @@
 A point mass on a massless leg: a spring and a damper in parallel. The leg lands at the
 angle ``theta_td`` from the vertical and pushes by lengthening its spring's rest length
 by ``push`` at the bottom of stance, which gives back what the damper takes. It leaves
-the ground when the leg force falls to zero. The guide docs/guides/models.md builds it.
+the ground when the leg force falls to zero. The guide "Writing a model"
+(docs/guides/models.md) builds it line by line; problems/hopper.yaml runs it.
 """
 
 import casadi as ca
@@ -57,7 +58,8 @@ HOPPER = Model(
                             "touchdown"),
                  Transition("compression", "decompression", lambda s, p, u: s.rhodot, +1, None, "bottom"),
                  Transition("decompression", "flight", leg_force, -1, takeoff, "liftoff")),
-    section=Section("flight", lambda s, p, u: s.zdot, -1, ("z", "ydot"), cyclic=("y",), pinned={"zdot": 0.0}),
+    section=Section("flight", lambda s, p, u: s.zdot, -1, ("z", "ydot"), cyclic=("y",), pinned={"zdot": 0.0},
+                    units={"z": "m", "ydot": "m/s"}),
     controls=(Quantity("theta_td", "rad", 0.38, -1.2, 1.2), Quantity("push", "m", 0.01, -0.2, 0.2, (0, 1, 0))),
     laws=(ControlLaw("push at the bottom"),),
     falls=(Fall("mass hit the ground", "compression", lambda s, p, u: ca.cos(s.theta)),),

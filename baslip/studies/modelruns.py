@@ -1,0 +1,228 @@
+"""Runs of a described model's problem: its gait, its branch or its atlas, and their files.
+
+:func:`run_model_problem` solves the problem's gait (verified independently), then the
+continuation or the atlas it asks for, and writes, all at once or not at all:
+
+* ``result.json``: the problem, the gait (values, multipliers, checks), and the branch's
+  or atlas's summary (points, special points, stable share, why it stopped);
+* ``branch.csv`` (one row per point) and ``branch.png``, or ``charts.csv`` (one row per
+  chart centre) and ``atlas.png``.
+
+Every row carries its independent verification; the summaries count only rows verified
+to the problem's tolerance.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from baslip.analysis.atlas import AtlasSettings
+from baslip.analysis.modelfamilies import ModelBranch, ModelChart, continue_model, cover_model
+from baslip.diagnostics import IN_PLACE, logger
+from baslip.files.atomic import json_text, write_files_atomically
+from baslip.gait.modelsolver import ModelGait, ModelSolver
+from baslip.numerics.continuation import Settings
+from baslip.problem.model_file import ModelAtlasStudy, ModelContinuation, ModelProblem
+
+LOG = logger(__name__)
+
+
+@dataclass(frozen=True)
+class ModelRun:
+    """What a described model's problem gave: its gait, and its branch or atlas.
+
+    Attributes
+    ----------
+    problem : ModelProblem
+        The problem.
+    gait : ModelGait
+        Its verified gait.
+    branch : ModelBranch or None
+        The continuation's branch, if it asked for one.
+    charts : tuple of ModelChart
+        The atlas's chart centres, if it asked for one.
+    record : dict
+        ``result.json``'s content.
+    table : tuple of dict
+        The branch's points or the atlas's chart centres, as ``branch.csv`` or
+        ``charts.csv`` holds them (empty for a gait alone).
+    files : tuple of Path
+        The files written (none without an output folder).
+    """
+
+    problem: ModelProblem
+    gait: ModelGait
+    branch: ModelBranch | None
+    charts: tuple[ModelChart, ...]
+    record: dict
+    table: tuple[dict, ...] = ()
+    files: tuple[Path, ...] = field(default=())
+
+    @property
+    def kind(self) -> str:
+        """``branch``, ``atlas`` or ``gait``: what the run holds besides its gait."""
+        return "branch" if self.branch is not None else "atlas" if self.problem.atlas is not None else "gait"
+
+    def rows(self) -> list[dict]:
+        """The branch's points or the atlas's chart centres (values by name, spectral
+        radius, stability, verification)."""
+        return [dict(row) for row in self.table]
+
+    def to_dataframe(self):
+        """:meth:`rows` as a pandas DataFrame (needs pandas)."""
+        try:
+            import pandas
+        except ImportError:
+            raise ImportError("to_dataframe needs pandas: pip install pandas") from None
+        return pandas.DataFrame(self.rows())
+
+    def plot(self):
+        """The run's figure (its branch, or its atlas's chart centres), by the name of the
+        file the command line writes it to; none for a gait alone."""
+        from baslip.viz.gallery import Figures
+
+        figure = _figure(self.problem, self.kind, list(self.table)) if self.table else None
+        if figure is not None:
+            figure.set_label(self.kind)
+        return Figures([figure] if figure is not None else [])
+
+    def summary(self) -> str:
+        """A few lines on the gait and what the run found."""
+        gait = self.gait
+        free = ", ".join(f"{n} = {gait.values[n]:.6g}" for n in gait.spec.free)
+        lines = [f"{self.problem.name}: model {gait.spec.model.name}, law {self.record['gait']['law']}: "
+                 f"{'stable' if gait.stable else 'unstable'} gait, spectral radius {gait.spectral_radius:.4g}",
+                 f"  {free}; verified independently to {gait.verification:.1e}"]
+        if "branch" in self.record:
+            b = self.record["branch"]
+            lines.append(f"  branch in {b['parameter']}: {b['points']} points ({b['verified']} verified), "
+                         f"{b['stable']} stable; special points: {', '.join(b['special']) or 'none'}; {b['stop_reason']}")
+        if "atlas" in self.record:
+            a = self.record["atlas"]
+            lines.append(f"  atlas: {a['charts']} charts ({a['verified']} verified), {a['pieces']} piece(s), "
+                         f"{a['stable']} stable; least spectral radius {a['least_radius']:.4g}; "
+                         f"{'complete' if a['complete'] else 'not complete'}")
+        return "\n".join(lines)
+
+
+def run_model_problem(problem: ModelProblem, out: Path | None = None) -> ModelRun:
+    """Solve ``problem``'s gait and run what it asks for; write the files into ``out``.
+
+    Raises
+    ------
+    NoFixedPoint
+        The gait was not found, or not verified.
+    """
+    start = time.perf_counter()
+    solver = ModelSolver(problem.spec)
+    LOG.info("%s: solving the gait of model %s", problem.name, problem.spec.model.name)
+    gait = solver.solve(problem.spec)
+    record: dict = {"problem": problem.to_dict(), "gait": gait.to_dict()}
+    branch: ModelBranch | None = None
+    charts: tuple[ModelChart, ...] = ()
+    rows: list[dict] = []
+    if problem.continuation is not None:
+        branch = _branch(solver, gait, problem, problem.continuation)
+        record["branch"], rows = _branch_summary(problem, branch)
+    if problem.atlas is not None:
+        charts, record["atlas"], rows = _atlas(solver, gait, problem, problem.atlas)
+    record["wall_time_s"] = time.perf_counter() - start
+    run = ModelRun(problem, gait, branch, charts, record, tuple(rows))
+    if out is None:
+        return run
+    named: dict[Path, str | bytes] = {out / "result.json": json_text(record)}
+    if rows:
+        from baslip.viz.modelplots import png
+
+        table = "branch.csv" if run.kind == "branch" else "charts.csv"
+        named.update({out / table: _csv(rows), out / f"{run.kind}.png": png(_figure(problem, run.kind, rows))})
+    write_files_atomically(named)
+    return replace(run, files=tuple(named))
+
+
+def _branch(solver: ModelSolver, gait: ModelGait, problem: ModelProblem, spec: ModelContinuation) -> ModelBranch:
+    settings = Settings(step=spec.step, max_step=max(spec.step, 0.2), max_points=spec.max_points)
+
+    def progress(count: int, _point) -> None:
+        LOG.info("%s: branch in %s: %d points on this side", problem.name, spec.parameter, count, extra=IN_PLACE)
+
+    return continue_model(solver, gait, spec.parameter, (spec.low, spec.high), settings, progress)
+
+
+def _rows(values: list[dict], names: tuple[str, ...], extra: list[dict]) -> list[dict]:
+    return [{**{n: v[n] for n in names}, **e} for v, e in zip(values, extra)]
+
+
+def _csv(rows: list[dict]) -> str:
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=list(rows[0]), lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    return buffer.getvalue()
+
+
+def _names(problem: ModelProblem) -> tuple[str, ...]:
+    spec = problem.spec
+    return (*spec.model.section.coordinates, *(q.name for q in spec.model.quantities(spec.law)))
+
+
+def _units(problem: ModelProblem) -> dict:
+    return {n: problem.spec.model.unit(n, problem.spec.law) for n in _names(problem)}
+
+
+def _branch_summary(problem: ModelProblem, branch: ModelBranch) -> tuple[dict, list[dict]]:
+    """The branch's summary for ``result.json`` (counting verified points only), and its rows."""
+    tolerance = problem.spec.tolerance
+    rows = _rows([p.values for p in branch.points], _names(problem),
+                 [{"spectral_radius": p.spectral_radius, "stable": p.spectral_radius < 1.0, "special": p.special,
+                   "verification": p.verification} for p in branch.points])
+    verified = [r for r in rows if r["verification"] <= tolerance]
+    summary = {
+        "parameter": branch.parameter, "points": len(rows), "verified": len(verified),
+        "stable": sum(r["stable"] for r in verified), "stop_reason": branch.stop_reason,
+        "special": [r["special"] for r in verified if r["special"]],
+        "special_points": [r for r in verified if r["special"]],
+    }
+    return summary, rows
+
+
+def _figure(problem: ModelProblem, kind: str, rows: list[dict]):
+    """The branch's or the atlas's figure from its rows."""
+    from baslip.viz.modelplots import atlas_figure, branch_figure
+
+    spec, units = problem.spec, _units(problem)
+    free = spec.free
+    if kind == "branch" and problem.continuation is not None:
+        quantity = free[0] if free else spec.model.section.coordinates[0]
+        return branch_figure(rows, problem.continuation.parameter, quantity, units,
+                             f"{problem.name}: gaits of {spec.model.name} against {problem.continuation.parameter}")
+    x, y = (free[0], free[1]) if len(free) > 1 else (free[0], "spectral_radius")
+    return atlas_figure(rows, x, y, units, f"{problem.name}: atlas of {spec.model.name}'s gaits")
+
+
+def _atlas(solver: ModelSolver, gait: ModelGait, problem: ModelProblem,
+           study: ModelAtlasStudy) -> tuple[tuple[ModelChart, ...], dict, list[dict]]:
+    """The atlas's chart centres, its summary (counting verified centres only) and rows."""
+
+    def progress(charts: int, _seeds: int) -> None:
+        LOG.info("%s: atlas: %d charts", problem.name, charts, extra=IN_PLACE)
+
+    settings = AtlasSettings(radius=study.radius, max_charts=study.max_charts)
+    atlas, charts = cover_model(solver, gait, settings, progress)
+    tolerance = problem.spec.tolerance
+    verified = [c for c in charts if c.verification <= tolerance]
+    summary = {
+        "charts": len(charts), "verified": len(verified), "pieces": atlas.piece_count, "dimension": atlas.dimension,
+        "stable": sum(c.spectral_radius < 1.0 for c in verified), "complete": atlas.complete,
+        "least_radius": min((c.spectral_radius for c in verified), default=float("nan")),
+        "boundaries": {kind: sum(b.kind == kind for b in atlas.boundaries)
+                       for kind in sorted({b.kind for b in atlas.boundaries})},
+    }
+    rows = _rows([c.values for c in charts], _names(problem),
+                 [{"spectral_radius": c.spectral_radius, "stable": c.spectral_radius < 1.0, "piece": c.piece,
+                   "verification": c.verification} for c in charts])
+    return charts, summary, rows

@@ -1,0 +1,73 @@
+"""Figures of a described model's runs: its branch, and its atlas's chart centres.
+
+They take plain rows (dicts of values by name), so that they know nothing of the model
+beyond the names and units they are given.
+"""
+
+from __future__ import annotations
+
+import io
+
+import matplotlib.pyplot as plt
+import numpy as np
+
+from baslip.viz.backend import use_file_backend
+
+use_file_backend()
+
+
+def _label(name: str, unit: str) -> str:
+    return f"{name} [{unit}]" if unit else name
+
+
+def png(figure) -> bytes:
+    """The figure as PNG bytes (then closed)."""
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=120)
+    plt.close(figure)
+    return buffer.getvalue()
+
+
+def branch_figure(rows: list[dict], parameter: str, quantity: str, units: dict, title: str):
+    """``quantity`` (above) and the spectral radius (below) along the branch against
+    ``parameter``: stable points solid, unstable dashed, special points marked and named."""
+    figure, (top, bottom) = plt.subplots(2, 1, figsize=(6.4, 6.0), sharex=True)
+    x = np.array([r[parameter] for r in rows])
+    stable = np.array([r["spectral_radius"] < 1.0 for r in rows])
+    for ax, name in ((top, quantity), (bottom, "spectral_radius")):
+        y = np.array([r[name] for r in rows])
+        for flag, style, label in ((True, "-", "stable"), (False, "--", "unstable")):
+            ax.plot(np.where(stable == flag, x, np.nan), np.where(stable == flag, y, np.nan), style,
+                    color="C0" if flag else "C3", label=label)
+        for row in rows:
+            if row["special"]:
+                ax.plot(row[parameter], row[name], "ko", markersize=4)
+                ax.annotate(row["special"].replace("_", " "), (row[parameter], row[name]), fontsize=8,
+                            xytext=(4, 4), textcoords="offset points")
+    top.set_ylabel(_label(quantity, units.get(quantity, "")))
+    bottom.axhline(1.0, color="0.6", linewidth=0.8)
+    bottom.set_ylabel("spectral radius")
+    bottom.set_xlabel(_label(parameter, units.get(parameter, "")))
+    top.set_title(title)
+    top.legend(loc="best", fontsize=8)
+    figure.tight_layout()
+    return figure
+
+
+def atlas_figure(rows: list[dict], x: str, y: str, units: dict, title: str):
+    """The atlas's chart centres in (``x``, ``y``), coloured by spectral radius (stable
+    ones ringed)."""
+    figure, ax = plt.subplots(figsize=(6.4, 4.6))
+    radius = np.array([r["spectral_radius"] for r in rows])
+    points = ax.scatter([r[x] for r in rows], [r[y] for r in rows], c=np.minimum(radius, 3.0), cmap="viridis", s=18)
+    stable = [r for r in rows if r["spectral_radius"] < 1.0]
+    ax.scatter([r[x] for r in stable], [r[y] for r in stable], facecolors="none", edgecolors="k", s=40,
+               label="stable")
+    figure.colorbar(points, ax=ax, label="spectral radius (capped at 3)")
+    ax.set_xlabel(_label(x, units.get(x, "")))
+    ax.set_ylabel(_label(y, units.get(y, "")))
+    ax.set_title(title)
+    if stable:
+        ax.legend(loc="best", fontsize=8)
+    figure.tight_layout()
+    return figure

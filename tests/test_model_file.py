@@ -1,0 +1,93 @@
+"""Problem files of described models: the model named by file or by name, every key
+checked, and a bad entry or a bad description refused with its key."""
+
+import math
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from baslip.errors import ProblemError, ProblemKindError
+from baslip.problem.model_file import ModelProblem, load_any_problem, parse_model_problem
+from baslip.problem.reader import Problem, load_problem
+
+ROOT = Path(__file__).resolve().parents[1]
+HOPPER = {"model": "models/hopper.py:HOPPER", "fix": {"z": 1.0, "ydot": 5.0}, "guess": {"theta_td": "22 deg",
+                                                                                        "push": 0.01}}
+
+
+def parse(data, folder=ROOT / "problems"):
+    return parse_model_problem(data, "test", folder)
+
+
+def test_the_shipped_hopper_problem_names_its_model_file_beside_it():
+    problem = load_any_problem(ROOT / "problems" / "hopper.yaml")
+    assert isinstance(problem, ModelProblem) and problem.spec.model.name == "hopper"
+    assert problem.spec.guess["theta_td"] == pytest.approx(math.radians(22.0))
+    assert problem.continuation.parameter == "ydot" and (problem.continuation.low, problem.continuation.high) == (3, 7)
+
+
+def test_a_built_in_model_is_named_by_its_name():
+    problem = load_any_problem(ROOT / "problems" / "slip_attack.yaml")
+    assert problem.spec.model.name == "slip" and problem.spec.fixed_invariants == {"energy": 1784.8}
+
+
+def test_model_ba_slip_is_the_ba_slips_own_problem(tmp_path):
+    path = tmp_path / "mine.yaml"
+    path.write_text("model: ba-slip\n" + (ROOT / "problems" / "downward.yaml").read_text())
+    assert isinstance(load_any_problem(path), Problem)
+    assert load_problem(path).name == "downward"
+
+
+def test_the_ba_slip_reader_sends_a_described_model_elsewhere():
+    with pytest.raises(ProblemKindError, match=r"model: 'models/hopper.py:HOPPER' is a described model's problem"):
+        load_problem(ROOT / "problems" / "hopper.yaml")
+
+
+@pytest.mark.parametrize("change, key, words", [
+    ({"model": "nowhere.py:X"}, "model", "no such model file"),
+    ({"model": "models/hopper.py:HOP"}, "model", "HOP in hopper.py is nothing, not a baslip Model"),
+    ({"model": "models/hopper.py:ca"}, "model", "is module, not a baslip Model"),
+    ({"model": "walker"}, "model", "neither a built-in model"),
+    ({"model": 3}, "model", "expected a model's name"),
+    ({"law": "pd"}, "law", "'pd' is not a law of hopper"),
+    ({"fix": {"z": 1.0, "ydot": 5.0, "Kp": 1.0}}, "fix.Kp", "unknown key"),
+    ({"guess": {"theta_td": "22 furlongs", "push": 0.01}}, "guess.theta_td", "expected a number"),
+    ({"fix": {"z": 1.0}}, "guess.ydot", "is a section coordinate: fix it or guess it"),
+    ({"params": {"z": 1.0}}, "params.z", "unknown key"),
+    ({"bounds": {"push": [0.2, 0.1]}}, "bounds.push", "low end"),
+    ({"bounds": {"push": 0.1}}, "bounds.push", "expected [low, high]"),
+    ({"solver": {"nodes": 1}}, "solver.nodes", "at least 2"),
+    ({"solver": {"tolerance": 1.0}}, "solver.tolerance", "must lie in"),
+    ({"study": {"kind": "grid"}}, "study.kind", "runs a gait, a continuation or a study of kind atlas"),
+    ({"study": {"kind": "atlas", "max_charts": 0}}, "study.max_charts", "expected an integer"),
+    ({"continuation": {"parameter": "push", "range": [0, 1]}}, "continuation.parameter", "expected a fixed quantity"),
+    ({"continuation": {"parameter": "ydot", "range": [6, 7]}}, "continuation.range", "strictly inside"),
+    ({"speed": 3}, "speed", "unknown key"),
+])
+def test_a_bad_entry_is_refused_naming_its_key(change, key, words):
+    with pytest.raises(ProblemError) as refused:
+        parse({**HOPPER, **change})
+    assert refused.value.key == key and words in refused.value.message
+
+
+def test_a_control_left_unguessed_is_fixed_at_its_default():
+    problem = parse({**HOPPER, "guess": {"theta_td": 0.4}})
+    assert problem.spec.free == ("theta_td",) and problem.spec.values()["push"] == 0.01
+
+
+def test_a_description_that_cannot_run_is_refused_naming_its_part(tmp_path):
+    (tmp_path / "broken.py").write_text(textwrap.dedent("""
+        from dataclasses import replace
+        from baslip.model.catalogue.slip import SLIP
+        BROKEN = replace(SLIP, section=replace(SLIP.section, coordinates=("z", "vy")))
+    """))
+    with pytest.raises(ProblemError) as refused:
+        parse({"model": "broken.py:BROKEN", "fix": {"z": 1.0}, "guess": {"vy": 5.0}}, tmp_path)
+    assert refused.value.key == "model.section.coordinates" and "'vy' is not a state" in refused.value.message
+
+
+def test_a_model_file_that_raises_is_named_with_its_error(tmp_path):
+    (tmp_path / "raises.py").write_text("raise RuntimeError('no such physics')\n")
+    with pytest.raises(ProblemError, match=r"model: importing raises.py raised RuntimeError: no such physics"):
+        parse({"model": "raises.py:X"}, tmp_path)
