@@ -165,3 +165,14 @@ def test_no_code_in_a_table_holds_an_escaped_pipe():
             if line.startswith("|"):
                 spans = re.findall(r"`[^`]*`", line)
                 assert not any("\\|" in span for span in spans), f"{page.name}:{number}"
+
+
+def test_the_guides_hopper_is_the_shipped_model_file_piece_by_piece():
+    """Writing a model shows problems/models/hopper.py in pieces (``py`` blocks): each piece
+    is in the file as shown, so the guide cannot drift from the model the tests run."""
+    guide = (ROOT / "docs" / "guides" / "models.md").read_text()
+    source = (ROOT / "problems" / "models" / "hopper.py").read_text()
+    pieces = re.findall(r"```py\n(.*?)```", guide, re.S)
+    assert len(pieces) >= 5
+    for piece in pieces:
+        assert piece.strip() in source, piece

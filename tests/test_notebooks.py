@@ -31,6 +31,7 @@ TAGGED = {
     "03_branch_and_curve.ipynb": {"figure": 2, "figures": 1},
     "04_human_scale.ipynb": {"figure": 2},
     "05_controllers_and_basins.ipynb": {"figure": 1, "figures": 1},
+    "06_your_own_model.ipynb": {"figure": 1, "figures": 1},
 }
 PNG = b"\x89PNG\r\n\x1a\n"
 

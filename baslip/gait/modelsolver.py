@@ -91,6 +91,7 @@ class ModelGait:
 
     @property
     def stable(self) -> bool:
+        """Whether every multiplier that is not 1 by structure lies inside the unit circle."""
         return self.spectral_radius < 1.0
 
     def to_dict(self) -> dict:
@@ -124,17 +125,51 @@ class ModelSolver:
 
     # -- the quantities as vectors ------------------------------------------------------
     def split(self, spec: ModelSpec, values: dict) -> tuple[np.ndarray, np.ndarray]:
-        """The section coordinates and theta of ``values`` by name."""
+        """The section coordinates and theta (parameters, then controls) of ``values``.
+
+        Parameters
+        ----------
+        spec : ModelSpec
+            The problem (its model and law are the solver's).
+        values : dict
+            Every quantity's value by name.
+        """
         section = np.array([values[c] for c in spec.model.section.coordinates])
         return section, self.functions.theta(values)
 
     def stride(self, spec: ModelSpec, values: dict, resolution: Resolution, jacobian: bool = False) -> Outcome:
+        """One stride from ``values``.
+
+        Parameters
+        ----------
+        spec : ModelSpec
+            The problem (its model and law are the solver's).
+        values : dict
+            Every quantity's value by name.
+        resolution : Resolution
+            The engine's scout step and steps per mode.
+        jacobian : bool
+            Whether to carry the Jacobians.
+        """
         section, theta = self.split(spec, values)
         return self.map.stride(section, theta, resolution, jacobian=jacobian)
 
     def residual(self, spec: ModelSpec, values: dict, resolution: Resolution, jacobian: bool = False):
-        """map(x) - x in the section coordinates and, if asked, its Jacobian in the free
-        quantities; or the reason the stride failed."""
+        """map(x) - x in the section coordinates, then each fixed invariant's difference
+        from its value (relative to it), and, if asked, the Jacobian in the free
+        quantities; or the reason the stride failed.
+
+        Parameters
+        ----------
+        spec : ModelSpec
+            The problem (its model and law are the solver's).
+        values : dict
+            Every quantity's value by name.
+        resolution : Resolution
+            The engine's scout step and steps per mode.
+        jacobian : bool
+            Whether to give the Jacobian too (else None in its place).
+        """
         outcome = self.stride(spec, values, resolution, jacobian)
         if not outcome.ok:
             return outcome.failure
@@ -162,7 +197,21 @@ class ModelSolver:
         that ``kept`` names (by default :meth:`kept_rows` at ``values``; a family passes
         its own, chosen once, so that its equations do not change along it) and the fixed
         invariants, with the Jacobian in the free quantities if asked; or the reason the
-        stride failed."""
+        stride failed.
+
+        Parameters
+        ----------
+        spec : ModelSpec
+            The problem (its model and law are the solver's).
+        values : dict
+            Every quantity's value by name.
+        resolution : Resolution
+            The engine's scout step and steps per mode.
+        jacobian : bool
+            Whether to give the Jacobian too.
+        kept : list of int, optional
+            The section coordinates whose returns are asked for.
+        """
         result = self.residual(spec, values, resolution, jacobian)
         if isinstance(result, str):
             return result
@@ -173,7 +222,15 @@ class ModelSolver:
     def kept_rows(self, spec: ModelSpec, values: dict) -> list[int]:
         """The section coordinates whose return is asked for: all but one for each
         invariant of the law, which returns them by itself (asking as well would leave
-        the equations dependent). The one left out is the invariant's steepest, scaled."""
+        the equations dependent). The one left out is the invariant's steepest, scaled.
+
+        Parameters
+        ----------
+        spec : ModelSpec
+            The problem (its model and law are the solver's).
+        values : dict
+            Every quantity's value by name.
+        """
         coordinates = spec.model.section.coordinates
         kept = list(range(len(coordinates)))
         if self.invariants is None:
@@ -187,7 +244,17 @@ class ModelSolver:
 
     def multipliers(self, spec: ModelSpec, values: dict,
                     resolution: Resolution) -> tuple[np.ndarray, tuple[bool, ...]] | str:
-        """The multipliers at ``values`` and which are 1 by structure, or why the stride failed."""
+        """The multipliers at ``values`` and which are 1 by structure, or why the stride failed.
+
+        Parameters
+        ----------
+        spec : ModelSpec
+            The problem (its model and law are the solver's).
+        values : dict
+            Every quantity's value by name.
+        resolution : Resolution
+            The engine's scout step and steps per mode.
+        """
         outcome = self.stride(spec, values, resolution, jacobian=True)
         if not outcome.ok:
             return outcome.failure
@@ -196,7 +263,17 @@ class ModelSolver:
 
     def verify(self, spec: ModelSpec, values: dict, resolution: Resolution) -> float | str:
         """max |map(x) - x| of the independent CVODES stride, relative to max(1, |x|),
-        or why that stride failed."""
+        or why that stride failed.
+
+        Parameters
+        ----------
+        spec : ModelSpec
+            The problem (its model and law are the solver's).
+        values : dict
+            Every quantity's value by name.
+        resolution : Resolution
+            The engine's scout step and steps per mode.
+        """
         section, theta = self.split(spec, values)
         independent = self.check.stride(section, theta, resolution.scout)
         if isinstance(independent, str):
@@ -211,6 +288,11 @@ class ModelSolver:
     # -- the solve -----------------------------------------------------------------------
     def solve(self, spec: ModelSpec) -> ModelGait:
         """The verified fixed point nearest ``spec``'s guess (see the module's docstring).
+
+        Parameters
+        ----------
+        spec : ModelSpec
+            The problem: what is fixed, what is free, and the guess.
 
         Raises
         ------

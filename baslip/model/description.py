@@ -118,10 +118,12 @@ class Mode:
 
     @property
     def rate_names(self) -> tuple[str, ...]:
+        """The rates' names: ``rates``, or ``<q>_dot`` for each coordinate."""
         return self.rates or tuple(f"{q}_dot" for q in self.coordinates)
 
     @property
     def states(self) -> tuple[str, ...]:
+        """The mode's state: its coordinates, then their rates."""
         return (*self.coordinates, *self.rate_names)
 
 
@@ -154,6 +156,7 @@ class Transition:
 
     @property
     def label(self) -> str:
+        """The event's name, or ``source->target``."""
         return self.name or f"{self.source}->{self.target}"
 
 
@@ -191,7 +194,17 @@ class Section:
 
 @dataclass(frozen=True)
 class Fall:
-    """A way to fall: the stride fails where ``condition(s, p, u)`` < 0 in ``mode``."""
+    """A way to fall: the stride fails where its condition is negative.
+
+    Parameters
+    ----------
+    name : str
+        What the fall is called (``"mass hit the ground"``).
+    mode : str
+        The mode it is checked in, at every node.
+    condition : callable
+        ``c(s, p, u)``, which must stay >= 0.
+    """
 
     name: str
     mode: str
@@ -220,7 +233,17 @@ class ControlLaw:
 @dataclass(frozen=True)
 class Invariant:
     """A quantity the stride conserves under some laws (energy, under a passive law):
-    each gives a multiplier that is 1 by structure."""
+    each gives a multiplier that is 1 by structure.
+
+    Parameters
+    ----------
+    name : str
+        Its name, by which a problem may fix it (``energy``).
+    value : callable
+        ``v(s, p, u)`` on the section mode's states, in its SI unit.
+    laws : tuple of str
+        The laws it holds under; every law if empty.
+    """
 
     name: str
     value: Expression
@@ -274,14 +297,26 @@ class Model:
                 f"section {self.section.coordinates}>")
 
     def mode(self, name: str) -> Mode:
-        """The mode called ``name``."""
+        """The mode called ``name``.
+
+        Parameters
+        ----------
+        name : str
+            A mode's name.
+        """
         for mode in self.modes:
             if mode.name == name:
                 return mode
         raise ModelError(f"model {self.name}", f"no mode {name!r}; its modes are {[m.name for m in self.modes]}")
 
     def law(self, name: str | None = None) -> ControlLaw:
-        """The law called ``name`` (the first if None)."""
+        """The law called ``name``.
+
+        Parameters
+        ----------
+        name : str, optional
+            A law's name; the model's first law if None.
+        """
         if name is None:
             return self.laws[0]
         for law in self.laws:
@@ -290,7 +325,13 @@ class Model:
         raise ModelError("law", f"{name!r} is not a law of {self.name}; its laws are {[law.name for law in self.laws]}")
 
     def transition(self, source: str, target: str) -> Transition:
-        """The transition from ``source`` to ``target``."""
+        """The transition from one mode to another.
+
+        Parameters
+        ----------
+        source, target : str
+            The modes' names.
+        """
         for transition in self.transitions:
             if (transition.source, transition.target) == (source, target):
                 return transition
@@ -302,25 +343,52 @@ class Model:
         return tuple(self.transition(a, b) for a, b in zip(self.order, self.order[1:]))
 
     def controls_of(self, law: str | None = None) -> tuple[Quantity, ...]:
-        """The shared controls, then those of ``law``."""
+        """The shared controls, then those of a law.
+
+        Parameters
+        ----------
+        law : str, optional
+            The law's name (the first if None).
+        """
         return (*self.controls, *self.law(law).controls)
 
     def invariants_of(self, law: str | None = None) -> tuple[Invariant, ...]:
-        """The invariants that hold under ``law``."""
+        """The invariants that hold under a law.
+
+        Parameters
+        ----------
+        law : str, optional
+            The law's name (the first if None).
+        """
         name = self.law(law).name
         return tuple(i for i in self.invariants if not i.laws or name in i.laws)
 
     @property
     def section_mode(self) -> Mode:
+        """The mode the section lies in."""
         return self.mode(self.section.mode)
 
     def quantities(self, law: str | None = None) -> tuple[Quantity, ...]:
-        """The controls under ``law``, then the parameters (the section coordinates are
-        states, named by :attr:`Section.coordinates`)."""
+        """The controls under a law, then the parameters (the section coordinates are
+        states, named by :attr:`Section.coordinates`).
+
+        Parameters
+        ----------
+        law : str, optional
+            The law's name (the first if None).
+        """
         return (*self.controls_of(law), *self.parameters)
 
     def unit(self, name: str, law: str | None = None) -> str:
-        """The SI unit of a section coordinate, a control or a parameter ("" if none is given)."""
+        """The SI unit of a section coordinate, a control or a parameter ("" if none is given).
+
+        Parameters
+        ----------
+        name : str
+            The quantity's name.
+        law : str, optional
+            The law whose controls count (the first if None).
+        """
         for quantity in self.quantities(law):
             if quantity.name == name:
                 return quantity.unit

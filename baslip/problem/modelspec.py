@@ -96,7 +96,13 @@ class ModelSpec:
         return {i.name: float(self.fixed[i.name]) for i in self.model.invariants_of(self.law) if i.name in self.fixed}
 
     def range_of(self, name: str) -> tuple[float, float]:
-        """The bounds of quantity ``name``: its own range within the spec's bounds."""
+        """The bounds of a quantity: its own range within the spec's bounds.
+
+        Parameters
+        ----------
+        name : str
+            The quantity's name.
+        """
         low, high = -math.inf, math.inf
         for quantity in self.model.quantities(self.law):
             if quantity.name == name:
