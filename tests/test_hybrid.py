@@ -114,3 +114,14 @@ def test_an_apex_below_the_touchdown_height_is_refused_at_once(slip):
     """At z = 0.9 m the leg held 22 deg from the vertical already reaches below the ground."""
     outcome = HybridMap(slip).stride(np.array([0.9, apex_speed(0.9)]), theta(slip), FINE)
     assert outcome.failure == "mode flight starts past the guard of touchdown (it can never cross it)"
+
+
+def test_an_event_that_falls_exactly_on_a_node_still_fires(slip):
+    """A scout of a quarter of the descent's duration put touchdown on the fourth node
+    (the guard exactly zero there); the mode then never ended. It fires at the node."""
+    x = np.array([0.9379469070660286, 5.036397196638714])
+    th = slip.theta({"m": 80.0, "k": 2e4, "l0": 1.0, "g": 9.81, "theta_td": math.radians(21.5)})
+    hybrid = HybridMap(slip)
+    descent = hybrid.stride(x, th, Resolution(0.02, 8)).durations[0]
+    on_node = hybrid.stride(x, th, Resolution(descent / 4, 8))
+    assert on_node.ok and on_node.durations[0] == pytest.approx(descent, rel=1e-12)

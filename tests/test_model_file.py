@@ -64,6 +64,14 @@ def test_the_ba_slip_reader_sends_a_described_model_elsewhere():
     ({"continuation": {"parameter": "push", "range": [0, 1]}}, "continuation.parameter", "expected a fixed quantity"),
     ({"continuation": {"parameter": "ydot", "range": [6, 7]}}, "continuation.range", "strictly inside"),
     ({"speed": 3}, "speed", "unknown key"),
+    ({"continuation": {"parameter": "ydot", "range": [3, 7], "second": "z"}}, "continuation.second_range",
+     "come together"),
+    ({"continuation": {"parameter": "ydot", "range": [3, 7], "second": "ydot", "second_range": [0, 9],
+                       "follow": ["fold"]}}, "continuation.second", "other than ydot"),
+    ({"continuation": {"parameter": "ydot", "range": [3, 7], "second": "z", "second_range": [0.5, 1.5],
+                       "follow": ["cusp"]}}, "continuation.follow", "distinct curve kinds"),
+    ({"continuation": {"parameter": "ydot", "range": [3, 7], "second": "z", "second_range": [1.5, 2.0],
+                       "follow": ["fold"]}}, "continuation.second_range", "strictly inside"),
 ])
 def test_a_bad_entry_is_refused_naming_its_key(change, key, words):
     with pytest.raises(ProblemError) as refused:
@@ -91,3 +99,9 @@ def test_a_model_file_that_raises_is_named_with_its_error(tmp_path):
     (tmp_path / "raises.py").write_text("raise RuntimeError('no such physics')\n")
     with pytest.raises(ProblemError, match=r"model: importing raises.py raised RuntimeError: no such physics"):
         parse({"model": "raises.py:X"}, tmp_path)
+
+
+def test_the_shipped_band_follows_both_edges_in_the_energy():
+    problem = load_any_problem(ROOT / "problems" / "slip_band.yaml")
+    assert problem.continuation.second == "energy" and problem.continuation.follow == ("period_doubling", "fold")
+    assert problem.continuation.second_range == (1424.8, 2224.8)

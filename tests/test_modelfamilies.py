@@ -63,3 +63,21 @@ def test_a_branch_parameter_must_be_fixed(hopper):
     solver, gait = hopper
     with pytest.raises(ArgumentError, match=r"parameter: 'ydot' must be a fixed quantity"):
         continue_model(solver, gait, "ydot", (3.0, 7.0))
+
+
+def test_a_branch_may_follow_a_fixed_invariant_and_meets_the_band_edge_there():
+    """The SLIP at 21 deg, followed in its energy: it crosses the period doubling where the
+    branch in the touchdown angle at that energy has it (the same bifurcation)."""
+    spec = ModelSpec(SLIP, fixed={"energy": ENERGY, "theta_td": math.radians(21.0)}, guess={"z": 0.94, "ydot": 5.1})
+    solver = ModelSolver(spec)
+    branch = continue_model(solver, solver.solve(spec), "energy", (1500.0, 2100.0), Settings(step=0.05, max_step=0.2))
+    doubling = [p for p in branch.points if p.special == "period_doubling"]
+    assert len(doubling) == 1 and doubling[0].verification <= 1e-10
+    energy = doubling[0].values["energy"]
+    assert 1500.0 < energy < ENERGY  # at 21 deg the band starts below 5 m/s
+    at = ModelSpec(SLIP, fixed={"energy": energy, "theta_td": math.radians(21.5)},
+                   guess={"z": doubling[0].values["z"], "ydot": doubling[0].values["ydot"]})
+    crossing = continue_model(solver, solver.solve(at), "theta_td", (math.radians(20.5), math.radians(22.0)),
+                              Settings(step=0.02, max_step=0.1))
+    edge = [p for p in crossing.points if p.special == "period_doubling"]
+    assert edge[0].values["theta_td"] == pytest.approx(math.radians(21.0), abs=1e-7)

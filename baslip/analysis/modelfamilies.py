@@ -36,31 +36,58 @@ def _scales(spec: ModelSpec, values: dict, names: tuple[str, ...]) -> np.ndarray
     return np.array([max(abs(values[n]), 0.1) for n in names])
 
 
-class _Equations:
-    """The fixed-point equations in scaled unknowns ``names`` (the rest at ``values``)."""
+class Equations:
+    """The fixed-point equations in scaled unknowns ``names`` (the rest at ``values``).
+
+    A name may be an invariant of the law (``energy``): its value is then the one the
+    equations fix it to, moved with ``v`` (so that a branch can follow the energy).
+    """
 
     def __init__(self, solver: ModelSolver, spec: ModelSpec, values: dict, names: tuple[str, ...],
                  resolution: Resolution):
+        held = [i.name for i in spec.model.invariants_of(spec.law)]
         self.solver, self.values, self.names, self.resolution = solver, dict(values), names, resolution
-        self.spec = replace(spec, fixed={k: v for k, v in spec.fixed.items() if k not in names},
-                            guess={n: values[n] for n in names})
+        quantities = tuple(n for n in names if n not in held)
+        self.invariant_names = tuple(n for n in names if n in held)
+        self.spec = replace(spec, fixed={k: v for k, v in spec.fixed.items() if k not in quantities},
+                            guess={n: values[n] for n in quantities})
         self.scales = _scales(spec, values, names)
         # The solver's columns are in the spec's order of free quantities; ours in names'.
-        self.columns = [self.spec.free.index(n) for n in names]
+        self.columns = [self.spec.free.index(n) if n in quantities else -1 for n in names]
         # The returns asked for are chosen once, at the start, for the whole family.
         self.kept = solver.kept_rows(self.spec, self.values)
+        fixed = list(self.spec.fixed_invariants)
+        self.invariant_rows = {n: len(self.kept) + fixed.index(n) for n in self.invariant_names}
 
     def point(self, v: np.ndarray) -> dict:
+        """Every quantity's value (and the moved invariants') at the scaled ``v``."""
         return {**self.values, **dict(zip(self.names, (np.asarray(v) * self.scales).tolist()))}
 
+    def spec_at(self, v: np.ndarray) -> ModelSpec:
+        """The spec with the moved invariants fixed at their values at ``v``."""
+        if not self.invariant_names:
+            return self.spec
+        at = self.point(v)
+        return replace(self.spec, fixed={**self.spec.fixed, **{n: at[n] for n in self.invariant_names}})
+
     def evaluate(self, v: np.ndarray, jacobian: bool):
-        result = self.solver.equations(self.spec, self.point(v), self.resolution, jacobian, self.kept)
+        """The equations at ``v`` and, if asked, their Jacobian in scaled ``v``; or why
+        the stride failed."""
+        spec = self.spec_at(v)
+        result = self.solver.equations(spec, self.point(v), self.resolution, jacobian, self.kept)
         if isinstance(result, str) or not jacobian:
             return result
-        return result[0], result[1][:, self.columns] * self.scales[None, :]
+        residual, by_free = result
+        columns = np.zeros((len(residual), len(self.names)))
+        for j, (name, column) in enumerate(zip(self.names, self.columns)):
+            if column >= 0:
+                columns[:, j] = by_free[:, column]
+            else:  # the row holds (E - E_fixed) / max(1, |E_fixed|): its rate in E_fixed
+                columns[self.invariant_rows[name], j] = -1.0 / max(1.0, abs(spec.fixed[name]))
+        return residual, columns * self.scales[None, :]
 
 
-class ModelBranchSystem(_Equations):
+class ModelBranchSystem(Equations):
     """:class:`baslip.numerics.continuation.System` of a described model's branch."""
 
     def residual(self, v: np.ndarray) -> np.ndarray:
@@ -76,7 +103,7 @@ class ModelBranchSystem(_Equations):
         return result[1]
 
     def multipliers(self, v: np.ndarray) -> tuple[np.ndarray, list[bool]]:
-        result = self.solver.multipliers(self.spec, self.point(v), self.resolution)
+        result = self.solver.multipliers(self.spec_at(v), self.point(v), self.resolution)
         if isinstance(result, str):
             raise CorrectionFailed(result)
         return result[0], list(result[1])
@@ -134,14 +161,15 @@ def continue_model(solver: ModelSolver, gait: ModelGait, parameter: str, bounds:
         Points from the low end to the high end, and why each side stopped.
     """
     spec = gait.spec
-    if parameter not in spec.names or parameter in spec.free:
-        raise ArgumentError("parameter", f"{parameter!r} must be a fixed quantity of the spec, "
-                                         f"not one of the free {spec.free}")
-    system = ModelBranchSystem(solver, spec, gait.values, (*spec.free, parameter), gait.resolution)
+    if parameter not in spec.fixed:
+        raise ArgumentError("parameter", f"{parameter!r} must be a fixed quantity of the spec "
+                                         f"({', '.join(spec.fixed)}), not one of the free {spec.free}")
+    values = {**gait.values, **spec.fixed_invariants}
+    system = ModelBranchSystem(solver, spec, values, (*spec.free, parameter), gait.resolution)
     scale = system.scales[-1]
     lam_range = (bounds[0] / scale, bounds[1] / scale)
     settings = replace(settings, lam_range=lam_range)
-    v0 = np.array([gait.values[n] for n in system.names]) / system.scales
+    v0 = np.array([values[n] for n in system.names]) / system.scales
     sides = [continue_branch(system, v0, direction, settings, progress=progress) for direction in (-1.0, 1.0)]
     points = [*reversed(sides[0].points[1:]), *sides[1].points]
     return ModelBranch(parameter, tuple(_branch_point(system, p) for p in points),
@@ -150,12 +178,12 @@ def continue_model(solver: ModelSolver, gait: ModelGait, parameter: str, bounds:
 
 def _branch_point(system: ModelBranchSystem, point) -> ModelBranchPoint:
     values = system.point(point.v)
-    verification = system.solver.verify(system.spec, values, system.resolution)
+    verification = system.solver.verify(system.spec_at(point.v), values, system.resolution)
     return ModelBranchPoint(values, point.multipliers, tuple(point.trivial), point.special,
                             math.inf if isinstance(verification, str) else verification)
 
 
-class ModelManifoldSystem(_Equations):
+class ModelManifoldSystem(Equations):
     """:class:`baslip.numerics.corrector.ManifoldSystem` of a described model's gaits."""
 
     def __init__(self, solver: ModelSolver, spec: ModelSpec, values: dict, resolution: Resolution):

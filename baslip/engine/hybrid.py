@@ -219,7 +219,7 @@ class HybridMap:
             if not np.all(np.isfinite(x_next)):
                 return f"the state left the finite numbers in mode {phase.mode}"
             g_new = float(phase.guard(x_next, theta))
-            if phase.direction * g_new > 0 and phase.direction * g_old < 0:
+            if phase.direction * g_new >= 0 and phase.direction * g_old < 0:
                 return self._event(phase, x, theta, step, g_old, g_new, carried, count, times, states, nodes)
             if carried is not None:
                 carried = a @ carried + np.hstack([np.zeros((len(x), carried.shape[1] - len(theta))), b])

@@ -85,7 +85,7 @@ class IndependentStride:
             states = np.array(self.chunks[mode](x0=x, p=np.append(theta, CHUNK * interval))["xf"]).T
             for x_next in states:
                 g_new = float(guard(x_next, theta))
-                if direction * g_new > 0 and direction * g_old < 0:
+                if direction * g_new >= 0 and direction * g_old < 0:
                     scale = max(1.0, abs(g_old), abs(g_new))
                     return self._locate(mode, x, theta, guard, rhs, interval, g_old, scale)
                 x, g_old = x_next, g_new

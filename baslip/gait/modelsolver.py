@@ -242,6 +242,31 @@ class ModelSolver:
             kept.remove(steepest)
         return kept
 
+    def reduced_jacobian(self, spec: ModelSpec, values: dict, jacobian: np.ndarray, kept: list[int]) -> np.ndarray:
+        """The map's Jacobian on its dynamic coordinates: the section coordinates ``kept``,
+        the others solved from the law's invariants (the map restricted to their level
+        set, whose structural multipliers 1 are gone).
+
+        Parameters
+        ----------
+        spec : ModelSpec
+            The problem.
+        values : dict
+            Every quantity's value by name.
+        jacobian : ndarray
+            d(map)/d(section coordinates) there.
+        kept : list of int
+            The dynamic coordinates (:meth:`kept_rows`).
+        """
+        if self.invariants is None:
+            return jacobian
+        section, theta = self.split(spec, values)
+        gradient = np.array(self.invariants(section, theta)[1])
+        dropped = [i for i in range(len(section)) if i not in kept]
+        # On the level set E(x_k, x_d) = const: dx_d/dx_k = -E_d^-1 E_k.
+        solved = -np.linalg.solve(gradient[:, dropped], gradient[:, kept])
+        return jacobian[np.ix_(kept, kept)] + jacobian[np.ix_(kept, dropped)] @ solved
+
     def multipliers(self, spec: ModelSpec, values: dict,
                     resolution: Resolution) -> tuple[np.ndarray, tuple[bool, ...]] | str:
         """The multipliers at ``values`` and which are 1 by structure, or why the stride failed.

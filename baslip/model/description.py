@@ -243,11 +243,14 @@ class Invariant:
         ``v(s, p, u)`` on the section mode's states, in its SI unit.
     laws : tuple of str
         The laws it holds under; every law if empty.
+    unit : str
+        Its SI unit (``"J"``).
     """
 
     name: str
     value: Expression
     laws: tuple[str, ...] = ()  # empty: under every law
+    unit: str = ""
 
 
 @dataclass(frozen=True)
@@ -392,4 +395,7 @@ class Model:
         for quantity in self.quantities(law):
             if quantity.name == name:
                 return quantity.unit
+        for invariant in self.invariants:
+            if invariant.name == name:
+                return invariant.unit
         return self.section.units.get(name, "")

@@ -16,7 +16,8 @@ Keys (values SI; a quantity in ``rad`` may be given as ``"22 deg"``, one in ``ra
     guess: {theta_td: "22 deg", push: 0.01}
     bounds: {push: [0.0, 0.1]}
     solver: {nodes: 20, tolerance: 1.0e-10}
-    continuation: {parameter: ydot, range: [3.0, 7.0], step: 0.05, max_points: 200}
+    continuation: {parameter: ydot, range: [3.0, 7.0], step: 0.05, max_points: 200,
+                   second: k, second_range: [15000, 25000], follow: [fold]}
     study: {kind: atlas, max_charts: 200, radius: 0.2}
 """
 
@@ -46,7 +47,9 @@ from baslip.problem.values import number as plain_number
 BUILT_IN = {"slip": SLIP}
 TOP_LEVEL_KEYS = ("name", "model", "law", "params", "fix", "guess", "bounds", "solver", "continuation", "study")
 SOLVER_KEYS = ("nodes", "tolerance")
-CONTINUATION_KEYS = ("parameter", "range", "step", "max_points")
+CONTINUATION_KEYS = ("parameter", "range", "step", "max_points", "second", "second_range", "follow")
+#: The bifurcation curves a continuation may follow in a second parameter.
+CURVE_KINDS = ("fold", "period_doubling", "neimark_sacker")
 STUDY_KEYS = ("kind", "max_charts", "radius")
 #: Angles and angular rates given with a unit, as a factor to SI.
 UNITS = {"rad": {"deg": math.pi / 180, "rad": 1.0}, "rad/s": {"deg/s": math.pi / 180, "rad/s": 1.0}}
@@ -54,13 +57,18 @@ UNITS = {"rad": {"deg": math.pi / 180, "rad": 1.0}, "rad/s": {"deg/s": math.pi /
 
 @dataclass(frozen=True)
 class ModelContinuation:
-    """A branch in the fixed quantity ``parameter`` over [low, high] (its unit)."""
+    """A branch in the fixed quantity ``parameter`` over [low, high] (its unit), and the
+    bifurcation curves of kinds ``follow`` from its first special point of each kind, in
+    (``parameter``, ``second``) over ``second_range``."""
 
     parameter: str
     low: float
     high: float
     step: float = 0.02
     max_points: int = 200
+    second: str = ""
+    second_range: tuple[float, float] = (0.0, 0.0)
+    follow: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -91,7 +99,8 @@ class ModelProblem:
             "solver": {"nodes": spec.nodes, "tolerance": spec.tolerance},
         }
         if self.continuation is not None:
-            record["continuation"] = vars(self.continuation).copy()
+            record["continuation"] = {k: list(v) if isinstance(v, tuple) else v
+                                      for k, v in vars(self.continuation).items()}
         if self.atlas is not None:
             record["study"] = {"kind": "atlas", **vars(self.atlas)}
         return record
@@ -245,7 +254,7 @@ def _continuation(value: Any, spec: ModelSpec) -> ModelContinuation | None:
         return None
     given = mapping(value, "continuation", CONTINUATION_KEYS)
     parameter = given.get("parameter")
-    if parameter not in spec.names or parameter in spec.free:
+    if not isinstance(parameter, str) or parameter not in spec.fixed:
         raise ProblemError("continuation.parameter", f"expected a fixed quantity of the problem, "
                                                      f"got {excerpt(parameter)} (fixed: {', '.join(spec.fixed)})")
     bounds = given.get("range")
@@ -262,7 +271,34 @@ def _continuation(value: Any, spec: ModelSpec) -> ModelContinuation | None:
         raise ProblemError("continuation.step", f"must lie in (0, 1] (scaled units), not {step:g}")
     if isinstance(points, bool) or not isinstance(points, int) or not 2 <= points <= 10_000:
         raise ProblemError("continuation.max_points", f"expected an integer in [2, 10000], got {excerpt(points)}")
-    return ModelContinuation(parameter, low, high, step, points)
+    return ModelContinuation(parameter, low, high, step, points, *_curves(given, spec, parameter))
+
+
+def _curves(given: dict, spec: ModelSpec, parameter: str) -> tuple[str, tuple[float, float], tuple[str, ...]]:
+    """The curves' second parameter, its range and the kinds followed (none if not asked)."""
+    asked = [key for key in ("second", "second_range", "follow") if key in given]
+    if not asked:
+        return "", (0.0, 0.0), ()
+    if len(asked) < 3:
+        missing = [key for key in ("second", "second_range", "follow") if key not in given]
+        raise ProblemError(f"continuation.{missing[0]}", "second, second_range and follow come together")
+    second = given["second"]
+    if second == parameter or second not in spec.fixed:
+        raise ProblemError("continuation.second", f"expected a fixed quantity other than {parameter}, "
+                                                  f"got {excerpt(second)} (fixed: {', '.join(spec.fixed)})")
+    bounds = given["second_range"]
+    if not isinstance(bounds, list) or len(bounds) != 2:
+        raise ProblemError("continuation.second_range", f"expected [low, high], got {excerpt(bounds)}")
+    low, high = (_value(v, "continuation.second_range", spec.model.unit(second, spec.law)) for v in bounds)
+    if not low < spec.fixed[second] < high:
+        raise ProblemError("continuation.second_range", f"must hold the fixed {second} = {spec.fixed[second]:g} "
+                                                        f"strictly inside [{low:g}, {high:g}]")
+    follow = given["follow"]
+    if not isinstance(follow, list) or not follow or any(k not in CURVE_KINDS for k in follow) or \
+            len(set(follow)) != len(follow):
+        raise ProblemError("continuation.follow", f"expected a list of distinct curve kinds ({', '.join(CURVE_KINDS)}), "
+                                                  f"got {excerpt(follow)}")
+    return second, (low, high), tuple(follow)
 
 
 def _study(value: Any) -> ModelAtlasStudy | None:

@@ -6,7 +6,9 @@ continuation or the atlas it asks for, and writes, all at once or not at all:
 * ``result.json``: the problem, the gait (values, multipliers, checks), and the branch's
   or atlas's summary (points, special points, stable share, why it stopped);
 * ``branch.csv`` (one row per point) and ``branch.png``, or ``charts.csv`` (one row per
-  chart centre) and ``atlas.png``.
+  chart centre) and ``atlas.png``;
+* ``curve.csv`` and ``curve.png``: the bifurcation curves a continuation follows in a
+  second parameter, from the branch's first special point of each kind.
 
 Every row carries its independent verification; the summaries count only rows verified
 to the problem's tolerance.
@@ -21,6 +23,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from baslip.analysis.atlas import AtlasSettings
+from baslip.analysis.modelcurves import ModelCurve, trace_model_curve
 from baslip.analysis.modelfamilies import ModelBranch, ModelChart, continue_model, cover_model
 from baslip.diagnostics import IN_PLACE, logger
 from baslip.files.atomic import json_text, write_files_atomically
@@ -50,6 +53,8 @@ class ModelRun:
     table : tuple of dict
         The branch's points or the atlas's chart centres, as ``branch.csv`` or
         ``charts.csv`` holds them (empty for a gait alone).
+    curves : tuple of ModelCurve
+        The bifurcation curves the continuation followed, if it asked for any.
     files : tuple of Path
         The files written (none without an output folder).
     """
@@ -60,6 +65,7 @@ class ModelRun:
     charts: tuple[ModelChart, ...]
     record: dict
     table: tuple[dict, ...] = ()
+    curves: tuple[ModelCurve, ...] = ()
     files: tuple[Path, ...] = field(default=())
 
     @property
@@ -101,6 +107,9 @@ class ModelRun:
             b = self.record["branch"]
             lines.append(f"  branch in {b['parameter']}: {b['points']} points ({b['verified']} verified), "
                          f"{b['stable']} stable; special points: {', '.join(b['special']) or 'none'}; {b['stop_reason']}")
+        for curve in self.record.get("curves", []):
+            lines.append(f"  {curve['type'].replace('_', ' ')} curve in ({curve['first']}, {curve['second']}): "
+                         f"{curve['points']} points ({curve['verified']} verified); {curve['stop_reason']}")
         if "atlas" in self.record:
             a = self.record["atlas"]
             lines.append(f"  atlas: {a['charts']} charts ({a['verified']} verified), {a['pieces']} piece(s), "
@@ -125,13 +134,17 @@ def run_model_problem(problem: ModelProblem, out: Path | None = None) -> ModelRu
     branch: ModelBranch | None = None
     charts: tuple[ModelChart, ...] = ()
     rows: list[dict] = []
+    curves: tuple[ModelCurve, ...] = ()
     if problem.continuation is not None:
         branch = _branch(solver, gait, problem, problem.continuation)
         record["branch"], rows = _branch_summary(problem, branch)
+        curves = _curves(solver, gait, problem, problem.continuation, branch)
+        if curves:
+            record["curves"] = _curves_summary(problem, curves)
     if problem.atlas is not None:
         charts, record["atlas"], rows = _atlas(solver, gait, problem, problem.atlas)
     record["wall_time_s"] = time.perf_counter() - start
-    run = ModelRun(problem, gait, branch, charts, record, tuple(rows))
+    run = ModelRun(problem, gait, branch, charts, record, tuple(rows), curves)
     if out is None:
         return run
     named: dict[Path, str | bytes] = {out / "result.json": json_text(record)}
@@ -140,6 +153,13 @@ def run_model_problem(problem: ModelProblem, out: Path | None = None) -> ModelRu
 
         table = "branch.csv" if run.kind == "branch" else "charts.csv"
         named.update({out / table: _csv(rows), out / f"{run.kind}.png": png(_figure(problem, run.kind, rows))})
+    if curves:
+        from baslip.viz.modelplots import curves_figure, png
+
+        curve_rows = _curve_rows(problem, curves)
+        named.update({out / "curve.csv": _csv(curve_rows), out / "curve.png": png(curves_figure(
+            curve_rows, curves[0].first, curves[0].second, _units(problem),
+            f"{problem.name}: bifurcation curves of {problem.spec.model.name}"))})
     write_files_atomically(named)
     return replace(run, files=tuple(named))
 
@@ -188,6 +208,38 @@ def _branch_summary(problem: ModelProblem, branch: ModelBranch) -> tuple[dict, l
         "special_points": [r for r in verified if r["special"]],
     }
     return summary, rows
+
+
+def _curves(solver: ModelSolver, gait: ModelGait, problem: ModelProblem, spec: ModelContinuation,
+            branch: ModelBranch) -> tuple[ModelCurve, ...]:
+    """Each curve asked for, from the branch's first verified special point of its kind."""
+    curves = []
+    for kind in spec.follow:
+        starts = [p for p in branch.points if p.special == kind and p.verification <= problem.spec.tolerance]
+        if not starts:
+            LOG.info("%s: no %s on the branch: no such curve", problem.name, kind.replace("_", " "))
+            continue
+        LOG.info("%s: tracing the %s curve in (%s, %s)", problem.name, kind.replace("_", " "), spec.parameter,
+                 spec.second)
+        curves.append(trace_model_curve(solver, gait, kind, (spec.parameter, spec.second),
+                                        ((spec.low, spec.high), spec.second_range), at=starts[0].values))
+    return tuple(curves)
+
+
+def _curve_rows(problem: ModelProblem, curves: tuple[ModelCurve, ...]) -> list[dict]:
+    names = (*_names(problem), *(i.name for i in problem.spec.model.invariants_of(problem.spec.law)))
+    return [{"curve": number, "type": curve.kind, **{n: p.values[n] for n in names if n in p.values},
+             "special": p.special, "verification": p.verification}
+            for number, curve in enumerate(curves) for p in curve.points]
+
+
+def _curves_summary(problem: ModelProblem, curves: tuple[ModelCurve, ...]) -> list[dict]:
+    tolerance = problem.spec.tolerance
+    return [{"type": c.kind, "first": c.first, "second": c.second, "points": len(c.points),
+             "verified": sum(p.verification <= tolerance for p in c.points), "stop_reason": c.stop_reason,
+             "codimension_two": [{"type": p.special, **{k: p.values[k] for k in (c.first, c.second)}}
+                                 for p in c.points if p.special and p.verification <= tolerance]}
+            for c in curves]
 
 
 def _figure(problem: ModelProblem, kind: str, rows: list[dict]):

@@ -71,3 +71,24 @@ def atlas_figure(rows: list[dict], x: str, y: str, units: dict, title: str):
         ax.legend(loc="best", fontsize=8)
     figure.tight_layout()
     return figure
+
+
+def curves_figure(rows: list[dict], first: str, second: str, units: dict, title: str):
+    """The bifurcation curves in the plane of their two parameters, one line per curve,
+    codimension-two points marked and named."""
+    figure, ax = plt.subplots(figsize=(6.4, 4.6))
+    for number in sorted({r["curve"] for r in rows}):
+        points = [r for r in rows if r["curve"] == number]
+        ax.plot([r[first] for r in points], [r[second] for r in points], "-",
+                label=points[0]["type"].replace("_", " "))
+        for r in points:
+            if r["special"]:
+                ax.plot(r[first], r[second], "ko", markersize=4)
+                ax.annotate(r["special"].replace("_", " "), (r[first], r[second]), fontsize=8, xytext=(4, 4),
+                            textcoords="offset points")
+    ax.set_xlabel(_label(first, units.get(first, "")))
+    ax.set_ylabel(_label(second, units.get(second, "")))
+    ax.set_title(title)
+    ax.legend(loc="best", fontsize=8)
+    figure.tight_layout()
+    return figure

@@ -95,5 +95,5 @@ SLIP = Model(
     controls=(TOUCHDOWN_ANGLE,),
     falls=(Fall("leg collapsed", "stance", lambda s, p, u: s.rho),
            Fall("mass hit the ground", "stance", lambda s, p, u: ca.cos(s.theta))),
-    invariants=(Invariant("energy", energy),),
+    invariants=(Invariant("energy", energy, unit="J"),),
 )
