@@ -11,6 +11,8 @@ BRANCHES = continuation_slip_attack continuation_downward_speed continuation_dow
            curve_slip_band curve_downward_boundary curve_downward_neimark_sacker
 # Studies that read the curves' results.
 AFTER_CURVES = stable_region_traced
+# Models of one's own (model: slip, model: models/hopper.py:HOPPER): about 1 min in all.
+MODELS = slip_attack slip_band hopper hopper_atlas
 GAITS = downward upward downward_period2 vpp vpp_human
 # The reference bodies' gaits with no guess, and which gaits exist at their cells (a minute).
 BODIES = human_pd_hanging human_pd_upright human_vpp_3ms robot_pd_hanging robot_pd_upright robot_vpp \
@@ -35,7 +37,7 @@ CONTROLLERS = controllers_downward controllers_upright controllers_vpp controlle
 .PHONY: studies clean-studies atlases controllers
 
 studies:
-	@for s in $(STUDIES) $(BRANCHES) $(AFTER_CURVES) $(VPP_STUDIES); do $(PY) -m baslip.solve problems/$$s.yaml || exit 1; done
+	@for s in $(STUDIES) $(BRANCHES) $(AFTER_CURVES) $(VPP_STUDIES) $(MODELS); do $(PY) -m baslip.solve problems/$$s.yaml || exit 1; done
 	@for g in $(GAITS) $(BODIES); do $(PY) -m baslip.solve problems/$$g.yaml || exit 1; done
 	$(PY) -m baslip.animate problems/downward.yaml problems/upward.yaml problems/vpp_human.yaml --out results/animation
 	$(PY) -m baslip.report
@@ -49,4 +51,4 @@ controllers:
 	$(PY) -m baslip.report
 
 clean-studies:
-	rm -rf $(addprefix results/,$(STUDIES) $(BRANCHES) $(AFTER_CURVES) $(VPP_STUDIES) $(BODIES)) results/animation results/REPORT.md
+	rm -rf $(addprefix results/,$(STUDIES) $(BRANCHES) $(AFTER_CURVES) $(VPP_STUDIES) $(BODIES) $(MODELS)) results/animation results/REPORT.md

@@ -18,7 +18,7 @@ Keys (values SI; a quantity in ``rad`` may be given as ``"22 deg"``, one in ``ra
     solver: {nodes: 20, tolerance: 1.0e-10}
     continuation: {parameter: ydot, range: [3.0, 7.0], step: 0.05, max_points: 200,
                    second: k, second_range: [15000, 25000], follow: [fold]}
-    study: {kind: atlas, max_charts: 200, radius: 0.2}
+    study: {kind: atlas, max_charts: 200, radius: 0.2, max_radius: 0.5}
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ SOLVER_KEYS = ("nodes", "tolerance")
 CONTINUATION_KEYS = ("parameter", "range", "step", "max_points", "second", "second_range", "follow")
 #: The bifurcation curves a continuation may follow in a second parameter.
 CURVE_KINDS = ("fold", "period_doubling", "neimark_sacker")
-STUDY_KEYS = ("kind", "max_charts", "radius")
+STUDY_KEYS = ("kind", "max_charts", "radius", "max_radius")
 #: Angles and angular rates given with a unit, as a factor to SI.
 UNITS = {"rad": {"deg": math.pi / 180, "rad": 1.0}, "rad/s": {"deg/s": math.pi / 180, "rad/s": 1.0}}
 
@@ -73,11 +73,12 @@ class ModelContinuation:
 
 @dataclass(frozen=True)
 class ModelAtlasStudy:
-    """An atlas of the gaits in the free quantities: charts at most, first radius (in
-    units of each quantity's size at the gait)."""
+    """An atlas of the gaits in the free quantities: charts at most, and the first and
+    largest radius of a chart (in units of each quantity's size at the gait)."""
 
     max_charts: int = 200
     radius: float = 0.2
+    max_radius: float = 0.5
 
 
 @dataclass(frozen=True)
@@ -314,4 +315,7 @@ def _study(value: Any) -> ModelAtlasStudy | None:
     radius = plain_number(given.get("radius", 0.2), "study.radius")
     if not 0 < radius <= 10:
         raise ProblemError("study.radius", f"must lie in (0, 10], not {radius:g}")
-    return ModelAtlasStudy(charts, radius)
+    largest = plain_number(given.get("max_radius", max(0.5, radius)), "study.max_radius")
+    if not radius <= largest <= 10:
+        raise ProblemError("study.max_radius", f"must lie in [radius, 10], not {largest:g}")
+    return ModelAtlasStudy(charts, radius, largest)

@@ -17,6 +17,7 @@ from baslip.report.atlas import SCHUR_FROM_ATLAS
 from baslip.report.beyond import branch_sections, curve_sections, upright_section
 from baslip.report.bodies import body_claims
 from baslip.report.evidence import Evidence
+from baslip.report.models import model_claims
 from baslip.report.thesis import (
     adaptive_claims,
     angle_claims,
@@ -85,6 +86,7 @@ def thesis_report(results: Path) -> str:
         ("Beyond the thesis: branches of fixed points and their bifurcations", branch_sections(ev)),
         ("Beyond the thesis: bifurcation curves in two parameters", curve_sections(ev)),
         ("Beyond the thesis: other bodies, from the body alone", body_claims(ev)),
+        ("Beyond the thesis: models of your own", model_claims(ev)),
     ]
     body = "".join(f"## {title}\n\n" + "\n".join(parts) + "\n" for title, parts in sections)
     return HEADER + verdict_table(body) + body

@@ -178,10 +178,11 @@ def _rows(values: list[dict], names: tuple[str, ...], extra: list[dict]) -> list
 
 
 def _csv(rows: list[dict]) -> str:
+    """The rows as CSV text, flags as ``true``/``false`` (as baslip's other tables)."""
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=list(rows[0]), lineterminator="\n")
     writer.writeheader()
-    writer.writerows(rows)
+    writer.writerows([{k: str(v).lower() if isinstance(v, bool) else v for k, v in row.items()} for row in rows])
     return buffer.getvalue()
 
 
@@ -263,7 +264,7 @@ def _atlas(solver: ModelSolver, gait: ModelGait, problem: ModelProblem,
     def progress(charts: int, _seeds: int) -> None:
         LOG.info("%s: atlas: %d charts", problem.name, charts, extra=IN_PLACE)
 
-    settings = AtlasSettings(radius=study.radius, max_charts=study.max_charts)
+    settings = AtlasSettings(radius=study.radius, max_radius=study.max_radius, max_charts=study.max_charts)
     atlas, charts = cover_model(solver, gait, settings, progress)
     tolerance = problem.spec.tolerance
     verified = [c for c in charts if c.verification <= tolerance]

@@ -1,0 +1,32 @@
+"""The report's section on models of one's own, read from the committed runs: the SLIP's
+band and its curves agree with the BA-SLIP limit's, and the hopper's atlas is told with
+how wide it searched."""
+
+from pathlib import Path
+
+import pytest
+
+from baslip.report.evidence import Evidence
+from baslip.report.models import model_claims
+
+RESULTS = Path(__file__).resolve().parents[1] / "results"
+
+
+@pytest.fixture(scope="module")
+def claims():
+    return model_claims(Evidence(RESULTS))
+
+
+def test_the_slips_band_and_curves_agree_with_the_ba_slip_limits(claims):
+    verdicts = [line for text in claims[:2] for line in text.splitlines() if line.startswith("- **Verdict:**")]
+    assert len(verdicts) == 2 and all(v.startswith("- **Verdict:** agrees") for v in verdicts)
+
+
+def test_the_hoppers_claim_says_how_wide_and_re_simulates_its_best_gait(claims):
+    hopper = claims[2]
+    assert "How wide: one apex height, forward speeds from 2 to 12 m/s" in hopper
+    assert "re-simulated here, eps = " in hopper and "stable chart centres at " in hopper
+
+
+def test_without_the_runs_the_section_says_not_run(tmp_path):
+    assert model_claims(Evidence(tmp_path)) == ["Not run.\n"]
