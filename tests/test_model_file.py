@@ -105,3 +105,16 @@ def test_the_shipped_band_follows_both_edges_in_the_energy():
     problem = load_any_problem(ROOT / "problems" / "slip_band.yaml")
     assert problem.continuation.second == "energy" and problem.continuation.follow == ("period_doubling", "fold")
     assert problem.continuation.second_range == (1424.8, 2224.8)
+
+
+def test_with_no_guess_every_coordinate_and_control_not_fixed_is_free_from_the_reference():
+    problem = parse({"model": "models/hopper.py:HOPPER", "params": {"m": 2.5, "l0": 0.17}, "fix": {"z": 0.17}})
+    assert problem.from_reference and problem.spec.free == ("ydot", "theta_td", "push")
+    assert problem.to_dict()["start"].startswith("the model's reference gait")
+
+
+def test_with_no_guess_a_model_without_a_reference_asks_for_one(tmp_path):
+    (tmp_path / "bare.py").write_text("from dataclasses import replace\nfrom baslip.model.catalogue.slip import SLIP\n"
+                                      "BARE = replace(SLIP, reference={})\n")
+    with pytest.raises(ProblemError, match=r"guess: model slip names no reference gait"):
+        parse({"model": "bare.py:BARE", "fix": {"z": 1.0, "theta_td": 0.4}}, tmp_path)

@@ -91,3 +91,8 @@ def test_a_solver_failure_is_a_run_error_not_a_result(problems):
                     "guess: {push: 0.01}\n")
     with pytest.raises(RunError):
         baslip.run_model(path, progress=False)
+
+
+def test_a_problem_with_no_guess_starts_from_the_models_reference(problems, tmp_path):
+    run = baslip.run(problems / "hopper_robot.yaml", tmp_path / "robot", progress=False)
+    assert run.gait.verification <= 1e-10 and run.record["problem"]["start"].startswith("the model's reference")

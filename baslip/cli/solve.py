@@ -219,6 +219,12 @@ def _run_model(problem: ModelProblem, args) -> int:
     except RunError as err:
         print(f"error: {problem.name}: {err}", file=sys.stderr)
         return EXIT_NOT_CONVERGED
+    except KeyboardInterrupt:
+        print(f"{problem.name}: interrupted", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
+    except Exception as err:  # a bug, not a result: one line, and nothing written
+        print(failure_line(problem.name, err, out_dir), file=sys.stderr)
+        return EXIT_NOT_CONVERGED
     if not args.quiet:
         print(run.summary())
         print(f"  wrote {', '.join(str(path) for path in run.files)}")

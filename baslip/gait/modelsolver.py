@@ -328,13 +328,28 @@ class ModelSolver:
         """
         start = time.perf_counter()
         values = spec.values()
-        resolution = calibrated_resolution(self.map, *self.split(spec, values), spec.tolerance)
+        resolution = self.calibrated(spec, values)
         first = self.map.stride(*self.split(spec, values), resolution, nodes=True)
         if not first.ok:
             self._refuse_start(first.failure)
         values, status = self._shooting(spec, values, first)
         values = self._newton(spec, values, resolution)
         return self._verified(spec, values, resolution, status, time.perf_counter() - start)
+
+    def calibrated(self, spec: ModelSpec, values: dict) -> Resolution:
+        """The resolution at which a stride from ``values`` holds the spec's tolerance
+        (:func:`baslip.engine.hybrid.calibrated_resolution`), its first scout a sixteenth
+        of the body's time scale.
+
+        Parameters
+        ----------
+        spec : ModelSpec
+            The problem.
+        values : dict
+            Every quantity's value by name.
+        """
+        first = spec.model.time_scale(values) / 16
+        return calibrated_resolution(self.map, *self.split(spec, values), spec.tolerance, first=first)
 
     def _refuse_start(self, failure: str) -> None:
         if "never fired" in failure:

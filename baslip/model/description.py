@@ -25,6 +25,8 @@ from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from baslip.errors import ProblemError
 
 #: A description's function of named symbols: ``f(s, p, u)``.
@@ -181,6 +183,9 @@ class Section:
         in exactly one of ``coordinates``, ``cyclic`` and ``pinned``.
     units : mapping of str to str
         The SI unit of each coordinate (``"rad"`` lets a problem file give degrees).
+    dimensions : mapping of str to (float, float, float)
+        Each coordinate's exponents of mass, length and time (``ydot``: (0, 1, -1)), by
+        which a body of another size scales it; (0, 0, 0) where not given.
     """
 
     mode: str
@@ -190,6 +195,7 @@ class Section:
     cyclic: tuple[str, ...] = ()
     pinned: Mapping[str, float] = field(default_factory=dict)
     units: Mapping[str, str] = field(default_factory=dict)
+    dimensions: Mapping[str, tuple[float, float, float]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -245,12 +251,15 @@ class Invariant:
         The laws it holds under; every law if empty.
     unit : str
         Its SI unit (``"J"``).
+    dimension : tuple of three floats
+        Its exponents of mass, length and time (energy: (1, 2, -2)).
     """
 
     name: str
     value: Expression
     laws: tuple[str, ...] = ()  # empty: under every law
     unit: str = ""
+    dimension: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -281,6 +290,10 @@ class Model:
         Conserved quantities, each a structural multiplier of 1.
     description : str
         One line on what the model is.
+    reference : mapping of str to float
+        A known gait under the first law at the default parameters: its section
+        coordinates and controls. A problem with no guess starts from it, carried to its
+        own body and fixed values (:mod:`baslip.analysis.modelstart`).
     """
 
     name: str
@@ -294,6 +307,7 @@ class Model:
     falls: tuple[Fall, ...] = ()
     invariants: tuple[Invariant, ...] = ()
     description: str = ""
+    reference: Mapping[str, float] = field(default_factory=dict)
 
     def __repr__(self) -> str:
         return (f"<Model {self.name}: modes {' -> '.join(self.order)}, laws {[law.name for law in self.laws]}, "
@@ -381,6 +395,44 @@ class Model:
             The law's name (the first if None).
         """
         return (*self.controls_of(law), *self.parameters)
+
+    def dimension(self, name: str, law: str | None = None) -> tuple[float, float, float]:
+        """The exponents of mass, length and time of a section coordinate, a control, a
+        parameter or an invariant ((0, 0, 0) if none is given).
+
+        Parameters
+        ----------
+        name : str
+            The quantity's name.
+        law : str, optional
+            The law whose controls count (the first if None).
+        """
+        for quantity in self.quantities(law):
+            if quantity.name == name:
+                return quantity.dimension
+        for invariant in self.invariants:
+            if invariant.name == name:
+                return invariant.dimension
+        return self.section.dimensions.get(name, (0.0, 0.0, 0.0))
+
+    def time_scale(self, values: Mapping[str, float]) -> float:
+        """A characteristic time [s] of the body ``values`` gives: the product of powers
+        of the parameters whose dimension is time (sqrt(l0/g) for a SLIP), by least
+        squares over their dimensions; 1 s if no parameter has a dimension.
+
+        Parameters
+        ----------
+        values : mapping of str to float
+            The parameters' values by name.
+        """
+        used = [q for q in self.parameters if any(q.dimension) and values.get(q.name, q.default) > 0]
+        if not used:
+            return 1.0
+        matrix = np.array([q.dimension for q in used], dtype=float).T
+        powers = np.linalg.lstsq(matrix, np.array([0.0, 0.0, 1.0]), rcond=None)[0]
+        if not np.allclose(matrix @ powers, [0.0, 0.0, 1.0], atol=1e-9):
+            return 1.0
+        return float(np.exp(sum(p * np.log(values.get(q.name, q.default)) for p, q in zip(powers, used))))
 
     def unit(self, name: str, law: str | None = None) -> str:
         """The SI unit of a section coordinate, a control or a parameter ("" if none is given).

@@ -13,7 +13,7 @@ Keys (values SI; a quantity in ``rad`` may be given as ``"22 deg"``, one in ``ra
     law: push at the bottom              # the model's first law if left out
     params: {m: 80.0, k: 20000.0}        # parameter values (the rest keep their defaults)
     fix: {z: 1.0, ydot: 5.0}             # section coordinates, controls, invariants
-    guess: {theta_td: "22 deg", push: 0.01}
+    guess: {theta_td: "22 deg", push: 0.01}  # no guess: from the model's reference gait
     bounds: {push: [0.0, 0.1]}
     solver: {nodes: 20, tolerance: 1.0e-10}
     continuation: {parameter: ydot, range: [3.0, 7.0], step: 0.05, max_points: 200,
@@ -90,6 +90,9 @@ class ModelProblem:
     spec: ModelSpec
     continuation: ModelContinuation | None = None
     atlas: ModelAtlasStudy | None = None
+    #: No ``guess``: every section coordinate and control not fixed is free, and the solve
+    #: starts from the model's reference gait carried to the problem.
+    from_reference: bool = False
 
     def to_dict(self) -> dict:
         """The problem as plain data (SI units), for a result's provenance."""
@@ -104,6 +107,8 @@ class ModelProblem:
                                       for k, v in vars(self.continuation).items()}
         if self.atlas is not None:
             record["study"] = {"kind": "atlas", **vars(self.atlas)}
+        if self.from_reference:
+            record["start"] = "the model's reference gait, carried to the problem"
         return record
 
 
@@ -188,14 +193,26 @@ def parse_model_problem(data: Any, default_name: str = "problem", folder: Path =
     model_functions(model, law_name)  # a description that cannot run is refused here, naming the part
     fixed = {**_values(top.get("params", {}), "params", model, law_name),
              **_values(top.get("fix", {}), "fix", model, law_name)}
-    guess = _values(top.get("guess", {}), "guess", model, law_name)
+    from_reference = "guess" not in top
+    guess = _values(top["guess"], "guess", model, law_name) if not from_reference else _unguessed(model, law_name, fixed)
     solver = mapping(top.get("solver", {}), "solver", SOLVER_KEYS)
     spec = _spec(model, law_name, fixed, guess, _bounds(top.get("bounds", {}), model, law_name), solver)
     name = top.get("name", default_name)
     if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9_.-]+", name):
         raise ProblemError("name", f"expected a plain name (letters, digits, _ . -), got {excerpt(name)}")
     return ModelProblem(name, str(top["model"]), spec, _continuation(top.get("continuation"), spec),
-                        _study(top.get("study")))
+                        _study(top.get("study")), from_reference)
+
+
+def _unguessed(model: Model, law: str, fixed: dict[str, float]) -> dict[str, float]:
+    """With no guess: every section coordinate and control not fixed is free, at its
+    reference value (or default) until the reference gait is carried to the problem."""
+    if not model.reference or model.law(law).name != model.laws[0].name:
+        raise ProblemError("guess", f"model {model.name} names no reference gait under this law to start from: "
+                                    "give a guess")
+    defaults = {q.name: q.default for q in model.controls_of(law)}
+    names = (*model.section.coordinates, *defaults)
+    return {n: float(model.reference.get(n, defaults.get(n, 0.0))) for n in names if n not in fixed}
 
 
 def _value(value: Any, key: str, unit: str) -> float:

@@ -25,6 +25,7 @@ from pathlib import Path
 from baslip.analysis.atlas import AtlasSettings
 from baslip.analysis.modelcurves import ModelCurve, trace_model_curve
 from baslip.analysis.modelfamilies import ModelBranch, ModelChart, continue_model, cover_model
+from baslip.analysis.modelstart import reference_start
 from baslip.diagnostics import IN_PLACE, logger
 from baslip.files.atomic import json_text, write_files_atomically
 from baslip.gait.modelsolver import ModelGait, ModelSolver
@@ -128,8 +129,13 @@ def run_model_problem(problem: ModelProblem, out: Path | None = None) -> ModelRu
     """
     start = time.perf_counter()
     solver = ModelSolver(problem.spec)
-    LOG.info("%s: solving the gait of model %s", problem.name, problem.spec.model.name)
-    gait = solver.solve(problem.spec)
+    spec = problem.spec
+    if problem.from_reference:
+        LOG.info("%s: carrying model %s's reference gait to the problem", problem.name, spec.model.name)
+        carried = reference_start(solver, spec)
+        spec = replace(spec, guess={n: carried[n] for n in spec.free})
+    LOG.info("%s: solving the gait of model %s", problem.name, spec.model.name)
+    gait = solver.solve(spec)
     record: dict = {"problem": problem.to_dict(), "gait": gait.to_dict()}
     branch: ModelBranch | None = None
     charts: tuple[ModelChart, ...] = ()

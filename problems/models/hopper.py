@@ -59,8 +59,9 @@ HOPPER = Model(
                  Transition("compression", "decompression", lambda s, p, u: s.rhodot, +1, None, "bottom"),
                  Transition("decompression", "flight", leg_force, -1, takeoff, "liftoff")),
     section=Section("flight", lambda s, p, u: s.zdot, -1, ("z", "ydot"), cyclic=("y",), pinned={"zdot": 0.0},
-                    units={"z": "m", "ydot": "m/s"}),
+                    units={"z": "m", "ydot": "m/s"}, dimensions={"z": (0, 1, 0), "ydot": (0, 1, -1)}),
     controls=(Quantity("theta_td", "rad", 0.38, -1.2, 1.2), Quantity("push", "m", 0.01, -0.2, 0.2, (0, 1, 0))),
     laws=(ControlLaw("push at the bottom"),),
     falls=(Fall("mass hit the ground", "compression", lambda s, p, u: ca.cos(s.theta)),),
+    reference={"z": 1.0, "ydot": 5.0, "theta_td": 0.390127, "push": 0.022457},  # a hop at 5 m/s
 )
