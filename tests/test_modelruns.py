@@ -96,3 +96,16 @@ def test_a_solver_failure_is_a_run_error_not_a_result(problems):
 def test_a_problem_with_no_guess_starts_from_the_models_reference(problems, tmp_path):
     run = baslip.run(problems / "hopper_robot.yaml", tmp_path / "robot", progress=False)
     assert run.gait.verification <= 1e-10 and run.record["problem"]["start"].startswith("the model's reference")
+
+
+def test_a_controllers_study_measures_each_controllers_basin(problems, tmp_path):
+    small = problems / "small_controllers.yaml"
+    small.write_text((problems / "hopper_controllers.yaml").read_text().replace("grid: 9", "grid: 3").replace(
+        "strides: 30", "strides: 40"))
+    run = baslip.run_model(small, tmp_path / "basins", progress=False)
+    shares = {c["name"]: c for c in run.record["controllers"]["controllers"]}
+    assert set(shares) == {"constant", "deadbeat", "lqr"} and shares["constant"]["returned"] == 1
+    assert shares["deadbeat"]["returned"] > 1 and shares["deadbeat"]["interval"][0] < shares["deadbeat"]["share"]
+    rows = run.rows()
+    assert len(rows) == 27 and {r["controller"] for r in rows} == set(shares)
+    assert sorted(p.name for p in (tmp_path / "basins").iterdir()) == ["basins.csv", "basins.png", "result.json"]

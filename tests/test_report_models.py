@@ -30,3 +30,8 @@ def test_the_hoppers_claim_says_how_wide_and_re_simulates_its_best_gait(claims):
 
 def test_without_the_runs_the_section_says_not_run(tmp_path):
     assert model_claims(Evidence(tmp_path)) == ["Not run.\n"]
+
+
+def test_the_hoppers_controllers_are_told_with_their_intervals(claims):
+    controllers = claims[3]
+    assert "deadbeat" in controllers and "95 % Wilson intervals" in controllers

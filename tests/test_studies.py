@@ -504,7 +504,7 @@ def test_the_pivot_feedback_moves_the_vpp_pivot_alone_and_brings_back_starts_the
 
 
 def test_the_wilson_interval_holds_its_share_and_narrows_with_samples():
-    from baslip.studies.controllers import wilson_interval
+    from baslip.numerics.intervals import wilson_interval
 
     for samples in (10, 1000, 4000, 20000):  # all or none of the starts: the ends are exact
         assert wilson_interval(0, samples)[0] == 0.0 and wilson_interval(samples, samples)[1] == 1.0

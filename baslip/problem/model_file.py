@@ -19,6 +19,7 @@ Keys (values SI; a quantity in ``rad`` may be given as ``"22 deg"``, one in ``ra
     continuation: {parameter: ydot, range: [3.0, 7.0], step: 0.05, max_points: 200,
                    second: k, second_range: [15000, 25000], follow: [fold]}
     study: {kind: atlas, max_charts: 200, radius: 0.2, max_radius: 0.5}
+    study: {kind: controllers, grid: 9, spread: 0.2, strides: 30}
 """
 
 from __future__ import annotations
@@ -50,7 +51,9 @@ SOLVER_KEYS = ("nodes", "tolerance")
 CONTINUATION_KEYS = ("parameter", "range", "step", "max_points", "second", "second_range", "follow")
 #: The bifurcation curves a continuation may follow in a second parameter.
 CURVE_KINDS = ("fold", "period_doubling", "neimark_sacker")
-STUDY_KEYS = ("kind", "max_charts", "radius", "max_radius")
+STUDY_KEYS = ("kind", "max_charts", "radius", "max_radius", "grid", "spread", "strides")
+#: The keys of each study kind of a described model.
+KIND_KEYS = {"atlas": ("kind", "max_charts", "radius", "max_radius"), "controllers": ("kind", "grid", "spread", "strides")}
 #: Angles and angular rates given with a unit, as a factor to SI.
 UNITS = {"rad": {"deg": math.pi / 180, "rad": 1.0}, "rad/s": {"deg/s": math.pi / 180, "rad/s": 1.0}}
 
@@ -82,6 +85,17 @@ class ModelAtlasStudy:
 
 
 @dataclass(frozen=True)
+class ModelControllersStudy:
+    """The gait's stride-to-stride controllers compared by their measured basins: starts
+    on a ``grid`` x ``grid`` square within ``spread`` (relative) of the gait's first two
+    section coordinates, each run ``strides`` strides."""
+
+    grid: int = 9
+    spread: float = 0.2
+    strides: int = 30
+
+
+@dataclass(frozen=True)
 class ModelProblem:
     """A validated problem of a described model."""
 
@@ -90,6 +104,7 @@ class ModelProblem:
     spec: ModelSpec
     continuation: ModelContinuation | None = None
     atlas: ModelAtlasStudy | None = None
+    controllers: ModelControllersStudy | None = None
     #: No ``guess``: every section coordinate and control not fixed is free, and the solve
     #: starts from the model's reference gait carried to the problem.
     from_reference: bool = False
@@ -107,6 +122,8 @@ class ModelProblem:
                                       for k, v in vars(self.continuation).items()}
         if self.atlas is not None:
             record["study"] = {"kind": "atlas", **vars(self.atlas)}
+        if self.controllers is not None:
+            record["study"] = {"kind": "controllers", **vars(self.controllers)}
         if self.from_reference:
             record["start"] = "the model's reference gait, carried to the problem"
         return record
@@ -200,8 +217,10 @@ def parse_model_problem(data: Any, default_name: str = "problem", folder: Path =
     name = top.get("name", default_name)
     if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9_.-]+", name):
         raise ProblemError("name", f"expected a plain name (letters, digits, _ . -), got {excerpt(name)}")
+    study = _study(top.get("study"))
     return ModelProblem(name, str(top["model"]), spec, _continuation(top.get("continuation"), spec),
-                        _study(top.get("study")), from_reference)
+                        study if isinstance(study, ModelAtlasStudy) else None,
+                        study if isinstance(study, ModelControllersStudy) else None, from_reference)
 
 
 def _unguessed(model: Model, law: str, fixed: dict[str, float]) -> dict[str, float]:
@@ -319,13 +338,16 @@ def _curves(given: dict, spec: ModelSpec, parameter: str) -> tuple[str, tuple[fl
     return second, (low, high), tuple(follow)
 
 
-def _study(value: Any) -> ModelAtlasStudy | None:
+def _study(value: Any) -> ModelAtlasStudy | ModelControllersStudy | None:
     if value is None:
         return None
-    given = mapping(value, "study", STUDY_KEYS)
-    if given.get("kind") != "atlas":
-        raise ProblemError("study.kind", f"{excerpt(given.get('kind'))}: a described model's problem runs a gait, "
-                                         "a continuation or a study of kind atlas (the other kinds are the BA-SLIP's)")
+    kind = mapping(value, "study", STUDY_KEYS).get("kind")
+    if kind not in KIND_KEYS:
+        raise ProblemError("study.kind", f"{excerpt(kind)}: a described model's problem runs a gait, a continuation "
+                                         "or a study of kind atlas or controllers (the other kinds are the BA-SLIP's)")
+    given = mapping(value, "study", KIND_KEYS[kind])
+    if kind == "controllers":
+        return _controllers_study(given)
     charts = given.get("max_charts", 200)
     if isinstance(charts, bool) or not isinstance(charts, int) or not 1 <= charts <= 100_000:
         raise ProblemError("study.max_charts", f"expected an integer in [1, 100000], got {excerpt(charts)}")
@@ -336,3 +358,14 @@ def _study(value: Any) -> ModelAtlasStudy | None:
     if not radius <= largest <= 10:
         raise ProblemError("study.max_radius", f"must lie in [radius, 10], not {largest:g}")
     return ModelAtlasStudy(charts, radius, largest)
+
+
+def _controllers_study(given: dict) -> ModelControllersStudy:
+    grid, strides = given.get("grid", 9), given.get("strides", 30)
+    for key, count, most in (("grid", grid, 101), ("strides", strides, 10_000)):
+        if isinstance(count, bool) or not isinstance(count, int) or not 2 <= count <= most:
+            raise ProblemError(f"study.{key}", f"expected an integer in [2, {most}], got {excerpt(count)}")
+    spread = plain_number(given.get("spread", 0.2), "study.spread")
+    if not 0 < spread < 1:
+        raise ProblemError("study.spread", f"must lie in (0, 1) (relative to the gait), not {spread:g}")
+    return ModelControllersStudy(grid, spread, strides)

@@ -19,15 +19,15 @@ from baslip.report.evidence import DEG, Evidence, claim
 #: The SLIP's runs and the BA-SLIP limit's runs they are set against.
 SLIP_BRANCH, SLIP_LIMIT_BRANCH = "slip_attack", "continuation_slip_attack"
 SLIP_CURVES, SLIP_LIMIT_CURVES = "slip_band", "curve_slip_band"
-#: The guide's hopper, covered at one height.
-HOPPER_ATLAS = "hopper_atlas"
+#: The guide's hopper, covered at one height, and its controllers.
+HOPPER_ATLAS, HOPPER_CONTROLLERS = "hopper_atlas", "hopper_controllers"
 #: The independent stride's grid [s] when re-simulating a quoted point.
 CHECK_GRID = 0.005
 
 
 def model_claims(ev: Evidence) -> list[str]:
     """The SLIP's band against the BA-SLIP limit's, and the hopper's atlas."""
-    claims = _slip_band_claim(ev) + _slip_curves_claim(ev) + _hopper_claim(ev)
+    claims = _slip_band_claim(ev) + _slip_curves_claim(ev) + _hopper_claim(ev) + _controllers_claim(ev)
     return claims or ["Not run.\n"]
 
 
@@ -136,3 +136,28 @@ def _hopper_claim(ev: Evidence) -> list[str]:
         (f"{HOPPER_ATLAS}/atlas.png",),
     )]
 
+
+
+def _controllers_claim(ev: Evidence) -> list[str]:
+    summary = ev.summary(HOPPER_CONTROLLERS)
+    if summary is None or "controllers" not in summary:
+        return []
+    study = summary["controllers"]
+    parts = [f"{c['name']} {c['returned']} of {c['starts']} ({100 * c['interval'][0]:.0f}-"
+             f"{100 * c['interval'][1]:.0f} %, closed-loop radius {c['spectral_radius']:.3g})"
+             for c in study["controllers"]]
+    gait = summary["gait"]
+    return [claim(
+        "Controllers with measured basins, for a model written by a user",
+        "not in the thesis.",
+        f"The guide's hopper at 1 m and 5 m/s, an unstable gait (spectral radius {gait['spectral_radius']:.4f}, "
+        f"verified to {gait['verification']:.1e}); its controllers on the touchdown angle and the push, each run "
+        f"{study['strides']} strides from a {study['grid']} x {study['grid']} grid within "
+        f"{100 * study['spread']:.0f} % of the apex height and speed, returned within {study['returned_within']:g}: "
+        f"{'; '.join(parts)} (95 % Wilson intervals).",
+        "beyond the thesis: feedback designed from a description's exact Jacobians stabilises its unstable gait",
+        "How wide: one gait, one grid in the two section coordinates, the law's two controls. A start below the "
+        "touchdown height cannot land at the gait's angle, whatever the first stride's correction, which bounds "
+        "every basin at small heights.",
+        (f"{HOPPER_CONTROLLERS}/basins.png",),
+    )]

@@ -8,7 +8,9 @@ continuation or the atlas it asks for, and writes, all at once or not at all:
 * ``branch.csv`` (one row per point) and ``branch.png``, or ``charts.csv`` (one row per
   chart centre) and ``atlas.png``;
 * ``curve.csv`` and ``curve.png``: the bifurcation curves a continuation follows in a
-  second parameter, from the branch's first special point of each kind.
+  second parameter, from the branch's first special point of each kind;
+* ``basins.csv`` (one row per controller and start) and ``basins.png``: the gait's
+  stride-to-stride controllers and their measured basins.
 
 Every row carries its independent verification; the summaries count only rows verified
 to the problem's tolerance.
@@ -23,6 +25,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from baslip.analysis.atlas import AtlasSettings
+from baslip.analysis.modelcontrol import RETURNED, basin, design, grid_starts
 from baslip.analysis.modelcurves import ModelCurve, trace_model_curve
 from baslip.analysis.modelfamilies import ModelBranch, ModelChart, continue_model, cover_model
 from baslip.analysis.modelstart import reference_start
@@ -30,7 +33,8 @@ from baslip.diagnostics import IN_PLACE, logger
 from baslip.files.atomic import json_text, write_files_atomically
 from baslip.gait.modelsolver import ModelGait, ModelSolver
 from baslip.numerics.continuation import Settings
-from baslip.problem.model_file import ModelAtlasStudy, ModelContinuation, ModelProblem
+from baslip.numerics.intervals import wilson_interval
+from baslip.problem.model_file import ModelAtlasStudy, ModelContinuation, ModelControllersStudy, ModelProblem
 
 LOG = logger(__name__)
 
@@ -71,8 +75,10 @@ class ModelRun:
 
     @property
     def kind(self) -> str:
-        """``branch``, ``atlas`` or ``gait``: what the run holds besides its gait."""
-        return "branch" if self.branch is not None else "atlas" if self.problem.atlas is not None else "gait"
+        """``branch``, ``atlas``, ``basins`` or ``gait``: what the run holds besides its gait."""
+        if self.branch is not None:
+            return "branch"
+        return "atlas" if self.problem.atlas is not None else "basins" if self.problem.controllers else "gait"
 
     def rows(self) -> list[dict]:
         """The branch's points or the atlas's chart centres (values by name, spectral
@@ -111,6 +117,10 @@ class ModelRun:
         for curve in self.record.get("curves", []):
             lines.append(f"  {curve['type'].replace('_', ' ')} curve in ({curve['first']}, {curve['second']}): "
                          f"{curve['points']} points ({curve['verified']} verified); {curve['stop_reason']}")
+        for c in self.record.get("controllers", {}).get("controllers", []):
+            lines.append(f"  {c['name']}: closed-loop spectral radius {c['spectral_radius']:.4g}; basin "
+                         f"{c['returned']} of {c['starts']} starts ({100 * c['share']:.0f} %, 95 % interval "
+                         f"{100 * c['interval'][0]:.0f}-{100 * c['interval'][1]:.0f} %)")
         if "atlas" in self.record:
             a = self.record["atlas"]
             lines.append(f"  atlas: {a['charts']} charts ({a['verified']} verified), {a['pieces']} piece(s), "
@@ -149,6 +159,8 @@ def run_model_problem(problem: ModelProblem, out: Path | None = None) -> ModelRu
             record["curves"] = _curves_summary(problem, curves)
     if problem.atlas is not None:
         charts, record["atlas"], rows = _atlas(solver, gait, problem, problem.atlas)
+    if problem.controllers is not None:
+        record["controllers"], rows = _controllers(solver, gait, problem, problem.controllers)
     record["wall_time_s"] = time.perf_counter() - start
     run = ModelRun(problem, gait, branch, charts, record, tuple(rows), curves)
     if out is None:
@@ -157,7 +169,7 @@ def run_model_problem(problem: ModelProblem, out: Path | None = None) -> ModelRu
     if rows:
         from baslip.viz.modelplots import png
 
-        table = "branch.csv" if run.kind == "branch" else "charts.csv"
+        table = {"branch": "branch.csv", "atlas": "charts.csv", "basins": "basins.csv"}[run.kind]
         named.update({out / table: _csv(rows), out / f"{run.kind}.png": png(_figure(problem, run.kind, rows))})
     if curves:
         from baslip.viz.modelplots import curves_figure, png
@@ -249,11 +261,39 @@ def _curves_summary(problem: ModelProblem, curves: tuple[ModelCurve, ...]) -> li
             for c in curves]
 
 
+def _controllers(solver: ModelSolver, gait: ModelGait, problem: ModelProblem,
+                 study: ModelControllersStudy) -> tuple[dict, list[dict]]:
+    """Each controller's closed-loop multipliers and its measured basin, and the rows of
+    every start (``basins.csv``)."""
+    starts = grid_starts(gait, study.spread, study.grid)
+    coordinates = problem.spec.model.section.coordinates
+    summary, rows = [], []
+    for controller in design(solver, gait):
+        def progress(done: int, name: str = controller.name) -> None:
+            LOG.info("%s: %s: %d of %d starts", problem.name, name, done, len(starts), extra=IN_PLACE)
+
+        outcomes = basin(solver, gait, controller, starts, study.strides, progress)
+        returned = sum(ok for ok, _ in outcomes)
+        summary.append({"name": controller.name, "controls": list(controller.controls),
+                        "gain": controller.gain.tolist(), "spectral_radius": controller.spectral_radius,
+                        "multipliers": [[float(m.real), float(m.imag)] for m in controller.multipliers],
+                        "starts": len(starts), "returned": returned, "share": returned / len(starts),
+                        "interval": list(wilson_interval(returned, len(starts)))})
+        rows += [{"controller": controller.name, **dict(zip(coordinates, start.tolist())), "returned": ok,
+                  "strides": taken} for start, (ok, taken) in zip(starts, outcomes)]
+    record = {"grid": study.grid, "spread": study.spread, "strides": study.strides,
+              "returned_within": RETURNED, "controllers": summary}
+    return record, rows
+
+
 def _figure(problem: ModelProblem, kind: str, rows: list[dict]):
-    """The branch's or the atlas's figure from its rows."""
-    from baslip.viz.modelplots import atlas_figure, branch_figure
+    """The branch's, the atlas's or the basins' figure from its rows."""
+    from baslip.viz.modelplots import atlas_figure, basins_figure, branch_figure
 
     spec, units = problem.spec, _units(problem)
+    if kind == "basins":
+        x, y = spec.model.section.coordinates[:2]
+        return basins_figure(rows, x, y, units, f"{problem.name}: basins of {spec.model.name}'s controllers")
     free = spec.free
     if kind == "branch" and problem.continuation is not None:
         quantity = free[0] if free else spec.model.section.coordinates[0]

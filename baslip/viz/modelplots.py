@@ -92,3 +92,24 @@ def curves_figure(rows: list[dict], first: str, second: str, units: dict, title:
     ax.legend(loc="best", fontsize=8)
     figure.tight_layout()
     return figure
+
+
+def basins_figure(rows: list[dict], x: str, y: str, units: dict, title: str):
+    """One panel per controller: its grid of starts in (``x``, ``y``), those that returned
+    to the gait filled, the others open."""
+    names = list(dict.fromkeys(r["controller"] for r in rows))
+    figure, axes = plt.subplots(1, len(names), figsize=(3.4 * len(names), 3.6), sharex=True, sharey=True,
+                                squeeze=False)
+    for ax, name in zip(axes[0], names):
+        mine = [r for r in rows if r["controller"] == name]
+        back = [r for r in mine if r["returned"]]
+        ax.scatter([r[x] for r in mine], [r[y] for r in mine], facecolors="none", edgecolors="0.6", s=16,
+                   label="falls or strays")
+        ax.scatter([r[x] for r in back], [r[y] for r in back], color="C0", s=16, label="returns")
+        ax.set_title(f"{name}: {len(back)} of {len(mine)}", fontsize=9)
+        ax.set_xlabel(_label(x, units.get(x, "")))
+    axes[0][0].set_ylabel(_label(y, units.get(y, "")))
+    axes[0][0].legend(loc="best", fontsize=7)
+    figure.suptitle(title)
+    figure.tight_layout()
+    return figure
