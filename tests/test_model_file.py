@@ -59,7 +59,15 @@ def test_the_ba_slip_reader_sends_a_described_model_elsewhere():
     ({"bounds": {"push": 0.1}}, "bounds.push", "expected [low, high]"),
     ({"solver": {"nodes": 1}}, "solver.nodes", "at least 2"),
     ({"solver": {"tolerance": 1.0}}, "solver.tolerance", "must lie in"),
-    ({"study": {"kind": "grid"}}, "study.kind", "runs a gait, a continuation or a study of kind atlas or controllers"),
+    ({"study": {"kind": "grid"}}, "study.kind", "runs a gait, a continuation or a study of kind atlas, controllers"),
+    ({"study": {"kind": "sweep", "sweep": {"push": [0.1]}}}, "study.sweep.push", "expected a fixed quantity"),
+    ({"study": {"kind": "sweep", "sweep": {"ydot": {"from": 3, "to": 7, "count": 1}}}}, "study.sweep.ydot.count",
+     "at least 2"),
+    ({"fix": {"z": 1.0, "ydot": 5.0, "theta_td": 0.4}, "guess": {"push": 0.01},
+      "study": {"kind": "sweep", "sweep": {"theta_td": [0.4, 3.0]}}}, "study.sweep.theta_td", "outside theta_td's range"),
+    ({"study": {"kind": "sweep", "sweep": {"ydot": [3], "z": [1], "k": [1]}}}, "study.sweep", "one or two"),
+    ({"study": {"kind": "sweep", "sweep": {"ydot": {"from": 1, "to": 9, "count": 101},
+                                           "z": {"from": 1, "to": 2, "count": 101}}}}, "study.sweep", "at most"),
     ({"study": {"kind": "controllers", "grid": 1}}, "study.grid", "expected an integer in [2, 101]"),
     ({"study": {"kind": "controllers", "spread": 1.5}}, "study.spread", "must lie in (0, 1)"),
     ({"study": {"kind": "controllers", "max_charts": 9}}, "study.max_charts", "unknown key"),
@@ -121,3 +129,12 @@ def test_with_no_guess_a_model_without_a_reference_asks_for_one(tmp_path):
                                       "BARE = replace(SLIP, reference={})\n")
     with pytest.raises(ProblemError, match=r"guess: model slip names no reference gait"):
         parse({"model": "bare.py:BARE", "fix": {"z": 1.0, "theta_td": 0.4}}, tmp_path)
+
+
+def test_a_sweep_reads_lists_and_spacings_in_each_quantitys_unit():
+    problem = parse({**HOPPER, "fix": {"z": 1.0, "ydot": 5.0, "theta_td": 0.4}, "guess": {"push": 0.01},
+                     "study": {"kind": "sweep", "sweep": {"ydot": {"from": 3, "to": 7, "count": 5},
+                                                          "theta_td": ["20 deg", "25 deg"]}}})
+    axes = dict(problem.sweep.axes)
+    assert axes["ydot"] == (3.0, 4.0, 5.0, 6.0, 7.0) and axes["theta_td"] == pytest.approx((0.349066, 0.436332), abs=1e-6)
+    assert problem.sweep.points == 10

@@ -109,3 +109,15 @@ def test_a_controllers_study_measures_each_controllers_basin(problems, tmp_path)
     rows = run.rows()
     assert len(rows) == 27 and {r["controller"] for r in rows} == set(shares)
     assert sorted(p.name for p in (tmp_path / "basins").iterdir()) == ["basins.csv", "basins.png", "result.json"]
+
+
+def test_a_sweep_solves_each_point_from_its_neighbour_and_verifies_it(problems, tmp_path):
+    small = problems / "small_sweep.yaml"
+    small.write_text((problems / "hopper_sweep.yaml").read_text().replace("count: 5", "count: 2").replace(
+        "count: 9", "count: 3"))
+    run = baslip.run_model(small, tmp_path / "sweep", progress=False)
+    rows = run.rows()
+    assert len(rows) == 6 and all(r["status"] == "verified" and r["verification"] <= 1e-10 for r in rows)
+    assert [(r["z"], r["ydot"]) for r in rows] == [(0.96, 3.0), (0.96, 7.0), (0.96, 11.0), (1.12, 11.0), (1.12, 7.0),
+                                                   (1.12, 3.0)]
+    assert run.record["sweep"]["stable"] == sum(r["stable"] for r in rows)

@@ -12,6 +12,7 @@ default parameters. A problem of another body, other fixed values, or both, star
    (:func:`baslip.numerics.continuation.continue_branch`), which turns at folds.
 
 The gait at the path's end is the start of the problem's solve, which verifies it.
+:func:`carry` is step 2 alone, from any gait: a sweep's neighbour, say.
 """
 
 from __future__ import annotations
@@ -83,14 +84,36 @@ def reference_start(solver: ModelSolver, spec: ModelSpec) -> dict[str, float]:
     if not model.reference:
         raise NoStart(f"model {model.name} names no reference gait to start from: give a guess")
     target = spec.values()
-    target.update(spec.fixed_invariants)
     scale = similarity(model, {q.name: target[q.name] for q in model.parameters})
     start = {name: value * scale.factor(model.dimension(name, spec.law))
              for name, value in _reference(solver, spec).items()}
+    return carry(solver, spec, start)
+
+
+def carry(solver: ModelSolver, spec: ModelSpec, start: dict[str, float]) -> dict[str, float]:
+    """Every quantity's value at a gait of ``spec``, continued from the gait at ``start``
+    (every quantity's value, a fixed point of the same model and law, or near one) along
+    the straight path in the quantities ``spec`` fixes to another value.
+
+    Parameters
+    ----------
+    solver : ModelSolver
+        The model's solver.
+    spec : ModelSpec
+        The problem to reach; its guess says which quantities are free.
+    start : dict
+        A gait's values: every quantity's, and the fixed invariants'.
+
+    Raises
+    ------
+    NoStart
+        The path broke (a fall, or a fold it could not turn).
+    """
+    target = {**spec.values(), **spec.fixed_invariants}
     moved = tuple(n for n in target if n not in spec.free and not math.isclose(start[n], target[n], rel_tol=1e-13,
                                                                                abs_tol=1e-15))
     if not moved:
-        return start
+        return dict(start)
     return _follow(solver, spec, start, target, moved)
 
 
@@ -139,7 +162,7 @@ class _Path:
 def _follow(solver: ModelSolver, spec: ModelSpec, start: dict, target: dict, moved: tuple[str, ...]) -> dict:
     """Continue the start's gait along the path to the problem (step 2)."""
     begin = replace(spec, fixed={k: start[k] for k in spec.fixed}, guess={n: start[n] for n in spec.free})
-    first = solver.solve(begin)  # the scaled reference, polished and verified at its body
+    first = solver.solve(begin)  # the start, polished and verified where it is
     values = {**first.values, **{k: start[k] for k in begin.fixed_invariants}}
     resolution = solver.calibrated(begin, values)
     equations = Equations(solver, begin, values, (*spec.free, *moved), resolution)
@@ -149,6 +172,5 @@ def _follow(solver: ModelSolver, spec: ModelSpec, start: dict, target: dict, mov
     branch = continue_branch(path, w0, 1.0, Settings(step=0.05, max_step=0.25, max_points=400, lam_range=(0.0, 1.0)))
     end = branch.points[-1].v
     if not math.isclose(end[-1], 1.0, abs_tol=1e-9):
-        raise NoStart(f"the path from the reference gait to the problem broke at {end[-1]:.3f} of the way "
-                      f"({branch.stop_reason})")
+        raise NoStart(f"the path to the problem broke at {end[-1]:.3f} of the way ({branch.stop_reason})")
     return equations.point(path.unscaled(end))

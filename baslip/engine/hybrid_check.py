@@ -24,6 +24,8 @@ TOLERANCE = 1e-14
 #: (relative).
 EVENT_ITERATIONS = 80
 EVENT_TOLERANCE = 1e-13
+#: An event time that moves by less than this fraction of the interval is found.
+TIME_RESOLUTION = 1e-14
 #: Grid intervals searched for a crossing, at most, per mode, and per call of CVODES.
 MAX_INTERVALS = 5120
 CHUNK = 32
@@ -94,7 +96,9 @@ class IndependentStride:
     def _locate(self, mode, x, theta, guard, rhs, interval: float, g_old: float, scale: float) -> np.ndarray | str:
         """The state where the guard is zero within ``interval`` [s] of ``x``: Newton on the
         time, kept inside the bracket (a step that leaves it bisects instead), to within
-        :data:`EVENT_TOLERANCE` of ``scale`` (the guard's size over the interval)."""
+        :data:`EVENT_TOLERANCE` of ``scale`` (the guard's size over the interval), or
+        until the time moves by less than :data:`TIME_RESOLUTION` of the interval (where
+        a stiff guard's value is all integration noise)."""
         rate_of = _guard_rate(guard, rhs)
         low, high = 0.0, interval
         tau = interval / 2
@@ -108,7 +112,10 @@ class IndependentStride:
             else:
                 high = tau
             newton = tau - value / float(rate_of(end, theta))
-            tau = newton if low < newton < high else (low + high) / 2
+            following = newton if low < newton < high else (low + high) / 2
+            if abs(following - tau) <= TIME_RESOLUTION * interval:
+                return self._advance(mode, x, theta, following)
+            tau = following
         return f"the event in mode {mode} could not be located by Newton"
 
 

@@ -20,6 +20,7 @@ Keys (values SI; a quantity in ``rad`` may be given as ``"22 deg"``, one in ``ra
                    second: k, second_range: [15000, 25000], follow: [fold]}
     study: {kind: atlas, max_charts: 200, radius: 0.2, max_radius: 0.5}
     study: {kind: controllers, grid: 9, spread: 0.2, strides: 30}
+    study: {kind: sweep, sweep: {ydot: {from: 3.0, to: 7.0, count: 9}, z: [0.9, 1.0, 1.1]}}
 """
 
 from __future__ import annotations
@@ -32,6 +33,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from baslip.errors import ArgumentError, ProblemError
 from baslip.model.catalogue.slip import SLIP
@@ -51,9 +54,12 @@ SOLVER_KEYS = ("nodes", "tolerance")
 CONTINUATION_KEYS = ("parameter", "range", "step", "max_points", "second", "second_range", "follow")
 #: The bifurcation curves a continuation may follow in a second parameter.
 CURVE_KINDS = ("fold", "period_doubling", "neimark_sacker")
-STUDY_KEYS = ("kind", "max_charts", "radius", "max_radius", "grid", "spread", "strides")
+STUDY_KEYS = ("kind", "max_charts", "radius", "max_radius", "grid", "spread", "strides", "sweep")
 #: The keys of each study kind of a described model.
-KIND_KEYS = {"atlas": ("kind", "max_charts", "radius", "max_radius"), "controllers": ("kind", "grid", "spread", "strides")}
+KIND_KEYS = {"atlas": ("kind", "max_charts", "radius", "max_radius"), "controllers": ("kind", "grid", "spread", "strides"),
+             "sweep": ("kind", "sweep")}
+#: Most points of a described model's sweep.
+MAX_SWEEP_POINTS = 10_000
 #: Angles and angular rates given with a unit, as a factor to SI.
 UNITS = {"rad": {"deg": math.pi / 180, "rad": 1.0}, "rad/s": {"deg/s": math.pi / 180, "rad/s": 1.0}}
 
@@ -96,6 +102,22 @@ class ModelControllersStudy:
 
 
 @dataclass(frozen=True)
+class ModelSweepStudy:
+    """Gaits on a grid of one or two fixed quantities: each name's values, in its unit.
+    Each point starts from its solved neighbour (warm start) and is verified."""
+
+    axes: tuple[tuple[str, tuple[float, ...]], ...]
+
+    @property
+    def points(self) -> int:
+        """How many gaits the grid asks for."""
+        count = 1
+        for _, values in self.axes:
+            count *= len(values)
+        return count
+
+
+@dataclass(frozen=True)
 class ModelProblem:
     """A validated problem of a described model."""
 
@@ -105,6 +127,7 @@ class ModelProblem:
     continuation: ModelContinuation | None = None
     atlas: ModelAtlasStudy | None = None
     controllers: ModelControllersStudy | None = None
+    sweep: ModelSweepStudy | None = None
     #: No ``guess``: every section coordinate and control not fixed is free, and the solve
     #: starts from the model's reference gait carried to the problem.
     from_reference: bool = False
@@ -124,6 +147,8 @@ class ModelProblem:
             record["study"] = {"kind": "atlas", **vars(self.atlas)}
         if self.controllers is not None:
             record["study"] = {"kind": "controllers", **vars(self.controllers)}
+        if self.sweep is not None:
+            record["study"] = {"kind": "sweep", "sweep": {name: list(values) for name, values in self.sweep.axes}}
         if self.from_reference:
             record["start"] = "the model's reference gait, carried to the problem"
         return record
@@ -217,10 +242,11 @@ def parse_model_problem(data: Any, default_name: str = "problem", folder: Path =
     name = top.get("name", default_name)
     if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9_.-]+", name):
         raise ProblemError("name", f"expected a plain name (letters, digits, _ . -), got {excerpt(name)}")
-    study = _study(top.get("study"))
+    study = _study(top.get("study"), spec)
     return ModelProblem(name, str(top["model"]), spec, _continuation(top.get("continuation"), spec),
                         study if isinstance(study, ModelAtlasStudy) else None,
-                        study if isinstance(study, ModelControllersStudy) else None, from_reference)
+                        study if isinstance(study, ModelControllersStudy) else None,
+                        study if isinstance(study, ModelSweepStudy) else None, from_reference)
 
 
 def _unguessed(model: Model, law: str, fixed: dict[str, float]) -> dict[str, float]:
@@ -338,16 +364,19 @@ def _curves(given: dict, spec: ModelSpec, parameter: str) -> tuple[str, tuple[fl
     return second, (low, high), tuple(follow)
 
 
-def _study(value: Any) -> ModelAtlasStudy | ModelControllersStudy | None:
+def _study(value: Any, spec: ModelSpec) -> ModelAtlasStudy | ModelControllersStudy | ModelSweepStudy | None:
     if value is None:
         return None
     kind = mapping(value, "study", STUDY_KEYS).get("kind")
     if kind not in KIND_KEYS:
         raise ProblemError("study.kind", f"{excerpt(kind)}: a described model's problem runs a gait, a continuation "
-                                         "or a study of kind atlas or controllers (the other kinds are the BA-SLIP's)")
+                                         "or a study of kind atlas, controllers or sweep (the other kinds are the "
+                                         "BA-SLIP's)")
     given = mapping(value, "study", KIND_KEYS[kind])
     if kind == "controllers":
         return _controllers_study(given)
+    if kind == "sweep":
+        return _sweep_study(given, spec)
     charts = given.get("max_charts", 200)
     if isinstance(charts, bool) or not isinstance(charts, int) or not 1 <= charts <= 100_000:
         raise ProblemError("study.max_charts", f"expected an integer in [1, 100000], got {excerpt(charts)}")
@@ -369,3 +398,37 @@ def _controllers_study(given: dict) -> ModelControllersStudy:
     if not 0 < spread < 1:
         raise ProblemError("study.spread", f"must lie in (0, 1) (relative to the gait), not {spread:g}")
     return ModelControllersStudy(grid, spread, strides)
+
+
+def _sweep_study(given: dict, spec: ModelSpec) -> ModelSweepStudy:
+    """``sweep: {name: [values] or {from, to, count}}`` over one or two fixed quantities."""
+    sweep = given.get("sweep")
+    if not isinstance(sweep, Mapping) or not 1 <= len(sweep) <= 2:
+        raise ProblemError("study.sweep", f"expected a mapping of one or two fixed quantities to their values, "
+                                          f"got {excerpt(sweep)}")
+    axes = []
+    for name, values in sweep.items():
+        key = f"study.sweep.{name}"
+        if name not in spec.fixed or name in spec.fixed_invariants:
+            raise ProblemError(key, f"expected a fixed quantity of the problem ({', '.join(spec.fixed)})")
+        unit = spec.model.unit(name, spec.law)
+        if isinstance(values, Mapping):
+            spaced = mapping(values, key, ("from", "to", "count"))
+            count = spaced.get("count")
+            if isinstance(count, bool) or not isinstance(count, int) or count < 2:
+                raise ProblemError(f"{key}.count", f"expected an integer of at least 2, got {excerpt(count)}")
+            low_end, high_end = (_value(spaced.get(end), f"{key}.{end}", unit) for end in ("from", "to"))
+            numbers = tuple(float(v) for v in np.linspace(low_end, high_end, count))
+        elif isinstance(values, list) and values:
+            numbers = tuple(_value(v, key, unit) for v in values)
+        else:
+            raise ProblemError(key, f"expected a list of values or {{from, to, count}}, got {excerpt(values)}")
+        low, high = spec.range_of(name)
+        outside = [v for v in numbers if not low <= v <= high]
+        if outside:
+            raise ProblemError(key, f"{outside[0]:g} lies outside {name}'s range [{low:g}, {high:g}]")
+        axes.append((name, numbers))
+    study = ModelSweepStudy(tuple(axes))
+    if study.points > MAX_SWEEP_POINTS:
+        raise ProblemError("study.sweep", f"asks for {study.points:,} gaits; at most {MAX_SWEEP_POINTS:,}")
+    return study

@@ -10,7 +10,9 @@ continuation or the atlas it asks for, and writes, all at once or not at all:
 * ``curve.csv`` and ``curve.png``: the bifurcation curves a continuation follows in a
   second parameter, from the branch's first special point of each kind;
 * ``basins.csv`` (one row per controller and start) and ``basins.png``: the gait's
-  stride-to-stride controllers and their measured basins.
+  stride-to-stride controllers and their measured basins;
+* ``points.csv`` and ``sweep.png``: a sweep's gaits on a grid of fixed quantities, each
+  verified or with the reason there is none.
 
 Every row carries its independent verification; the summaries count only rows verified
 to the problem's tolerance.
@@ -28,13 +30,21 @@ from baslip.analysis.atlas import AtlasSettings
 from baslip.analysis.modelcontrol import RETURNED, basin, design, grid_starts
 from baslip.analysis.modelcurves import ModelCurve, trace_model_curve
 from baslip.analysis.modelfamilies import ModelBranch, ModelChart, continue_model, cover_model
-from baslip.analysis.modelstart import reference_start
+from baslip.analysis.modelstart import carry, reference_start
 from baslip.diagnostics import IN_PLACE, logger
+from baslip.errors import RunError
 from baslip.files.atomic import json_text, write_files_atomically
-from baslip.gait.modelsolver import ModelGait, ModelSolver
+from baslip.gait.modelsolver import ModelGait, ModelSolver, NoFixedPoint
 from baslip.numerics.continuation import Settings
 from baslip.numerics.intervals import wilson_interval
-from baslip.problem.model_file import ModelAtlasStudy, ModelContinuation, ModelControllersStudy, ModelProblem
+from baslip.problem.model_file import (
+    ModelAtlasStudy,
+    ModelContinuation,
+    ModelControllersStudy,
+    ModelProblem,
+    ModelSweepStudy,
+)
+from baslip.problem.modelspec import ModelSpec
 
 LOG = logger(__name__)
 
@@ -75,9 +85,11 @@ class ModelRun:
 
     @property
     def kind(self) -> str:
-        """``branch``, ``atlas``, ``basins`` or ``gait``: what the run holds besides its gait."""
+        """``branch``, ``atlas``, ``basins``, ``sweep`` or ``gait``: what the run holds besides its gait."""
         if self.branch is not None:
             return "branch"
+        if self.problem.sweep is not None:
+            return "sweep"
         return "atlas" if self.problem.atlas is not None else "basins" if self.problem.controllers else "gait"
 
     def rows(self) -> list[dict]:
@@ -121,6 +133,9 @@ class ModelRun:
             lines.append(f"  {c['name']}: closed-loop spectral radius {c['spectral_radius']:.4g}; basin "
                          f"{c['returned']} of {c['starts']} starts ({100 * c['share']:.0f} %, 95 % interval "
                          f"{100 * c['interval'][0]:.0f}-{100 * c['interval'][1]:.0f} %)")
+        if "sweep" in self.record:
+            w = self.record["sweep"]
+            lines.append(f"  sweep: {w['points']} points, {w['verified']} verified, {w['stable']} stable")
         if "atlas" in self.record:
             a = self.record["atlas"]
             lines.append(f"  atlas: {a['charts']} charts ({a['verified']} verified), {a['pieces']} piece(s), "
@@ -161,6 +176,8 @@ def run_model_problem(problem: ModelProblem, out: Path | None = None) -> ModelRu
         charts, record["atlas"], rows = _atlas(solver, gait, problem, problem.atlas)
     if problem.controllers is not None:
         record["controllers"], rows = _controllers(solver, gait, problem, problem.controllers)
+    if problem.sweep is not None:
+        record["sweep"], rows = _sweep(solver, gait, problem, problem.sweep)
     record["wall_time_s"] = time.perf_counter() - start
     run = ModelRun(problem, gait, branch, charts, record, tuple(rows), curves)
     if out is None:
@@ -169,7 +186,7 @@ def run_model_problem(problem: ModelProblem, out: Path | None = None) -> ModelRu
     if rows:
         from baslip.viz.modelplots import png
 
-        table = {"branch": "branch.csv", "atlas": "charts.csv", "basins": "basins.csv"}[run.kind]
+        table = {"branch": "branch.csv", "atlas": "charts.csv", "basins": "basins.csv", "sweep": "points.csv"}[run.kind]
         named.update({out / table: _csv(rows), out / f"{run.kind}.png": png(_figure(problem, run.kind, rows))})
     if curves:
         from baslip.viz.modelplots import curves_figure, png
@@ -286,6 +303,59 @@ def _controllers(solver: ModelSolver, gait: ModelGait, problem: ModelProblem,
     return record, rows
 
 
+def _grid(study: ModelSweepStudy) -> list[dict[str, float]]:
+    """The sweep's points in an order where each is next to the one before (the second
+    axis runs back and forth), so that each starts from its neighbour."""
+    (first, firsts), *rest = study.axes
+    if not rest:
+        return [{first: v} for v in firsts]
+    second, seconds = rest[0]
+    return [{first: a, second: b} for i, a in enumerate(firsts) for b in (seconds if i % 2 == 0 else seconds[::-1])]
+
+
+def _sweep(solver: ModelSolver, gait: ModelGait, problem: ModelProblem,
+           study: ModelSweepStudy) -> tuple[dict, list[dict]]:
+    """Each point's verified gait (or why there is none), each starting from the last
+    point solved; and the summary."""
+    spec, names, rows = gait.spec, _names(problem), []
+    base = {**gait.values, **spec.fixed_invariants}
+    start = base
+    grid = _grid(study)
+    for done, point in enumerate(grid, start=1):
+        try:
+            found = _solved_at(solver, replace(spec, fixed={**spec.fixed, **point}), start, base)
+        except RunError as err:  # no gait here: recorded, and the next point starts from the last one found
+            rows.append({**{n: point.get(n, gait.values[n]) for n in names}, "spectral_radius": float("nan"),
+                         "stable": False, "verification": float("nan"), "status": str(err)})
+        else:
+            start = {**found.values, **found.spec.fixed_invariants}
+            rows.append({**{n: found.values[n] for n in names}, "spectral_radius": found.spectral_radius,
+                         "stable": found.stable, "verification": found.verification, "status": "verified"})
+        LOG.info("%s: sweep: %d of %d points", problem.name, done, len(grid), extra=IN_PLACE)
+    verified = [r for r in rows if r["status"] == "verified"]
+    summary = {"axes": {name: list(values) for name, values in study.axes}, "points": len(rows),
+               "verified": len(verified), "stable": sum(r["stable"] for r in verified)}
+    return summary, rows
+
+
+def _solved_at(solver: ModelSolver, spec: ModelSpec, start: dict, fallback: dict) -> ModelGait:
+    """The gait of ``spec`` from its neighbour's values (every quantity's); where that
+    start does not converge, continued to ``spec`` from the neighbour, and else from the
+    problem's own gait (``fallback``)."""
+    free = {n: start[n] for n in spec.free}
+    try:
+        return solver.solve(replace(spec, guess=free))
+    except RunError:
+        pass
+    for origin in (start, fallback):
+        try:
+            carried = carry(solver, spec, origin)
+            return solver.solve(replace(spec, guess={n: carried[n] for n in spec.free}))
+        except RunError:
+            continue
+    raise NoFixedPoint("no gait here from the neighbour, nor continued from it or from the problem's gait")
+
+
 def _figure(problem: ModelProblem, kind: str, rows: list[dict]):
     """The branch's, the atlas's or the basins' figure from its rows."""
     from baslip.viz.modelplots import atlas_figure, basins_figure, branch_figure
@@ -294,6 +364,11 @@ def _figure(problem: ModelProblem, kind: str, rows: list[dict]):
     if kind == "basins":
         x, y = spec.model.section.coordinates[:2]
         return basins_figure(rows, x, y, units, f"{problem.name}: basins of {spec.model.name}'s controllers")
+    if kind == "sweep" and problem.sweep is not None:
+        axes = [name for name, _ in problem.sweep.axes]
+        found = [r for r in rows if r["status"] == "verified"]
+        x, y = (axes[0], axes[1]) if len(axes) == 2 else (axes[0], "spectral_radius")
+        return atlas_figure(found, x, y, units, f"{problem.name}: sweep of {spec.model.name}'s gaits")
     free = spec.free
     if kind == "branch" and problem.continuation is not None:
         quantity = free[0] if free else spec.model.section.coordinates[0]

@@ -55,20 +55,18 @@ def branch_figure(rows: list[dict], parameter: str, quantity: str, units: dict, 
 
 
 def atlas_figure(rows: list[dict], x: str, y: str, units: dict, title: str):
-    """The atlas's chart centres in (``x``, ``y``), coloured by spectral radius (stable
-    ones ringed)."""
+    """Gaits (an atlas's chart centres, a sweep's points) in (``x``, ``y``), coloured by
+    spectral radius, the stable ones ringed."""
     figure, ax = plt.subplots(figsize=(6.4, 4.6))
     radius = np.array([r["spectral_radius"] for r in rows])
     points = ax.scatter([r[x] for r in rows], [r[y] for r in rows], c=np.minimum(radius, 3.0), cmap="viridis", s=18)
     stable = [r for r in rows if r["spectral_radius"] < 1.0]
-    ax.scatter([r[x] for r in stable], [r[y] for r in stable], facecolors="none", edgecolors="k", s=40,
-               label="stable")
-    figure.colorbar(points, ax=ax, label="spectral radius (capped at 3)")
+    ax.scatter([r[x] for r in stable], [r[y] for r in stable], facecolors="none", edgecolors="k", s=40)
+    # Said in the title, not a legend, which would hide points in its corner.
+    figure.colorbar(points, ax=ax, label="spectral radius (capped at 3); stable ringed")
     ax.set_xlabel(_label(x, units.get(x, "")))
     ax.set_ylabel(_label(y, units.get(y, "")))
     ax.set_title(title)
-    if stable:
-        ax.legend(loc="best", fontsize=8)
     figure.tight_layout()
     return figure
 
