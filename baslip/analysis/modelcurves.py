@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from baslip.analysis.bifurcation import CURVE_TYPES, CurveSystem, trace_curve
-from baslip.analysis.modelfamilies import Equations
+from baslip.analysis.modelfamilies import ModelBranchSystem
 from baslip.errors import ArgumentError
 from baslip.gait.modelsolver import ModelGait, ModelSolver
 from baslip.numerics.continuation import CorrectionFailed, Settings
@@ -34,7 +34,7 @@ from baslip.numerics.continuation import CorrectionFailed, Settings
 DIFFERENCE_STEP = 1e-5
 
 
-class ModelCurveBase(Equations):
+class ModelCurveBase(ModelBranchSystem):
     """The fixed-point equations in (free quantities, l1, l2), as the ``base`` of a
     :class:`CurveSystem` (see the module's docstring)."""
 
@@ -45,24 +45,6 @@ class ModelCurveBase(Equations):
         """The cusp's and the generalised period doubling's coefficients need the map's
         own derivatives, which a level set's restriction does not give."""
         return not self.invariant_rows
-
-    def residual(self, v: np.ndarray) -> np.ndarray:
-        result = self.evaluate(v, False)
-        if isinstance(result, str):
-            raise CorrectionFailed(result)
-        return result[0]
-
-    def jacobian(self, v: np.ndarray) -> np.ndarray:
-        result = self.evaluate(v, True)
-        if isinstance(result, str):
-            raise CorrectionFailed(result)
-        return result[1]
-
-    def multipliers(self, v: np.ndarray):
-        result = self.solver.multipliers(self.spec_at(v), self.point(v), self.resolution)
-        if isinstance(result, str):
-            raise CorrectionFailed(result)
-        return result[0], list(result[1])
 
     def map_jacobian(self, v: np.ndarray, shift: np.ndarray | None = None) -> np.ndarray:
         """d(map)/d(dynamic coordinates) at ``v``, the kept coordinates moved by ``shift``."""

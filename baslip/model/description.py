@@ -396,6 +396,11 @@ class Model:
         """
         return (*self.controls_of(law), *self.parameters)
 
+    def _named(self, name: str, law: str | None) -> Quantity | Invariant | None:
+        """The control, parameter or invariant called ``name``, or None."""
+        named: list[Quantity | Invariant] = [*self.quantities(law), *self.invariants]
+        return next((q for q in named if q.name == name), None)
+
     def dimension(self, name: str, law: str | None = None) -> tuple[float, float, float]:
         """The exponents of mass, length and time of a section coordinate, a control, a
         parameter or an invariant ((0, 0, 0) if none is given).
@@ -407,13 +412,8 @@ class Model:
         law : str, optional
             The law whose controls count (the first if None).
         """
-        for quantity in self.quantities(law):
-            if quantity.name == name:
-                return quantity.dimension
-        for invariant in self.invariants:
-            if invariant.name == name:
-                return invariant.dimension
-        return self.section.dimensions.get(name, (0.0, 0.0, 0.0))
+        named = self._named(name, law)
+        return named.dimension if named is not None else self.section.dimensions.get(name, (0.0, 0.0, 0.0))
 
     def time_scale(self, values: Mapping[str, float]) -> float:
         """A characteristic time [s] of the body ``values`` gives: the product of powers
@@ -435,7 +435,8 @@ class Model:
         return float(np.exp(sum(p * np.log(values.get(q.name, q.default)) for p, q in zip(powers, used))))
 
     def unit(self, name: str, law: str | None = None) -> str:
-        """The SI unit of a section coordinate, a control or a parameter ("" if none is given).
+        """The SI unit of a section coordinate, a control, a parameter or an invariant
+        ("" if none is given).
 
         Parameters
         ----------
@@ -444,10 +445,5 @@ class Model:
         law : str, optional
             The law whose controls count (the first if None).
         """
-        for quantity in self.quantities(law):
-            if quantity.name == name:
-                return quantity.unit
-        for invariant in self.invariants:
-            if invariant.name == name:
-                return invariant.unit
-        return self.section.units.get(name, "")
+        named = self._named(name, law)
+        return named.unit if named is not None else self.section.units.get(name, "")
