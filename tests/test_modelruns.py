@@ -121,3 +121,8 @@ def test_a_sweep_solves_each_point_from_its_neighbour_and_verifies_it(problems, 
     assert [(r["z"], r["ydot"]) for r in rows] == [(0.96, 3.0), (0.96, 7.0), (0.96, 11.0), (1.12, 11.0), (1.12, 7.0),
                                                    (1.12, 3.0)]
     assert run.record["sweep"]["stable"] == sum(r["stable"] for r in rows)
+
+
+def test_a_runs_figures_are_named_by_their_files(problems):
+    run = baslip.run_model(problems / "slip_band.yaml", progress=False)
+    assert sorted(run.plot()) == ["branch", "curve"]

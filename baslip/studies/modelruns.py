@@ -106,14 +106,19 @@ class ModelRun:
         return pandas.DataFrame(self.rows())
 
     def plot(self):
-        """The run's figure (its branch, or its atlas's chart centres), by the name of the
-        file the command line writes it to; none for a gait alone."""
+        """The run's figures by the names of the files the command line writes them to:
+        its branch (and its curves), its atlas, its controllers' basins or its sweep;
+        none for a gait alone."""
         from baslip.viz.gallery import Figures
 
-        figure = _figure(self.problem, self.kind, list(self.table)) if self.table else None
-        if figure is not None:
-            figure.set_label(self.kind)
-        return Figures([figure] if figure is not None else [])
+        figures = []
+        if self.table:
+            figures.append(_figure(self.problem, self.kind, list(self.table)))
+            figures[-1].set_label(self.kind)
+        if self.curves:
+            figures.append(_curves_figure(self.problem, self.curves))
+            figures[-1].set_label("curve")
+        return Figures(figures)
 
     def summary(self) -> str:
         """A few lines on the gait and what the run found."""
@@ -189,12 +194,10 @@ def run_model_problem(problem: ModelProblem, out: Path | None = None) -> ModelRu
         table = {"branch": "branch.csv", "atlas": "charts.csv", "basins": "basins.csv", "sweep": "points.csv"}[run.kind]
         named.update({out / table: _csv(rows), out / f"{run.kind}.png": png(_figure(problem, run.kind, rows))})
     if curves:
-        from baslip.viz.modelplots import curves_figure, png
+        from baslip.viz.modelplots import png
 
-        curve_rows = _curve_rows(problem, curves)
-        named.update({out / "curve.csv": _csv(curve_rows), out / "curve.png": png(curves_figure(
-            curve_rows, curves[0].first, curves[0].second, _units(problem),
-            f"{problem.name}: bifurcation curves of {problem.spec.model.name}"))})
+        named.update({out / "curve.csv": _csv(_curve_rows(problem, curves)),
+                      out / "curve.png": png(_curves_figure(problem, curves))})
     write_files_atomically(named)
     return replace(run, files=tuple(named))
 
@@ -267,6 +270,13 @@ def _curve_rows(problem: ModelProblem, curves: tuple[ModelCurve, ...]) -> list[d
     return [{"curve": number, "type": curve.kind, **{n: p.values[n] for n in names if n in p.values},
              "special": p.special, "verification": p.verification}
             for number, curve in enumerate(curves) for p in curve.points]
+
+
+def _curves_figure(problem: ModelProblem, curves: tuple[ModelCurve, ...]):
+    from baslip.viz.modelplots import curves_figure
+
+    return curves_figure(_curve_rows(problem, curves), curves[0].first, curves[0].second, _units(problem),
+                         f"{problem.name}: bifurcation curves of {problem.spec.model.name}")
 
 
 def _curves_summary(problem: ModelProblem, curves: tuple[ModelCurve, ...]) -> list[dict]:
