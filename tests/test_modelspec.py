@@ -37,3 +37,10 @@ def test_a_range_is_the_quantitys_own_within_the_specs_bounds():
     spec = ModelSpec(SLIP, fixed={"z": 1.0}, guess={"ydot": 5.0, "theta_td": 0.4}, bounds={"theta_td": (0.2, 3.0)})
     assert spec.range_of("theta_td") == (0.2, pytest.approx(1.5707963267948966))
     assert spec.range_of("ydot") == (-float("inf"), float("inf"))
+
+
+def test_a_value_outside_its_range_is_refused():
+    with pytest.raises(ArgumentError, match=r"theta_td: 2 lies outside its range"):
+        ModelSpec(SLIP, fixed={"z": 1.0, "theta_td": 2.0}, guess={"ydot": 5.0})
+    with pytest.raises(ArgumentError, match=r"m: -1 lies outside its range"):
+        ModelSpec(SLIP, fixed={"z": 1.0, "m": -1.0}, guess={"ydot": 5.0})

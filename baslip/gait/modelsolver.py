@@ -5,10 +5,9 @@ The solve has four steps, each read from the description alone:
 1. **A stride from the guess** (:class:`baslip.engine.hybrid.HybridMap`) gives each mode's
    duration and states, the NLP's start. A stride that cannot end (a guard that never
    fires, a fall) is reported, naming the part.
-2. **The multiple-shooting NLP** (IPOPT): per mode, node states and a duration variable,
-   DOP853 steps between nodes, the guard at zero at the mode's end (and on its side of
-   zero before it), the reset into the next mode, the falls at the nodes, and the section
-   coordinates back where they started. The objective stays nearest the guess.
+2. **The multiple-shooting NLP** (:mod:`baslip.gait.modelshooting`, IPOPT): per mode,
+   node states and a duration, the guards, resets and falls, and the section coordinates
+   back where they started. The objective stays nearest the guess.
 3. **Newton on the return map** at the calibrated resolution (least-norm steps where more
    quantities are free than the map has coordinates), with its exact Jacobian.
 4. **Independent verification** by CVODES (:mod:`baslip.engine.hybrid_check`): the point
@@ -25,10 +24,10 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from baslip.engine.dop853 import step_function
 from baslip.engine.hybrid import HybridMap, Outcome, Resolution, calibrated_resolution
 from baslip.engine.hybrid_check import IndependentStride
 from baslip.errors import RunError
+from baslip.gait.modelshooting import ModelShootingNLP, NoShootingSolution
 from baslip.model.description import ModelError
 from baslip.model.symbolic import ModelFunctions, model_functions
 from baslip.problem.modelspec import ModelSpec
@@ -39,6 +38,13 @@ NEWTON_STEPS = 30
 
 class NoFixedPoint(RunError):
     """The solve did not find a verified fixed point; the message says where it stopped."""
+
+
+def _shot(nlp: ModelShootingNLP, values: dict, first: Outcome) -> tuple[dict, str]:
+    try:
+        return nlp.solve(values, first)
+    except NoShootingSolution as err:
+        raise NoFixedPoint(str(err)) from None
 
 
 @dataclass(frozen=True)
@@ -334,6 +340,9 @@ class ModelSolver:
             self._refuse_start(first.failure)
         values, status = self._shooting(spec, values, first)
         values = self._newton(spec, values, resolution)
+        outside = [n for n in spec.free if not spec.range_of(n)[0] <= values[n] <= spec.range_of(n)[1]]
+        if outside:
+            raise NoFixedPoint(f"Newton on the map left the bounds of {outside[0]} ({values[outside[0]]:g})")
         return self._verified(spec, values, resolution, status, time.perf_counter() - start)
 
     def calibrated(self, spec: ModelSpec, values: dict) -> Resolution:
@@ -359,8 +368,7 @@ class ModelSolver:
         raise NoFixedPoint(f"the stride from the guess fails: {failure}")
 
     def _shooting(self, spec: ModelSpec, values: dict, first: Outcome) -> tuple[dict, str]:
-        nlp = _ShootingNLP(self.functions, spec, self.kept_rows(spec, values))
-        return nlp.solve(values, first)
+        return _shot(ModelShootingNLP(self.functions, spec, self.kept_rows(spec, values)), values, first)
 
     def _newton(self, spec: ModelSpec, values: dict, resolution: Resolution) -> dict:
         """Newton (least-norm) steps until |r| is a hundredth of the tolerance, or stalls
@@ -420,92 +428,3 @@ def trivial_flags(multipliers: np.ndarray, count: int) -> tuple[bool, ...]:
     """Flags for the ``count`` multipliers nearest 1: those an invariant makes 1."""
     nearest = set(np.argsort(np.abs(np.asarray(multipliers) - 1.0))[:count].tolist())
     return tuple(i in nearest for i in range(len(multipliers)))
-
-
-class _ShootingNLP:
-    """The multiple-shooting NLP of one stride (see the module's docstring, step 2)."""
-
-    def __init__(self, functions: ModelFunctions, spec: ModelSpec, kept: list[int]):
-        self.f, self.spec, self.kept = functions, spec, kept
-        self.steps = {mode: step_function(rhs) for mode, rhs in functions.rhs.items()}
-        self.constraints: list[ca.MX] = []
-        self.lower: list[np.ndarray] = []
-        self.upper: list[np.ndarray] = []
-
-    def _constrain(self, expr: ca.MX, low: float, high: float) -> None:
-        self.constraints.append(expr)
-        self.lower.append(np.full(expr.numel(), low))
-        self.upper.append(np.full(expr.numel(), high))
-
-    def solve(self, values: dict, first: Outcome) -> tuple[dict, str]:
-        """The NLP's free quantities from the stride ``first`` at ``values``, and IPOPT's status."""
-        spec, f = self.spec, self.f
-        free = ca.MX.sym("free", len(spec.free))
-        named = {**values, **dict(zip(spec.free, ca.vertsplit(free)))}
-        theta = ca.vertcat(*[named[name] for name in f.theta_names])
-        section = ca.vertcat(*[named[c] for c in spec.model.section.coordinates])
-        start = f.lift(section)
-        self._fix_invariants(start, theta)
-        variables, starts, end = [free], [], start
-        for number, (mode, trace) in enumerate(zip(spec.model.order, first.nodes)):
-            entry = start if number == 0 else f.resets[number - 1](end, theta)
-            block, initial, end = self._mode(number, mode, trace, entry, theta)
-            variables += block
-            starts += initial
-        self._constrain(ca.vertcat(*[end[i] for i in f.section_index])[self.kept] - section[self.kept], 0.0, 0.0)
-        guess = np.array([spec.guess[name] for name in spec.free])
-        objective = ca.sumsqr((free - guess) / np.maximum(np.abs(guess), 1.0))
-        return self._run(ca.vertcat(*variables), objective, np.concatenate([guess, *starts]), first, values)
-
-    def _fix_invariants(self, start: ca.MX, theta: ca.MX) -> None:
-        fixed = self.spec.fixed_invariants
-        if fixed and self.f.invariants is not None:
-            names = [i.name for i in self.spec.model.invariants_of(self.spec.law)]
-            held = self.f.invariants(start, theta)
-            for name, value in fixed.items():
-                self._constrain(held[names.index(name)] - value, 0.0, 0.0)
-
-    def _mode(self, number: int, mode: str, trace: tuple, entry: ca.MX, theta: ca.MX):
-        """One mode's node states and duration, its constraints, their starting values
-        (the first stride's, resampled), and its end state."""
-        _, times, states = trace
-        n, width = self.spec.nodes, self.f.rhs[mode].size1_in(0)
-        guard = [*self.f.guards, self.f.section_guard][number]
-        direction = [*self.f.directions, self.spec.model.section.direction][number]
-        nodes, duration = ca.MX.sym(f"x{number}", width, n + 1), ca.MX.sym(f"T{number}")
-        self._constrain(nodes[:, 0] - entry, 0.0, 0.0)
-        for k in range(n):
-            self._constrain(nodes[:, k + 1] - self.steps[mode](nodes[:, k], duration / n, theta)[0], 0.0, 0.0)
-        self._constrain(guard(nodes[:, n], theta), 0.0, 0.0)
-        for k in range(1, n):  # on the guard's own side until the end
-            self._constrain(direction * guard(nodes[:, k], theta), -np.inf, 0.0)
-        for k in range(n + 1):
-            if mode in self.f.falls:
-                self._constrain(self.f.falls[mode](nodes[:, k], theta), 0.0, np.inf)
-        grid = np.linspace(0.0, times[-1], n + 1)
-        resampled = np.column_stack([np.interp(grid, times, states[:, i]) for i in range(width)])
-        return [ca.vec(nodes), duration], [resampled.ravel(), [times[-1]]], nodes[:, n]
-
-    def _run(self, x: ca.MX, objective: ca.MX, x0: np.ndarray, first: Outcome, values: dict) -> tuple[dict, str]:
-        spec = self.spec
-        solver = ca.nlpsol("model_shooting", "ipopt", {"x": x, "f": objective, "g": ca.vertcat(*self.constraints)},
-                           {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes", "tol": 1e-12,
-                                                            "max_iter": 500}})
-        lower, upper = self._bounds(first)
-        result = solver(x0=x0, lbx=lower, ubx=upper, lbg=np.concatenate(self.lower), ubg=np.concatenate(self.upper))
-        status = str(solver.stats()["return_status"])
-        if not solver.stats()["success"]:
-            raise NoFixedPoint(f"the shooting NLP did not converge: IPOPT {status}")
-        solution = np.array(result["x"]).ravel()[:len(spec.free)]
-        return {**values, **dict(zip(spec.free, solution.tolist()))}, status
-
-    def _bounds(self, first: Outcome) -> tuple[np.ndarray, np.ndarray]:
-        """The free quantities' ranges; the node states are free, each duration positive."""
-        spec, n = self.spec, self.spec.nodes
-        lower = [spec.range_of(name)[0] for name in spec.free]
-        upper = [spec.range_of(name)[1] for name in spec.free]
-        for mode, duration in zip(spec.model.order, first.durations):
-            width = self.f.rhs[mode].size1_in(0) * (n + 1)
-            lower += [-np.inf] * width + [1e-3 * duration]
-            upper += [np.inf] * width + [np.inf]
-        return np.array(lower), np.array(upper)

@@ -5,7 +5,7 @@ equations of motion), the transitions between them (a guard with its direction a
 reset), the order of modes within a stride, the Poincare section and its coordinates,
 its falls, and its control laws. Nothing here integrates, optimises or reads files: the
 engine (:mod:`baslip.engine.hybrid`), the gait solver (:mod:`baslip.gait.modelsolver`) and
-the analysis (:mod:`baslip.analysis.described`) build everything from these fields.
+the analysis (``baslip.analysis.model*``) build everything from these fields.
 
 Functions of a description take named symbols: ``s`` (the mode's states, ``s.z``), ``p``
 (the parameters, ``p.m``) and ``u`` (the controls, ``u.theta_td``), each a
@@ -16,7 +16,8 @@ equations of motion by state). All quantities are SI and angles are radians.
 A guard fires when it crosses zero in its ``direction`` (+1: rising through zero, -1:
 falling), having been on the other side: a guard that starts a mode at zero and moves
 away to its firing side does not fire (the liftoff guard at touchdown, for one).
-:func:`check_model` refuses a description that cannot be run, naming the part.
+:func:`baslip.model.symbolic.model_functions` refuses a description that cannot be run,
+naming the part.
 """
 
 from __future__ import annotations

@@ -62,6 +62,10 @@ class ModelSpec:
         for name, value in {**self.fixed, **self.guess}.items():
             if not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise ArgumentError(name, f"must be a finite number, not {value!r}")
+        for name, value in {**self.fixed, **self.guess}.items():
+            low, high = self.range_of(name)
+            if name in names and not low <= value <= high:
+                raise ArgumentError(name, f"{value:g} lies outside its range [{low:g}, {high:g}]")
         both = sorted(set(self.fixed) & set(self.guess))
         if both:
             raise ArgumentError(both[0], "is both fixed and guessed; give it in one of them")
