@@ -159,14 +159,8 @@ def run_model_problem(problem: ModelProblem, out: Path | None = None) -> ModelRu
     """
     start = time.perf_counter()
     solver = ModelSolver(problem.spec)
-    spec = problem.spec
-    if problem.from_reference:
-        LOG.info("%s: carrying model %s's reference gait to the problem", problem.name, spec.model.name)
-        carried = reference_start(solver, spec)
-        spec = replace(spec, guess={n: carried[n] for n in spec.free})
-    LOG.info("%s: solving the gait of model %s", problem.name, spec.model.name)
-    gait = solver.solve(spec)
-    record: dict = {"problem": problem.to_dict(), "gait": gait.to_dict()}
+    gait, started = _first_gait(solver, problem)
+    record: dict = {"problem": problem.to_dict(), "gait": {**gait.to_dict(), "start": started}}
     branch: ModelBranch | None = None
     charts: tuple[ModelChart, ...] = ()
     rows: list[dict] = []
@@ -200,6 +194,32 @@ def run_model_problem(problem: ModelProblem, out: Path | None = None) -> ModelRu
                       out / "curve.png": png(_curves_figure(problem, curves))})
     write_files_atomically(named)
     return replace(run, files=tuple(named))
+
+
+def _first_gait(solver: ModelSolver, problem: ModelProblem) -> tuple[ModelGait, str]:
+    """The problem's gait and where it started: from the guess; or, with no guess, or
+    where the guess gives none and the model names a reference gait, from the reference
+    carried to the problem (said on the log)."""
+    spec, failed = problem.spec, ""
+    if not problem.from_reference:
+        LOG.info("%s: solving the gait of model %s", problem.name, spec.model.name)
+        try:
+            return solver.solve(spec), "the guess"
+        except NoFixedPoint as err:
+            if not spec.model.reference or spec.model.law(spec.law).name != spec.model.laws[0].name:
+                raise
+            failed = str(err)
+            LOG.info("%s: no gait from the guess (%s); starting from the model's reference gait", problem.name, err)
+    LOG.info("%s: carrying model %s's reference gait to the problem", problem.name, spec.model.name)
+    try:
+        carried = reference_start(solver, spec)
+        gait = solver.solve(replace(spec, guess={n: carried[n] for n in spec.free}))
+    except RunError as err:
+        if not failed:
+            raise
+        raise NoFixedPoint(f"no gait from the guess ({failed}), nor from the model's reference gait ({err})") from None
+    where = "the model's reference gait, carried to the problem"
+    return gait, f"{where} (the guess gave none: {failed})" if failed else where
 
 
 def _branch(solver: ModelSolver, gait: ModelGait, problem: ModelProblem, spec: ModelContinuation) -> ModelBranch:
