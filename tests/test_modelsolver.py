@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from slip import ENERGY, slip_fixed_point
+from walker import WALKER
 
 from baslip.gait.modelsolver import ModelSolver, NoFixedPoint
 from baslip.model.catalogue.slip import SLIP
@@ -85,3 +86,16 @@ def test_the_jacobian_in_the_free_quantities_is_the_maps(slip_gait):
         central = (solver.residual(spec, up, resolution)[0] - solver.residual(spec, down, resolution)[0]) / 2e-6
         assert jac[:, i] == pytest.approx(central, abs=1e-6)
     assert np.max(np.abs(r)) < 1e-10
+
+
+def test_a_walker_steps_through_double_support_with_no_flight():
+    """Nothing assumes one stance or a flight: the bipedal spring-mass walker at 820 J and
+    a 69 deg angle of attack walks symmetrically (the two single supports equal, no
+    vertical leg speed at mid-stance), verified, energy kept, one multiplier 1."""
+    spec = ModelSpec(WALKER, fixed={"theta_td": math.radians(21.0), "energy": 820.0},
+                     guess={"rho": 0.98, "rhodot": 0.0, "theta_dot": -1.1})
+    gait = ModelSolver(spec).solve(spec)
+    first, double, last = gait.durations
+    assert gait.verification <= 1e-10 and 0 < double < first
+    assert last == pytest.approx(first, rel=1e-9) and abs(gait.values["rhodot"]) < 1e-9
+    assert sum(gait.trivial) == 1 and abs(gait.multipliers[list(gait.trivial).index(True)] - 1) < 1e-8
