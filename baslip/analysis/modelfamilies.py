@@ -25,7 +25,7 @@ import numpy as np
 from baslip.analysis.atlas import Atlas, AtlasSettings, cover
 from baslip.engine.hybrid import Resolution
 from baslip.errors import ArgumentError
-from baslip.gait.modelsolver import ModelGait, ModelSolver
+from baslip.gait.modelsolver import ModelGait, ModelSolver, spectral_radius
 from baslip.numerics.continuation import CorrectionFailed, Settings, continue_branch
 from baslip.numerics.corrector import Evaluation
 from baslip.problem.modelspec import ModelSpec
@@ -121,8 +121,8 @@ class ModelBranchPoint:
 
     @property
     def spectral_radius(self) -> float:
-        moduli = [abs(m) for m, t in zip(self.multipliers, self.trivial) if not t]
-        return float(max(moduli)) if moduli else 0.0
+        """The largest |multiplier| that is not 1 by structure."""
+        return spectral_radius(self.multipliers, self.trivial)
 
 
 @dataclass(frozen=True)
@@ -254,8 +254,7 @@ def cover_model(solver: ModelSolver, gait: ModelGait, settings: AtlasSettings = 
     for chart, piece in zip(atlas.charts, atlas.pieces):
         values = system.point(chart.center)
         found = solver.multipliers(system.spec, values, system.resolution)
-        radius = math.inf if isinstance(found, str) else max(
-            (abs(m) for m, t in zip(*found) if not t), default=0.0)
+        radius = math.inf if isinstance(found, str) else spectral_radius(*found)
         verification = solver.verify(system.spec, values, system.resolution)
         charts.append(ModelChart(values, float(radius), piece, math.inf if isinstance(verification, str)
                                  else verification))

@@ -36,6 +36,7 @@ class IndependentStride:
 
     def __init__(self, functions: ModelFunctions):
         self.functions = functions
+        self._rates: dict[str, ca.Function] = {}  # each guard's rate, built once
 
     def _flows(self, grid: np.ndarray) -> dict[str, ca.Function]:
         """By mode: the states of ``x' = tau f(x)`` from ``x0`` at the times ``grid``
@@ -99,7 +100,9 @@ class IndependentStride:
         :data:`EVENT_TOLERANCE` of ``scale`` (the guard's size over the interval), or
         until the time moves by less than :data:`TIME_RESOLUTION` of the interval (where
         a stiff guard's value is all integration noise)."""
-        rate_of = _guard_rate(guard, rhs)
+        if guard.name() not in self._rates:
+            self._rates[guard.name()] = _guard_rate(guard, rhs)
+        rate_of = self._rates[guard.name()]
         low, high = 0.0, interval
         tau = interval / 2
         for _ in range(EVENT_ITERATIONS):

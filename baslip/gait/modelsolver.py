@@ -92,8 +92,7 @@ class ModelGait:
     @property
     def spectral_radius(self) -> float:
         """The largest |multiplier| that is not 1 by structure."""
-        moduli = [abs(m) for m, t in zip(self.multipliers, self.trivial) if not t]
-        return float(max(moduli)) if moduli else 0.0
+        return spectral_radius(self.multipliers, self.trivial)
 
     @property
     def stable(self) -> bool:
@@ -422,6 +421,12 @@ def _invariant_sensitivities(functions: ModelFunctions) -> ca.Function | None:
     values = functions.invariants(functions.lift(section), theta)
     return ca.Function("invariant_sens", [section, theta],
                        [values, ca.jacobian(values, section), ca.jacobian(values, theta)])
+
+
+def spectral_radius(multipliers, trivial) -> float:
+    """The largest |multiplier| of those not 1 by structure (0 if none)."""
+    moduli = [abs(m) for m, t in zip(multipliers, trivial) if not t]
+    return float(max(moduli)) if moduli else 0.0
 
 
 def trivial_flags(multipliers: np.ndarray, count: int) -> tuple[bool, ...]:
