@@ -6,6 +6,9 @@
 * The SLIP as a model of its own has the self-stable band of touchdown angles that
   baslip's SLIP limit of the BA-SLIP (d = 0, no torque) found: the committed
   ``continuation_slip_attack``'s period doubling and fold.
+* The bipedal spring-mass walker walks with two stances a step and no flight: its
+  reference walk is symmetric about mid-stance, re-verifies independently, and keeps its
+  energy through single and double support.
 """
 
 import json
@@ -23,6 +26,7 @@ from baslip.engine.hybrid_check import IndependentStride
 from baslip.gait.modelsolver import ModelSolver
 from baslip.model.catalogue.ba_slip import BA_SLIP
 from baslip.model.catalogue.slip import SLIP
+from baslip.model.catalogue.walker import WALKER
 from baslip.model.dynamics import APEX, Params
 from baslip.model.hiplaw import HIP_LAWS
 from baslip.model.symbolic import model_functions
@@ -85,3 +89,46 @@ def test_the_slips_self_stable_band_is_baslips_slip_limits():
         assert found[kind].verification <= 1e-10
     stable = [p.values["theta_td"] for p in branch.points if p.spectral_radius < 1]
     assert edges["period_doubling"]["theta_td"] - 1e-6 <= min(stable) and max(stable) <= edges["fold"]["theta_td"] + 1e-6
+
+
+@pytest.fixture(scope="module")
+def walk():
+    """The walker's reference walk: 820 J, 69 deg from the ground, 20 kN/m, solved from
+    the reference's own values."""
+    spec = ModelSpec(WALKER, fixed={"theta_td": WALKER.reference["theta_td"], "energy": 820.0},
+                     guess={n: WALKER.reference[n] for n in ("rho", "rhodot", "theta_dot")})
+    return ModelSolver(spec).solve(spec)
+
+
+def test_the_walkers_reference_is_a_symmetric_verified_walk(walk):
+    """Mid-stance of a symmetric walk has no leg speed, and its two single supports last
+    as long; the independent stride confirms it to 1e-10."""
+    first, double, last = walk.durations
+    assert walk.verification <= 1e-10
+    assert last == pytest.approx(first, rel=1e-9) and 0 < double < first
+    assert abs(walk.values["rhodot"]) < 1e-9
+    for name in ("rho", "theta_dot"):
+        assert walk.values[name] == pytest.approx(WALKER.reference[name], rel=1e-9)
+
+
+def _walker_energy(mode: str, x: np.ndarray, p: dict) -> float:
+    """The walker's energy [J] in either mode, written here apart from the description."""
+    m, k, l0, g = p["m"], p["k"], p["l0"], p["g"]
+    if mode == "single":
+        rho, theta, rhodot, theta_dot = x
+        return 0.5 * m * (rhodot**2 + (rho * theta_dot) ** 2) + m * g * rho * math.cos(theta) + 0.5 * k * (rho - l0) ** 2
+    x_, z, gap, x_dot, z_dot, _ = x
+    rear, front = math.hypot(x_, z), math.hypot(x_ - gap, z)
+    return 0.5 * m * (x_dot**2 + z_dot**2) + m * g * z + 0.5 * k * ((rear - l0) ** 2 + (front - l0) ** 2)
+
+
+def test_the_walkers_energy_is_kept_through_single_and_double_support(walk):
+    """At every step of every mode, to the integrator's tolerance (the map's is 1e-10)."""
+    functions = model_functions(WALKER)
+    section = np.array([walk.values[c] for c in WALKER.section.coordinates])
+    theta = functions.theta(walk.values)
+    outcome = HybridMap(functions).stride(section, theta, walk.resolution, nodes=True)
+    energies = [_walker_energy(mode, state, walk.values) for mode, _, states in outcome.nodes for state in states]
+    assert [mode for mode, *_ in outcome.nodes] == ["single", "double", "single"]
+    assert len(energies) >= 3 * walk.resolution.steps
+    assert max(abs(e - 820.0) for e in energies) < 1e-8 * 820.0

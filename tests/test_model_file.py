@@ -48,7 +48,7 @@ def test_the_ba_slip_reader_sends_a_described_model_elsewhere():
     ({"model": "nowhere.py:X"}, "model", "no such model file"),
     ({"model": "models/hopper.py:HOP"}, "model", "HOP in hopper.py is nothing, not a baslip Model"),
     ({"model": "models/hopper.py:ca"}, "model", "is module, not a baslip Model"),
-    ({"model": "walker"}, "model", "neither a built-in model"),
+    ({"model": "crawler"}, "model", "neither a built-in model"),
     ({"model": 3}, "model", "expected a model's name"),
     ({"law": "pd"}, "law", "'pd' is not a law of hopper"),
     ({"fix": {"z": 1.0, "ydot": 5.0, "Kp": 1.0}}, "fix.Kp", "unknown key"),

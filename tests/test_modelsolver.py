@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from slip import ENERGY, slip_fixed_point
-from walker import WALKER
 
 from baslip.gait.modelsolver import ModelSolver, NoFixedPoint
 from baslip.model.catalogue.slip import SLIP
+from baslip.model.catalogue.walker import WALKER
 from baslip.model.description import ModelError
 from baslip.problem.modelspec import ModelSpec
 

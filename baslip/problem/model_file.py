@@ -1,4 +1,4 @@
-"""Problem files of described models: ``model: path/to/file.py:Name`` (or ``slip``).
+"""Problem files of described models: ``model: path/to/file.py:Name`` (or ``slip``, ``walker``).
 
 A problem of a described model holds the model, what it fixes and guesses, and what to
 run: its gait, a ``continuation`` in one fixed quantity, or a ``study`` of kind
@@ -38,6 +38,7 @@ import numpy as np
 
 from baslip.errors import ArgumentError, ProblemError
 from baslip.model.catalogue.slip import SLIP
+from baslip.model.catalogue.walker import WALKER
 from baslip.model.description import Model, ModelError
 from baslip.model.symbolic import model_functions
 from baslip.problem.modelspec import ModelSpec
@@ -48,7 +49,7 @@ from baslip.problem.values import mapping
 from baslip.problem.values import number as plain_number
 
 #: The described models baslip ships, by the name a problem gives them.
-BUILT_IN = {"slip": SLIP}
+BUILT_IN = {"slip": SLIP, "walker": WALKER}
 TOP_LEVEL_KEYS = ("name", "model", "law", "params", "fix", "guess", "bounds", "solver", "continuation", "study")
 SOLVER_KEYS = ("nodes", "tolerance")
 CONTINUATION_KEYS = ("parameter", "range", "step", "max_points", "second", "second_range", "follow")
@@ -172,7 +173,7 @@ def load_any_problem(path: str | Path) -> Problem | ModelProblem:
 
 
 def load_model(reference: Any, folder: Path) -> Model:
-    """The model a problem names: a built-in one (``slip``) or ``file.py:Name``, the file
+    """The model a problem names: a built-in one (``slip``, ``walker``) or ``file.py:Name``, the file
     relative to ``folder``."""
     if not isinstance(reference, str):
         raise ProblemError("model", f"expected a model's name or file.py:Name, got {excerpt(reference)}")
