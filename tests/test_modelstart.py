@@ -12,6 +12,7 @@ import pytest
 from baslip.analysis.modelstart import NoStart, reference_start, similarity
 from baslip.gait.modelsolver import ModelSolver
 from baslip.model.catalogue.slip import SLIP
+from baslip.model.catalogue.walker import WALKER
 from baslip.problem.modelspec import ModelSpec
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "problems" / "models"))
@@ -59,6 +60,21 @@ def test_the_hopper_at_robot_size_starts_from_its_reference():
     start = reference_start(solver, spec)
     gait = solver.solve(replace(spec, guess={n: start[n] for n in spec.free}))
     assert gait.verification <= 1e-10 and 0 < gait.values["push"] < 0.17
+
+
+def test_a_body_changed_in_one_parameter_starts_on_the_similar_body_not_the_default():
+    """Only k is fixed, to 15 kN/m: the nearest similar body changes m, l0 and g too, and
+    the path starts there (every quantity held at the start's value), not on a mix of
+    that body's k and the defaults' m, l0 and g, where the scaled walk is no walk."""
+    spec = ModelSpec(WALKER, fixed={"k": 15000.0, "theta_td": math.radians(21.0), "energy": 820.0},
+                     guess={"rho": 1.0, "rhodot": 0.0, "theta_dot": -1.0})
+    scale = similarity(WALKER, {**spec.values()})
+    assert scale.distance > 0.01 and not math.isclose(scale.length, 1.0, rel_tol=1e-3)
+    solver = ModelSolver(spec)
+    start = reference_start(solver, spec)
+    gait = solver.solve(replace(spec, guess={n: start[n] for n in spec.free}))
+    assert gait.verification <= 1e-10 and abs(gait.values["rhodot"]) < 1e-9
+    assert gait.values["theta_dot"] == pytest.approx(start["theta_dot"], rel=1e-8)
 
 
 def test_a_model_without_a_reference_asks_for_a_guess():

@@ -161,7 +161,9 @@ class _Path:
 
 def _follow(solver: ModelSolver, spec: ModelSpec, start: dict, target: dict, moved: tuple[str, ...]) -> dict:
     """Continue the start's gait along the path to the problem (step 2)."""
-    begin = replace(spec, fixed={k: start[k] for k in spec.fixed}, guess={n: start[n] for n in spec.free})
+    # Every quantity not free is held at the start's value, parameters too: the start's
+    # body (a similar one, or a neighbour's) need not have the problem's defaults.
+    begin = replace(spec, fixed={k: start[k] for k in target if k not in spec.free}, guess={n: start[n] for n in spec.free})
     first = solver.solve(begin)  # the start, polished and verified where it is
     values = {**first.values, **{k: start[k] for k in begin.fixed_invariants}}
     resolution = solver.calibrated(begin, values)
