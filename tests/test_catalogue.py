@@ -11,6 +11,7 @@
   energy through single and double support.
 """
 
+import csv
 import json
 import math
 from pathlib import Path
@@ -132,3 +133,27 @@ def test_the_walkers_energy_is_kept_through_single_and_double_support(walk):
     assert [mode for mode, *_ in outcome.nodes] == ["single", "double", "single"]
     assert len(energies) >= 3 * walk.resolution.steps
     assert max(abs(e - 820.0) for e in energies) < 1e-8 * 820.0
+
+
+@pytest.mark.parametrize("attack_deg", [19.5, 22.5, 26.0])
+def test_the_walkers_neimark_sacker_curve_bounds_its_stable_walks(attack_deg):
+    """Two methods on one edge: near points of the committed Neimark-Sacker curve
+    (results/walker, traced in landing angle and stiffness at 820 J), the walk solved 3 %
+    softer is stable and 3 % stiffer unstable."""
+    rows = [r for r in _csv_rows(RESULTS / "walker" / "curve.csv") if r["type"] == "neimark_sacker"]
+    row = min(rows, key=lambda r: abs(math.degrees(float(r["theta_td"])) - attack_deg))
+    assert float(row["verification"]) <= 1e-10
+    radii = []
+    for factor in (0.97, 1.03):
+        spec = ModelSpec(WALKER, fixed={"theta_td": float(row["theta_td"]), "energy": 820.0,
+                                        "k": factor * float(row["k"])},
+                         guess={n: float(row[n]) for n in WALKER.section.coordinates})
+        gait = ModelSolver(spec).solve(spec)
+        assert gait.verification <= 1e-10 and abs(gait.values["rhodot"]) < 1e-9
+        radii.append(gait.spectral_radius)
+    assert radii[0] < 1 < radii[1]
+
+
+def _csv_rows(path: Path) -> list[dict]:
+    with path.open() as handle:
+        return list(csv.DictReader(handle))

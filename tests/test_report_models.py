@@ -1,6 +1,6 @@
 """The report's section on models of one's own, read from the committed runs: the SLIP's
-band and its curves agree with the BA-SLIP limit's, and the hopper's atlas is told with
-how wide it searched."""
+band and its curves agree with the BA-SLIP limit's, the hopper's atlas is told with how
+wide it searched, and the walker's stable walks between their re-simulated edges."""
 
 from pathlib import Path
 
@@ -35,3 +35,10 @@ def test_without_the_runs_the_section_says_not_run(tmp_path):
 def test_the_hoppers_controllers_are_told_with_their_intervals(claims):
     controllers = claims[3]
     assert "deadbeat" in controllers and "95 % Wilson intervals" in controllers
+
+
+def test_the_walkers_stable_walks_are_told_between_their_edges_re_simulated(claims):
+    walker = claims[4]
+    assert "the symmetric walk (no leg speed at mid-stance) is stable from the symmetry-breaking branch point" in walker
+    assert walker.count("eps = ") == 1 and "re-simulated here: eps = " in walker
+    assert "How wide: one body and one energy" in walker and "Not set against Geyer et al." in walker
