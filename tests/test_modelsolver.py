@@ -99,3 +99,17 @@ def test_a_walker_steps_through_double_support_with_no_flight():
     assert gait.verification <= 1e-10 and 0 < double < first
     assert last == pytest.approx(first, rel=1e-9) and abs(gait.values["rhodot"]) < 1e-9
     assert sum(gait.trivial) == 1 and abs(gait.multipliers[list(gait.trivial).index(True)] - 1) < 1e-8
+
+
+def test_a_family_with_an_invariant_solves_where_it_starts():
+    """With the landing angle and the stiffness free at 820 J the walks form a surface;
+    Newton's least-norm steps on the independent equations stay on it (the return the
+    energy implies, kept, made a Jacobian singular but for rounding, and a step through
+    that rounding leapt 15 deg off the walks)."""
+    walk = {"rho": 0.9751422437843256, "rhodot": 0.0, "theta_dot": -1.1473830296337435,
+            "theta_td": math.radians(21.0), "k": 15000.0}
+    spec = ModelSpec(WALKER, fixed={"energy": 820.0}, guess=walk)
+    gait = ModelSolver(spec).solve(spec)
+    assert gait.verification <= 1e-10
+    assert gait.values["theta_td"] == pytest.approx(walk["theta_td"], abs=1e-8)
+    assert gait.values["k"] == pytest.approx(walk["k"], rel=1e-8)

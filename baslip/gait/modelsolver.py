@@ -370,11 +370,15 @@ class ModelSolver:
         return _shot(ModelShootingNLP(self.functions, spec, self.kept_rows(spec, values)), values, first)
 
     def _newton(self, spec: ModelSpec, values: dict, resolution: Resolution) -> dict:
-        """Newton (least-norm) steps until |r| is a hundredth of the tolerance, or stalls
-        below the tolerance (the map's own rounding)."""
+        """Newton (least-norm) steps on the independent equations (:meth:`equations`)
+        until |r| is a hundredth of the tolerance, or stalls below the tolerance (the map's
+        own rounding). The return an invariant implies is left out: kept, its row would
+        make the Jacobian singular but for rounding, and a least-norm step through that
+        rounding is a leap off the gaits (of a family, where the system is not square)."""
         values, previous = dict(values), np.inf
+        kept = self.kept_rows(spec, values)
         for _ in range(NEWTON_STEPS):
-            result = self.residual(spec, values, resolution, jacobian=True)
+            result = self.equations(spec, values, resolution, jacobian=True, kept=kept)
             if isinstance(result, str):
                 raise NoFixedPoint(f"Newton left the gaits: {result}")
             r, jac = result
