@@ -44,7 +44,7 @@ def test_lqr_stabilises_the_closed_loop(hop):
 
 def test_the_measured_basins_rank_the_controllers(hop):
     solver, gait, controllers = hop
-    starts = grid_starts(gait, 0.1, 3)
+    starts = grid_starts(solver, gait, 0.1, 3)
     assert len(starts) == 9 and np.any(np.all(np.isclose(starts, gait.section), axis=1))
     shares = {name: sum(ok for ok, _ in basin(solver, gait, c, starts, 40)) for name, c in controllers.items()}
     assert shares["constant"] == 1  # the gait itself, and none of its neighbours

@@ -12,7 +12,10 @@ u_n = u* + K (x_n - x*), designed as for the BA-SLIP (:mod:`baslip.analysis.feed
 A controller's basin is measured, not predicted: from each start of a grid around x*,
 the closed loop runs stride after stride with the model's own map, and a start counts
 when its last stride is back within :data:`RETURNED` of the gait (in each coordinate's
-scale) without a fall.
+scale) without a fall. Where the law conserves an invariant (the energy of a passive
+walker), the starts lie on the gait's level set of it: a start of another energy can
+never return to the gait, whatever the controller, and the multiplier 1 the invariant
+leaves is not counted in a closed loop's spectral radius.
 """
 
 from __future__ import annotations
@@ -25,12 +28,16 @@ import numpy as np
 from baslip.analysis.feedback import closed_loop_multipliers, control_rank, deadbeat_gain, lqr_gain_for_gait
 from baslip.engine.hybrid import Resolution
 from baslip.errors import ArgumentError
-from baslip.gait.modelsolver import ModelGait, ModelSolver
+from baslip.gait.modelsolver import ModelGait, ModelSolver, trivial_flags
 
 #: A start has returned when its last stride lies this close to the gait (scaled).
 RETURNED = 1e-3
 #: The controllers designed at a gait, in order.
 CONTROLLERS = ("constant", "deadbeat", "lqr")
+#: A coordinate's scale is its size at the gait, but no less than this (SI units).
+SMALLEST_SCALE = 0.1
+#: Newton steps that bring a start onto the gait's level set of the invariants.
+LEVEL_STEPS = 20
 
 
 @dataclass(frozen=True)
@@ -47,17 +54,21 @@ class ModelController:
         K (controls x section coordinates).
     multipliers : ndarray
         The linearised closed loop's multipliers, eig(A + B K).
+    neutral : int
+        How many of them the law's invariants hold at 1.
     """
 
     name: str
     controls: tuple[str, ...]
     gain: np.ndarray
     multipliers: np.ndarray
+    neutral: int = 0
 
     @property
     def spectral_radius(self) -> float:
-        """The largest |multiplier| of the linearised closed loop."""
-        return float(np.max(np.abs(self.multipliers)))
+        """The largest |multiplier| of the linearised closed loop, but the invariants' 1s."""
+        kept = [m for m, trivial in zip(self.multipliers, trivial_flags(self.multipliers, self.neutral)) if not trivial]
+        return float(np.max(np.abs(kept))) if kept else 0.0
 
 
 def design(solver: ModelSolver, gait: ModelGait) -> tuple[ModelController, ...]:
@@ -77,30 +88,73 @@ def design(solver: ModelSolver, gait: ModelGait) -> tuple[ModelController, ...]:
     outcome = solver.stride(spec, gait.values, gait.resolution, jacobian=True)
     A, by_theta = outcome.jacobians()
     B = by_theta[:, [solver.functions.theta_names.index(n) for n in controls]]
-    x_scale = np.maximum(np.abs(gait.section), 0.1)
-    u_scale = np.array([max(abs(gait.values[n]), 0.1) for n in controls])
-    found = [ModelController("constant", controls, np.zeros((len(controls), len(x_scale))), np.linalg.eigvals(A))]
+    x_scale = np.maximum(np.abs(gait.section), SMALLEST_SCALE)
+    u_scale = np.array([max(abs(gait.values[n]), SMALLEST_SCALE) for n in controls])
+    neutral = sum(gait.trivial)
+    found = [ModelController("constant", controls, np.zeros((len(controls), len(x_scale))), np.linalg.eigvals(A),
+                             neutral)]
     if control_rank(B, u_scale) == len(x_scale):
         K = deadbeat_gain(A, B, u_scale)
-        found.append(ModelController("deadbeat", controls, K, closed_loop_multipliers(A, B, K)))
-    neutral = sum(gait.trivial)
+        found.append(ModelController("deadbeat", controls, K, closed_loop_multipliers(A, B, K), neutral))
     try:
         K = lqr_gain_for_gait(A, B, np.diag(1 / x_scale**2), np.diag(1 / u_scale**2), neutral)
-        found.append(ModelController("lqr", controls, K, closed_loop_multipliers(A, B, K)))
+        found.append(ModelController("lqr", controls, K, closed_loop_multipliers(A, B, K), neutral))
     except ValueError:
         pass  # an unstable mode no control reaches: no LQR
     return tuple(found)
 
 
-def grid_starts(gait: ModelGait, spread: float, count: int) -> np.ndarray:
-    """Starts around the gait: each of its first two section coordinates on ``count``
-    values within ``spread`` (relative) of the gait's, the others at the gait's."""
+def grid_starts(solver: ModelSolver, gait: ModelGait, spread: float, count: int) -> np.ndarray:
+    """Starts around the gait on its level set of the law's invariants.
+
+    The first two section coordinates the invariants leave free (all of them, for a law
+    without invariants) take ``count`` values each within ``spread`` of the gait's, in
+    the coordinate's scale (its size at the gait, no less than :data:`SMALLEST_SCALE`,
+    so that a coordinate near zero is spread too); the rest of those coordinates stay at
+    the gait's, and the ones the invariants fix are solved to hold them at the gait's
+    values. A start that cannot reach the level set is left out.
+
+    Parameters
+    ----------
+    solver : ModelSolver
+        The model's solver.
+    gait : ModelGait
+        A verified gait.
+    spread : float
+        The grid's half-width, relative to each coordinate's scale.
+    count : int
+        Values along each of the two coordinates.
+    """
     x = gait.section
-    starts = []
-    axes = [np.linspace(-spread, spread, count) if i < 2 else np.zeros(1) for i in range(len(x))]
-    for offsets in np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(x), -1).T:
-        starts.append(x * (1 + offsets))
-    return np.array(starts)
+    free = solver.kept_rows(gait.spec, gait.values)
+    scale = np.maximum(np.abs(x), SMALLEST_SCALE)
+    axes = [np.linspace(-spread, spread, count) if i in free[:2] else np.zeros(1) for i in range(len(x))]
+    grid = [x + offsets * scale for offsets in np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(x), -1).T]
+    starts = [_on_level_set(solver, gait, start, free) for start in grid]
+    return np.array([start for start in starts if start is not None])
+
+
+def _on_level_set(solver: ModelSolver, gait: ModelGait, start: np.ndarray, free: list[int]) -> np.ndarray | None:
+    """``start`` with the coordinates not in ``free`` moved (Newton) to hold the law's
+    invariants at the gait's values; None if they cannot be."""
+    if solver.invariants is None or len(free) == len(start):
+        return start
+    theta = solver.split(gait.spec, gait.values)[1]
+    held = np.array(solver.invariants(gait.section, theta)[0]).ravel()
+    fixed = [i for i in range(len(start)) if i not in free]
+    x = np.array(start, dtype=float)
+    for _ in range(LEVEL_STEPS):
+        values, gradient = (np.array(v) for v in solver.invariants(x, theta)[:2])
+        miss = values.ravel() - held
+        if np.all(np.abs(miss) <= 1e-12 * np.maximum(np.abs(held), 1.0)):
+            return x
+        try:
+            x[fixed] -= np.linalg.solve(gradient[:, fixed], miss)
+        except np.linalg.LinAlgError:
+            return None
+        if not np.all(np.isfinite(x)):
+            return None
+    return None
 
 
 def returns(solver: ModelSolver, gait: ModelGait, controller: ModelController, start: np.ndarray, strides: int,
@@ -109,7 +163,7 @@ def returns(solver: ModelSolver, gait: ModelGait, controller: ModelController, s
     and the strides it took (or ran before it fell)."""
     spec, values = gait.spec, dict(gait.values)
     resolution = resolution or gait.resolution
-    x_scale = np.maximum(np.abs(gait.section), 0.1)
+    x_scale = np.maximum(np.abs(gait.section), SMALLEST_SCALE)
     u_star = np.array([gait.values[n] for n in controller.controls])
     coordinates = spec.model.section.coordinates
     x = np.array(start, dtype=float)

@@ -24,7 +24,7 @@ import numpy as np
 
 from baslip.analysis.atlas import Atlas, AtlasSettings, cover
 from baslip.engine.hybrid import Resolution
-from baslip.errors import ArgumentError
+from baslip.errors import ArgumentError, RunError
 from baslip.gait.modelsolver import ModelGait, ModelSolver, spectral_radius
 from baslip.numerics.continuation import CorrectionFailed, Settings, continue_branch
 from baslip.numerics.corrector import Evaluation
@@ -250,12 +250,25 @@ def cover_model(solver: ModelSolver, gait: ModelGait, settings: AtlasSettings = 
                                     f"{len(system.names)} free and {equations} equations give {k}")
     seed = np.array([gait.values[n] for n in system.names]) / system.scales
     atlas = cover(system, [seed], k, settings, progress=progress)
-    charts = []
-    for chart, piece in zip(atlas.charts, atlas.pieces):
-        values = system.point(chart.center)
-        found = solver.multipliers(system.spec, values, system.resolution)
-        radius = math.inf if isinstance(found, str) else spectral_radius(*found)
-        verification = solver.verify(system.spec, values, system.resolution)
-        charts.append(ModelChart(values, float(radius), piece, math.inf if isinstance(verification, str)
-                                 else verification))
-    return atlas, tuple(charts)
+    charts = tuple(_chart(solver, system, system.point(chart.center), piece)
+                   for chart, piece in zip(atlas.charts, atlas.pieces))
+    return atlas, charts
+
+
+def _chart(solver: ModelSolver, system: ModelManifoldSystem, values: dict, piece: int) -> ModelChart:
+    """A chart centre polished onto the gaits at a resolution calibrated there, with its
+    spectral radius and verification at that resolution.
+
+    The atlas holds one resolution, calibrated at its seed, so that its equations are one
+    smooth map; far from the seed (a stiffer leg, say) that resolution may miss the
+    tolerance, and a centre found with it would then fail its verification.
+    """
+    resolution = solver.calibrated(system.spec, values)
+    try:
+        values = solver.polish(system.spec, values, resolution)
+    except RunError:
+        resolution = system.resolution  # left as the atlas found it; its verification says how near
+    found = solver.multipliers(system.spec, values, resolution)
+    radius = math.inf if isinstance(found, str) else spectral_radius(*found)
+    verification = solver.verify(system.spec, values, resolution)
+    return ModelChart(values, float(radius), piece, math.inf if isinstance(verification, str) else verification)

@@ -338,7 +338,7 @@ class ModelSolver:
         if not first.ok:
             self._refuse_start(first.failure)
         values, status = self._shooting(spec, values, first)
-        values = self._newton(spec, values, resolution)
+        values = self.polish(spec, values, resolution)
         outside = [n for n in spec.free if not spec.range_of(n)[0] <= values[n] <= spec.range_of(n)[1]]
         if outside:
             raise NoFixedPoint(f"Newton on the map left the bounds of {outside[0]} ({values[outside[0]]:g})")
@@ -369,12 +369,29 @@ class ModelSolver:
     def _shooting(self, spec: ModelSpec, values: dict, first: Outcome) -> tuple[dict, str]:
         return _shot(ModelShootingNLP(self.functions, spec, self.kept_rows(spec, values)), values, first)
 
-    def _newton(self, spec: ModelSpec, values: dict, resolution: Resolution) -> dict:
-        """Newton (least-norm) steps on the independent equations (:meth:`equations`)
-        until |r| is a hundredth of the tolerance, or stalls below the tolerance (the map's
-        own rounding). The return an invariant implies is left out: kept, its row would
-        make the Jacobian singular but for rounding, and a least-norm step through that
-        rounding is a leap off the gaits (of a family, where the system is not square)."""
+    def polish(self, spec: ModelSpec, values: dict, resolution: Resolution) -> dict:
+        """Every quantity's value after Newton (least-norm) steps on the independent
+        equations (:meth:`equations`), until |r| is a hundredth of the tolerance or stalls
+        below it (the map's own rounding): of a family, the gait nearest ``values``.
+
+        The return an invariant implies is left out: kept, its row would make the
+        Jacobian singular but for rounding, and a least-norm step through that rounding
+        is a leap off the gaits (of a family, where the system is not square).
+
+        Parameters
+        ----------
+        spec : ModelSpec
+            The problem: what is fixed and what is free.
+        values : dict
+            Every quantity's value by name, near a gait.
+        resolution : Resolution
+            The engine's scout step and steps per mode.
+
+        Raises
+        ------
+        NoFixedPoint
+            A stride failed, or the steps did not converge.
+        """
         values, previous = dict(values), np.inf
         kept = self.kept_rows(spec, values)
         for _ in range(NEWTON_STEPS):

@@ -113,7 +113,7 @@ class ModelRun:
 
         figures = []
         if self.table:
-            figures.append(_figure(self.problem, self.kind, list(self.table)))
+            figures.append(_figure(self.problem, self.kind, list(self.table), _basin_axes(self.record)))
             figures[-1].set_label(self.kind)
         if self.curves:
             figures.append(_curves_figure(self.problem, self.curves))
@@ -186,7 +186,7 @@ def run_model_problem(problem: ModelProblem, out: Path | None = None) -> ModelRu
         from baslip.viz.modelplots import png
 
         table = {"branch": "branch.csv", "atlas": "charts.csv", "basins": "basins.csv", "sweep": "points.csv"}[run.kind]
-        named.update({out / table: _csv(rows), out / f"{run.kind}.png": png(_figure(problem, run.kind, rows))})
+        named.update({out / table: _csv(rows), out / f"{run.kind}.png": png(_figure(problem, run.kind, rows, _basin_axes(record)))})
     if curves:
         from baslip.viz.modelplots import png
 
@@ -312,8 +312,9 @@ def _controllers(solver: ModelSolver, gait: ModelGait, problem: ModelProblem,
                  study: ModelControllersStudy) -> tuple[dict, list[dict]]:
     """Each controller's closed-loop multipliers and its measured basin, and the rows of
     every start (``basins.csv``)."""
-    starts = grid_starts(gait, study.spread, study.grid)
+    starts = grid_starts(solver, gait, study.spread, study.grid)
     coordinates = problem.spec.model.section.coordinates
+    axes = [coordinates[i] for i in solver.kept_rows(gait.spec, gait.values)[:2]]
     summary, rows = [], []
     for controller in design(solver, gait):
         def progress(done: int, name: str = controller.name) -> None:
@@ -328,7 +329,7 @@ def _controllers(solver: ModelSolver, gait: ModelGait, problem: ModelProblem,
                         "interval": list(wilson_interval(returned, len(starts)))})
         rows += [{"controller": controller.name, **dict(zip(coordinates, start.tolist())), "returned": ok,
                   "strides": taken} for start, (ok, taken) in zip(starts, outcomes)]
-    record = {"grid": study.grid, "spread": study.spread, "strides": study.strides,
+    record = {"grid": study.grid, "spread": study.spread, "axes": axes, "strides": study.strides,
               "returned_within": RETURNED, "controllers": summary}
     return record, rows
 
@@ -386,18 +387,24 @@ def _solved_at(solver: ModelSolver, spec: ModelSpec, start: dict, fallback: dict
     raise NoFixedPoint("no gait here from the neighbour, nor continued from it or from the problem's gait")
 
 
-def _figure(problem: ModelProblem, kind: str, rows: list[dict]):
-    """The branch's, the atlas's or the basins' figure from its rows."""
+def _basin_axes(record: dict) -> tuple[str, ...]:
+    """The two section coordinates a controllers study's grid spreads (none if it is not one)."""
+    return tuple(record.get("controllers", {}).get("axes", ()))
+
+
+def _figure(problem: ModelProblem, kind: str, rows: list[dict], axes: tuple[str, ...] = ()):
+    """The branch's, the atlas's or the basins' figure from its rows (``axes``: the basins'
+    two section coordinates, by default the first two)."""
     from baslip.viz.modelplots import atlas_figure, basins_figure, branch_figure
 
     spec, units = problem.spec, _units(problem)
     if kind == "basins":
-        x, y = spec.model.section.coordinates[:2]
+        x, y = axes or spec.model.section.coordinates[:2]
         return basins_figure(rows, x, y, units, f"{problem.name}: basins of {spec.model.name}'s controllers")
     if kind == "sweep" and problem.sweep is not None:
-        axes = [name for name, _ in problem.sweep.axes]
+        swept = [name for name, _ in problem.sweep.axes]
         found = [r for r in rows if r["status"] == "verified"]
-        x, y = (axes[0], axes[1]) if len(axes) == 2 else (axes[0], "spectral_radius")
+        x, y = (swept[0], swept[1]) if len(swept) == 2 else (swept[0], "spectral_radius")
         return atlas_figure(found, x, y, units, f"{problem.name}: sweep of {spec.model.name}'s gaits")
     free = spec.free
     if kind == "branch" and problem.continuation is not None:
