@@ -72,6 +72,7 @@ def test_the_ba_slip_reader_sends_a_described_model_elsewhere():
     ({"study": {"kind": "controllers", "spread": 1.5}}, "study.spread", "must lie in (0, 1)"),
     ({"study": {"kind": "controllers", "max_charts": 9}}, "study.max_charts", "unknown key"),
     ({"study": {"kind": "atlas", "max_charts": 0}}, "study.max_charts", "expected an integer"),
+    ({"study": {"kind": "atlas", "plot": ["theta_td", "z"]}}, "study.plot", "expected two different free quantities"),
     ({"continuation": {"parameter": "push", "range": [0, 1]}}, "continuation.parameter", "expected a fixed quantity"),
     ({"continuation": {"parameter": "ydot", "range": [6, 7]}}, "continuation.range", "strictly inside"),
     ({"speed": 3}, "speed", "unknown key"),

@@ -55,10 +55,10 @@ SOLVER_KEYS = ("nodes", "tolerance")
 CONTINUATION_KEYS = ("parameter", "range", "step", "max_points", "second", "second_range", "follow")
 #: The bifurcation curves a continuation may follow in a second parameter.
 CURVE_KINDS = ("fold", "period_doubling", "neimark_sacker")
-STUDY_KEYS = ("kind", "max_charts", "radius", "max_radius", "grid", "spread", "strides", "sweep")
+STUDY_KEYS = ("kind", "max_charts", "radius", "max_radius", "plot", "grid", "spread", "strides", "sweep")
 #: The keys of each study kind of a described model.
-KIND_KEYS = {"atlas": ("kind", "max_charts", "radius", "max_radius"), "controllers": ("kind", "grid", "spread", "strides"),
-             "sweep": ("kind", "sweep")}
+KIND_KEYS = {"atlas": ("kind", "max_charts", "radius", "max_radius", "plot"),
+             "controllers": ("kind", "grid", "spread", "strides"), "sweep": ("kind", "sweep")}
 #: Most points of a described model's sweep.
 MAX_SWEEP_POINTS = 10_000
 #: Angles and angular rates given with a unit, as a factor to SI.
@@ -83,12 +83,14 @@ class ModelContinuation:
 
 @dataclass(frozen=True)
 class ModelAtlasStudy:
-    """An atlas of the gaits in the free quantities: charts at most, and the first and
-    largest radius of a chart (in units of each quantity's size at the gait)."""
+    """An atlas of the gaits in the free quantities: charts at most, the first and
+    largest radius of a chart (in units of each quantity's size at the gait), and the two
+    free quantities of its figure (the first two free ones if empty)."""
 
     max_charts: int = 200
     radius: float = 0.2
     max_radius: float = 0.5
+    plot: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -387,7 +389,12 @@ def _study(value: Any, spec: ModelSpec) -> ModelAtlasStudy | ModelControllersStu
     largest = plain_number(given.get("max_radius", max(0.5, radius)), "study.max_radius")
     if not radius <= largest <= 10:
         raise ProblemError("study.max_radius", f"must lie in [radius, 10], not {largest:g}")
-    return ModelAtlasStudy(charts, radius, largest)
+    plot = given.get("plot", [])
+    if not isinstance(plot, list) or (plot and (len(plot) != 2 or len(set(plot)) != 2 or
+                                                any(name not in spec.free for name in plot))):
+        raise ProblemError("study.plot", f"expected two different free quantities ({', '.join(spec.free)}), "
+                                         f"got {excerpt(plot)}")
+    return ModelAtlasStudy(charts, radius, largest, tuple(plot))
 
 
 def _controllers_study(given: dict) -> ModelControllersStudy:

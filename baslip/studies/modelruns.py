@@ -412,6 +412,8 @@ def _figure(problem: ModelProblem, kind: str, rows: list[dict], axes: tuple[str,
         return branch_figure(rows, problem.continuation.parameter, quantity, units,
                              f"{problem.name}: gaits of {spec.model.name} against {problem.continuation.parameter}")
     x, y = (free[0], free[1]) if len(free) > 1 else (free[0], "spectral_radius")
+    if problem.atlas is not None and problem.atlas.plot:
+        x, y = problem.atlas.plot
     return atlas_figure(rows, x, y, units, f"{problem.name}: atlas of {spec.model.name}'s gaits")
 
 
