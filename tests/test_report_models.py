@@ -42,3 +42,14 @@ def test_the_walkers_stable_walks_are_told_between_their_edges_re_simulated(clai
     assert "the symmetric walk (no leg speed at mid-stance) is stable from the symmetry-breaking branch point" in walker
     assert walker.count("eps = ") == 1 and "re-simulated here: eps = " in walker
     assert "How wide: one body and one energy" in walker and "Not set against Geyer et al." in walker
+
+
+def test_the_walkers_claim_tells_its_atlas_and_its_basins(claims):
+    walker = claims[4]
+    assert "An atlas of the walks at 820 J in landing angle" in walker and "95 % Wilson intervals" in walker
+
+
+def test_the_third_laws_claim_says_where_its_gaits_turn_stable(claims):
+    law = claims[5]
+    assert "stable from omega = " in law and "re-simulated here: eps = " in law
+    assert "How wide: one body, one apex height and speed, one slope of the constraint" in law

@@ -177,10 +177,35 @@ def continue_model(solver: ModelSolver, gait: ModelGait, parameter: str, bounds:
 
 
 def _branch_point(system: ModelBranchSystem, point) -> ModelBranchPoint:
-    values = system.point(point.v)
-    verification = system.solver.verify(system.spec_at(point.v), values, system.resolution)
-    return ModelBranchPoint(values, point.multipliers, tuple(point.trivial), point.special,
+    """A point of the branch, verified; one that misses its verification at the branch's
+    resolution (calibrated at its first gait) is polished at a resolution calibrated
+    where it lies, and its multipliers taken there."""
+    solver, spec, values = system.solver, system.spec_at(point.v), system.point(point.v)
+    multipliers, trivial = point.multipliers, tuple(point.trivial)
+    verification = solver.verify(spec, values, system.resolution)
+    if isinstance(verification, str) or verification > spec.tolerance:
+        values, resolution = _polished(solver, spec, values, system.resolution)
+        verification = solver.verify(spec, values, resolution)
+        found = solver.multipliers(spec, values, resolution)
+        if not isinstance(found, str):
+            multipliers, trivial = found[0], tuple(found[1])
+    return ModelBranchPoint(values, multipliers, trivial, point.special,
                             math.inf if isinstance(verification, str) else verification)
+
+
+def _polished(solver: ModelSolver, spec: ModelSpec, values: dict, fallback: Resolution) -> tuple[dict, Resolution]:
+    """``values`` polished onto the gaits at a resolution calibrated there, and that
+    resolution; or as they are, with ``fallback``, where the polish fails.
+
+    A family holds one resolution, calibrated at its first gait, so that its equations
+    are one smooth map; far from there (a stiffer leg, a larger gain) it may miss the
+    tolerance, and a point found with it would then fail its verification.
+    """
+    resolution = solver.calibrated(spec, values)
+    try:
+        return solver.polish(spec, values, resolution), resolution
+    except RunError:
+        return values, fallback
 
 
 class ModelManifoldSystem(Equations):
@@ -256,18 +281,9 @@ def cover_model(solver: ModelSolver, gait: ModelGait, settings: AtlasSettings = 
 
 
 def _chart(solver: ModelSolver, system: ModelManifoldSystem, values: dict, piece: int) -> ModelChart:
-    """A chart centre polished onto the gaits at a resolution calibrated there, with its
-    spectral radius and verification at that resolution.
-
-    The atlas holds one resolution, calibrated at its seed, so that its equations are one
-    smooth map; far from the seed (a stiffer leg, say) that resolution may miss the
-    tolerance, and a centre found with it would then fail its verification.
-    """
-    resolution = solver.calibrated(system.spec, values)
-    try:
-        values = solver.polish(system.spec, values, resolution)
-    except RunError:
-        resolution = system.resolution  # left as the atlas found it; its verification says how near
+    """A chart centre polished onto the gaits at a resolution calibrated there
+    (:func:`_polished`), with its spectral radius and verification at that resolution."""
+    values, resolution = _polished(solver, system.spec, values, system.resolution)
     found = solver.multipliers(system.spec, values, resolution)
     radius = math.inf if isinstance(found, str) else spectral_radius(*found)
     verification = solver.verify(system.spec, values, resolution)

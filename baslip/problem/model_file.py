@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from baslip.errors import ArgumentError, ProblemError
+from baslip.model.catalogue.ba_slip import BA_SLIP
 from baslip.model.catalogue.slip import SLIP
 from baslip.model.catalogue.walker import WALKER
 from baslip.model.description import Model, ModelError
@@ -49,7 +50,9 @@ from baslip.problem.values import mapping
 from baslip.problem.values import number as plain_number
 
 #: The described models baslip ships, by the name a problem gives them.
-BUILT_IN = {"slip": SLIP, "walker": WALKER}
+#: ``ba-slip-described`` is the BA-SLIP's description on the generic engine, with the
+#: virtual-constraint law that only it has (``ba-slip`` is the compiled BA-SLIP's problem).
+BUILT_IN = {"slip": SLIP, "walker": WALKER, "ba-slip-described": BA_SLIP}
 TOP_LEVEL_KEYS = ("name", "model", "law", "params", "fix", "guess", "bounds", "solver", "continuation", "study")
 SOLVER_KEYS = ("nodes", "tolerance")
 CONTINUATION_KEYS = ("parameter", "range", "step", "max_points", "second", "second_range", "follow")

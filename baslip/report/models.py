@@ -1,5 +1,6 @@
 """The section beyond the thesis on models of one's own: the SLIP as a description of its
-own against the BA-SLIP's SLIP limit, the guide's hopper, and the bipedal walker.
+own against the BA-SLIP's SLIP limit, the guide's hopper, the bipedal walker, and the
+BA-SLIP's third hip law, the virtual constraint.
 
 Every point a claim quotes is re-simulated here by the described model's independent
 stride (:meth:`baslip.gait.modelsolver.ModelSolver.verify`), as the BA-SLIP's claims are
@@ -21,8 +22,10 @@ SLIP_BRANCH, SLIP_LIMIT_BRANCH = "slip_attack", "continuation_slip_attack"
 SLIP_CURVES, SLIP_LIMIT_CURVES = "slip_band", "curve_slip_band"
 #: The guide's hopper, covered at one height, and its controllers.
 HOPPER_ATLAS, HOPPER_CONTROLLERS = "hopper_atlas", "hopper_controllers"
-#: The bipedal walker's branch and the edges of its stable walks.
-WALKER = "walker"
+#: The bipedal walker's branch and the edges of its stable walks, its atlas and its controllers.
+WALKER, WALKER_ATLAS, WALKER_CONTROLLERS = "walker", "walker_atlas", "walker_controllers"
+#: The virtual-constraint law's gait continued in its gain.
+VIRTUAL_CONSTRAINT = "virtual_constraint"
 #: Mid-stance leg speed [m/s] below which a walk counts as symmetric.
 SYMMETRIC = 1e-8
 #: The independent stride's grid [s] when re-simulating a quoted point.
@@ -31,9 +34,9 @@ CHECK_GRID = 0.005
 
 def model_claims(ev: Evidence) -> list[str]:
     """The SLIP's band against the BA-SLIP limit's, the hopper's atlas and controllers,
-    and the walker's stable walks."""
+    the walker's stable walks, and the virtual constraint's gaits."""
     claims = (_slip_band_claim(ev) + _slip_curves_claim(ev) + _hopper_claim(ev) + _controllers_claim(ev)
-              + _walker_claim(ev))
+              + _walker_claim(ev) + _virtual_constraint_claim(ev))
     return claims or ["Not run.\n"]
 
 
@@ -205,10 +208,61 @@ def _walker_claim(ev: Evidence) -> list[str]:
         f"stiffer than which the symmetric walk is unstable, runs from {softest['k'] / 1e3:.2f} kN/m at "
         f"{softest['theta_td'] * DEG:.2f} deg to a 1:1 resonance at {resonance['k'] / 1e3:.2f} kN/m and "
         f"{resonance['theta_td'] * DEG:.2f} deg ({len(rows)} verified points), past which it is a neutral "
-        "saddle, no edge.",
+        f"saddle, no edge.{_walker_atlas_and_basins(ev)}",
         "beyond the thesis: a walker's stable walks and their edges, from its description",
         "How wide: one body and one energy; the branch at one stiffness, from 14 to 28 deg, and the edges from "
         "5 to 40 kN/m. tests/test_catalogue.py solves walks 3 % either side of the curve at three angles: softer "
         "stable, stiffer unstable. Not set against Geyer et al.'s published region: its numbers were not at hand.",
-        (f"{WALKER}/branch.png", f"{WALKER}/curve.png"),
+        (f"{WALKER}/branch.png", f"{WALKER}/curve.png", f"{WALKER_ATLAS}/atlas.png", f"{WALKER_CONTROLLERS}/basins.png"),
+    )]
+
+
+def _walker_atlas_and_basins(ev: Evidence) -> str:
+    """The walker's atlas in landing angle and stiffness, and its controllers' basins, as
+    sentences of its claim (empty where not run)."""
+    text = ""
+    atlas = (ev.summary(WALKER_ATLAS) or {}).get("atlas")
+    if atlas:
+        text += (f" An atlas of the walks at 820 J in landing angle (15 to 28 deg) and stiffness (8 to 30 kN/m): "
+                 f"{atlas['charts']} charts, {atlas['verified']} verified, {atlas['stable']} stable, "
+                 f"{'complete' if atlas['complete'] else 'not complete'}; the stable ones lie below the curve.")
+    controllers = (ev.summary(WALKER_CONTROLLERS) or {}).get("controllers")
+    if controllers:
+        parts = [f"{c['name']} {c['returned']} of {c['starts']} ({100 * c['interval'][0]:.0f}-"
+                 f"{100 * c['interval'][1]:.0f} %, radius {c['spectral_radius']:.3g})"
+                 for c in controllers["controllers"]]
+        text += (f" The unstable reference walk (20 kN/m) under controllers on the landing angle, from starts on "
+                 f"its energy level: {'; '.join(parts)} (95 % Wilson intervals).")
+    return text
+
+
+def _virtual_constraint_claim(ev: Evidence) -> list[str]:
+    summary, rows = ev.summary(VIRTUAL_CONSTRAINT), ev.rows(VIRTUAL_CONSTRAINT, "branch.csv")
+    problem = _problem(VIRTUAL_CONSTRAINT)
+    if summary is None or not rows or problem is None:
+        return []
+    verified = [r for r in rows if r["verification"] <= problem.spec.tolerance]
+    stable = [r for r in verified if r["stable"]]
+    if not stable:
+        return []
+    first, last = min(stable, key=lambda r: r["omega"]), max(verified, key=lambda r: r["omega"])
+    fixed = problem.spec.fixed
+    return [claim(
+        "A third hip law: the trunk on a virtual constraint",
+        "not in the thesis; the law is the hybrid-zero-dynamics view of Poulakakis and Grizzle (2009), on the "
+        "thesis's model.",
+        f"`model: ba-slip-described`, `law: virtual_constraint`: the hip torque holds the trunk angle on "
+        f"trunk_angle + {fixed['trunk_slope']:g} theta1 by input-output linearisation, its error critically damped "
+        f"at the gain omega. At the thesis's body, a {fixed['z']:g} m apex and {fixed['ydot']:g} m/s, continued in "
+        f"omega from 10 to 400 1/s ({len(rows)} points, {len(verified)} verified): unstable at small gains, stable "
+        f"from omega = {first['omega']:.1f} 1/s (spectral radius {first['spectral_radius']:.4f}) on, and at "
+        f"{last['omega']:.0f} 1/s {last['spectral_radius']:.4f} (trunk angle {last['trunk_angle'] * DEG:.2f} deg at "
+        f"a vertical leg; re-simulated here: eps = {_again(problem, last):.1e}). As omega grows the gait's "
+        "radius falls towards a limit, the hybrid zero dynamics' (at slope 0, tests/test_virtual_constraint.py "
+        "shows the trunk's two multipliers dying out and the others staying).",
+        "beyond the thesis: a third hip law whose gaits are found, verified and stable from a gain on",
+        "How wide: one body, one apex height and speed, one slope of the constraint. With the trunk held upright "
+        "(slope 0) the zero dynamics keep a multiplier 1, the gaits at fixed controls forming a curve, so the slope "
+        "is what makes them attract here. Basins under the controllers, and the human body, are not yet measured.",
+        (f"{VIRTUAL_CONSTRAINT}/branch.png",),
     )]

@@ -7,9 +7,10 @@ stride is flight, compression, decompression, flight, on the apex section in
 ``(z, theta_h, ydot, theta_h_dot)`` with ``y`` cyclic; the bottom (``rhodot`` rising
 through zero) separates compression from decompression and keeps the state.
 
-The compiled engine (:mod:`baslip.engine.driver`) stays BA-SLIP's fast path; the
-catalogue's test holds the generic engine on this description to its strides and
-Jacobians.
+The compiled engine (:mod:`baslip.engine.driver`) stays BA-SLIP's fast path for PD and
+VPP; the catalogue's test holds the generic engine on this description to its strides
+and Jacobians. The third law, the virtual constraint
+(:mod:`baslip.model.virtual_constraint`), is the description's alone.
 """
 
 from __future__ import annotations
@@ -34,12 +35,13 @@ from baslip.model.dynamics import (
 )
 from baslip.model.hiplaw import HIP_LAWS, HipLaw
 from baslip.model.ranges import PARAM_RANGES, PARAM_UNITS
+from baslip.model.virtual_constraint import VIRTUAL_CONSTRAINT
 
 #: Exponents of (mass, length, time) of each parameter and control.
 DIMENSIONS = {
     "m": (1, 0, 0), "I": (1, 2, 0), "k": (1, 0, -2), "rho0": (0, 1, 0), "d": (0, 1, 0), "g": (0, 1, -2),
     "Kp": (1, 2, -2), "Kd": (1, 2, -1), "theta2_des": (0, 0, 0), "theta2_dot_des": (0, 0, -1),
-    "r_vpp": (0, 1, 0), "theta_td": (0, 0, 0),
+    "r_vpp": (0, 1, 0), "theta_td": (0, 0, 0), "trunk_angle": (0, 0, 0), "trunk_slope": (0, 0, 0), "omega": (0, 0, -1),
 }
 #: The leg collapses below this fraction of its rest length (as in the compiled engine).
 COLLAPSE_FRACTION = 0.05
@@ -128,7 +130,7 @@ BA_SLIP = Model(
     ),
     section=Section("flight", lambda s, p, u: s.zdot, -1, APEX.names, cyclic=("y",), pinned={"zdot": 0.0},
                     units={"z": "m", "theta_h": "rad", "ydot": "m/s", "theta_h_dot": "rad/s"}),
-    laws=tuple(_law(law) for law in HIP_LAWS.values()),
+    laws=tuple(_law(law) for law in (*HIP_LAWS.values(), VIRTUAL_CONSTRAINT)),
     controls=(Quantity("theta_td", "rad", 0.1, -1.5, 1.5, DIMENSIONS["theta_td"]),),
     falls=(Fall("CoM touches the ground", "flight", lambda s, p, u: s.z), *_stance_falls()),
 )

@@ -1,0 +1,88 @@
+"""The virtual-constraint hip law on the BA-SLIP's description: the torque makes the
+trunk's error follow its critically damped dynamics exactly through stance, and the
+gait's multipliers split into the trunk's, which die out as the gain grows, and those of
+the hybrid zero dynamics."""
+
+import math
+
+import numpy as np
+import pytest
+
+from baslip.analysis.modelfamilies import continue_model
+from baslip.engine.hybrid import HybridMap, Resolution
+from baslip.gait.modelsolver import ModelSolver
+from baslip.model.catalogue.ba_slip import BA_SLIP
+from baslip.model.dynamics import STANCE
+from baslip.model.symbolic import model_functions
+from baslip.model.virtual_constraint import VIRTUAL_CONSTRAINT
+from baslip.numerics.continuation import Settings
+from baslip.problem.modelspec import ModelSpec
+
+#: The thesis's body (problems/downward.yaml).
+BODY = {"m": 1.0, "I": 0.0033, "k": 1000.0, "rho0": 0.2, "d": 0.04, "g": 9.81}
+
+
+def gait(omega: float, z: float = 0.25, ydot: float = 3.0):
+    """The upright gait held on the constraint at ``omega`` [1/s], at a 0.25 m apex and 3 m/s."""
+    spec = ModelSpec(BA_SLIP, law="virtual_constraint",
+                     fixed={**BODY, "z": z, "ydot": ydot, "omega": omega, "trunk_angle": math.pi / 2},
+                     guess={"theta_h": math.pi / 2, "theta_h_dot": 0.0, "theta_td": 0.56, "trunk_slope": 0.0})
+    return ModelSolver(spec).solve(spec)
+
+
+def test_the_trunk_error_follows_its_closed_form_through_stance():
+    """Landing off the constraint (the trunk tilted and spinning at the apex), the error
+    is (y0 + (y0' + omega y0) t) exp(-omega t) at every step of both stance modes."""
+    omega, slope = 40.0, 0.3
+    values = {**BODY, "z": 0.25, "theta_h": math.pi / 2 + 0.05, "ydot": 3.0, "theta_h_dot": 0.4, "theta_td": 0.56,
+              "trunk_angle": math.pi / 2, "trunk_slope": slope, "omega": omega}
+    functions = model_functions(BA_SLIP, "virtual_constraint")
+    section = np.array([values[c] for c in BA_SLIP.section.coordinates])
+    outcome = HybridMap(functions).stride(section, functions.theta(values), Resolution(0.002, 64), nodes=True)
+    controls = VIRTUAL_CONSTRAINT.controls.pack(values)
+    stance = [(mode, times, states) for mode, times, states in outcome.nodes if mode != "flight"]
+    assert [mode for mode, *_ in stance] == ["compression", "decompression"]
+    first_state = stance[0][2][0]
+    # Each mode's node times start at its own beginning: decompression starts when compression ends.
+    starts = {"compression": 0.0, "decompression": outcome.durations[1]}
+    y0, rate0 = (float(v) for v in VIRTUAL_CONSTRAINT.output(STANCE.pack(dict(zip(STANCE.names, first_state))),
+                                                            controls))
+    assert abs(y0) > 0.01  # it did land off the constraint
+    worst = 0.0
+    for mode, times, states in stance:
+        for t, state in zip(times, states):
+            y = float(VIRTUAL_CONSTRAINT.output(STANCE.pack(dict(zip(STANCE.names, state))), controls)[0])
+            elapsed = starts[mode] + t
+            worst = max(worst, abs(y - (y0 + (rate0 + omega * y0) * elapsed) * math.exp(-omega * elapsed)))
+    assert worst < 1e-9
+
+
+def test_a_gait_that_lands_on_the_constraint_stays_on_it_and_is_verified():
+    walk = gait(100.0)
+    assert walk.verification <= 1e-10
+    assert walk.values["theta_h"] == pytest.approx(math.pi / 2, abs=1e-9)
+    assert abs(walk.values["theta_h_dot"]) < 1e-9 and abs(walk.values["trunk_slope"]) < 1e-9
+
+
+def test_the_trunks_multipliers_die_out_and_the_zero_dynamics_remain():
+    """As omega grows the trunk's two multipliers go to zero, and the other two converge
+    to the hybrid zero dynamics': 0.579 and a neutral 1 at 3 m/s."""
+    moderate, high = (np.sort(np.abs(gait(omega).multipliers)) for omega in (100.0, 400.0))
+    assert high[:2] == pytest.approx([0.0, 0.0], abs=1e-6)
+    assert moderate[1] > 1e-3
+    assert high[2:] == pytest.approx(moderate[2:], rel=1e-8)
+    assert high[2] == pytest.approx(0.579, abs=1e-3) and high[3] == pytest.approx(1.0, abs=1e-8)
+
+
+def test_a_branch_far_from_its_first_gait_is_verified_throughout():
+    """The gains from 200 to 400 1/s stiffen the trunk's error: points the branch's own
+    resolution (its first gait's) would miss are polished where they lie."""
+    tilted = ModelSpec(BA_SLIP, law="virtual_constraint",
+                       fixed={**BODY, "z": 0.25, "ydot": 3.0, "omega": 200.0, "trunk_slope": 0.2},
+                       guess={"theta_h": math.radians(59.0), "theta_h_dot": 0.0, "theta_td": math.radians(33.0),
+                              "trunk_angle": math.radians(76.0)})
+    solver = ModelSolver(tilted)
+    branch = continue_model(solver, solver.solve(tilted), "omega", (150.0, 400.0),
+                            Settings(step=0.2, max_step=0.5, max_points=12))
+    assert branch.points[-1].values["omega"] == pytest.approx(400.0)
+    assert all(p.verification <= 1e-10 for p in branch.points)
