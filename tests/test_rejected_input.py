@@ -356,7 +356,8 @@ for broken in BROKEN_SOURCES:
 # --- hip laws: the law's name, and the controls, studies and options each law takes ------
 CASES += number_cases("vpp", "fix.r_vpp")
 CASES += [(f"hip_law={label}", dump(put(base("downward"), "hip_law", value)), "hip_law")
-          for label, value in {"unknown": "spring", "number": 1, "list": ["pd"], "null": None}.items()]
+          for label, value in {"unknown": "spring", "number": 1, "list": ["pd"], "null": None,
+                               "the description's own law": "virtual_constraint"}.items()]
 CASES += [
     ("pd control under vpp", dump(put(base("vpp"), "fix.Kp", 1.0)), "fix.Kp"),
     ("pd guess under vpp", dump(put(base("vpp"), "guess.theta2_des", 3.0)), "guess.theta2_des"),

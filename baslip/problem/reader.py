@@ -44,6 +44,7 @@ from baslip.model.quantities import (
     start_value,
     value_text,
 )
+from baslip.model.virtual_constraint import VIRTUAL_CONSTRAINT
 from baslip.problem.continuation import ContinuationSpec, check_continuation, parse_continuation
 from baslip.problem.solver import SolverSettings, parse_solver
 from baslip.problem.source import read_problem_file
@@ -271,6 +272,9 @@ def _name(value: Any) -> str:
 def _hip_law(value: Any) -> HipLaw:
     if isinstance(value, HipLaw):
         return value
+    if value == VIRTUAL_CONSTRAINT.name:
+        raise ProblemError("hip_law", f"{value} is a law of the BA-SLIP's description, not of its compiled engine: "
+                                      f"write model: ba-slip-described and law: {value}")
     if not isinstance(value, str) or value not in HIP_LAWS:
         raise ProblemError("hip_law", f"expected one of {', '.join(HIP_LAWS)}, got {excerpt(value)}")
     return HIP_LAWS[value]

@@ -22,22 +22,13 @@ import math
 
 import casadi as ca
 
+# The walker's body is the SLIP's (mass, leg stiffness, rest length, gravity), and its single
+# support is the SLIP's stance on the stance leg.
+from baslip.model.catalogue.slip import PARAMETERS, stance_lagrangian
 from baslip.model.description import Fall, Invariant, Mode, Model, Quantity, Section, Transition
 
-PARAMETERS = (
-    Quantity("m", "kg", 80.0, 0.0, 1e4, (1, 0, 0)),
-    Quantity("k", "N/m", 20000.0, 0.0, 1e8, (1, 0, -2)),
-    Quantity("l0", "m", 1.0, 0.0, 10.0, (0, 1, 0)),
-    Quantity("g", "m/s^2", 9.81, 0.0, 100.0, (0, 1, -2)),
-)
 #: The swing leg's landing angle from the vertical; 21 deg is 69 deg from the ground.
 TOUCHDOWN_ANGLE = Quantity("theta_td", "rad", math.radians(21.0), -1.2, 1.2)
-
-
-def single_support_lagrangian(s, p, u):
-    """Kinetic minus potential (gravity and spring) energy on one leg [J]."""
-    kinetic = p.m / 2 * (s.rhodot**2 + s.rho**2 * s.theta_dot**2)
-    return kinetic - p.m * p.g * s.rho * ca.cos(s.theta) - p.k / 2 * (s.rho - p.l0) ** 2
 
 
 def _leg_lengths(s):
@@ -98,7 +89,7 @@ WALKER = Model(
     description="point mass on two massless spring legs (Geyer, Seyfarth and Blickhan 2006)",
     parameters=PARAMETERS,
     modes=(
-        Mode("single", ("rho", "theta"), ("rhodot", "theta_dot"), lagrangian=single_support_lagrangian),
+        Mode("single", ("rho", "theta"), ("rhodot", "theta_dot"), lagrangian=stance_lagrangian),
         Mode("double", ("x", "z", "gap"), ("x_dot", "z_dot", "gap_dot"), dynamics=double_support_dynamics),
     ),
     order=("single", "double", "single"),
