@@ -100,7 +100,8 @@ class ModelAtlasStudy:
 class ModelControllersStudy:
     """The gait's stride-to-stride controllers compared by their measured basins: starts
     on a ``grid`` x ``grid`` square within ``spread`` (relative) of the gait's first two
-    section coordinates, each run ``strides`` strides."""
+    section coordinates its law's invariants leave free, on their level
+    (:func:`baslip.analysis.modelcontrol.grid_starts`), each run ``strides`` strides."""
 
     grid: int = 9
     spread: float = 0.2
