@@ -3,7 +3,9 @@ trunk's error follow its critically damped dynamics exactly through stance, and 
 gait's multipliers split into the trunk's, which die out as the gain grows, and those of
 the hybrid zero dynamics."""
 
+import csv
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,6 +20,7 @@ from baslip.model.virtual_constraint import VIRTUAL_CONSTRAINT
 from baslip.numerics.continuation import Settings
 from baslip.problem.modelspec import ModelSpec
 
+RESULTS = Path(__file__).resolve().parents[1] / "results"
 #: The thesis's body (problems/downward.yaml).
 BODY = {"m": 1.0, "I": 0.0033, "k": 1000.0, "rho0": 0.2, "d": 0.04, "g": 9.81}
 
@@ -86,3 +89,26 @@ def test_a_branch_far_from_its_first_gait_is_verified_throughout():
                             Settings(step=0.2, max_step=0.5, max_points=12))
     assert branch.points[-1].values["omega"] == pytest.approx(400.0)
     assert all(p.verification <= 1e-10 for p in branch.points)
+
+
+def test_the_third_law_meets_pd_where_both_torques_vanish():
+    """With the CoM at the hip (d = 0) and the trunk upright and still, holding it takes
+    no torque: a committed gait of the compiled engine's PD law with no gains
+    (continuation_slip_attack, the SLIP limit) is a verified gait of the third law too,
+    with the SLIP's multiplier among its own."""
+    row = _first_row(RESULTS / "continuation_slip_attack" / "branch.csv")
+    values = {"m": 80.0, "I": 10.0, "k": 20000.0, "rho0": 1.0, "d": 0.0, "g": 9.81,
+              **{n: float(row[n]) for n in ("z", "theta_h", "ydot", "theta_h_dot", "theta_td")},
+              "trunk_angle": math.pi / 2, "trunk_slope": 0.0, "omega": 50.0}
+    spec = ModelSpec(BA_SLIP, law="virtual_constraint", fixed=values)
+    solver = ModelSolver(spec)
+    resolution = solver.calibrated(spec, values)
+    assert np.max(np.abs(solver.residual(spec, values, resolution)[0])) < 1e-9
+    assert solver.verify(spec, values, resolution) <= 1e-10
+    multipliers = solver.multipliers(spec, values, resolution)[0]
+    assert np.min(np.abs(multipliers - float(row["mult2_re"]))) < 1e-7  # the SLIP's -1.2131
+
+
+def _first_row(path) -> dict:
+    with path.open() as handle:
+        return next(csv.DictReader(handle))
