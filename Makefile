@@ -11,8 +11,9 @@ BRANCHES = continuation_slip_attack continuation_downward_speed continuation_dow
            curve_slip_band curve_downward_boundary curve_downward_neimark_sacker
 # Studies that read the curves' results.
 AFTER_CURVES = stable_region_traced
-# Models of one's own (model: slip, walker, ba-slip-described, models/hopper.py:HOPPER): about 8 min in all.
-MODELS = slip_attack slip_band hopper hopper_atlas hopper_robot hopper_controllers hopper_sweep walker walker_atlas walker_controllers virtual_constraint
+# Models of one's own (model: slip, walker, ba-slip-described, models/hopper.py:HOPPER): about 10 min in all.
+MODELS = slip_attack slip_band hopper hopper_atlas hopper_robot hopper_controllers hopper_sweep walker walker_atlas walker_controllers virtual_constraint \
+         virtual_constraint_controllers
 GAITS = downward upward downward_period2 vpp vpp_human
 # The reference bodies' gaits with no guess, and which gaits exist at their cells (a minute).
 BODIES = human_pd_hanging human_pd_upright human_vpp_3ms robot_pd_hanging robot_pd_upright robot_vpp \

@@ -53,3 +53,4 @@ def test_the_third_laws_claim_says_where_its_gaits_turn_stable(claims):
     law = claims[5]
     assert "stable from omega = " in law and "re-simulated here: eps = " in law
     assert "How wide: one body, one apex height and speed, one slope of the constraint" in law
+    assert "lqr " in law and "95 % Wilson intervals" in law
