@@ -28,7 +28,7 @@ import numpy as np
 from baslip.analysis.feedback import closed_loop_multipliers, control_rank, deadbeat_gain, lqr_gain_for_gait
 from baslip.engine.hybrid import Resolution
 from baslip.errors import ArgumentError
-from baslip.gait.modelsolver import ModelGait, ModelSolver, trivial_flags
+from baslip.gait.modelsolver import ModelGait, ModelSolver, spectral_radius, trivial_flags
 
 #: A start has returned when its last stride lies this close to the gait (scaled).
 RETURNED = 1e-3
@@ -67,8 +67,7 @@ class ModelController:
     @property
     def spectral_radius(self) -> float:
         """The largest |multiplier| of the linearised closed loop, but the invariants' 1s."""
-        kept = [m for m, trivial in zip(self.multipliers, trivial_flags(self.multipliers, self.neutral)) if not trivial]
-        return float(np.max(np.abs(kept))) if kept else 0.0
+        return spectral_radius(self.multipliers, trivial_flags(self.multipliers, self.neutral))
 
 
 def design(solver: ModelSolver, gait: ModelGait) -> tuple[ModelController, ...]:
@@ -127,11 +126,26 @@ def grid_starts(solver: ModelSolver, gait: ModelGait, spread: float, count: int)
     """
     x = gait.section
     free = solver.kept_rows(gait.spec, gait.values)
+    spread_over = grid_axes(solver, gait)
     scale = np.maximum(np.abs(x), SMALLEST_SCALE)
-    axes = [np.linspace(-spread, spread, count) if i in free[:2] else np.zeros(1) for i in range(len(x))]
+    axes = [np.linspace(-spread, spread, count) if i in spread_over else np.zeros(1) for i in range(len(x))]
     grid = [x + offsets * scale for offsets in np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(x), -1).T]
     starts = [_on_level_set(solver, gait, start, free) for start in grid]
     return np.array([start for start in starts if start is not None])
+
+
+def grid_axes(solver: ModelSolver, gait: ModelGait) -> list[int]:
+    """The section coordinates (by index) that :func:`grid_starts` spreads: the first two
+    the law's invariants leave free.
+
+    Parameters
+    ----------
+    solver : ModelSolver
+        The model's solver.
+    gait : ModelGait
+        A verified gait.
+    """
+    return solver.kept_rows(gait.spec, gait.values)[:2]
 
 
 def _on_level_set(solver: ModelSolver, gait: ModelGait, start: np.ndarray, free: list[int]) -> np.ndarray | None:

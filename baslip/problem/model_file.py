@@ -1,4 +1,4 @@
-"""Problem files of described models: ``model: path/to/file.py:Name`` (or ``slip``, ``walker``).
+"""Problem files of described models: ``model: path/to/file.py:Name``, or a built-in name.
 
 A problem of a described model holds the model, what it fixes and guesses, and what to
 run: its gait, a ``continuation`` in one fixed quantity, or a ``study`` of kind
@@ -179,8 +179,8 @@ def load_any_problem(path: str | Path) -> Problem | ModelProblem:
 
 
 def load_model(reference: Any, folder: Path) -> Model:
-    """The model a problem names: a built-in one (``slip``, ``walker``) or ``file.py:Name``, the file
-    relative to ``folder``."""
+    """The model a problem names: a built-in one (a key of :data:`BUILT_IN`) or
+    ``file.py:Name``, the file relative to ``folder``."""
     if not isinstance(reference, str):
         raise ProblemError("model", f"expected a model's name or file.py:Name, got {excerpt(reference)}")
     if reference in BUILT_IN:

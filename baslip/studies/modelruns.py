@@ -27,7 +27,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from baslip.analysis.atlas import AtlasSettings
-from baslip.analysis.modelcontrol import RETURNED, basin, design, grid_starts
+from baslip.analysis.modelcontrol import RETURNED, basin, design, grid_axes, grid_starts
 from baslip.analysis.modelcurves import ModelCurve, trace_model_curve
 from baslip.analysis.modelfamilies import ModelBranch, ModelChart, continue_model, cover_model
 from baslip.analysis.modelstart import carry, reference_start
@@ -314,7 +314,7 @@ def _controllers(solver: ModelSolver, gait: ModelGait, problem: ModelProblem,
     every start (``basins.csv``)."""
     starts = grid_starts(solver, gait, study.spread, study.grid)
     coordinates = problem.spec.model.section.coordinates
-    axes = [coordinates[i] for i in solver.kept_rows(gait.spec, gait.values)[:2]]
+    axes = [coordinates[i] for i in grid_axes(solver, gait)]
     summary, rows = [], []
     for controller in design(solver, gait):
         def progress(done: int, name: str = controller.name) -> None:
