@@ -34,6 +34,11 @@ from baslip.problem.modelspec import ModelSpec
 
 #: Newton iterations on the return map, at most.
 NEWTON_STEPS = 30
+#: Newton's steps ignore directions whose singular value is below this share of the
+#: largest: a family's, along which a step through rounding would leap off the gaits.
+SINGULAR = 1e-10
+#: The status of a solve whose guess was a gait already, so that no NLP ran.
+GUESS_IS_A_GAIT = "guess_is_a_gait"
 
 
 class NoFixedPoint(RunError):
@@ -337,12 +342,26 @@ class ModelSolver:
         first = self.map.stride(*self.split(spec, values), resolution, nodes=True)
         if not first.ok:
             self._refuse_start(first.failure)
-        values, status = self._shooting(spec, values, first)
+        if self._is_gait(spec, values, resolution):
+            # A guess that is a gait already (a committed one, say) goes straight to
+            # Newton: the NLP could only move it, and where the gaits form a family at
+            # fixed controls its Jacobian is singular and IPOPT can wander off.
+            status = GUESS_IS_A_GAIT
+        else:
+            values, status = self._shooting(spec, values, first)
         values = self.polish(spec, values, resolution)
         outside = [n for n in spec.free if not spec.range_of(n)[0] <= values[n] <= spec.range_of(n)[1]]
         if outside:
             raise NoFixedPoint(f"Newton on the map left the bounds of {outside[0]} ({values[outside[0]]:g})")
         return self._verified(spec, values, resolution, status, time.perf_counter() - start)
+
+    def _is_gait(self, spec: ModelSpec, values: dict, resolution: Resolution) -> bool:
+        """Whether the equations hold at ``values`` to the spec's tolerance."""
+        result = self.equations(spec, values, resolution)
+        if isinstance(result, str):
+            return False
+        scale = max(1.0, float(np.max(np.abs(self.split(spec, values)[0]))))
+        return float(np.max(np.abs(result[0]))) <= spec.tolerance * scale
 
     def calibrated(self, spec: ModelSpec, values: dict) -> Resolution:
         """The resolution at which a stride from ``values`` holds the spec's tolerance
@@ -404,7 +423,7 @@ class ModelSolver:
             if size <= 0.01 * spec.tolerance or (size <= spec.tolerance and size > 0.5 * previous):
                 return values
             previous = size
-            delta = np.linalg.lstsq(jac, -r, rcond=None)[0]
+            delta = np.linalg.lstsq(jac, -r, rcond=SINGULAR)[0]
             for name, change in zip(spec.free, delta):
                 values[name] += float(change)
         raise NoFixedPoint(f"Newton on the return map did not converge in {NEWTON_STEPS} steps "
