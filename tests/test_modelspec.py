@@ -3,8 +3,13 @@
 import pytest
 
 from baslip.errors import ArgumentError
+from baslip.model.catalogue.ba_slip import BA_SLIP
 from baslip.model.catalogue.slip import SLIP
+from baslip.model.sizes import similarity
 from baslip.problem.modelspec import ModelSpec
+
+#: The human-sized BA-SLIP body.
+HUMAN = {"m": 80.0, "I": 4.58, "k": 20000.0, "rho0": 1.0, "d": 0.1, "g": 9.81}
 
 
 def test_quantities_left_out_keep_their_defaults_and_are_fixed():
@@ -40,7 +45,30 @@ def test_a_range_is_the_quantitys_own_within_the_specs_bounds():
 
 
 def test_a_value_outside_its_range_is_refused():
-    with pytest.raises(ArgumentError, match=r"theta_td: 2 lies outside its range"):
+    with pytest.raises(ArgumentError, match=r"^fixed\.theta_td: 2 lies outside its range"):
         ModelSpec(SLIP, fixed={"z": 1.0, "theta_td": 2.0}, guess={"ydot": 5.0})
-    with pytest.raises(ArgumentError, match=r"m: -1 lies outside its range"):
+    with pytest.raises(ArgumentError, match=r"^fixed\.m: -1 lies outside its range"):
         ModelSpec(SLIP, fixed={"z": 1.0, "m": -1.0}, guess={"ydot": 5.0})
+
+
+def test_a_controls_range_scales_with_the_body():
+    """A control's range is given at the model's default body; at the human body the PD
+    gains' ranges are as many times wider as a torque per radian (per radian a second)
+    is larger there, and an angle's range stays as it is."""
+    thesis = ModelSpec(BA_SLIP, law="pd", fixed={"z": 0.4, "ydot": 0.5}, guess={"theta_h": 1.5, "theta_h_dot": 0.0})
+    human = ModelSpec(BA_SLIP, law="pd", fixed={**HUMAN, "z": 1.06, "ydot": 3.0},
+                      guess={"theta_h": 1.5, "theta_h_dot": 0.0})
+    scale = similarity(BA_SLIP, HUMAN)
+    for gain in ("Kp", "Kd"):
+        factor = scale.factor(BA_SLIP.dimension(gain, "pd"))
+        assert factor > 100
+        assert human.range_of(gain) == pytest.approx(tuple(v * factor for v in thesis.range_of(gain)))
+    assert human.range_of("theta_td") == thesis.range_of("theta_td")
+
+
+def test_a_human_sized_gain_is_accepted_and_a_wild_one_refused():
+    ModelSpec(BA_SLIP, law="pd", fixed={**HUMAN, "z": 1.06, "ydot": 3.0, "Kd": 1338.0},
+              guess={"theta_h": 1.5, "theta_h_dot": 0.0})
+    with pytest.raises(ArgumentError, match=r"^fixed\.Kd: .* lies outside its range"):
+        ModelSpec(BA_SLIP, law="pd", fixed={**HUMAN, "z": 1.06, "ydot": 3.0, "Kd": 1e9},
+                  guess={"theta_h": 1.5, "theta_h_dot": 0.0})

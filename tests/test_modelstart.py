@@ -9,10 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from baslip.analysis.modelstart import NoStart, reference_start, similarity
+from baslip.analysis.modelstart import NoStart, reference_start
 from baslip.gait.modelsolver import ModelSolver
 from baslip.model.catalogue.slip import SLIP
 from baslip.model.catalogue.walker import WALKER
+from baslip.model.sizes import similarity
 from baslip.problem.modelspec import ModelSpec
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "problems" / "models"))
@@ -20,12 +21,6 @@ from hopper import HOPPER  # noqa: E402
 
 #: A robot-sized SLIP of the human runner's groups: 2.5 kg on a 0.17 m leg.
 SMALL = {"m": 2.5, "l0": 0.17, "k": 20000.0 * (2.5 / 80.0) / 0.17}
-
-
-def test_the_similar_body_is_found_with_its_factors():
-    scale = similarity(SLIP, {**SMALL, "g": 9.81})
-    assert scale.distance < 1e-12
-    assert (scale.mass, scale.length, scale.time) == pytest.approx((2.5 / 80.0, 0.17, math.sqrt(0.17)))
 
 
 def test_a_similar_body_runs_the_reference_gait_scaled_with_its_multipliers():

@@ -3,8 +3,8 @@
 A model names one known gait (:attr:`baslip.model.description.Model.reference`) at its
 default parameters. A problem of another body, other fixed values, or both, starts there:
 
-1. **Similarity.** The mass, length and time factors that bring the default parameters
-   nearest the problem's (least squares in the logarithms, by each parameter's
+1. **Similarity** (:mod:`baslip.model.sizes`). The mass, length and time factors that
+   bring the default parameters nearest the problem's (least squares in the logarithms, by each parameter's
    dimension) give a body of the same dimensionless groups, where the reference gait,
    each value scaled by its own dimension, is a gait with the same multipliers.
 2. **Homotopy.** From that body and its scaled values to the problem's own, along the
@@ -18,51 +18,20 @@ The gait at the path's end is the start of the problem's solve, which verifies i
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
 from baslip.analysis.modelfamilies import Equations
 from baslip.errors import RunError
 from baslip.gait.modelsolver import ModelSolver
-from baslip.model.description import Model
+from baslip.model.sizes import similarity
 from baslip.numerics.continuation import CorrectionFailed, Settings, continue_branch
 from baslip.problem.modelspec import ModelSpec
 
 
 class NoStart(RunError):
     """The reference gait could not be carried to the problem; the message says where."""
-
-
-@dataclass(frozen=True)
-class Similarity:
-    """Factors of mass, length and time from the default body to the nearest similar one,
-    and how far the problem's parameters lie from it (the largest log-ratio left)."""
-
-    mass: float
-    length: float
-    time: float
-    distance: float
-
-    def factor(self, dimension: tuple[float, float, float]) -> float:
-        """The factor of a quantity of ``dimension`` (exponents of mass, length, time)."""
-        a, b, c = dimension
-        return self.mass**a * self.length**b * self.time**c
-
-
-def similarity(model: Model, params: dict[str, float]) -> Similarity:
-    """The similar body nearest ``params`` (see the module's docstring, step 1)."""
-    rows, ratios = [], []
-    for quantity in model.parameters:
-        if any(quantity.dimension) and quantity.default > 0 and params[quantity.name] > 0:
-            rows.append(quantity.dimension)
-            ratios.append(math.log(params[quantity.name] / quantity.default))
-    if not rows:
-        return Similarity(1.0, 1.0, 1.0, 0.0)
-    logs = np.linalg.lstsq(np.array(rows, dtype=float), np.array(ratios), rcond=None)[0]
-    left = np.array(ratios) - np.array(rows, dtype=float) @ logs
-    mass, length, time = (float(f) for f in np.exp(logs))
-    return Similarity(mass, length, time, float(np.max(np.abs(left))))
 
 
 def reference_start(solver: ModelSolver, spec: ModelSpec) -> dict[str, float]:

@@ -41,6 +41,7 @@ from baslip.model.catalogue.ba_slip import BA_SLIP
 from baslip.model.catalogue.slip import SLIP
 from baslip.model.catalogue.walker import WALKER
 from baslip.model.description import Model, ModelError
+from baslip.model.sizes import similarity
 from baslip.model.symbolic import model_functions
 from baslip.problem.modelspec import ModelSpec
 from baslip.problem.reader import BA_SLIP_NAME, Problem, parse_problem
@@ -258,13 +259,16 @@ def parse_model_problem(data: Any, default_name: str = "problem", folder: Path =
 
 def _unguessed(model: Model, law: str, fixed: dict[str, float]) -> dict[str, float]:
     """With no guess: every section coordinate and control not fixed is free, at its
-    reference value (or default) until the reference gait is carried to the problem."""
+    reference value (or default), scaled to the problem's body (:mod:`baslip.model.sizes`),
+    until the reference gait is carried to the problem."""
     if not model.reference or model.law(law).name != model.laws[0].name:
         raise ProblemError("guess", f"model {model.name} names no reference gait under this law to start from: "
                                     "give a guess")
+    scale = similarity(model, {q.name: fixed.get(q.name, q.default) for q in model.parameters})
     defaults = {q.name: q.default for q in model.controls_of(law)}
     names = (*model.section.coordinates, *defaults)
-    return {n: float(model.reference.get(n, defaults.get(n, 0.0))) for n in names if n not in fixed}
+    return {n: float(model.reference.get(n, defaults.get(n, 0.0))) * scale.factor(model.dimension(n, law))
+            for n in names if n not in fixed}
 
 
 def _value(value: Any, key: str, unit: str) -> float:

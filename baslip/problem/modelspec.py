@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 from baslip.errors import ArgumentError
 from baslip.model.description import Model
+from baslip.model.sizes import Similarity, similarity
 
 
 @dataclass(frozen=True)
@@ -59,13 +60,15 @@ class ModelSpec:
                 if name not in names and not (group == "fixed" and name in invariants):
                     raise ArgumentError(f"{group}.{name}", f"is not a quantity of model {self.model.name} "
                                                            f"(its quantities: {', '.join(names + invariants)})")
-        for name, value in {**self.fixed, **self.guess}.items():
+        given = [(f"{group}.{name}", name, value) for group in ("fixed", "guess")
+                 for name, value in getattr(self, group).items()]
+        for key, _, value in given:
             if not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise ArgumentError(name, f"must be a finite number, not {value!r}")
-        for name, value in {**self.fixed, **self.guess}.items():
+                raise ArgumentError(key, f"must be a finite number, not {value!r}")
+        for key, name, value in given:
             low, high = self.range_of(name)
             if name in names and not low <= value <= high:
-                raise ArgumentError(name, f"{value:g} lies outside its range [{low:g}, {high:g}]")
+                raise ArgumentError(key, f"{value:g} lies outside its range [{low:g}, {high:g}]")
         both = sorted(set(self.fixed) & set(self.guess))
         if both:
             raise ArgumentError(both[0], "is both fixed and guessed; give it in one of them")
@@ -94,13 +97,19 @@ class ModelSpec:
         fixed = {k: float(v) for k, v in self.fixed.items() if k in self.names}
         return {**defaults, **fixed, **{k: float(v) for k, v in self.guess.items()}}
 
+    def _similarity(self) -> Similarity:
+        """The factors from the model's default body to this spec's (:mod:`baslip.model.sizes`)."""
+        values = self.values()
+        return similarity(self.model, {q.name: values[q.name] for q in self.model.parameters})
+
     @property
     def fixed_invariants(self) -> dict[str, float]:
         """The invariants fixed, by name, in the order of the law's invariants."""
         return {i.name: float(self.fixed[i.name]) for i in self.model.invariants_of(self.law) if i.name in self.fixed}
 
     def range_of(self, name: str) -> tuple[float, float]:
-        """The bounds of a quantity: its own range within the spec's bounds.
+        """The bounds of a quantity: its own range (a control's scaled from the model's
+        default body to the spec's, :mod:`baslip.model.sizes`) within the spec's bounds.
 
         Parameters
         ----------
@@ -111,6 +120,11 @@ class ModelSpec:
         for quantity in self.model.quantities(self.law):
             if quantity.name == name:
                 low, high = quantity.low, quantity.high
+        if any(q.name == name for q in self.model.controls_of(self.law)):
+            # A control's range is given at the default body; at another size it scales
+            # with its dimension (a human's PD gains are hundreds of times a 1 kg runner's).
+            factor = self._similarity().factor(self.model.dimension(name, self.law))
+            low, high = low * factor, high * factor
         if name in self.bounds:
             lo, hi = self.bounds[name]
             low, high = max(low, lo), min(high, hi)
