@@ -7,8 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from baslip.analysis.modelcontrol import RETURNED, basin, design, grid_starts, returns
+from baslip.analysis.modelcontrol import RETURNED, basin, design, families, grid_starts, returns
 from baslip.gait.modelsolver import ModelSolver
+from baslip.model.catalogue.ba_slip import BA_SLIP
 from baslip.problem.modelspec import ModelSpec
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "problems" / "models"))
@@ -55,3 +56,30 @@ def test_a_start_returns_only_within_the_threshold(hop):
     solver, gait, controllers = hop
     ok, strides = returns(solver, gait, controllers["constant"], gait.section * (1 + 0.5 * RETURNED), 1)
     assert ok and strides == 0
+
+
+def test_a_family_no_control_reaches_is_left_to_itself():
+    """The upright VPP gait at the human body (problems/hip_laws_human_vpp.yaml) is one of
+    a family: a multiplier 1 that neither the pivot nor the touchdown angle moves. The LQR
+    is designed on the other three, which it makes stable, and the 1 stays; the hopper's
+    gait has no such multiplier."""
+    spec = ModelSpec(BA_SLIP, law="vpp", fixed={"m": 80.0, "I": 4.58, "k": 20000.0, "rho0": 1.0, "d": 0.1,
+                                                 "z": 1.06, "ydot": 3.0},
+                     guess={"theta_h": 1.5707963267948588, "theta_h_dot": -0.0889504, "r_vpp": 0.1,
+                            "theta_td": 0.306543})
+    solver = ModelSolver(spec)
+    gait = solver.solve(spec)
+    controllers = {c.name: c for c in design(solver, gait)}
+    lqr = controllers["lqr"]
+    assert lqr.neutral == 1
+    assert np.min(np.abs(lqr.multipliers - 1.0)) < 1e-7
+    assert lqr.spectral_radius < 1 < controllers["constant"].spectral_radius
+    assert "deadbeat" not in controllers  # two controls cannot reach four coordinates
+
+
+def test_a_gait_with_no_family_has_none(hop):
+    solver, gait, _ = hop
+    outcome = solver.stride(gait.spec, gait.values, gait.resolution, jacobian=True)
+    A, by_theta = outcome.jacobians()
+    B = by_theta[:, [solver.functions.theta_names.index(n) for n in ("theta_td", "push")]]
+    assert families(A, B, np.ones(2), sum(gait.trivial)) == 0

@@ -104,6 +104,8 @@ def test_a_controllers_study_measures_each_controllers_basin(problems, tmp_path)
     assert shares["deadbeat"]["returned"] > 1 and shares["deadbeat"]["interval"][0] < shares["deadbeat"]["share"]
     rows = run.rows()
     assert len(rows) == 27 and {r["controller"] for r in rows} == set(shares)
+    for name, share in shares.items():  # those that fell ran fewer strides than the study's
+        assert share["fell"] == sum(not r["returned"] and r["strides"] < 40 for r in rows if r["controller"] == name)
     assert sorted(p.name for p in (tmp_path / "basins").iterdir()) == ["basins.csv", "basins.png", "result.json"]
 
 

@@ -7,7 +7,8 @@ u_n = u* + K (x_n - x*), designed as for the BA-SLIP (:mod:`baslip.analysis.feed
 * ``constant``: K = 0, the open loop;
 * ``deadbeat``: A + B K = 0, where B has the rank of x (least norm, in scaled controls);
 * ``lqr``: the discrete LQR with unit weights on x and u in their own scales, designed on
-  the transverse dynamics where an invariant leaves a multiplier at 1.
+  the transverse dynamics where an invariant, or a family of gaits that no control moves
+  (:func:`families`), leaves a multiplier at 1.
 
 A controller's basin is measured, not predicted: from each start of a grid around x*,
 the closed loop runs stride after stride with the model's own map, and a start counts
@@ -25,7 +26,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from baslip.analysis.feedback import closed_loop_multipliers, control_rank, deadbeat_gain, lqr_gain_for_gait
+from baslip.analysis.feedback import (
+    RANK_TOLERANCE,
+    closed_loop_multipliers,
+    control_rank,
+    deadbeat_gain,
+    lqr_gain_for_gait,
+)
 from baslip.engine.hybrid import Resolution
 from baslip.errors import ArgumentError
 from baslip.gait.modelsolver import ModelGait, ModelSolver, spectral_radius, trivial_flags
@@ -36,6 +43,8 @@ RETURNED = 1e-3
 CONTROLLERS = ("constant", "deadbeat", "lqr")
 #: A coordinate's scale is its size at the gait, but no less than this (SI units).
 SMALLEST_SCALE = 0.1
+#: A multiplier this close to 1 that no control reaches is a family's (:func:`families`).
+FAMILY = 1e-7
 #: Newton steps that bring a start onto the gait's level set of the invariants.
 LEVEL_STEPS = 20
 
@@ -89,7 +98,7 @@ def design(solver: ModelSolver, gait: ModelGait) -> tuple[ModelController, ...]:
     B = by_theta[:, [solver.functions.theta_names.index(n) for n in controls]]
     x_scale = np.maximum(np.abs(gait.section), SMALLEST_SCALE)
     u_scale = np.array([max(abs(gait.values[n]), SMALLEST_SCALE) for n in controls])
-    neutral = sum(gait.trivial)
+    neutral = sum(gait.trivial) + families(A, B, u_scale, sum(gait.trivial))
     found = [ModelController("constant", controls, np.zeros((len(controls), len(x_scale))), np.linalg.eigvals(A),
                              neutral)]
     if control_rank(B, u_scale) == len(x_scale):
@@ -101,6 +110,34 @@ def design(solver: ModelSolver, gait: ModelGait) -> tuple[ModelController, ...]:
     except ValueError:
         pass  # an unstable mode no control reaches: no LQR
     return tuple(found)
+
+
+def families(A: np.ndarray, B: np.ndarray, u_scale: np.ndarray, invariants: int) -> int:
+    """How many multipliers at 1, besides the ``invariants`` ones, no control reaches.
+
+    Such a multiplier is a family's: at fixed controls the gaits form a curve (the upright
+    VPP gaits do, time reversal making each one symmetric). No feedback on the controls
+    moves it (the Popov-Belevitch-Hautus test: [A - I, B] loses rank), so the LQR is
+    designed on the transverse dynamics and the 1 is not counted in a closed loop's radius;
+    a start that settles on a neighbour of the family has not returned to the gait.
+
+    Parameters
+    ----------
+    A, B : numpy.ndarray
+        dP/dx and dP/du at the gait.
+    u_scale : numpy.ndarray
+        The controls' scales.
+    invariants : int
+        The multipliers at 1 the law's invariants account for.
+    """
+    multipliers = np.linalg.eigvals(A)
+    nearest_one = multipliers[np.argsort(np.abs(multipliers - 1.0))][invariants:]
+    found = 0
+    for multiplier in nearest_one[np.abs(nearest_one - 1.0) < FAMILY]:
+        pencil = np.hstack([A - multiplier * np.eye(len(A)), B * u_scale])
+        values = np.linalg.svd(pencil, compute_uv=False)
+        found += int(values[-1] < RANK_TOLERANCE * values[0])
+    return found
 
 
 def grid_starts(solver: ModelSolver, gait: ModelGait, spread: float, count: int) -> np.ndarray:

@@ -137,7 +137,8 @@ class ModelRun:
         for c in self.record.get("controllers", {}).get("controllers", []):
             lines.append(f"  {c['name']}: closed-loop spectral radius {c['spectral_radius']:.4g}; basin "
                          f"{c['returned']} of {c['starts']} starts ({100 * c['share']:.0f} %, 95 % interval "
-                         f"{100 * c['interval'][0]:.0f}-{100 * c['interval'][1]:.0f} %)")
+                         f"{100 * c['interval'][0]:.0f}-{100 * c['interval'][1]:.0f} %)"
+                         + (f"; {c['fell']} fell" if "fell" in c else ""))
         if "sweep" in self.record:
             w = self.record["sweep"]
             lines.append(f"  sweep: {w['points']} points, {w['verified']} verified, {w['stable']} stable")
@@ -322,11 +323,13 @@ def _controllers(solver: ModelSolver, gait: ModelGait, problem: ModelProblem,
 
         outcomes = basin(solver, gait, controller, starts, study.strides, progress)
         returned = sum(ok for ok, _ in outcomes)
+        # A start that neither returned nor ran every stride fell (its stride failed).
+        fell = sum(not ok and taken < study.strides for ok, taken in outcomes)
         summary.append({"name": controller.name, "controls": list(controller.controls),
                         "gain": controller.gain.tolist(), "spectral_radius": controller.spectral_radius,
                         "multipliers": [[float(m.real), float(m.imag)] for m in controller.multipliers],
                         "starts": len(starts), "returned": returned, "share": returned / len(starts),
-                        "interval": list(wilson_interval(returned, len(starts)))})
+                        "interval": list(wilson_interval(returned, len(starts))), "fell": fell})
         rows += [{"controller": controller.name, **dict(zip(coordinates, start.tolist())), "returned": ok,
                   "strides": taken} for start, (ok, taken) in zip(starts, outcomes)]
     record = {"grid": study.grid, "spread": study.spread, "axes": axes, "strides": study.strides,
