@@ -1,5 +1,7 @@
 """The examples run as they are shipped, and leave their files where they say."""
 
+import csv
+import importlib.util
 import json
 import math
 import re
@@ -8,6 +10,8 @@ import sys
 
 import pytest
 from runs import ROOT
+
+from baslip.gait.fixedpoint import FixedPointSolver
 
 
 def test_the_tour_runs_and_writes_only_into_its_folder(tmp_path):
@@ -30,13 +34,6 @@ def test_the_atlas_cross_check_runs_the_stability_nlp_from_each_polished_gait(tm
     first where the committed cross-check's end is verified within 1 % of the atlas's
     radius): the NLP's end is verified at the atlas's radius, and the row says so (the
     stability NLP in the virtual machine: no compile in the tests)."""
-    import csv
-    import importlib.util
-
-    import pytest
-
-    from baslip.gait.fixedpoint import FixedPointSolver
-
     spec = importlib.util.spec_from_file_location("schur_from_atlas", ROOT / "examples" / "schur_from_atlas.py")
     example = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(example)
@@ -60,3 +57,22 @@ def test_the_atlas_cross_check_runs_the_stability_nlp_from_each_polished_gait(tm
     assert row["verified_radius"] == pytest.approx(float(rows[0]["spectral_radius"]), rel=1e-2)
     assert row["nlp_bound"] == pytest.approx(row["verified_radius"], rel=1e-2)
     assert record["problem"]["name"] == "atlas_upright"
+
+
+def test_walking_and_running_draws_both_committed_branches_in_one_titled_figure(tmp_path):
+    """examples/walking_and_running.py on the committed walks and runs: one figure, titled,
+    its axes labelled with units, a stable (solid) and an unstable (dashed) line for each
+    branch, and the runs ending at a smaller landing angle than the walks begin."""
+    spec = importlib.util.spec_from_file_location("walking_and_running", ROOT / "examples" / "walking_and_running.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    figure = module.figure(ROOT / "results")
+    [ax] = figure.axes
+    assert ax.get_title().startswith("Walking and running at 80 kg")
+    assert ax.get_xlabel() == "theta_td [deg from the vertical]" and ax.get_yscale() == "log"
+    assert len(ax.lines) == 5  # two per branch, and the line at radius 1
+    runs_end = max(x for x in ax.lines[3].get_xdata() if x == x)  # the runs' unstable line, NaNs left out
+    walks_begin = min(x for line in ax.lines[:2] for x in line.get_xdata() if x == x)
+    assert runs_end < walks_begin
+    written = module.main(str(ROOT / "results"), str(tmp_path))
+    assert written.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

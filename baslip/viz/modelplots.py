@@ -111,3 +111,26 @@ def basins_figure(rows: list[dict], x: str, y: str, units: dict, title: str):
     figure.suptitle(title)
     figure.tight_layout()
     return figure
+
+
+def radii_figure(branches: list[tuple[str, list[dict]]], parameter: str, unit: str, title: str):
+    """The spectral radius (log scale) along several labelled branches against one
+    ``parameter`` [``unit``], each in its own colour, stable points solid and unstable
+    dashed: gaits of different kinds (walks and runs, say) at one body, side by side."""
+    figure, ax = plt.subplots(figsize=(6.4, 4.2))
+    for index, (label, rows) in enumerate(branches):
+        x = np.array([r[parameter] for r in rows])
+        y = np.array([r["spectral_radius"] for r in rows])
+        stable = y < 1.0
+        ax.plot(np.where(stable, x, np.nan), np.where(stable, y, np.nan), "-", color=f"C{index}",
+                label=f"{label}, stable")
+        ax.plot(np.where(~stable, x, np.nan), np.where(~stable, y, np.nan), "--", color=f"C{index}",
+                label=f"{label}, unstable")
+    ax.axhline(1.0, color="0.6", linewidth=0.8)
+    ax.set_yscale("log")
+    ax.set_xlabel(_label(parameter, unit))
+    ax.set_ylabel("spectral radius (log scale)")
+    ax.set_title(title)
+    ax.legend(loc="best", fontsize=8)
+    figure.tight_layout()
+    return figure
