@@ -11,9 +11,12 @@ BRANCHES = continuation_slip_attack continuation_downward_speed continuation_dow
            curve_slip_band curve_downward_boundary curve_downward_neimark_sacker
 # Studies that read the curves' results.
 AFTER_CURVES = stable_region_traced
-# Models of one's own (model: slip, walker, ba-slip-described, models/hopper.py:HOPPER): about 10 min in all.
-MODELS = slip_attack slip_band hopper hopper_atlas hopper_robot hopper_controllers hopper_sweep walker walker_atlas walker_controllers virtual_constraint \
-         virtual_constraint_controllers
+# Models of one's own (model: slip, walker, ba-slip-described, models/hopper.py:HOPPER), and the three hip
+# laws under one controllers study at two bodies: about 20 min in all.
+MODELS = slip_attack slip_band hopper hopper_atlas hopper_robot hopper_controllers hopper_sweep walker walker_atlas walker_controllers slip_walker_energy virtual_constraint \
+         virtual_constraint_controllers virtual_constraint_human virtual_constraint_slow \
+         hip_laws_thesis_pd hip_laws_thesis_vpp hip_laws_thesis_virtual_constraint \
+         hip_laws_human_pd hip_laws_human_vpp hip_laws_human_virtual_constraint
 GAITS = downward upward downward_period2 vpp vpp_human
 # The reference bodies' gaits with no guess, and which gaits exist at their cells (a minute).
 BODIES = human_pd_hanging human_pd_upright human_vpp_3ms robot_pd_hanging robot_pd_upright robot_vpp \
@@ -40,6 +43,7 @@ CONTROLLERS = controllers_downward controllers_upright controllers_vpp controlle
 studies:
 	@for s in $(STUDIES) $(BRANCHES) $(AFTER_CURVES) $(VPP_STUDIES) $(MODELS); do $(PY) -m baslip.solve problems/$$s.yaml || exit 1; done
 	@for g in $(GAITS) $(BODIES); do $(PY) -m baslip.solve problems/$$g.yaml || exit 1; done
+	$(PY) examples/walking_and_running.py results results/walking_and_running
 	$(PY) -m baslip.animate problems/downward.yaml problems/upward.yaml problems/vpp_human.yaml --out results/animation
 	$(PY) -m baslip.report
 
@@ -52,4 +56,5 @@ controllers:
 	$(PY) -m baslip.report
 
 clean-studies:
-	rm -rf $(addprefix results/,$(STUDIES) $(BRANCHES) $(AFTER_CURVES) $(VPP_STUDIES) $(BODIES) $(MODELS)) results/animation results/REPORT.md
+	rm -rf $(addprefix results/,$(STUDIES) $(BRANCHES) $(AFTER_CURVES) $(VPP_STUDIES) $(BODIES) $(MODELS)) results/animation \
+		results/walking_and_running results/REPORT.md

@@ -109,6 +109,24 @@ def test_the_third_law_meets_pd_where_both_torques_vanish():
     assert np.min(np.abs(multipliers - float(row["mult2_re"]))) < 1e-7  # the SLIP's -1.2131
 
 
+def test_where_the_laws_meet_the_held_trunk_angle_is_free():
+    """With the CoM at the hip, the trunk held at any angle takes no torque either, so the
+    meeting gait's motion with the trunk held at 60 deg is a verified gait as well: the
+    third law's gaits there form a curve in the held angle (and the time-symmetric ones at
+    slope 0 another), so no branch leaves the meeting point by a square system of
+    equations; the continuation in d from it runs along the held angle instead."""
+    row = _first_row(RESULTS / "continuation_slip_attack" / "branch.csv")
+    tilted = math.radians(60.0)
+    values = {"m": 80.0, "I": 10.0, "k": 20000.0, "rho0": 1.0, "d": 0.0, "g": 9.81,
+              **{n: float(row[n]) for n in ("z", "ydot", "theta_h_dot", "theta_td")},
+              "theta_h": tilted, "trunk_angle": tilted, "trunk_slope": 0.0, "omega": 50.0}
+    spec = ModelSpec(BA_SLIP, law="virtual_constraint", fixed=values)
+    solver = ModelSolver(spec)
+    resolution = solver.calibrated(spec, values)
+    assert np.max(np.abs(solver.residual(spec, values, resolution)[0])) < 1e-9
+    assert solver.verify(spec, values, resolution) <= 1e-10
+
+
 def _first_row(path) -> dict:
     with path.open() as handle:
         return next(csv.DictReader(handle))
