@@ -266,15 +266,22 @@ def _walker_atlas_and_basins(ev: Evidence) -> str:
     return text
 
 
-def _virtual_constraint_claim(ev: Evidence) -> list[str]:
-    summary, rows = ev.summary(VIRTUAL_CONSTRAINT), ev.rows(VIRTUAL_CONSTRAINT, "branch.csv")
-    problem = _problem(VIRTUAL_CONSTRAINT)
+def _stable_branch(ev: Evidence, name: str) -> tuple[ModelProblem, list[dict], list[dict], list[dict]] | None:
+    """A shipped branch's problem, its rows, its verified rows and its stable verified
+    ones; None where it has not run or has no stable point."""
+    summary, rows, problem = ev.summary(name), ev.rows(name, "branch.csv"), _problem(name)
     if summary is None or not rows or problem is None:
-        return []
+        return None
     verified = [r for r in rows if r["verification"] <= problem.spec.tolerance]
     stable = [r for r in verified if r["stable"]]
-    if not stable:
+    return (problem, rows, verified, stable) if stable else None
+
+
+def _virtual_constraint_claim(ev: Evidence) -> list[str]:
+    found = _stable_branch(ev, VIRTUAL_CONSTRAINT)
+    if found is None:
         return []
+    problem, rows, verified, stable = found
     first, last = min(stable, key=lambda r: r["omega"]), max(verified, key=lambda r: r["omega"])
     fixed = problem.spec.fixed
     return [claim(
@@ -330,14 +337,10 @@ def _law_basins(ev: Evidence) -> str:
 
 
 def _virtual_constraint_human_claim(ev: Evidence) -> list[str]:
-    summary, rows = ev.summary(VIRTUAL_CONSTRAINT_HUMAN), ev.rows(VIRTUAL_CONSTRAINT_HUMAN, "branch.csv")
-    problem = _problem(VIRTUAL_CONSTRAINT_HUMAN)
-    if summary is None or not rows or problem is None:
+    found = _stable_branch(ev, VIRTUAL_CONSTRAINT_HUMAN)
+    if found is None:
         return []
-    verified = [r for r in rows if r["verification"] <= problem.spec.tolerance]
-    stable = [r for r in verified if r["stable"]]
-    if not stable:
-        return []
+    problem, rows, verified, stable = found
     low, high = min(stable, key=lambda r: r["trunk_slope"]), max(stable, key=lambda r: r["trunk_slope"])
     best = min(stable, key=lambda r: r["spectral_radius"])
     fixed = problem.spec.fixed
