@@ -12,7 +12,8 @@ BRANCHES = continuation_slip_attack continuation_downward_speed continuation_dow
 # Studies that read the curves' results.
 AFTER_CURVES = stable_region_traced
 # Models of one's own (model: slip, walker, ba-slip-described, models/hopper.py:HOPPER), and the three hip
-# laws under one controllers study at two bodies: about 20 min in all.
+# laws under one controllers study at two bodies: about 40 min in all (the PD law's at the
+# thesis's body 11 min, the third law's there 7 min).
 MODELS = slip_attack slip_band hopper hopper_atlas hopper_robot hopper_controllers hopper_sweep walker walker_atlas walker_controllers slip_walker_energy virtual_constraint \
          virtual_constraint_controllers virtual_constraint_human virtual_constraint_slow \
          hip_laws_thesis_pd hip_laws_thesis_vpp hip_laws_thesis_virtual_constraint \

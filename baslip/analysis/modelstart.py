@@ -4,9 +4,10 @@ A model names one known gait (:attr:`baslip.model.description.Model.reference`) 
 default parameters. A problem of another body, other fixed values, or both, starts there:
 
 1. **Similarity** (:mod:`baslip.model.sizes`). The mass, length and time factors that
-   bring the default parameters nearest the problem's (least squares in the logarithms, by each parameter's
-   dimension) give a body of the same dimensionless groups, where the reference gait,
-   each value scaled by its own dimension, is a gait with the same multipliers.
+   bring the default parameters nearest the problem's (least squares in the logarithms,
+   by each parameter's dimension) give a body of the same dimensionless groups, where the
+   reference gait, each value scaled by its own dimension, is a gait with the same
+   multipliers.
 2. **Homotopy.** From that body and its scaled values to the problem's own, along the
    straight path in the parameters and the fixed values, by pseudo-arclength
    (:func:`baslip.numerics.continuation.continue_branch`), which turns at folds.

@@ -268,12 +268,13 @@ def calibrated_resolution(hybrid: HybridMap, section: np.ndarray, theta: np.ndar
 
     The scout's step is ``first`` [s], or a quarter of the shortest mode where that is
     shorter. A stride that fails at the first scout is left to the caller to report, at
-    ``Resolution(first, 8)``. DOP853 is of order 8, so the finer stride's own error is about 1/256 of the
-    difference, and the returned stride's own error is about the difference: a tenth of
-    the tolerance, so that a fixed point of that stride leaves the independent verification
-    at ``tolerance`` a factor of ten (at the tolerance itself, a human-sized gait of the
-    virtual-constraint law missed it by 1.02e-10 against 1e-10). Raises nothing: if no count agrees, ``most`` is returned (the
-    verification, by another integrator, then decides).
+    ``Resolution(first, 8)``. DOP853 is of order 8, so the finer stride's own error is
+    about 1/256 of the difference, and the returned stride's own error is about the
+    difference: a tenth of the tolerance, so that a fixed point of that stride leaves the
+    independent verification at ``tolerance`` a factor of ten (at the tolerance itself, a
+    human-sized gait of the virtual-constraint law missed it by 1.02e-10 against 1e-10).
+    Raises nothing: if no count agrees, ``most`` is returned (the verification, by
+    another integrator, then decides).
     """
     scout = first
     outcome = hybrid.stride(section, theta, Resolution(scout, 8))

@@ -1,4 +1,5 @@
-"""Figures of a described model's runs: its branch, and its atlas's chart centres.
+"""Figures of a described model's runs: its branch, its atlas's chart centres, its basins, and
+several branches' spectral radii side by side.
 
 They take plain rows (dicts of values by name), so that they know nothing of the model
 beyond the names and units they are given.
