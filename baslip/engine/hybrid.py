@@ -267,21 +267,28 @@ def calibrated_resolution(hybrid: HybridMap, section: np.ndarray, theta: np.ndar
     one at twice the steps to a tenth of ``tolerance`` (relative to max(1, |section|)).
 
     The scout's step is ``first`` [s], or a quarter of the shortest mode where that is
-    shorter. A stride that fails at the first scout is left to the caller to report, at
-    ``Resolution(first, 8)``. DOP853 is of order 8, so the finer stride's own error is
-    about 1/256 of the difference, and the returned stride's own error is about the
-    difference: a tenth of the tolerance, so that a fixed point of that stride leaves the
-    independent verification at ``tolerance`` a factor of ten (at the tolerance itself, a
-    human-sized gait of the virtual-constraint law missed it by 1.02e-10 against 1e-10).
-    Raises nothing: if no count agrees, ``most`` is returned (the verification, by
-    another integrator, then decides).
+    shorter. Where the stride fails at 8 steps the count doubles until it does not (a
+    stiff mode: the third hip law's trunk at omega = 360 1/s needs 32); a stride that
+    fails at every count is left to the caller to report, at ``Resolution(first, 8)``.
+
+    DOP853 is of order 8, so the finer stride's own error is about 1/256 of the
+    difference, and the returned stride's own error is about the difference: a tenth of
+    the tolerance, so that a fixed point of that stride leaves the independent
+    verification at ``tolerance`` a factor of ten (at the tolerance itself, a human-sized
+    gait of the virtual-constraint law missed it by 1.02e-10 against 1e-10). Raises
+    nothing: if no count agrees, ``most`` is returned (the verification, by another
+    integrator, then decides).
     """
-    scout = first
-    outcome = hybrid.stride(section, theta, Resolution(scout, 8))
+    scout, steps = first, 8
+    outcome = hybrid.stride(section, theta, Resolution(scout, steps))
+    while not outcome.ok and steps < most:
+        # Too few steps for a stiff mode (a large gain) can derail the stride itself.
+        steps *= 2
+        outcome = hybrid.stride(section, theta, Resolution(scout, steps))
     if not outcome.ok:  # the caller reports the failure; no finer scout is sought
-        return Resolution(scout, 8)
+        return Resolution(first, 8)
     scout = min(scout, min(outcome.durations) / 4)
-    steps, previous = 8, hybrid.stride(section, theta, Resolution(scout, 8))
+    previous = hybrid.stride(section, theta, Resolution(scout, steps))
     while steps < most:
         finer = hybrid.stride(section, theta, Resolution(scout, 2 * steps))
         if previous.ok and finer.ok:
