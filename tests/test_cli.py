@@ -82,9 +82,11 @@ def test_problem_descriptions_are_cut_at_a_word_with_an_ellipsis(capsys):
 
     assert main(["problems"]) == 0
     lines = capsys.readouterr().out.splitlines()[1:]
+    width = max(len(path.stem) for path in shipped_problems())  # the longest name sets the column
     cut = 0
     for path, line in zip(shipped_problems(), lines):
-        full, shown = " ".join(describe(path).split()), line[2 + 32 + 1:]
+        assert line[2:2 + width + 1].rstrip() == path.stem
+        full, shown = " ".join(describe(path).split()), line[2 + width + 1:]
         if shown != full:
             cut += 1
             assert shown.endswith(" …") and full.startswith(shown[:-2]), line

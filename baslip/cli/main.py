@@ -99,9 +99,11 @@ def problems(argv: list[str]) -> int:
         print(f"copied {len(copied)} problem files into {args.copy}/ ({len(shipped_problems()) - len(copied)} already there)")
         return EXIT_OK
     print(f"shipped problems ({problems_dir()}):")
-    for path in shipped_problems():
+    paths = shipped_problems()
+    width = max(len(path.stem) for path in paths)  # the names' column fits the longest
+    for path in paths:
         # Cut at a word, and say so, rather than mid-word.
-        print(f"  {path.stem:<32} {textwrap.shorten(describe(path), DESCRIPTION_WIDTH, placeholder=' …')}")
+        print(f"  {path.stem:<{width}} {textwrap.shorten(describe(path), DESCRIPTION_WIDTH, placeholder=' …')}")
     return EXIT_OK
 
 
