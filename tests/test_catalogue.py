@@ -157,3 +157,19 @@ def test_the_walkers_neimark_sacker_curve_bounds_its_stable_walks(attack_deg):
 def _csv_rows(path: Path) -> list[dict]:
     with path.open() as handle:
         return list(csv.DictReader(handle))
+
+
+def test_the_described_vpp_law_declares_its_family_and_its_gaits_radius_is_the_compiled_ones():
+    """Under the VPP law (a torque of positions only) the upright gaits form a family at
+    fixed controls: the description declares it, so the described solve flags the
+    multiplier 1 as structural, and the human VPP gait's spectral radius is the committed
+    compiled engine's (stable, 0.972)."""
+    result = json.loads((RESULTS / "vpp_human" / "result.json").read_text())
+    assert BA_SLIP.law("vpp").families == 1 and BA_SLIP.law("pd").families == 0
+    free = ("theta_h", "theta_h_dot", "r_vpp", "theta_td")
+    values = {**result["apex"], **result["control"]}
+    spec = ModelSpec(BA_SLIP, law="vpp", fixed={**result["params"], "z": values["z"], "ydot": values["ydot"]},
+                     guess={n: values[n] for n in free})
+    gait = ModelSolver(spec).solve(spec)
+    assert sum(gait.trivial) == 1
+    assert gait.spectral_radius == pytest.approx(result["spectral_radius"], abs=1e-6) and gait.stable

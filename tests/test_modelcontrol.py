@@ -69,6 +69,11 @@ def test_a_family_no_control_reaches_is_left_to_itself():
                             "theta_td": 0.306543})
     solver = ModelSolver(spec)
     gait = solver.solve(spec)
+    assert sum(gait.trivial) == 1  # the VPP law declares its family
+    outcome = solver.stride(spec, gait.values, gait.resolution, jacobian=True)
+    A, by_theta = outcome.jacobians()
+    B = by_theta[:, [solver.functions.theta_names.index(n) for n in ("r_vpp", "theta_td")]]
+    assert families(A, B, np.array([0.1, 0.3]), 0) == 1  # and the PBH test finds it undeclared
     controllers = {c.name: c for c in design(solver, gait)}
     lqr = controllers["lqr"]
     assert lqr.neutral == 1

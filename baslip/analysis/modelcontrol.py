@@ -113,7 +113,8 @@ def design(solver: ModelSolver, gait: ModelGait) -> tuple[ModelController, ...]:
 
 
 def families(A: np.ndarray, B: np.ndarray, u_scale: np.ndarray, invariants: int) -> int:
-    """How many multipliers at 1, besides the ``invariants`` ones, no control reaches.
+    """How many multipliers at 1, besides the ``invariants`` ones (the gait's trivial
+    ones: its law's invariants and declared families), no control reaches.
 
     Such a multiplier is a family's: at fixed controls the gaits form a curve (the upright
     VPP gaits do, time reversal making each one symmetric). No feedback on the controls
@@ -128,7 +129,7 @@ def families(A: np.ndarray, B: np.ndarray, u_scale: np.ndarray, invariants: int)
     u_scale : numpy.ndarray
         The controls' scales.
     invariants : int
-        The multipliers at 1 the law's invariants account for.
+        The multipliers at 1 already accounted for by structure.
     """
     multipliers = np.linalg.eigvals(A)
     nearest_one = multipliers[np.argsort(np.abs(multipliers - 1.0))][invariants:]

@@ -13,7 +13,8 @@ The solve has four steps, each read from the description alone:
 4. **Independent verification** by CVODES (:mod:`baslip.engine.hybrid_check`): the point
    is reported only if that map fixes it to the spec's tolerance. The multipliers are the
    eigenvalues of the map's Jacobian in the section coordinates; one per invariant of the
-   law (energy, for a passive law) is 1 by structure and marked trivial.
+   law (energy, for a passive law) and one per family it declares (the time-symmetric
+   gaits of a law of positions only) is 1 by structure and marked trivial.
 """
 
 from __future__ import annotations
@@ -67,7 +68,7 @@ class ModelGait:
     multipliers : ndarray
         Eigenvalues of d(map)/d(section coordinates).
     trivial : tuple of bool
-        Which multipliers are 1 by structure (an invariant of the law).
+        Which multipliers are 1 by structure (an invariant of the law, or a family's).
     residual : float
         max |map(x) - x| of the engine's map, relative to max(1, |x|).
     verification : float
@@ -294,7 +295,7 @@ class ModelSolver:
         if not outcome.ok:
             return outcome.failure
         multipliers = np.linalg.eigvals(outcome.jacobians()[0])
-        return multipliers, trivial_flags(multipliers, self._invariant_count())
+        return multipliers, trivial_flags(multipliers, self._structural_count())
 
     def verify(self, spec: ModelSpec, values: dict, resolution: Resolution) -> float | str:
         """max |map(x) - x| of the independent CVODES stride, relative to max(1, |x|),
@@ -444,12 +445,15 @@ class ModelSolver:
             raise NoFixedPoint(f"not verified: the independent stride misses the point by {verification:.2e} "
                                f"(tolerance {spec.tolerance:.0e})")
         multipliers = np.linalg.eigvals(outcome.jacobians()[0])
-        return ModelGait(spec, values, section, multipliers, trivial_flags(multipliers, self._invariant_count()),
+        return ModelGait(spec, values, section, multipliers, trivial_flags(multipliers, self._structural_count()),
                          residual, verification, outcome.durations, resolution, elapsed + 0.0, status)
 
-    def _invariant_count(self) -> int:
+    def _structural_count(self) -> int:
+        """The multipliers that are 1 by structure: one per invariant of the law, and its
+        families' (:attr:`baslip.model.description.ControlLaw.families`)."""
         invariants = self.functions.invariants
-        return 0 if invariants is None else invariants.size1_out(0)
+        families = self.functions.model.law(self.functions.law).families
+        return (0 if invariants is None else invariants.size1_out(0)) + families
 
 
 def _invariant_sensitivities(functions: ModelFunctions) -> ca.Function | None:

@@ -230,11 +230,16 @@ class ControlLaw:
         The law's own controls, besides the model's shared ones.
     forces : mapping of str to callable
         By mode name, ``Q(s, p, u)``: forces by coordinate name.
+    families : int
+        How many multipliers are 1 by structure at every gait of the law, besides its
+        invariants': a family of time-symmetric gaits at fixed controls, as under a law
+        of positions only (the BA-SLIP's VPP law: 1).
     """
 
     name: str
     controls: tuple[Quantity, ...] = ()
     forces: Mapping[str, Expression] = field(default_factory=dict)
+    families: int = 0
 
 
 @dataclass(frozen=True)

@@ -82,7 +82,10 @@ def _torque(law: HipLaw):
 def _law(law: HipLaw) -> ControlLaw:
     controls = tuple(Quantity(n, law.units[n], law.defaults[n], *law.bounds[n], DIMENSIONS[n])
                      for n in law.controls.names if n != "theta_td")
-    return ControlLaw(law.name, controls, {mode: _torque(law) for mode in STANCE_MODES})
+    # A torque of positions only (VPP) makes the gaits upright at the apex time-symmetric,
+    # a family at fixed controls: one multiplier 1 by structure.
+    return ControlLaw(law.name, controls, {mode: _torque(law) for mode in STANCE_MODES},
+                      families=1 if law.positional else 0)
 
 
 def _touchdown_guard(s, p, u):
