@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 
 from baslip.errors import ArgumentError
 from baslip.model.description import Model
@@ -97,8 +98,10 @@ class ModelSpec:
         fixed = {k: float(v) for k, v in self.fixed.items() if k in self.names}
         return {**defaults, **fixed, **{k: float(v) for k, v in self.guess.items()}}
 
+    @cached_property
     def _similarity(self) -> Similarity:
-        """The factors from the model's default body to this spec's (:mod:`baslip.model.sizes`)."""
+        """The factors from the model's default body to this spec's (:mod:`baslip.model.sizes`),
+        found once: every control's range reads them."""
         values = self.values()
         return similarity(self.model, {q.name: values[q.name] for q in self.model.parameters})
 
@@ -123,7 +126,7 @@ class ModelSpec:
         if any(q.name == name for q in self.model.controls_of(self.law)):
             # A control's range is given at the default body; at another size it scales
             # with its dimension (a human's PD gains are hundreds of times a 1 kg runner's).
-            factor = self._similarity().factor(self.model.dimension(name, self.law))
+            factor = self._similarity.factor(self.model.dimension(name, self.law))
             low, high = low * factor, high * factor
         if name in self.bounds:
             lo, hi = self.bounds[name]
