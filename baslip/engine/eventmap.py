@@ -34,7 +34,6 @@ from baslip.engine import codegen as _codegen
 from baslip.engine import outcome as _outcome_module
 from baslip.engine.codegen import compile_kernels, library_name, module_files
 from baslip.engine.outcome import (
-    COLLAPSE_FRACTION,
     PHASES,
     STANCE_HORIZON_HALF_PERIODS,
     Fall,
@@ -43,28 +42,17 @@ from baslip.engine.outcome import (
     param_vector,
     vec,
 )
-from baslip.model import dynamics as _dynamics
-from baslip.model import hiplaw as _hiplaw
-from baslip.model import layout as _layout
+from baslip.engine.physics import Physics, physics_modules
 from baslip.model.dynamics import (
     APEX,
-    CONFIGURATION,
     FLIGHT,
     PARAMS,
     STANCE,
     apex_to_flight,
     ballistic_flight,
-    bottom_guard,
     flight_to_apex,
-    liftoff_guard,
-    liftoff_map,
-    stance_com_position,
-    stance_dynamics,
-    stance_hip_position,
-    touchdown_guard,
-    touchdown_map,
 )
-from baslip.model.hiplaw import PD, HipLaw, touchdown_angle
+from baslip.model.hiplaw import PD, HipLaw
 from baslip.model.layout import Layout
 
 # Augmented stance state: the mechanical state, a clock, the bottom time and a phase flag.
@@ -82,30 +70,29 @@ _FALL_OF_PHASE = {
 }
 
 
-def _stance_run_dynamics(s, u, p, law: HipLaw):
+def _stance_run_dynamics(s, u, p, physics: Physics):
     """Right-hand side of the augmented stance state, with time scaled by the horizon."""
     x = s[: STANCE.size]
     phase = STANCE_RUN.get(s, "phase")
     moving = phase < 1.5
-    xdot = stance_dynamics(x, law.torque(x, u, p), p)
+    xdot = physics.stance_rate(x, u, p)
     return ca.if_else(moving, ca.vertcat(xdot, 1, 0, 0), ca.DM.zeros(STANCE_RUN.size))
 
 
-def _stance_run_indicators(s, p):
+def _stance_run_indicators(s, u, p, physics: Physics):
     """Zero-crossing indicators in :data:`EVENTS` order; inactive ones held at +1."""
     x = s[: STANCE.size]
     phase = STANCE_RUN.get(s, "phase")
     in_compression = phase < 0.5
     in_stance = phase < 1.5
     in_decompression = ca.logic_and(in_stance, ca.logic_not(in_compression))
-    q = x[: CONFIGURATION.size]
-    rho_floor = COLLAPSE_FRACTION * PARAMS.get(p, "rho0")
+    com, hip, leg = ca.vertsplit(physics.clearances(x, u, p))
     return ca.vertcat(
-        ca.if_else(in_compression, -bottom_guard(x), 1),
-        ca.if_else(in_decompression, -liftoff_guard(x, p), 1),
-        ca.if_else(in_stance, stance_com_position(q, p)[1], 1),
-        ca.if_else(in_stance, stance_hip_position(q)[1], 1),
-        ca.if_else(in_stance, STANCE.get(x, "rho") - rho_floor, 1),
+        ca.if_else(in_compression, -physics.guard("bottom", x, u, p), 1),
+        ca.if_else(in_decompression, -physics.guard("liftoff", x, u, p), 1),
+        ca.if_else(in_stance, com, 1),
+        ca.if_else(in_stance, hip, 1),
+        ca.if_else(in_stance, leg, 1),
     )
 
 
@@ -143,6 +130,7 @@ class EventMap:
         self.tolerances = tolerances
         self.plugin = plugin
         self.law = law
+        self.physics = Physics.of(law)
         self._samplers: dict = {}  # functions needed only by some users, built on first use
         # A warm cache loads the compiled stride without building any CasADi object.
         self._value = compile_kernels(
@@ -175,7 +163,7 @@ class EventMap:
     def _build_touchdown_rootfinder(self) -> ca.Function:
         t = ca.SX.sym("t")
         X, u, p = APEX.sym("X"), self.law.controls.sym("u"), PARAMS.sym("p")
-        foot_height = touchdown_guard(ballistic_flight(apex_to_flight(X), t, p), touchdown_angle(u), p)
+        foot_height = self.physics.guard("touchdown", ballistic_flight(apex_to_flight(X), t, p), u, p)
         residual = ca.Function("touchdown_residual", [t, ca.vertcat(X, u, p)], [foot_height])
         # From the bracketed guess Newton converges in a few steps; a guess that does not
         # converge leaves a foot height that the outcome reports as no touchdown.
@@ -190,8 +178,8 @@ class EventMap:
         dae = {
             "x": s,
             "p": ca.vertcat(u, p, horizon),
-            "ode": horizon * _stance_run_dynamics(s, u, p, self.law),
-            "zero": _stance_run_indicators(s, p),
+            "ode": horizon * _stance_run_dynamics(s, u, p, self.physics),
+            "zero": _stance_run_indicators(s, u, p, self.physics),
         }
         opts = {
             "transition": _stance_run_transition(self.law),
@@ -205,22 +193,21 @@ class EventMap:
     def _build_stride_function(self) -> ca.Function:
         X, u, p = APEX.sym("X", ca.MX), self.law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
         t_guess = ca.MX.sym("t_touchdown_guess")
-        theta_td = touchdown_angle(u)
         t_descent = self._build_touchdown_rootfinder()(t_guess, ca.vertcat(X, u, p))
         at_touchdown = ballistic_flight(apex_to_flight(X), t_descent, p)
-        x_td = touchdown_map(at_touchdown, theta_td, p)
+        x_td = self.physics.reset("touchdown", at_touchdown, u, p)
         horizon = STANCE_HORIZON_HALF_PERIODS * math.pi * ca.sqrt(PARAMS.get(p, "m") / PARAMS.get(p, "k"))
         s0 = ca.vertcat(x_td, 0, 0, COMPRESSION)
         s_end = self._build_stance_integrator()(x0=s0, p=ca.vertcat(u, p, horizon))["xf"]
         x_lo = s_end[: STANCE.size]
-        at_liftoff = liftoff_map(x_lo, p)
+        at_liftoff = self.physics.reset("liftoff", x_lo, u, p)
         apex_next = flight_to_apex(at_liftoff, p)
         t_stance, t_bottom = STANCE_RUN.get(s_end, "clock"), STANCE_RUN.get(s_end, "t_bottom")
         zdot_lo = FLIGHT.get(at_liftoff, "zdot")
         durations = ca.vertcat(t_descent, t_bottom, t_stance - t_bottom, zdot_lo / PARAMS.get(p, "g"))
         diagnostics = ca.vertcat(
-            STANCE_RUN.get(s_end, "phase"), bottom_guard(x_td), zdot_lo,
-            touchdown_guard(at_touchdown, theta_td, p), FLIGHT.get(at_touchdown, "z"),
+            STANCE_RUN.get(s_end, "phase"), self.physics.guard("bottom", x_td, u, p), zdot_lo,
+            self.physics.guard("touchdown", at_touchdown, u, p), FLIGHT.get(at_touchdown, "z"),
         )
         return ca.Function(
             "stride", [X, u, p, t_guess], [apex_next, durations, diagnostics],
@@ -327,4 +314,4 @@ def _event_notice_silenced():
 
 def _sources() -> list[pathlib.Path]:
     """The modules the event map's stride is derived from: the compiled library's key."""
-    return module_files(_layout, _dynamics, _hiplaw, _outcome_module, sys.modules[__name__], _codegen)
+    return module_files(*physics_modules(), _outcome_module, sys.modules[__name__], _codegen)

@@ -45,30 +45,18 @@ from baslip.engine import outcome as _outcome_module
 from baslip.engine.background import KernelsLater
 from baslip.engine.codegen import compile_kernels, compiling, library_name, module_files
 from baslip.engine.native import Kernel, VirtualMachineKernel
-from baslip.engine.outcome import COLLAPSE_FRACTION
+from baslip.engine.physics import Physics, physics_modules
 from baslip.engine.setuptime import setting_up
-from baslip.model import dynamics as _dynamics
-from baslip.model import hiplaw as _hiplaw
-from baslip.model import layout as _layout
 from baslip.model.dynamics import (
     APEX,
-    CONFIGURATION,
     FLIGHT,
     PARAMS,
     STANCE,
     apex_to_flight,
     ballistic_flight,
-    bottom_guard,
     flight_to_apex,
-    liftoff_guard,
-    liftoff_map,
-    stance_com_position,
-    stance_dynamics,
-    stance_hip_position,
-    touchdown_guard,
-    touchdown_map,
 )
-from baslip.model.hiplaw import PD, HipLaw, touchdown_angle
+from baslip.model.hiplaw import PD, HipLaw
 from baslip.model.layout import Layout
 
 #: Step counts per stance phase of the compiled final pass, 1.5 apart up to 256: the
@@ -107,36 +95,35 @@ def theta_layout(law: HipLaw) -> Layout:
     return Layout(law.controls.names + PARAMS.names)
 
 
-def _split_theta(theta):
-    """(u, p) of a flow parameter vector: the model parameters are its last entries."""
-    n_u = theta.numel() - PARAMS.size
-    return theta[:n_u], theta[n_u:]
+def _split_theta(theta, law: HipLaw):
+    """(u, p) of a flow parameter vector ``theta`` = (u, p) under ``law``."""
+    return theta[:law.controls.size], theta[law.controls.size:]
 
 
 def stance_rhs(law: HipLaw = PD) -> ca.Function:
-    """xdot = f(x, theta) of stance under the hip law ``law``, theta = (u, p)."""
+    """xdot = f(x, theta) of stance under the hip law ``law``, theta = (u, p): the BA-SLIP
+    description's (:class:`~baslip.engine.physics.Physics`)."""
     x, theta = STANCE.sym("x"), theta_layout(law).sym("theta")
-    u, p = _split_theta(theta)
-    xdot = stance_dynamics(x, law.torque(x, u, p), p)
+    xdot = Physics.of(law).stance_rate(x, *_split_theta(theta, law))
     return ca.Function("stance_rhs", [x, theta], [ca.cse(xdot)], ["x", "theta"], ["xdot"])
 
 
-def stance_clearances(x, theta):
-    """(CoM height, hip height, rho - collapse floor) [m]; the runner falls at zero."""
-    _, p = _split_theta(theta)
-    q = x[: CONFIGURATION.size]
-    floor = COLLAPSE_FRACTION * PARAMS.get(p, "rho0")
-    return ca.vertcat(stance_com_position(q, p)[1], stance_hip_position(q)[1], STANCE.get(x, "rho") - floor)
+def stance_clearances(law: HipLaw = PD) -> ca.Function:
+    """(x, theta) -> (CoM height, hip height, rho - collapse floor) [m] under ``law``; the
+    runner falls at zero."""
+    x, theta = STANCE.sym("x"), theta_layout(law).sym("theta")
+    clearances = Physics.of(law).clearances(x, *_split_theta(theta, law))
+    return ca.Function("stance_clearances", [x, theta], [clearances], ["x", "theta"], ["clearances"])
 
 
 def stance_guards(law: HipLaw = PD) -> tuple[ca.Function, ca.Function]:
     """The bottom guard rhodot [m/s] and the liftoff guard rho - rho0 [m] as Functions of
     (x, theta); each rises through zero at its event."""
     x, theta = STANCE.sym("x"), theta_layout(law).sym("theta")
-    _, p = _split_theta(theta)
+    physics, (u, p) = Physics.of(law), _split_theta(theta, law)
     return (
-        ca.Function("bottom", [x, theta], [bottom_guard(x)]),
-        ca.Function("liftoff", [x, theta], [liftoff_guard(x, p)]),
+        ca.Function("bottom", [x, theta], [physics.guard("bottom", x, u, p)]),
+        ca.Function("liftoff", [x, theta], [physics.guard("liftoff", x, u, p)]),
     )
 
 
@@ -184,10 +171,10 @@ class StanceFlow:
     def __init__(self, law: HipLaw = PD):
         self.law = law
         self.theta = theta_layout(law)
+        self.physics = Physics.of(law)
         self.rhs = stance_rhs(law)
-        x, theta = STANCE.sym("x"), self.theta.sym("theta")
-        watch = ca.Function("stance_clearances", [x, theta], [stance_clearances(x, theta)])
-        self.step = flow.step_function(self.rhs, watch)
+        self.clearances = stance_clearances(law)
+        self.step = flow.step_function(self.rhs, self.clearances)
         bottom, liftoff = stance_guards(law)
         self.bottom_step = flow.event_step(self.step, self.rhs, bottom, EVENT_NEWTON)
         self.liftoff_step = flow.event_step(self.step, self.rhs, liftoff, EVENT_NEWTON)
@@ -377,24 +364,24 @@ def _final_pass(stance: StanceFlow, n: int) -> ca.Function:
     X, u, p = APEX.sym("X", ca.MX), stance.law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
     guesses = GUESSES.sym("guesses", ca.MX)
     theta = ca.vertcat(u, p)
-    theta_td = touchdown_angle(u)
+    physics = stance.physics
 
-    t_descent = _touchdown_time(X, u, p, GUESSES.get(guesses, "descent"), stance.law)
+    t_descent = _touchdown_time(X, u, p, GUESSES.get(guesses, "descent"), physics)
     at_touchdown = ballistic_flight(apex_to_flight(X), t_descent, p)
-    x_td = touchdown_map(at_touchdown, theta_td, p)
+    x_td = physics.reset("touchdown", at_touchdown, u, p)
 
     comp = _phase(stance, stance.bottom_step, x_td, GUESSES.get(guesses, "compression"), theta, n)
     decomp = _phase(stance, stance.liftoff_step, comp["x_end"], GUESSES.get(guesses, "decompression"), theta, n)
 
-    at_liftoff = liftoff_map(decomp["x_end"], p)
+    at_liftoff = physics.reset("liftoff", decomp["x_end"], u, p)
     zdot_lo = FLIGHT.get(at_liftoff, "zdot")
     apex_next = flight_to_apex(at_liftoff, p)
     durations = ca.vertcat(t_descent, comp["duration"], decomp["duration"], zdot_lo / PARAMS.get(p, "g"))
     clearance = ca.fmin(comp["clearance"], decomp["clearance"])
     diagnostics = DIAGNOSTICS.pack({
-        "rhodot_td": bottom_guard(x_td),
+        "rhodot_td": physics.guard("bottom", x_td, u, p),
         "zdot_lo": zdot_lo,
-        "foot_height_td": touchdown_guard(at_touchdown, theta_td, p),
+        "foot_height_td": physics.guard("touchdown", at_touchdown, u, p),
         "com_height_td": FLIGHT.get(at_touchdown, "z"),
         "bottom_residual": comp["residual"],
         "liftoff_residual": decomp["residual"],
@@ -441,12 +428,12 @@ def jacobian_gradient_function(final: ca.Function) -> ca.Function:
                        ["X", "u", "p", "guesses", "G"], ["gradient"])
 
 
-def _touchdown_time(X, u, p, t_guess, law: HipLaw):
+def _touchdown_time(X, u, p, t_guess, physics: Physics):
     """The touchdown time [s]: Newton on the closed-form foot height from a converged guess,
     so that its derivative is the implicit-function-theorem one."""
     t = ca.SX.sym("t")
-    Xs, us, ps = APEX.sym("X"), law.controls.sym("u"), PARAMS.sym("p")
-    height = touchdown_guard(ballistic_flight(apex_to_flight(Xs), t, ps), touchdown_angle(us), ps)
+    Xs, us, ps = APEX.sym("X"), physics.law.controls.sym("u"), PARAMS.sym("p")
+    height = physics.guard("touchdown", ballistic_flight(apex_to_flight(Xs), t, ps), us, ps)
     newton = ca.Function("touchdown_newton", [Xs, us, ps, t], [t - height / ca.jacobian(height, t)])
     for _ in range(TOUCHDOWN_NEWTON):
         t_guess = newton(X, u, p, t_guess)
@@ -458,11 +445,11 @@ def touchdown_state(law: HipLaw = PD) -> ca.Function:
     there [m] (zero at a located touchdown), for a control ``u`` of ``law``."""
     X, u, p, t = APEX.sym("X"), law.controls.sym("u"), PARAMS.sym("p"), ca.SX.sym("t_descent")
     at_touchdown = ballistic_flight(apex_to_flight(X), t, p)
-    theta_td = touchdown_angle(u)
+    physics = Physics.of(law)
     return ca.Function(
         "touchdown_state", [X, u, p, t],
-        [touchdown_map(at_touchdown, theta_td, p), FLIGHT.get(at_touchdown, "z"),
-         touchdown_guard(at_touchdown, theta_td, p)],
+        [physics.reset("touchdown", at_touchdown, u, p), FLIGHT.get(at_touchdown, "z"),
+         physics.guard("touchdown", at_touchdown, u, p)],
         ["X", "u", "p", "t_descent"], ["x_touchdown", "com_height", "foot_height"],
     )
 
@@ -570,4 +557,4 @@ def _hessian_names() -> list[str]:
 
 def sources() -> list[pathlib.Path]:
     """The modules the engine's functions are derived from: the compiled library's key."""
-    return module_files(_layout, _dynamics, _hiplaw, _outcome_module, flow, sys.modules[__name__], _codegen)
+    return module_files(*physics_modules(), _outcome_module, flow, sys.modules[__name__], _codegen)

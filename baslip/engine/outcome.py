@@ -23,8 +23,6 @@ _Z, _THETA_H, _SPIN = APEX.index("z"), APEX.index("theta_h"), APEX.index("theta_
 
 PHASES = ("descent", "compression", "decompression", "ascent")
 
-#: Leg length below which the leg counts as collapsed, as a fraction of rho0.
-COLLAPSE_FRACTION = 0.05
 #: Stance that has not ended after this many spring half-periods pi*sqrt(m/k) "never ends".
 STANCE_HORIZON_HALF_PERIODS = 40.0
 #: The work limit of one stride: the most fixed steps the compiled engine's scout takes

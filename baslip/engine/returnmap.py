@@ -23,7 +23,6 @@ import numpy as np
 from baslip.engine import arguments
 from baslip.engine.eventmap import EventMap
 from baslip.engine.outcome import (  # noqa: F401  (re-exported: the public names of the return map)
-    COLLAPSE_FRACTION,
     PHASES,
     Fall,
     NoSecondDerivatives,
@@ -37,6 +36,7 @@ from baslip.engine.outcome import (  # noqa: F401  (re-exported: the public name
     vec,
 )
 from baslip.errors import ArgumentError, InputError
+from baslip.model.catalogue.ba_slip import COLLAPSE_FRACTION  # noqa: F401  (re-exported)
 from baslip.model.dynamics import APEX, PARAMS, STANCE
 from baslip.model.hiplaw import HIP_LAWS, PD, HipLaw
 

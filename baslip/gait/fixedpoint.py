@@ -500,7 +500,7 @@ class FixedPointSolver:
         """
         assert result.durations is not None, "a result with a stance has its phase durations"
         durations = [result.durations[ph] for ph in PHASES]
-        return torque_effort(self.nlp.interval, result.X, result.u, durations, result.params)
+        return torque_effort(self.nlp.interval, self.nlp.physics, result.X, result.u, durations, result.params)
 
     def energy(self, X, params: Params) -> float:
         """Total mechanical energy at apex ``X`` [J].

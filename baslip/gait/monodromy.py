@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from baslip.engine.physics import Physics
 from baslip.model.dynamics import (
     APEX,
     FLIGHT,
@@ -49,13 +50,8 @@ from baslip.model.dynamics import (
     STANCE,
     apex_to_flight,
     ballistic_flight,
-    bottom_guard,
-    liftoff_guard,
-    liftoff_map,
-    touchdown_guard,
-    touchdown_map,
 )
-from baslip.model.hiplaw import HipLaw, touchdown_angle
+from baslip.model.hiplaw import HipLaw
 
 #: Size of the apex map's Jacobian.
 ORDER = APEX.size
@@ -247,35 +243,35 @@ def phase_sensitivity(out, guard, x, t):
     return ca.jacobian(out, x) - ca.mtimes(out_t, ca.jacobian(guard, x)) / guard_t
 
 
-def _descent_function(law: HipLaw) -> ca.Function:
+def _descent_function(physics: Physics) -> ca.Function:
     """(X, u, p, t_descent) -> d x_touchdown / d X, the touchdown time following the guard."""
-    X, u, p, t = APEX.sym("X", ca.MX), law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX), ca.MX.sym("t")
-    theta_td = touchdown_angle(u)
+    X, u, p, t = APEX.sym("X", ca.MX), physics.law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX), ca.MX.sym("t")
     at_touchdown = ballistic_flight(apex_to_flight(X), t, p)
-    guard = touchdown_guard(at_touchdown, theta_td, p)
-    out = touchdown_map(at_touchdown, theta_td, p)
+    guard = physics.guard("touchdown", at_touchdown, u, p)
+    out = physics.reset("touchdown", at_touchdown, u, p)
     return ca.Function("descent_sensitivity", [X, u, p, t], [phase_sensitivity(out, guard, X, t)])
 
 
-def _touchdown_function(law: HipLaw) -> ca.Function:
+def _touchdown_function(physics: Physics) -> ca.Function:
     """(X, u, p, t_descent) -> the stance state at touchdown."""
-    X, u, p, t = APEX.sym("X", ca.MX), law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX), ca.MX.sym("t")
-    at_touchdown = touchdown_map(ballistic_flight(apex_to_flight(X), t, p), touchdown_angle(u), p)
+    X, u, p, t = APEX.sym("X", ca.MX), physics.law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX), ca.MX.sym("t")
+    at_touchdown = physics.reset("touchdown", ballistic_flight(apex_to_flight(X), t, p), u, p)
     return ca.Function("touchdown_state", [X, u, p, t], [at_touchdown])
 
 
-def _ascent_function() -> ca.Function:
-    """(x_liftoff, p, t_ascent) -> d X_next / d x_liftoff, the apex time following zdot = 0."""
-    x, p, t = STANCE.sym("x", ca.MX), PARAMS.sym("p", ca.MX), ca.MX.sym("t")
-    at_apex = ballistic_flight(liftoff_map(x, p), t, p)
+def _ascent_function(physics: Physics) -> ca.Function:
+    """(x_liftoff, u, p, t_ascent) -> d X_next / d x_liftoff, the apex time following zdot = 0."""
+    x, u, p, t = STANCE.sym("x", ca.MX), physics.law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX), ca.MX.sym("t")
+    at_apex = ballistic_flight(physics.reset("liftoff", x, u, p), t, p)
     out = ca.vertcat(*(FLIGHT.get(at_apex, name) for name in APEX.names))
-    return ca.Function("ascent_sensitivity", [x, p, t], [phase_sensitivity(out, FLIGHT.get(at_apex, "zdot"), x, t)])
+    return ca.Function("ascent_sensitivity", [x, u, p, t],
+                       [phase_sensitivity(out, FLIGHT.get(at_apex, "zdot"), x, t)])
 
 
-def _guard_gradient(guard) -> ca.Function:
-    """(x, p) -> d guard / d x for a stance guard ``guard(x, p)``."""
-    x, p = STANCE.sym("x", ca.MX), PARAMS.sym("p", ca.MX)
-    return ca.Function("guard_gradient", [x, p], [ca.jacobian(guard(x, p), x)])
+def _guard_gradient(physics: Physics, label: str) -> ca.Function:
+    """(x, u, p) -> d guard / d x for the stance guard of the transition ``label``."""
+    x, u, p = STANCE.sym("x", ca.MX), physics.law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
+    return ca.Function("guard_gradient", [x, u, p], [ca.jacobian(physics.guard(label, x, u, p), x)])
 
 
 def _variational_step(interval: ca.Function) -> ca.Function:
@@ -318,11 +314,12 @@ class ShotStrideJacobian:
     def __init__(self, interval: ca.Function, nodes: int, law: HipLaw):
         self.nodes = nodes
         self._step = _variational_step(interval)
-        self._descent = _descent_function(law)
-        self._touchdown = _touchdown_function(law)
-        self._ascent = _ascent_function()
-        self._bottom = _guard_gradient(lambda x, p: bottom_guard(x))
-        self._liftoff = _guard_gradient(liftoff_guard)
+        physics = Physics.of(law)
+        self._descent = _descent_function(physics)
+        self._touchdown = _touchdown_function(physics)
+        self._ascent = _ascent_function(physics)
+        self._bottom = _guard_gradient(physics, "bottom")
+        self._liftoff = _guard_gradient(physics, "liftoff")
 
     @property
     def size(self) -> int:
@@ -338,10 +335,10 @@ class ShotStrideJacobian:
         x_td = self._touchdown(X, u, p, T[0])
         bottom, x_lo = comp_nodes[:, -1], decomp_nodes[:, -1]
         at_bottom = self._phase(self._descent(X, u, p, T[0]), ca.horzcat(x_td, comp_nodes[:, :-1]), T[1], theta,
-                                comp_sens, self._bottom(bottom, p), constrain)
+                                comp_sens, self._bottom(bottom, u, p), constrain)
         at_liftoff = self._phase(at_bottom, ca.horzcat(bottom, decomp_nodes[:, :-1]), T[2], theta, decomp_sens,
-                                 self._liftoff(x_lo, p), constrain)
-        return ca.mtimes(self._ascent(x_lo, p, T[3]), at_liftoff)
+                                 self._liftoff(x_lo, u, p), constrain)
+        return ca.mtimes(self._ascent(x_lo, u, p, T[3]), at_liftoff)
 
     def _split(self, sensitivities):
         half = STANCE.size * COLUMNS * self.nodes
@@ -377,6 +374,6 @@ class ShotStrideJacobian:
                 M = np.asarray(self._step(starts[:, k], duration / n, theta, M, 1.0 / n))
                 columns.append(M)
             parts.append(np.hstack(columns).ravel(order="F"))
-            guard_x = np.asarray(gradient(nodes[:, -1], p)).ravel()
+            guard_x = np.asarray(gradient(nodes[:, -1], u, p)).ravel()
             entering = M[:, :-1] - np.outer(M[:, -1], guard_x @ M[:, :-1]) / float(guard_x @ M[:, -1])
         return np.concatenate(parts)

@@ -44,6 +44,7 @@ import numpy as np
 from baslip.engine.codegen import cached_library, compile_library, library_name, module_files
 from baslip.engine.kernels import StanceFlow
 from baslip.engine.kernels import sources as kernel_sources
+from baslip.engine.physics import Physics
 from baslip.engine.returnmap import PHASES, ReturnMap, Stride
 from baslip.engine.sidecar import read_facts, write_facts
 from baslip.gait import monodromy as _monodromy
@@ -70,10 +71,8 @@ from baslip.model.dynamics import (
     apex_energy,
     apex_to_flight,
     ballistic_flight,
-    stance_dynamics,
-    touchdown_map,
 )
-from baslip.model.hiplaw import PD, HipLaw, touchdown_angle
+from baslip.model.hiplaw import PD, HipLaw
 from baslip.model.quantities import (
     NOMINAL,
     OBJECTIVES,
@@ -169,18 +168,18 @@ class NlpSolution:
     tries: tuple[IpoptTry, ...] = ()  # the runs of IPOPT that led here: this one, after any earlier tries
 
 
-def _rk4_interval(substeps: int, law: HipLaw) -> ca.Function:
+def _rk4_interval(substeps: int, physics: Physics) -> ca.Function:
     """One shooting interval: ``substeps`` RK4 steps of the closed-loop stance ODE.
 
     Returns the end state and the integral of tau^2 [N^2 m^2 s] over the interval.
     """
+    law = physics.law
     x, u, p, h = STANCE.sym("x"), law.controls.sym("u"), PARAMS.sym("p"), ca.SX.sym("h")
     aug = ca.vertcat(x, 0)
 
     def rhs(a):
         xs = a[: STANCE.size]
-        tau = law.torque(xs, u, p)
-        return ca.vertcat(stance_dynamics(xs, tau, p), tau**2)
+        return ca.vertcat(physics.stance_rate(xs, u, p), law.torque(xs, u, p) ** 2)
 
     dt = h / substeps
     for _ in range(substeps):
@@ -229,7 +228,12 @@ class ShootingNLP:
     @functools.cached_property
     def interval(self) -> ca.Function:
         """One RK4 step of stance with its tau^2 integral, for :func:`torque_effort`."""
-        return _rk4_interval(1, self.law)
+        return _rk4_interval(1, self.physics)
+
+    @functools.cached_property
+    def physics(self) -> Physics:
+        """The BA-SLIP description's physics under the NLP's law."""
+        return Physics.of(self.law)
 
     @functools.cached_property
     def _stance(self) -> StanceFlow:
@@ -265,7 +269,7 @@ class ShootingNLP:
         n_u = self.law.controls.size
         x0, h, theta = STANCE.sym("x0", ca.MX), ca.MX.sym("h"), ca.MX.sym("theta", n_u + PARAMS.size)
         if self.options.scheme == "rk4":
-            end = _rk4_interval(self.options.substeps, self.law)(x0, theta[:n_u], theta[n_u:], h)[0]
+            end = _rk4_interval(self.options.substeps, self.physics)(x0, theta[:n_u], theta[n_u:], h)[0]
         else:
             end = self._stance.chain(self.options.substeps)(x0, h, theta)[0][:, -1]
         return ca.Function("shooting_interval", [x0, h, theta], [end])
@@ -452,7 +456,7 @@ class ShootingNLP:
             X, u, p = APEX.sym("X", ca.MX), self.law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
             T = ca.MX.sym("T", 3)
             n, steps = self.options.nodes, self.options.substeps
-            x_td = touchdown_map(ballistic_flight(apex_to_flight(X), T[0], p), touchdown_angle(u), p)
+            x_td = self._stance.physics.reset("touchdown", ballistic_flight(apex_to_flight(X), T[0], p), u, p)
             chain = self._stance.chain(n * steps)
             comp = chain(x_td, T[1] / (n * steps), ca.vertcat(u, p))[0][:, steps - 1 :: steps]
             decomp = chain(comp[:, -1], T[2] / (n * steps), ca.vertcat(u, p))[0][:, steps - 1 :: steps]
@@ -561,10 +565,10 @@ def implied_periodicity(spec: FixedPointSpec) -> tuple[str, ...]:
     return structurally_implied(spec.fixed, spec.params, spec.law)
 
 
-def torque_effort(interval: ca.Function, X, u, durations, params: Params, n: int = 200) -> float:
+def torque_effort(interval: ca.Function, physics: Physics, X, u, durations, params: Params, n: int = 200) -> float:
     """Integral of tau^2 over stance [N^2 m^2 s] for phase ``durations``, by RK4 quadrature."""
     p = params.vector()
-    x = np.asarray(_touchdown_state(X, u, p, durations[0])).ravel()
+    x = np.asarray(_touchdown_state(physics, X, u, p, durations[0])).ravel()
     total = 0.0
     for duration in durations[1:3]:
         for _ in range(n):
@@ -573,11 +577,11 @@ def torque_effort(interval: ca.Function, X, u, durations, params: Params, n: int
     return total
 
 
-def _touchdown_state(X, u, p, t_descent) -> ca.DM:
+def _touchdown_state(physics: Physics, X, u, p, t_descent) -> ca.DM:
     """Stance state at touchdown after ``t_descent`` seconds of descent from apex ``X``."""
     X, u, p = ca.DM(X), ca.DM(u), ca.DM(p)
     xf = ca.evalf(ballistic_flight(apex_to_flight(X), t_descent, p))
-    return touchdown_map(xf, touchdown_angle(u), p)
+    return physics.reset("touchdown", xf, u, p)
 
 
 def _guess_durations(X, u, params: Params, stride: Stride | None) -> np.ndarray:

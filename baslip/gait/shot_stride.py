@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from baslip.engine.kernels import StanceFlow, stance_clearances
+from baslip.engine.kernels import StanceFlow
 from baslip.engine.returnmap import PHASES
 from baslip.model.dynamics import (
     APEX,
@@ -17,14 +17,9 @@ from baslip.model.dynamics import (
     STANCE,
     apex_to_flight,
     ballistic_flight,
-    bottom_guard,
-    liftoff_guard,
-    liftoff_map,
-    touchdown_guard,
     touchdown_guard_rate,
-    touchdown_map,
 )
-from baslip.model.hiplaw import HipLaw, touchdown_angle
+from baslip.model.hiplaw import HipLaw
 
 #: The names of the NLP's rows that :mod:`baslip.gait.diagnosis` explains.
 FOOT_AT_APEX = "foot clearance at apex"
@@ -97,44 +92,44 @@ def shoot_stride(stance: StanceFlow, interval: ca.Function, margin: float, X, u,
     n = comp_nodes.size2()  # the nodes of each stance phase
     t_descent, t_compression, t_decompression, t_ascent = (T[i] for i in range(len(PHASES)))
     theta = ca.repmat(ca.vertcat(u, p), 1, n)
-    theta_td = touchdown_angle(u)
+    physics = stance.physics
     apex_flight = apex_to_flight(X)
     # Descent: the foot stays above ground until it crosses zero, falling.
     for fraction in (0.0, 0.25, 0.5, 0.75):
-        constrain(touchdown_guard(ballistic_flight(apex_flight, fraction * t_descent, p), theta_td, p), 0, ca.inf,
+        constrain(physics.guard("touchdown", ballistic_flight(apex_flight, fraction * t_descent, p), u, p), 0, ca.inf,
                   FOOT_AT_APEX if fraction == 0.0 else f"foot clearance at {fraction:.0%} of the descent", "m")
     at_touchdown = ballistic_flight(apex_flight, t_descent, p)
-    constrain(touchdown_guard(at_touchdown, theta_td, p), 0, 0, "foot height at touchdown", "m")
+    constrain(physics.guard("touchdown", at_touchdown, u, p), 0, 0, "foot height at touchdown", "m")
     constrain(touchdown_guard_rate(at_touchdown, p), -ca.inf, -margin, "foot's vertical speed at touchdown", "m/s")
-    x_td = touchdown_map(at_touchdown, theta_td, p)
+    x_td = physics.reset("touchdown", at_touchdown, u, p)
 
     starts_c = ca.horzcat(x_td, comp_nodes[:, :-1])
     ends_c = interval.map(n)(starts_c, ca.repmat(t_compression / n, 1, n), theta)
     constrain(comp_nodes - ends_c, 0, 0, *node_names("continuity of compression", n))
     bottom = comp_nodes[:, -1]
-    constrain(bottom_guard(bottom), 0, 0, "rhodot at the bottom", "m/s")
+    constrain(physics.guard("bottom", bottom, u, p), 0, 0, "rhodot at the bottom", "m/s")
     rho_accel = STANCE.get(stance.rhs(bottom, ca.vertcat(u, p)), "rhodot")
     constrain(rho_accel, margin, ca.inf, "leg's lengthening acceleration at the bottom", "m/s^2")
     # The leg shortens from touchdown (transversally) until the bottom.
-    constrain(bottom_guard(x_td), -ca.inf, -margin, "rhodot at touchdown", "m/s")
-    constrain(bottom_guard(comp_nodes[:, :-1]), -ca.inf, 0, tuple(f"rhodot at compression node {i + 1}" for i in range(n - 1)), "m/s")
+    constrain(physics.guard("bottom", x_td, u, p), -ca.inf, -margin, "rhodot at touchdown", "m/s")
+    constrain(physics.guard("bottom", comp_nodes[:, :-1], u, p), -ca.inf, 0, tuple(f"rhodot at compression node {i + 1}" for i in range(n - 1)), "m/s")
 
     starts_d = ca.horzcat(bottom, decomp_nodes[:, :-1])
     ends_d = interval.map(n)(starts_d, ca.repmat(t_decompression / n, 1, n), theta)
     constrain(decomp_nodes - ends_d, 0, 0, *node_names("continuity of decompression", n))
     x_lo = decomp_nodes[:, -1]
-    constrain(liftoff_guard(x_lo, p), 0, 0, "rho - rho0 at liftoff", "m")
+    constrain(physics.guard("liftoff", x_lo, u, p), 0, 0, "rho - rho0 at liftoff", "m")
     constrain(STANCE.get(x_lo, "rhodot"), margin, ca.inf, "rhodot at liftoff", "m/s")
     # The leg stays compressed until liftoff.
-    constrain(liftoff_guard(starts_d[:, 1:], p), -ca.inf, 0, tuple(f"rho - rho0 at decompression node {i + 1}" for i in range(n - 1)), "m")
+    constrain(physics.guard("liftoff", starts_d[:, 1:], u, p), -ca.inf, 0, tuple(f"rho - rho0 at decompression node {i + 1}" for i in range(n - 1)), "m")
     # CoM, hip and leg clear of the ground at the nodes (smooth constraints; the
     # compiled map checks every stage point when it polishes and re-simulates).
     for phase, nodes in (("compression", comp_nodes), ("decompression", decomp_nodes)):
         for k in range(n):
-            constrain(stance_clearances(nodes[:, k], ca.vertcat(u, p)), 0, ca.inf,
+            constrain(physics.clearances(nodes[:, k], u, p), 0, ca.inf,
                       tuple(f"{what} at {phase} node {k + 1}" for what in CLEARANCES), "m")
 
-    at_liftoff = liftoff_map(x_lo, p)
+    at_liftoff = physics.reset("liftoff", x_lo, u, p)
     constrain(FLIGHT.get(at_liftoff, "zdot"), margin, ca.inf, LIFTOFF_RISE, "m/s")
     at_apex = ballistic_flight(at_liftoff, t_ascent, p)
     constrain(FLIGHT.get(at_apex, "zdot"), 0, 0, "zdot at the apex", "m/s")  # apex guard

@@ -40,6 +40,5 @@ def accelerations(lagrangian: ca.SX, q: ca.SX, rates: ca.SX, forces: ca.SX) -> c
     """
     dl_drates = ca.gradient(lagrangian, rates)
     mass = ca.jacobian(dl_drates, rates)
-    coupling = ca.jacobian(dl_drates, q)
-    right = forces + ca.gradient(lagrangian, q) - coupling @ rates
+    right = ca.gradient(lagrangian, q) - ca.jtimes(dl_drates, q, rates) + forces
     return ca.solve(mass, right)

@@ -7,9 +7,10 @@ stride is flight, compression, decompression, flight, on the apex section in
 ``(z, theta_h, ydot, theta_h_dot)`` with ``y`` cyclic; the bottom (``rhodot`` rising
 through zero) separates compression from decompression and keeps the state.
 
-The compiled engine (:mod:`baslip.engine.driver`) stays BA-SLIP's fast path for PD and
-VPP; the catalogue's test holds the generic engine on this description to its strides
-and Jacobians. The third law, the virtual constraint
+The compiled engine (:mod:`baslip.engine.driver`), BA-SLIP's fast path for PD and VPP,
+reads its stance flow, guards, resets and falls from this description
+(:mod:`baslip.engine.physics`); the catalogue's test holds the generic engine on this
+description to its strides and Jacobians. The third law, the virtual constraint
 (:mod:`baslip.model.virtual_constraint`), is the description's alone.
 """
 
@@ -43,7 +44,7 @@ DIMENSIONS = {
     "Kp": (1, 2, -2), "Kd": (1, 2, -1), "theta2_des": (0, 0, 0), "theta2_dot_des": (0, 0, -1),
     "r_vpp": (0, 1, 0), "theta_td": (0, 0, 0), "trunk_angle": (0, 0, 0), "trunk_slope": (0, 0, 0), "omega": (0, 0, -1),
 }
-#: The leg collapses below this fraction of its rest length (as in the compiled engine).
+#: The leg collapses below this fraction of its rest length [-]: a fall (the engines read it here).
 COLLAPSE_FRACTION = 0.05
 STANCE_MODES = ("compression", "decompression")
 

@@ -1,0 +1,110 @@
+"""The BA-SLIP's physics as the engine calls it, read from the model's description.
+
+Every piece of a stride that the compiled engine, the adaptive event map and the shooting
+NLP evaluate (the stance right-hand side under a hip law, the touchdown, bottom and
+liftoff guards, the touchdown and liftoff maps, the clearances a fall is watched by) is a
+Function of :data:`baslip.model.catalogue.ba_slip.BA_SLIP` built by
+:func:`baslip.model.symbolic.model_functions`, found by the description's own names (its
+transitions' labels, its falls' names). This module only re-orders the engine's arguments
+(a state, the law's controls ``u`` with the touchdown angle among them, the parameters
+``p``) into the description's ``theta``: it holds no physics, and what the engine computes
+is what the description says, to the bit (``tests/test_committed_strides.py``).
+
+Flight is the exception: the engine steps it in closed form
+(:func:`baslip.model.dynamics.ballistic_flight`), which a description does not yet carry.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from types import ModuleType
+from typing import Any
+
+import casadi as ca
+
+from baslip.model import description, dynamics, hiplaw, lagrange, layout, symbolic
+from baslip.model.catalogue import ba_slip
+from baslip.model.catalogue.ba_slip import BA_SLIP
+from baslip.model.dynamics import PARAMS
+from baslip.model.hiplaw import HipLaw
+from baslip.model.symbolic import ModelFunctions, fall_names, model_functions
+
+#: The stance mode whose right-hand side and falls the engine reads; compression and
+#: decompression share their Lagrangian and torque, so either serves.
+STANCE_MODE = "compression"
+#: The description's falls that the engine watches in stance, in the order of its
+#: clearances (CoM height, hip height, leg above the collapse floor [m]).
+CLEARANCE_FALLS = ("CoM touches the ground", "hip touches the ground", "leg collapses")
+
+
+@dataclass(frozen=True)
+class Physics:
+    """The description's Functions under one hip law, called with the engine's arguments.
+
+    Each method takes a state (stance ``x`` or flight ``xf``), the law's controls ``u`` and
+    the parameters ``p`` (SX, MX or numbers) and returns what the description's Function
+    returns. The flow, guards and clearances are small expressions and are inlined into a
+    symbolic caller's graph; the resets stay calls of their Function. The engine's and the
+    NLP's graphs are so built as they were before they read the description, and their
+    arithmetic and iterates are what they were.
+
+    Parameters
+    ----------
+    law : HipLaw
+        The hip law, whose ``controls`` order ``u``.
+    functions : ModelFunctions
+        The BA-SLIP description's Functions under that law.
+    """
+
+    law: HipLaw
+    functions: ModelFunctions
+
+    @classmethod
+    def of(cls, law: HipLaw) -> Physics:
+        """The BA-SLIP description's physics under ``law``."""
+        return cls(law, model_functions(BA_SLIP, law.name))
+
+    def theta(self, u: Any, p: Any) -> Any:
+        """The description's ``theta`` (parameters, then controls) from ``u`` and ``p``."""
+        by_name = {**{n: self.law.controls.get(u, n) for n in self.law.controls.names},
+                   **{n: PARAMS.get(p, n) for n in PARAMS.names}}
+        return ca.vertcat(*[by_name[n] for n in self.functions.theta_names])
+
+    def stance_rate(self, x: Any, u: Any, p: Any) -> Any:
+        """xdot of a stance state under the law's torque (the description's Lagrangian)."""
+        return _inline(self.functions.rhs[STANCE_MODE], x, self.theta(u, p))
+
+    def guard(self, label: str, x: Any, u: Any, p: Any) -> Any:
+        """The guard of the transition ``label`` (touchdown: foot height [m]; bottom:
+        rhodot [m/s]; liftoff: rho - rho0 [m]) at the state of its source mode."""
+        return _inline(self.functions.guards[self._transition(label)], x, self.theta(u, p))
+
+    def reset(self, label: str, x: Any, u: Any, p: Any) -> Any:
+        """The state after the transition ``label`` (touchdown: flight to stance; liftoff:
+        stance to flight)."""
+        # A call of the reset, not its operations: the maps are whole functions, as they
+        # were in the engine's graphs before the description.
+        return self.functions.resets[self._transition(label)](x, self.theta(u, p))
+
+    def clearances(self, x: Any, u: Any, p: Any) -> Any:
+        """(CoM height, hip height, rho above the collapse floor) [m] of a stance state; the
+        runner falls when one reaches zero."""
+        values = _inline(self.functions.falls[STANCE_MODE], x, self.theta(u, p))
+        names = fall_names(BA_SLIP, STANCE_MODE)
+        return ca.vertcat(*[values[names.index(n)] for n in CLEARANCE_FALLS])
+
+    def _transition(self, label: str) -> int:
+        return [t.label for t in BA_SLIP.stride_transitions()].index(label)
+
+
+def _inline(function: ca.Function, x: Any, theta: Any) -> Any:
+    """``function(x, theta)``, its operations inlined where an argument is symbolic."""
+    if isinstance(x, (ca.SX, ca.MX)) or isinstance(theta, (ca.SX, ca.MX)):
+        return function.call([x, theta], True, False)[0]
+    return function(x, theta)
+
+
+def physics_modules() -> tuple[ModuleType, ...]:
+    """The modules the engine's physics is derived from (a compiled library's key)."""
+    return (layout, dynamics, hiplaw, description, lagrange, symbolic, ba_slip, sys.modules[__name__])
