@@ -23,8 +23,10 @@ from dataclasses import replace
 import numpy as np
 from figures import Figure, report
 
-from baslip import load_problem
-from baslip.analysis.gaitatlas import GaitManifold
+from baslip import ReturnMap, Tolerances, load_problem
+from baslip.analysis.gaitatlas import CHECK_SAMPLE_TOLERANCE, GaitManifold
+from baslip.engine.eventmap import EventMap
+from baslip.engine.trajectory import TrunkRange
 from baslip.problem.study import Atlas
 from baslip.studies.atlascell import CellAtlas
 from baslip.studies.sweep import key_column, sweep_tasks
@@ -61,6 +63,31 @@ def median_ms(fn, points) -> float:
     return 1e3 * statistics.median(times)
 
 
+def stance_sampling_ms(law, params, designs) -> tuple[float, float]:
+    """Median ms of one chart's stance samples (the costly part of its trunk range) in
+    CasADi's virtual machine (the baseline: the code before) and generated as C, at the
+    strides the trunk ranges of ``designs`` (rows of X then u) sample, interleaved."""
+    sampled = []
+
+    class Recording(ReturnMap):
+        def stance_samples(self, x_touchdown, u, params, duration, n, compiled=False):
+            sampled.append((x_touchdown, u, params, duration, n))
+            return super().stance_samples(x_touchdown, u, params, duration, n, compiled)
+
+    tolerances = Tolerances(CHECK_SAMPLE_TOLERANCE, CHECK_SAMPLE_TOLERANCE)
+    trunk = TrunkRange(Recording(tolerances, law=law))
+    for design in designs:
+        trunk(design[:4], design[4:], params)
+    sampler = EventMap(tolerances, "erk", None, law)
+    times: dict[bool, list[float]] = {False: [], True: []}
+    for args in sampled:
+        for compiled, spent in times.items():
+            start = time.perf_counter()
+            sampler.stance_samples(*args, compiled=compiled)
+            spent.append(1e3 * (time.perf_counter() - start))
+    return statistics.median(times[False][1:]), statistics.median(times[True][1:])
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--problem", default="problems/atlas_upright_cell.yaml")
@@ -92,6 +119,8 @@ def main() -> None:
         design = manifold.to_design(w)
         cells.checker(design[:4], design[4:])
     check = (time.perf_counter() - start) / len(centres)
+    designs = [manifold.to_design(w) for w in centres]
+    sampling_vm, sampling_c = stance_sampling_ms(problem.hip_law, problem.params, designs)
     one_residual = median_ms(manifold.evaluate, centres)
     one_rough = median_ms(manifold.evaluate_roughly, centres)
     one_jacobian = median_ms(manifold.jacobian, centres)
@@ -102,6 +131,8 @@ def main() -> None:
           f"{counted.evaluations / n:5.1f} residuals, {counted.rough / n:5.1f} rough residuals "
           f"and {counted.jacobians / n:4.1f} Jacobians a chart")
     print(f"  a chart's checks (in the second thread) {1e3 * check:7.1f} ms")
+    print(f"  a chart's stance samples for its trunk range: {sampling_vm:6.2f} ms in CasADi's virtual machine "
+          f"(the code before), {sampling_c:6.2f} ms generated as C ({sampling_vm / sampling_c:4.1f}x)")
     print(f"  baseline, at the charts' centres: residual {one_residual:6.2f} ms, rough residual {one_rough:6.2f} ms, "
           f"AD Jacobian {one_jacobian:6.2f} ms")
     print(f"  wall / (the covering's residuals and Jacobians at the baseline's cost): {wall / calls:5.2f}")

@@ -7,12 +7,13 @@ Jacobian (second derivatives), and the named ways to fall.
 
 import math
 
+import casadi as ca
 import numpy as np
 import pytest
 
 from baslip import Fall, Params, ReturnMap, Tolerances
 from baslip.engine.returnmap import NoSecondDerivatives, RunnerFell, param_vector
-from baslip.model.dynamics import APEX, build_model
+from baslip.model.dynamics import APEX, apex_to_flight, ballistic_flight, build_model
 
 MODEL = build_model()
 
@@ -126,6 +127,23 @@ def test_event_map_strides_in_c_are_those_of_the_virtual_machine(params, running
         outcomes.add(ours.fall)
     assert {None, Fall.LEG_COLLAPSES} <= outcomes
     assert (Fall.INTEGRATION_FAILED in outcomes) == (plugin == "erk")  # rosenbrock copes with I = 1e-9
+
+
+def test_stance_samples_in_c_are_those_of_the_virtual_machine(params, running_point):
+    """The stance samples generated as C and cached (for the atlas's trunk ranges) are the
+    virtual machine's, bit for bit, through the bottom and liftoff events."""
+    X, u = running_point
+    compiled = ReturnMap(Tolerances(1e-10, 1e-10), compile=True)
+    virtual = ReturnMap(Tolerances(1e-10, 1e-10), plugin="erk", compile=False)  # compiles nothing
+    stride = compiled.stride(X, u, params)
+    flight = ca.evalf(ballistic_flight(apex_to_flight(ca.DM(X)), stride.durations["descent"], params.vector()))
+    x_td = np.asarray(MODEL.touchdown_map(flight, u[-1], params.vector())).ravel()
+    stance = stride.durations["compression"] + stride.durations["decompression"]
+    for n in (1, 100):
+        ours = compiled.stance_samples(x_td, u, params, stance, n, compiled=True)
+        assert ours.shape == (6, n) and np.array_equal(ours, compiled.stance_samples(x_td, u, params, stance, n))
+        assert np.array_equal(ours, virtual.stance_samples(x_td, u, params, stance, n, compiled=True))
+    assert abs(ours[0, -1] - params.rho0) < 1e-9  # the last sample is the liftoff
 
 
 @pytest.mark.parametrize(

@@ -33,6 +33,7 @@ import numpy as np
 from baslip.engine import codegen as _codegen
 from baslip.engine import outcome as _outcome_module
 from baslip.engine.codegen import compile_kernels, library_name, module_files
+from baslip.engine.native import VirtualMachineKernel
 from baslip.engine.outcome import (
     PHASES,
     STANCE_HORIZON_HALF_PERIODS,
@@ -131,6 +132,7 @@ class EventMap:
         self.plugin = plugin
         self.law = law
         self.physics = Physics.of(law)
+        self._compile = compile
         self._samplers: dict = {}  # functions needed only by some users, built on first use
         # A warm cache loads the compiled stride without building any CasADi object.
         self._value = compile_kernels(
@@ -254,16 +256,33 @@ class EventMap:
                 )
         return np.asarray(self._samplers["parameter_jacobian"](X, u, p, t_guess))
 
-    def stance_samples(self, x_touchdown, u, params, duration: float, n: int) -> np.ndarray:
+    def stance_samples(self, x_touchdown, u, params, duration: float, n: int, compiled: bool = False) -> np.ndarray:
         """Stance states (6 x n) at n equal steps up to ``duration`` [s] after touchdown,
-        for drawing; ``duration`` is normally the stride's stance time."""
-        key = ("stance_samples", n)
+        for drawing and for the trunk's range; ``duration`` is normally the stride's stance
+        time. ``compiled``: the integrator generated as C and cached, one library per ``n``
+        (where this map compiles at all), for many calls (the atlas checks every chart's
+        trunk range with it); else CasADi's virtual machine, which needs no compile."""
+        key = ("stance_samples", n, compiled)
         if key not in self._samplers:
-            with _event_notice_silenced():
-                self._samplers[key] = self._build_stance_integrator(np.linspace(0.0, 1.0, n + 1)[1:])
+            if compiled:
+                self._samplers[key] = compile_kernels(
+                    library_name(f"baslip_stance_samples_{self.plugin}", self.law), ["stance_samples"],
+                    lambda: [self._stance_samples_function(n)], _sources(), enabled=self._compile,
+                    settings=f"{self.plugin} rtol={self.tolerances.rtol!r} atol={self.tolerances.atol!r} n={n}",
+                )["stance_samples"]
+            else:
+                self._samplers[key] = VirtualMachineKernel(self._stance_samples_function(n))
         s0 = np.concatenate([vec(x_touchdown), [0.0, 0.0, COMPRESSION]])
         p = np.concatenate([vec(u), param_vector(params), [duration]])
-        return np.asarray(self._samplers[key](x0=s0, p=p)["xf"])[: STANCE.size, :]
+        return np.asarray(self._samplers[key](s0, p)[0])[: STANCE.size, :]
+
+    def _stance_samples_function(self, n: int) -> ca.Function:
+        """(s0, (u, p, duration)) -> the augmented stance states at n equal steps."""
+        s0 = STANCE_RUN.sym("s0", ca.MX)
+        up = ca.MX.sym("p", self.law.controls.size + PARAMS.size + 1)
+        with _event_notice_silenced():
+            integrator = self._build_stance_integrator(np.linspace(0.0, 1.0, n + 1)[1:])
+            return ca.Function("stance_samples", [s0, up], [integrator(x0=s0, p=up)["xf"]], ["s0", "p"], ["states"])
 
 
 def _outcome(apex, durations, diagnostics) -> Stride:

@@ -149,7 +149,8 @@ class TrunkRange:
         theta_td = float(touchdown_angle(np.asarray(u)))
         x_touchdown = _ballistic(flight, d["descent"], params.g)
         x_stance = np.asarray(self.model.touchdown_map(x_touchdown, theta_td, params.vector())).ravel()
-        states = self.rmap.stance_samples(x_stance, u, params, d["compression"] + d["decompression"], self.samples)
+        states = self.rmap.stance_samples(x_stance, u, params, d["compression"] + d["decompression"], self.samples,
+                                          compiled=True)
         stance = body_angle(states[STANCE.index("theta1")], states[STANCE.index("theta2")])
         angles = np.concatenate([[flight[2], x_touchdown[2], APEX.get(stride.apex, "theta_h")], stance])
         return float(np.min(angles)), float(np.max(angles))
