@@ -34,6 +34,7 @@ from baslip import Params, ReturnMap, Tolerances
 from baslip.engine import dop853 as flow
 from baslip.engine import kernels
 from baslip.engine.outcome import touchdown_guess
+from baslip.engine.physics import Physics
 from baslip.model.dynamics import APEX
 from baslip.model.hiplaw import PD
 
@@ -149,7 +150,7 @@ def touchdown_points(charts: int) -> list[tuple[np.ndarray, float, np.ndarray, f
     at ``charts`` charts of each committed upright and hanging atlas."""
     p = Params()
     pv = p.vector()
-    touchdown = kernels.touchdown_state(PD)
+    touchdown = kernels.touchdown_state(Physics.of(PD))
     rmap = ReturnMap(Tolerances(1e-12, 1e-12))
     points = []
     for name in ("atlas_upright", "atlas_downward"):
@@ -186,7 +187,7 @@ def main() -> None:
     parser.add_argument("--charts", type=int, default=40, help="charts of each atlas (default 40)")
     args = parser.parse_args()
     check_verner()
-    rhs = kernels.stance_rhs(PD)
+    rhs = kernels.stance_rhs(Physics.of(PD))
     dop = flow.step_function(rhs)
     inputs = dop.mx_in()  # the engine's step without its watched minima
     methods = {"DOP853": Passes(ca.Function("dop853_value", inputs, dop.call(inputs)[:2]), 12),

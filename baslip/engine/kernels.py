@@ -100,27 +100,27 @@ def _split_theta(theta, law: HipLaw):
     return theta[:law.controls.size], theta[law.controls.size:]
 
 
-def stance_rhs(law: HipLaw = PD) -> ca.Function:
-    """xdot = f(x, theta) of stance under the hip law ``law``, theta = (u, p): the BA-SLIP
-    description's (:class:`~baslip.engine.physics.Physics`)."""
-    x, theta = STANCE.sym("x"), theta_layout(law).sym("theta")
-    xdot = Physics.of(law).stance_rate(x, *_split_theta(theta, law))
+def stance_rhs(physics: Physics) -> ca.Function:
+    """xdot = f(x, theta) of stance under ``physics``'s hip law, theta = (u, p): the BA-SLIP
+    description's."""
+    x, theta = STANCE.sym("x"), theta_layout(physics.law).sym("theta")
+    xdot = physics.stance_rate(x, *_split_theta(theta, physics.law))
     return ca.Function("stance_rhs", [x, theta], [ca.cse(xdot)], ["x", "theta"], ["xdot"])
 
 
-def stance_clearances(law: HipLaw = PD) -> ca.Function:
-    """(x, theta) -> (CoM height, hip height, rho - collapse floor) [m] under ``law``; the
-    runner falls at zero."""
-    x, theta = STANCE.sym("x"), theta_layout(law).sym("theta")
-    clearances = Physics.of(law).clearances(x, *_split_theta(theta, law))
+def stance_clearances(physics: Physics) -> ca.Function:
+    """(x, theta) -> (CoM height, hip height, rho - collapse floor) [m] under ``physics``'s
+    hip law; the runner falls at zero."""
+    x, theta = STANCE.sym("x"), theta_layout(physics.law).sym("theta")
+    clearances = physics.clearances(x, *_split_theta(theta, physics.law))
     return ca.Function("stance_clearances", [x, theta], [clearances], ["x", "theta"], ["clearances"])
 
 
-def stance_guards(law: HipLaw = PD) -> tuple[ca.Function, ca.Function]:
+def stance_guards(physics: Physics) -> tuple[ca.Function, ca.Function]:
     """The bottom guard rhodot [m/s] and the liftoff guard rho - rho0 [m] as Functions of
     (x, theta); each rises through zero at its event."""
-    x, theta = STANCE.sym("x"), theta_layout(law).sym("theta")
-    physics, (u, p) = Physics.of(law), _split_theta(theta, law)
+    x, theta = STANCE.sym("x"), theta_layout(physics.law).sym("theta")
+    u, p = _split_theta(theta, physics.law)
     return (
         ca.Function("bottom", [x, theta], [physics.guard("bottom", x, u, p)]),
         ca.Function("liftoff", [x, theta], [physics.guard("liftoff", x, u, p)]),
@@ -172,10 +172,10 @@ class StanceFlow:
         self.law = law
         self.theta = theta_layout(law)
         self.physics = Physics.of(law)
-        self.rhs = stance_rhs(law)
-        self.clearances = stance_clearances(law)
+        self.rhs = stance_rhs(self.physics)
+        self.clearances = stance_clearances(self.physics)
         self.step = flow.step_function(self.rhs, self.clearances)
-        bottom, liftoff = stance_guards(law)
+        bottom, liftoff = stance_guards(self.physics)
         self.bottom_step = flow.event_step(self.step, self.rhs, bottom, EVENT_NEWTON)
         self.liftoff_step = flow.event_step(self.step, self.rhs, liftoff, EVENT_NEWTON)
         self._chains: dict[int, ca.Function] = {}
@@ -304,7 +304,7 @@ class StrideFunctions:
         :func:`scout_events`): the common case of a stride's planning in one call."""
         X, u, p = APEX.sym("X", ca.MX), self.law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
         t_descent, h = ca.MX.sym("t_descent"), ca.MX.sym("h")
-        x_td, com_height, _ = touchdown_state(self.law)(X, u, p, t_descent)
+        x_td, com_height, _ = touchdown_state(self.flow.physics)(X, u, p, t_descent)
         nodes, rates, clearance, errors = scout(x_td, h, ca.vertcat(u, p))
         events = scout_events()(nodes, rates, clearance, errors, h, PARAMS.get(p, "rho0"))
         return ca.Function("stance_plan", [X, u, p, t_descent, h], [x_td, com_height, *events],
@@ -440,12 +440,11 @@ def _touchdown_time(X, u, p, t_guess, physics: Physics):
     return t_guess
 
 
-def touchdown_state(law: HipLaw = PD) -> ca.Function:
+def touchdown_state(physics: Physics) -> ca.Function:
     """(X, u, p, t_descent) -> stance state at touchdown, CoM height there [m], foot height
-    there [m] (zero at a located touchdown), for a control ``u`` of ``law``."""
-    X, u, p, t = APEX.sym("X"), law.controls.sym("u"), PARAMS.sym("p"), ca.SX.sym("t_descent")
+    there [m] (zero at a located touchdown), for a control ``u`` of ``physics``'s hip law."""
+    X, u, p, t = APEX.sym("X"), physics.law.controls.sym("u"), PARAMS.sym("p"), ca.SX.sym("t_descent")
     at_touchdown = ballistic_flight(apex_to_flight(X), t, p)
-    physics = Physics.of(law)
     return ca.Function(
         "touchdown_state", [X, u, p, t],
         [physics.reset("touchdown", at_touchdown, u, p), FLIGHT.get(at_touchdown, "z"),

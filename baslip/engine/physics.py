@@ -17,6 +17,7 @@ Flight is the exception: the engine steps it in closed form
 from __future__ import annotations
 
 import sys
+from collections.abc import Mapping
 from dataclasses import dataclass
 from types import ModuleType
 from typing import Any
@@ -45,9 +46,10 @@ class Physics:
     Each method takes a state (stance ``x`` or flight ``xf``), the law's controls ``u`` and
     the parameters ``p`` (SX, MX or numbers) and returns what the description's Function
     returns. The flow, guards and clearances are small expressions and are inlined into a
-    symbolic caller's graph; the resets stay calls of their Function. The engine's and the
-    NLP's graphs are so built as they were before they read the description, and their
-    arithmetic and iterates are what they were.
+    symbolic caller's graph; each reset stays a call, of a Function of ``(x, u, p)`` that
+    holds the description's operations. The engine's and the NLP's graphs are so built as
+    they were before they read the description, and their arithmetic and iterates are
+    what they were.
 
     Parameters
     ----------
@@ -55,21 +57,31 @@ class Physics:
         The hip law, whose ``controls`` order ``u``.
     functions : ModelFunctions
         The BA-SLIP description's Functions under that law.
+    resets : mapping of str to casadi.Function
+        Each transition's reset by its label, a Function of ``(x, u, p)``
+        (:meth:`of` builds them from ``functions``).
     """
 
     law: HipLaw
     functions: ModelFunctions
+    resets: Mapping[str, ca.Function]
 
     @classmethod
     def of(cls, law: HipLaw) -> Physics:
         """The BA-SLIP description's physics under ``law``."""
-        return cls(law, model_functions(BA_SLIP, law.name))
+        functions = model_functions(BA_SLIP, law.name)
+        u, p = law.controls.sym("u"), PARAMS.sym("p")
+        theta = _theta(law, functions, u, p)
+        resets = {}
+        for transition, reset in zip(BA_SLIP.stride_transitions(), functions.resets, strict=True):
+            x = ca.SX.sym("x", reset.size1_in(0))
+            resets[transition.label] = ca.Function(transition.label, [x, u, p], [_inline(reset, x, theta)],
+                                                   ["x", "u", "p"], ["after"])
+        return cls(law, functions, resets)
 
     def theta(self, u: Any, p: Any) -> Any:
         """The description's ``theta`` (parameters, then controls) from ``u`` and ``p``."""
-        by_name = {**{n: self.law.controls.get(u, n) for n in self.law.controls.names},
-                   **{n: PARAMS.get(p, n) for n in PARAMS.names}}
-        return ca.vertcat(*[by_name[n] for n in self.functions.theta_names])
+        return _theta(self.law, self.functions, u, p)
 
     def stance_rate(self, x: Any, u: Any, p: Any) -> Any:
         """xdot of a stance state under the law's torque (the description's Lagrangian)."""
@@ -83,9 +95,8 @@ class Physics:
     def reset(self, label: str, x: Any, u: Any, p: Any) -> Any:
         """The state after the transition ``label`` (touchdown: flight to stance; liftoff:
         stance to flight)."""
-        # A call of the reset, not its operations: the maps are whole functions, as they
-        # were in the engine's graphs before the description.
-        return self.functions.resets[self._transition(label)](x, self.theta(u, p))
+        # A call, not its operations: the maps were whole functions in the engine's graphs.
+        return self.resets[label](x, u, p)
 
     def clearances(self, x: Any, u: Any, p: Any) -> Any:
         """(CoM height, hip height, rho above the collapse floor) [m] of a stance state; the
@@ -96,6 +107,12 @@ class Physics:
 
     def _transition(self, label: str) -> int:
         return [t.label for t in BA_SLIP.stride_transitions()].index(label)
+
+
+def _theta(law: HipLaw, functions: ModelFunctions, u: Any, p: Any) -> Any:
+    """The description's ``theta`` from the law's controls ``u`` and the parameters ``p``."""
+    by_name = {**{n: law.controls.get(u, n) for n in law.controls.names}, **{n: PARAMS.get(p, n) for n in PARAMS.names}}
+    return ca.vertcat(*[by_name[n] for n in functions.theta_names])
 
 
 def _inline(function: ca.Function, x: Any, theta: Any) -> Any:

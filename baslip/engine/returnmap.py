@@ -549,8 +549,7 @@ class ReturnMap:
         return Simulation(np.array(apexes), durations)
 
     def stance_samples(self, x_touchdown, u, params, duration: float, n: int, compiled: bool = False) -> np.ndarray:
-        """Stance states (6 x n) at n equal steps up to ``duration`` [s] after touchdown,
-        for drawing; ``duration`` is normally the stride's stance time.
+        """Stance states (6 x n) at n equal steps up to ``duration`` [s] after touchdown.
 
         Parameters
         ----------
@@ -562,14 +561,11 @@ class ReturnMap:
         params : Params or array_like
             The model parameters, or their vector, shape (6,).
         duration : float
-            The time [s] after touchdown of the last sample.
+            The time [s] after touchdown of the last sample (normally the stance's).
         n : int
             The number of samples.
         compiled : bool
-            True where many strides are sampled at this ``n`` (the atlas's trunk ranges):
-            the integrator is then generated as C and cached (where the map compiles at
-            all), about 17 times faster a call after a few seconds' compile, once. The
-            samples are the same either way, to the bit.
+            For many calls at this ``n``: the integrator as C, cached (the same samples).
 
         Returns
         -------
