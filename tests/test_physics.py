@@ -75,3 +75,13 @@ def test_symbolic_callers_get_the_flow_and_guards_inlined():
     height = physics.guard("touchdown", np.array([0.0, 0.3, math.pi / 2, 1.0, -1.0, 0.0]), np.array([0.0, 0.2]),
                            Params().vector())
     assert isinstance(height, ca.DM)
+
+
+@pytest.mark.parametrize("law", HIP_LAWS.values(), ids=HIP_LAWS)
+def test_flight_is_the_descriptions_closed_form_flow_the_engines_ballistic_flight_to_the_bit(law):
+    physics = Physics.of(law)
+    for x, u, p in _samples(law, 50):
+        xf = np.asarray(dynamics.liftoff_map(x, p)).ravel()
+        for t in (0.0, 0.013, 0.4):
+            ours = np.asarray(physics.flight(xf, t, u, p)).ravel()
+            assert np.array_equal(ours, np.asarray(dynamics.ballistic_flight(ca.DM(xf), t, ca.DM(p))).ravel())

@@ -126,3 +126,41 @@ def test_the_guard_of_a_transition_is_a_casadi_function_of_the_state():
     assert isinstance(touchdown, ca.Function)
     assert float(touchdown([0, 1.0, 5, -1], [80, 2e4, 1.0, 9.81, 0.0])) == pytest.approx(0.0, abs=1e-15)
     assert isinstance(Transition("a", "b", lambda s, p, u: s.z, -1).label, str)
+
+
+def with_flight_flow(flow):
+    modes = tuple(replace(m, flow=flow) if m.name == "flight" else m for m in SLIP.modes)
+    return replace(SLIP, modes=modes)
+
+
+def ballistic(s, p, u, t):
+    return {"y": s.y + s.ydot * t, "z": s.z + s.zdot * t - p.g * t**2 / 2, "ydot": s.ydot, "zdot": s.zdot - p.g * t}
+
+
+def test_a_closed_form_flow_that_solves_the_equations_is_kept_as_a_function_of_time():
+    f = model_functions(with_flight_flow(ballistic))
+    x = np.array([0.0, 1.0, 5.0, 2.0])
+    theta = f.theta({"m": 80.0, "k": 2e4, "l0": 1.0, "g": 9.81, "theta_td": 0.3})
+    moved = np.array(f.flows["flight"](x, theta, 0.25)).ravel()
+    assert moved == pytest.approx([1.25, 1.0 + 0.5 - 9.81 * 0.25**2 / 2, 5.0, 2.0 - 9.81 * 0.25], rel=1e-15)
+    assert "stance" not in f.flows
+
+
+def test_a_closed_form_flow_that_does_not_solve_the_equations_is_named():
+    wrong = with_flight_flow(lambda s, p, u, t: {**ballistic(s, p, u, t), "z": s.z + s.zdot * t - p.g * t**2})
+    # Its rate is off by g t: nothing at t = 0, 0.139 m/s a tenth of the body's time on.
+    with pytest.raises(ModelError, match=r"model\.modes\.flight\.flow: does not solve the mode's equations of motion: "
+                                         r"its rate differs from them by 0\.139 at t = 0\.0142 s"):
+        model_functions(wrong)
+
+
+def test_a_closed_form_flow_that_leaves_its_state_is_named():
+    wrong = with_flight_flow(lambda s, p, u, t: {**ballistic(s, p, u, t), "y": s.y + s.ydot * t + 0.1})
+    with pytest.raises(ModelError, match=r"model\.modes\.flight\.flow: does not start at its state: at t = 0 it moves it by 0\.1"):
+        model_functions(wrong)
+
+
+def test_a_closed_form_flow_of_the_wrong_states_is_named():
+    wrong = with_flight_flow(lambda s, p, u, t: {"y": s.y, "z": s.z})
+    with pytest.raises(ModelError, match=r"model\.modes\.flight\.flow: leaves out \['ydot', 'zdot'\]"):
+        model_functions(wrong)

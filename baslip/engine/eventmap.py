@@ -50,7 +50,6 @@ from baslip.model.dynamics import (
     PARAMS,
     STANCE,
     apex_to_flight,
-    ballistic_flight,
     flight_to_apex,
 )
 from baslip.model.hiplaw import PD, HipLaw
@@ -165,7 +164,7 @@ class EventMap:
     def _build_touchdown_rootfinder(self) -> ca.Function:
         t = ca.SX.sym("t")
         X, u, p = APEX.sym("X"), self.law.controls.sym("u"), PARAMS.sym("p")
-        foot_height = self.physics.guard("touchdown", ballistic_flight(apex_to_flight(X), t, p), u, p)
+        foot_height = self.physics.guard("touchdown", self.physics.flight(apex_to_flight(X), t, u, p), u, p)
         residual = ca.Function("touchdown_residual", [t, ca.vertcat(X, u, p)], [foot_height])
         # From the bracketed guess Newton converges in a few steps; a guess that does not
         # converge leaves a foot height that the outcome reports as no touchdown.
@@ -196,7 +195,7 @@ class EventMap:
         X, u, p = APEX.sym("X", ca.MX), self.law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
         t_guess = ca.MX.sym("t_touchdown_guess")
         t_descent = self._build_touchdown_rootfinder()(t_guess, ca.vertcat(X, u, p))
-        at_touchdown = ballistic_flight(apex_to_flight(X), t_descent, p)
+        at_touchdown = self.physics.flight(apex_to_flight(X), t_descent, u, p)
         x_td = self.physics.reset("touchdown", at_touchdown, u, p)
         horizon = STANCE_HORIZON_HALF_PERIODS * math.pi * ca.sqrt(PARAMS.get(p, "m") / PARAMS.get(p, "k"))
         s0 = ca.vertcat(x_td, 0, 0, COMPRESSION)

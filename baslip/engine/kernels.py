@@ -53,7 +53,6 @@ from baslip.model.dynamics import (
     PARAMS,
     STANCE,
     apex_to_flight,
-    ballistic_flight,
     flight_to_apex,
 )
 from baslip.model.hiplaw import PD, HipLaw
@@ -367,7 +366,7 @@ def _final_pass(stance: StanceFlow, n: int) -> ca.Function:
     physics = stance.physics
 
     t_descent = _touchdown_time(X, u, p, GUESSES.get(guesses, "descent"), physics)
-    at_touchdown = ballistic_flight(apex_to_flight(X), t_descent, p)
+    at_touchdown = physics.flight(apex_to_flight(X), t_descent, u, p)
     x_td = physics.reset("touchdown", at_touchdown, u, p)
 
     comp = _phase(stance, stance.bottom_step, x_td, GUESSES.get(guesses, "compression"), theta, n)
@@ -433,7 +432,7 @@ def _touchdown_time(X, u, p, t_guess, physics: Physics):
     so that its derivative is the implicit-function-theorem one."""
     t = ca.SX.sym("t")
     Xs, us, ps = APEX.sym("X"), physics.law.controls.sym("u"), PARAMS.sym("p")
-    height = physics.guard("touchdown", ballistic_flight(apex_to_flight(Xs), t, ps), us, ps)
+    height = physics.guard("touchdown", physics.flight(apex_to_flight(Xs), t, us, ps), us, ps)
     newton = ca.Function("touchdown_newton", [Xs, us, ps, t], [t - height / ca.jacobian(height, t)])
     for _ in range(TOUCHDOWN_NEWTON):
         t_guess = newton(X, u, p, t_guess)
@@ -444,7 +443,7 @@ def touchdown_state(physics: Physics) -> ca.Function:
     """(X, u, p, t_descent) -> stance state at touchdown, CoM height there [m], foot height
     there [m] (zero at a located touchdown), for a control ``u`` of ``physics``'s hip law."""
     X, u, p, t = APEX.sym("X"), physics.law.controls.sym("u"), PARAMS.sym("p"), ca.SX.sym("t_descent")
-    at_touchdown = ballistic_flight(apex_to_flight(X), t, p)
+    at_touchdown = physics.flight(apex_to_flight(X), t, u, p)
     return ca.Function(
         "touchdown_state", [X, u, p, t],
         [physics.reset("touchdown", at_touchdown, u, p), FLIGHT.get(at_touchdown, "z"),

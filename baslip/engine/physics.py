@@ -1,17 +1,17 @@
 """The BA-SLIP's physics as the engine calls it, read from the model's description.
 
 Every piece of a stride that the compiled engine, the adaptive event map and the shooting
-NLP evaluate (the stance right-hand side under a hip law, the touchdown, bottom and
-liftoff guards, the touchdown and liftoff maps, the clearances a fall is watched by) is a
-Function of :data:`baslip.model.catalogue.ba_slip.BA_SLIP` built by
-:func:`baslip.model.symbolic.model_functions`, found by the description's own names (its
-transitions' labels, its falls' names). This module only re-orders the engine's arguments
+NLP evaluate (the stance right-hand side under a hip law, flight in closed form, the
+touchdown, bottom and liftoff guards, the touchdown and liftoff maps, the clearances a
+fall is watched by) is a Function of :data:`baslip.model.catalogue.ba_slip.BA_SLIP`
+built by :func:`baslip.model.symbolic.model_functions`, found by the description's own
+names (its modes', its transitions' labels, its falls'). This module only re-orders the engine's arguments
 (a state, the law's controls ``u`` with the touchdown angle among them, the parameters
 ``p``) into the description's ``theta``: it holds no physics, and what the engine computes
 is what the description says, to the bit (``tests/test_committed_strides.py``).
 
-Flight is the exception: the engine steps it in closed form
-(:func:`baslip.model.dynamics.ballistic_flight`), which a description does not yet carry.
+The apex at the end of a stride is still :func:`baslip.model.dynamics.flight_to_apex`
+(flight up to ``zdot = 0``, closed form), which a description does not carry.
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ import casadi as ca
 from baslip.model import description, dynamics, hiplaw, lagrange, layout, symbolic
 from baslip.model.catalogue import ba_slip
 from baslip.model.catalogue.ba_slip import BA_SLIP
+from baslip.model.description import Names
 from baslip.model.dynamics import PARAMS
 from baslip.model.hiplaw import HipLaw
 from baslip.model.symbolic import ModelFunctions, fall_names, model_functions
@@ -34,6 +35,8 @@ from baslip.model.symbolic import ModelFunctions, fall_names, model_functions
 #: The stance mode whose right-hand side and falls the engine reads; compression and
 #: decompression share their Lagrangian and torque, so either serves.
 STANCE_MODE = "compression"
+#: The mode whose closed-form flow the engine steps flight with.
+FLIGHT_MODE = "flight"
 #: The description's falls that the engine watches in stance, in the order of its
 #: clearances (CoM height, hip height, leg above the collapse floor [m]).
 CLEARANCE_FALLS = ("CoM touches the ground", "hip touches the ground", "leg collapses")
@@ -45,7 +48,7 @@ class Physics:
 
     Each method takes a state (stance ``x`` or flight ``xf``), the law's controls ``u`` and
     the parameters ``p`` (SX, MX or numbers) and returns what the description's Function
-    returns. The flow, guards and clearances are small expressions and are inlined into a
+    returns. The flows, guards and clearances are small expressions and are inlined into a
     symbolic caller's graph; each reset stays a call, of a Function of ``(x, u, p)`` that
     holds the description's operations. The engine's and the NLP's graphs are so built as
     they were before they read the description, and their arithmetic and iterates are
@@ -86,6 +89,23 @@ class Physics:
     def stance_rate(self, x: Any, u: Any, p: Any) -> Any:
         """xdot of a stance state under the law's torque (the description's Lagrangian)."""
         return _inline(self.functions.rhs[STANCE_MODE], x, self.theta(u, p))
+
+    def flight(self, xf: Any, t: Any, u: Any, p: Any) -> Any:
+        """The flight state ``t`` [s] after ``xf``: the description's closed-form flow.
+
+        On symbols it is the description's expression built on the caller's own symbols
+        (MX as MX), so that its operations and their derivatives are the ones the engine
+        built before; the Function of :attr:`functions` checked that it solves flight."""
+        if not any(isinstance(a, (ca.SX, ca.MX)) for a in (xf, t, u, p)):
+            return self.functions.flows[FLIGHT_MODE](xf, self.theta(u, p), t)
+        mode = BA_SLIP.mode(FLIGHT_MODE)
+        names = self.functions.theta_names
+        values = dict(zip(names, ca.vertsplit(self.theta(u, p))))
+        quantities = {q.name for q in BA_SLIP.parameters}
+        after = mode.flow(Names(dict(zip(mode.states, ca.vertsplit(xf))), "the flight state"),  # type: ignore[misc]
+                          Names({n: v for n, v in values.items() if n in quantities}, "p"),
+                          Names({n: v for n, v in values.items() if n not in quantities}, "u"), t)
+        return ca.vertcat(*[after[n] for n in mode.states])
 
     def guard(self, label: str, x: Any, u: Any, p: Any) -> Any:
         """The guard of the transition ``label`` (touchdown: foot height [m]; bottom:

@@ -49,7 +49,6 @@ from baslip.model.dynamics import (
     PARAMS,
     STANCE,
     apex_to_flight,
-    ballistic_flight,
 )
 from baslip.model.hiplaw import HipLaw
 
@@ -246,7 +245,7 @@ def phase_sensitivity(out, guard, x, t):
 def _descent_function(physics: Physics) -> ca.Function:
     """(X, u, p, t_descent) -> d x_touchdown / d X, the touchdown time following the guard."""
     X, u, p, t = APEX.sym("X", ca.MX), physics.law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX), ca.MX.sym("t")
-    at_touchdown = ballistic_flight(apex_to_flight(X), t, p)
+    at_touchdown = physics.flight(apex_to_flight(X), t, u, p)
     guard = physics.guard("touchdown", at_touchdown, u, p)
     out = physics.reset("touchdown", at_touchdown, u, p)
     return ca.Function("descent_sensitivity", [X, u, p, t], [phase_sensitivity(out, guard, X, t)])
@@ -255,14 +254,14 @@ def _descent_function(physics: Physics) -> ca.Function:
 def _touchdown_function(physics: Physics) -> ca.Function:
     """(X, u, p, t_descent) -> the stance state at touchdown."""
     X, u, p, t = APEX.sym("X", ca.MX), physics.law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX), ca.MX.sym("t")
-    at_touchdown = physics.reset("touchdown", ballistic_flight(apex_to_flight(X), t, p), u, p)
+    at_touchdown = physics.reset("touchdown", physics.flight(apex_to_flight(X), t, u, p), u, p)
     return ca.Function("touchdown_state", [X, u, p, t], [at_touchdown])
 
 
 def _ascent_function(physics: Physics) -> ca.Function:
     """(x_liftoff, u, p, t_ascent) -> d X_next / d x_liftoff, the apex time following zdot = 0."""
     x, u, p, t = STANCE.sym("x", ca.MX), physics.law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX), ca.MX.sym("t")
-    at_apex = ballistic_flight(physics.reset("liftoff", x, u, p), t, p)
+    at_apex = physics.flight(physics.reset("liftoff", x, u, p), t, u, p)
     out = ca.vertcat(*(FLIGHT.get(at_apex, name) for name in APEX.names))
     return ca.Function("ascent_sensitivity", [x, u, p, t],
                        [phase_sensitivity(out, FLIGHT.get(at_apex, "zdot"), x, t)])

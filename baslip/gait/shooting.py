@@ -70,7 +70,6 @@ from baslip.model.dynamics import (
     Params,
     apex_energy,
     apex_to_flight,
-    ballistic_flight,
 )
 from baslip.model.hiplaw import PD, HipLaw
 from baslip.model.quantities import (
@@ -456,7 +455,7 @@ class ShootingNLP:
             X, u, p = APEX.sym("X", ca.MX), self.law.controls.sym("u", ca.MX), PARAMS.sym("p", ca.MX)
             T = ca.MX.sym("T", 3)
             n, steps = self.options.nodes, self.options.substeps
-            x_td = self._stance.physics.reset("touchdown", ballistic_flight(apex_to_flight(X), T[0], p), u, p)
+            x_td = self._stance.physics.reset("touchdown", self._stance.physics.flight(apex_to_flight(X), T[0], u, p), u, p)
             chain = self._stance.chain(n * steps)
             comp = chain(x_td, T[1] / (n * steps), ca.vertcat(u, p))[0][:, steps - 1 :: steps]
             decomp = chain(comp[:, -1], T[2] / (n * steps), ca.vertcat(u, p))[0][:, steps - 1 :: steps]
@@ -580,7 +579,7 @@ def torque_effort(interval: ca.Function, physics: Physics, X, u, durations, para
 def _touchdown_state(physics: Physics, X, u, p, t_descent) -> ca.DM:
     """Stance state at touchdown after ``t_descent`` seconds of descent from apex ``X``."""
     X, u, p = ca.DM(X), ca.DM(u), ca.DM(p)
-    xf = ca.evalf(ballistic_flight(apex_to_flight(X), t_descent, p))
+    xf = physics.flight(apex_to_flight(X), t_descent, u, p)
     return physics.reset("touchdown", xf, u, p)
 
 

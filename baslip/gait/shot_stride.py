@@ -16,7 +16,6 @@ from baslip.model.dynamics import (
     FLIGHT,
     STANCE,
     apex_to_flight,
-    ballistic_flight,
     touchdown_guard_rate,
 )
 from baslip.model.hiplaw import HipLaw
@@ -96,9 +95,9 @@ def shoot_stride(stance: StanceFlow, interval: ca.Function, margin: float, X, u,
     apex_flight = apex_to_flight(X)
     # Descent: the foot stays above ground until it crosses zero, falling.
     for fraction in (0.0, 0.25, 0.5, 0.75):
-        constrain(physics.guard("touchdown", ballistic_flight(apex_flight, fraction * t_descent, p), u, p), 0, ca.inf,
+        constrain(physics.guard("touchdown", physics.flight(apex_flight, fraction * t_descent, u, p), u, p), 0, ca.inf,
                   FOOT_AT_APEX if fraction == 0.0 else f"foot clearance at {fraction:.0%} of the descent", "m")
-    at_touchdown = ballistic_flight(apex_flight, t_descent, p)
+    at_touchdown = physics.flight(apex_flight, t_descent, u, p)
     constrain(physics.guard("touchdown", at_touchdown, u, p), 0, 0, "foot height at touchdown", "m")
     constrain(touchdown_guard_rate(at_touchdown, p), -ca.inf, -margin, "foot's vertical speed at touchdown", "m/s")
     x_td = physics.reset("touchdown", at_touchdown, u, p)
@@ -131,7 +130,7 @@ def shoot_stride(stance: StanceFlow, interval: ca.Function, margin: float, X, u,
 
     at_liftoff = physics.reset("liftoff", x_lo, u, p)
     constrain(FLIGHT.get(at_liftoff, "zdot"), margin, ca.inf, LIFTOFF_RISE, "m/s")
-    at_apex = ballistic_flight(at_liftoff, t_ascent, p)
+    at_apex = physics.flight(at_liftoff, t_ascent, u, p)
     constrain(FLIGHT.get(at_apex, "zdot"), 0, 0, "zdot at the apex", "m/s")  # apex guard
     apex_next = ca.vertcat(*(FLIGHT.get(at_apex, name) for name in APEX.names))
     law = stance.law

@@ -110,6 +110,11 @@ class Mode:
         coordinate name; coordinates left out get none.
     dynamics : callable, optional
         ``f(s, p, u)``: each state's rate by state name, instead of a Lagrangian.
+    flow : callable, optional
+        ``phi(s, p, u, t)``: the state ``t`` seconds after ``s``, by state name, in closed
+        form (ballistic flight, for one), for the engines that step a mode exactly. It
+        must solve the mode's equations of motion, which
+        :func:`~baslip.model.symbolic.model_functions` checks.
     """
 
     name: str
@@ -118,6 +123,7 @@ class Mode:
     lagrangian: Expression | None = None
     forces: Expression | None = None
     dynamics: Expression | None = None
+    flow: Expression | None = None
 
     @property
     def rate_names(self) -> tuple[str, ...]:

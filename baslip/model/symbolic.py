@@ -12,7 +12,7 @@ cannot fire, a Lagrangian without some rate.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import casadi as ca
@@ -28,7 +28,8 @@ class ModelFunctions:
 
     ``guards[i]``, ``resets[i]`` and ``directions[i]`` belong to the i-th transition of a
     stride (``model.order[i]`` to ``model.order[i + 1]``); ``rhs`` and ``falls`` are by
-    mode name; every Function takes ``(x, theta)``.
+    mode name; every Function takes ``(x, theta)``, but ``flows`` (the closed-form flows
+    of the modes that give one, by mode name) take ``(x, theta, t)``.
     """
 
     model: Model
@@ -41,6 +42,7 @@ class ModelFunctions:
     section_guard: ca.Function
     falls: Mapping[str, ca.Function]
     invariants: ca.Function | None
+    flows: Mapping[str, ca.Function] = field(default_factory=dict)
 
     @property
     def section_states(self) -> tuple[str, ...]:
@@ -202,10 +204,13 @@ def model_functions(model: Model, law: str | None = None) -> ModelFunctions:
         x = ca.SX.sym("x", len(mode.states))
         return x, Names(dict(zip(mode.states, ca.vertsplit(x))), f"mode {mode.name}")
 
-    rhs = {}
+    rhs, flows = {}, {}
     for mode in model.modes:
-        x, _ = state(mode)
+        x, s = state(mode)
         rhs[mode.name] = ca.Function(f"{mode.name}_rhs", [x, theta], [_rhs(mode, model, law_name, x, p, u)])
+        if mode.flow is not None:
+            flows[mode.name] = _flow(mode, x, s, theta, p, u)
+            _check_flow(mode, flows[mode.name], rhs[mode.name], model, law_name)
     guards, resets, directions = [], [], []
     for transition in model.stride_transitions():
         key = f"model.transitions.{transition.label}"
@@ -245,7 +250,43 @@ def model_functions(model: Model, law: str | None = None) -> ModelFunctions:
             _scalar(_call(i.value, f"model.invariants.{i.name}", s, p, u), f"model.invariants.{i.name}")
             for i in held])])
     return ModelFunctions(model, law_name, theta_names, rhs, tuple(guards), tuple(resets), tuple(directions),
-                          section_guard, falls, invariants)
+                          section_guard, falls, invariants, flows)
+
+
+#: A closed-form flow solves its mode's equations when its rate is theirs to this, relative
+#: to the rates' size, at the states :func:`_check_flow` tries.
+FLOW_AGREEMENT = 1e-9
+
+
+def _flow(mode: Mode, x: ca.SX, s: Names, theta: ca.SX, p: Names, u: Names) -> ca.Function:
+    """The mode's closed-form flow as a Function (x, theta, t) -> x(t)."""
+    key = f"model.modes.{mode.name}.flow"
+    t = ca.SX.sym("t")
+    after = _column(_call(mode.flow, key, s, p, u, t), mode.states, key, f"mode {mode.name}'s states")  # type: ignore[arg-type]
+    return ca.Function(f"{mode.name}_flow", [x, theta, t], [after], ["x", "theta", "t"], ["x_t"])
+
+
+def _check_flow(mode: Mode, flow: ca.Function, rhs: ca.Function, model: Model, law: str) -> None:
+    """Refuse a closed-form flow that does not start at its state or whose rate is not the
+    mode's equations of motion, at a few states (seeded) at the default body and controls,
+    at t = 0 and a tenth of the body's time scale later."""
+    key = f"model.modes.{mode.name}.flow"
+    quantities = (*model.parameters, *model.controls_of(law))  # theta's order
+    defaults = {q.name: q.default for q in quantities}
+    theta = np.array([q.default for q in quantities])
+    x, th, t = ca.SX.sym("x", flow.size1_in(0)), ca.SX.sym("theta", flow.size1_in(1)), ca.SX.sym("t")
+    moved = flow(x, th, t)
+    residual = ca.Function("flow_residual", [x, th, t], [ca.jacobian(moved, t) - rhs(moved, th), moved - x])
+    rng = np.random.default_rng(12)
+    for state in rng.uniform(0.3, 0.7, (3, flow.size1_in(0))):
+        for time in (0.0, 0.1 * model.time_scale(defaults)):
+            rate_error, start = (np.asarray(v).ravel() for v in residual(state, theta, time))
+            size = max(1.0, float(np.max(np.abs(np.asarray(rhs(state, theta))))))
+            if time == 0.0 and not np.max(np.abs(start)) <= FLOW_AGREEMENT * max(1.0, float(np.max(np.abs(state)))):
+                raise ModelError(key, f"does not start at its state: at t = 0 it moves it by {np.max(np.abs(start)):.3g}")
+            if not np.max(np.abs(rate_error)) <= FLOW_AGREEMENT * size:
+                raise ModelError(key, f"does not solve the mode's equations of motion: its rate differs from "
+                                      f"them by {np.max(np.abs(rate_error)):.3g} at t = {time:.3g} s")
 
 
 def fall_names(model: Model, mode: str) -> tuple[str, ...]:

@@ -1,14 +1,14 @@
 """The BA-SLIP as a model description, under each of its hip laws.
 
-The physics is that of :mod:`baslip.model.dynamics` (the stance Lagrangian, the touchdown
-and liftoff maps, the guards) and :mod:`baslip.model.hiplaw` (each law's stance torque),
+The physics is that of :mod:`baslip.model.dynamics` (the stance Lagrangian, ballistic
+flight, the touchdown and liftoff maps, the guards) and :mod:`baslip.model.hiplaw` (each law's stance torque),
 read through the description's named symbols: this module adds no physics of its own. A
 stride is flight, compression, decompression, flight, on the apex section in
 ``(z, theta_h, ydot, theta_h_dot)`` with ``y`` cyclic; the bottom (``rhodot`` rising
 through zero) separates compression from decompression and keeps the state.
 
 The compiled engine (:mod:`baslip.engine.driver`), BA-SLIP's fast path for PD and VPP,
-reads its stance flow, guards, resets and falls from this description
+reads its stance flow, ballistic flight, guards, resets and falls from this description
 (:mod:`baslip.engine.physics`); the catalogue's test holds the generic engine on this
 description to its strides and Jacobians. The third law, the virtual constraint
 (:mod:`baslip.model.virtual_constraint`), is the description's alone.
@@ -26,6 +26,7 @@ from baslip.model.dynamics import (
     PARAMS,
     STANCE,
     Params,
+    ballistic_flight,
     liftoff_map,
     stance_com_position,
     stance_hip_position,
@@ -89,6 +90,11 @@ def _law(law: HipLaw) -> ControlLaw:
                       families=1 if law.positional else 0)
 
 
+def _ballistic_flight(s, p, u, t):
+    """Flight ``t`` seconds on: ballistic CoM, constant spin (eq. 3.13)."""
+    return dict(zip(FLIGHT.names, ca.vertsplit(ballistic_flight(_vector(FLIGHT, s), t, _params(p)))))
+
+
 def _touchdown_guard(s, p, u):
     return touchdown_guard(_vector(FLIGHT, s), u.theta_td, _params(p))
 
@@ -123,7 +129,7 @@ BA_SLIP = Model(
     description="rigid trunk on a massless spring leg with a hip motor (the thesis's model)",
     parameters=_parameters(),
     modes=(
-        Mode("flight", FLIGHT.names[:3], FLIGHT.names[3:], lagrangian=flight_lagrangian),
+        Mode("flight", FLIGHT.names[:3], FLIGHT.names[3:], lagrangian=flight_lagrangian, flow=_ballistic_flight),
         *(Mode(m, CONFIGURATION.names, STANCE.names[3:], lagrangian=stance_lagrangian) for m in STANCE_MODES),
     ),
     order=("flight", "compression", "decompression", "flight"),
