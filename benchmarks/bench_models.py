@@ -5,9 +5,10 @@
 Prints, in one process:
 
 1. The generic engine's stride (value, and value with the exact Jacobian) on the SLIP,
-   the guide's hopper and the BA-SLIP as a description, beside the BA-SLIP's compiled
-   engine on the same BA-SLIP strides: medians over ``--repeats`` calls at new points
-   (each call perturbs the start, so no memo answers).
+   the guide's hopper and the BA-SLIP as a description, its generated code compiled and
+   in CasADi's virtual machine, beside the BA-SLIP's own compiled engine on the same
+   BA-SLIP strides: medians over ``--repeats`` calls at new points (each call perturbs
+   the start, so no memo answers), and the time to build or load the generated code.
 2. A gait solve, a branch and an atlas of the hopper, timed.
 3. BA-SLIP as a description against the compiled engine on a sample of ``--sample``
    points around the committed single gaits (each a random perturbation of a gait's apex
@@ -63,8 +64,8 @@ def median_ms(call, starts) -> float:
 
 
 def strides(repeats: int, rng: np.random.Generator) -> None:
-    print("1. one stride, median of new starts [ms]")
-    print(f"  {'model':<22}{'value':>10}{'value + Jacobian':>20}")
+    print("1. one stride, median of new starts [ms]; the set-up builds (or loads) the stride's generated code [s]")
+    print(f"  {'model':<22}{'route':<18}{'set-up':>8}{'value':>10}{'value + Jacobian':>20}")
     hopper = load_model("models/hopper.py:HOPPER", ROOT / "problems")
     cases = [
         ("slip", SLIP, None, np.array([0.95, 5.1]), {"m": 80, "k": 2e4, "l0": 1, "g": 9.81, "theta_td": 0.384}),
@@ -78,20 +79,24 @@ def strides(repeats: int, rng: np.random.Generator) -> None:
                   {**gait["params"], **gait["control"]}))
     for name, model, law_name, x, values in cases:
         functions = model_functions(model, law_name)
-        hybrid = HybridMap(functions)
         theta = functions.theta(values)
-        resolution = calibrated_resolution(hybrid, x, theta, 1e-10)
         starts = [x * (1 + 1e-4 * rng.standard_normal(len(x))) for _ in range(repeats)]
-        value = median_ms(lambda s: hybrid.stride(s, theta, resolution), starts)
-        both = median_ms(lambda s: hybrid.stride(s, theta, resolution, jacobian=True), starts)
-        print(f"  {name:<22}{value:>10.2f}{both:>20.2f}   ({resolution.steps} steps a mode)")
+        for route, compiled in (("compiled C", True), ("virtual machine", False)):
+            hybrid = HybridMap(functions, compiled=compiled)
+            begin = time.perf_counter()
+            _ = hybrid.kernels
+            set_up = time.perf_counter() - begin
+            resolution = calibrated_resolution(hybrid, x, theta, 1e-10)
+            value = median_ms(lambda s: hybrid.stride(s, theta, resolution), starts)
+            both = median_ms(lambda s: hybrid.stride(s, theta, resolution, jacobian=True), starts)
+            print(f"  {name:<22}{route:<18}{set_up:>8.2f}{value:>10.2f}{both:>20.2f}   ({resolution.steps} steps a mode)")
     engine = ReturnMap(Tolerances(1e-10, 1e-10), law=law)
     params, u = Params(**gait["params"]), np.array([gait["control"][n] for n in law.controls.names])
     starts = [X * (1 + 1e-4 * rng.standard_normal(4)) for _ in range(repeats)]
     engine.stride(X, u, params)
     value = median_ms(lambda s: engine.stride(s, u, params), starts)
     both = median_ms(lambda s: engine.jacobians(s, u, params), starts)
-    print(f"  {'ba-slip, compiled':<22}{value:>10.2f}{both:>20.2f}   (the BA-SLIP's own engine, 1e-10)")
+    print(f"  {'ba-slip':<22}{'its own engine':<18}{'':>8}{value:>10.2f}{both:>20.2f}   (1e-10)")
 
 
 def families() -> None:

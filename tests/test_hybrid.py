@@ -125,3 +125,17 @@ def test_an_event_that_falls_exactly_on_a_node_still_fires(slip):
     descent = hybrid.stride(x, th, Resolution(0.02, 8)).durations[0]
     on_node = hybrid.stride(x, th, Resolution(descent / 4, 8))
     assert on_node.ok and on_node.durations[0] == pytest.approx(descent, rel=1e-12)
+
+
+def test_the_map_is_the_same_compiled_or_in_the_virtual_machine(slip):
+    """The chunks' values are the steps' own to the bit either way; the Jacobian's sums
+    may round differently."""
+    x, th = np.array([0.95, 5.1]), theta(slip)
+    compiled = HybridMap(slip, compiled=True).stride(x, th, FINE, jacobian=True, nodes=True)
+    interpreted = HybridMap(slip, compiled=False).stride(x, th, FINE, jacobian=True, nodes=True)
+    assert np.array_equal(compiled.section, interpreted.section)
+    assert compiled.durations == interpreted.durations
+    for (_, t_compiled, x_compiled), (_, t_interpreted, x_interpreted) in zip(compiled.nodes, interpreted.nodes):
+        assert np.array_equal(t_compiled, t_interpreted) and np.array_equal(x_compiled, x_interpreted)
+    for a, b in zip(compiled.jacobians(), interpreted.jacobians()):
+        np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-13)
