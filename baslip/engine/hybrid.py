@@ -26,7 +26,7 @@ set by :func:`calibrated_resolution`, which doubles n until two agree, and check
 The steps run in chunks of generated code, compiled to C
 (:mod:`baslip.engine.hybrid_kernels`): one call takes eight steps, and Python finds the
 first node where the mode fell or crossed its guard, as a loop over single steps would,
-with the same numbers to the bit. A stride costs 0.5 to 1.5 ms instead of 9 to 60 ms one
+with the same numbers to the bit. A stride costs 0.5 to 3 ms instead of 8 to 43 ms one
 step at a time (``benchmarks/bench_models.py``).
 """
 
