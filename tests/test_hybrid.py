@@ -1,6 +1,7 @@
 """The stride of a described model: its map against an independent SLIP, its Jacobian
 against finite differences, its energy conserved, its falls and guards named."""
 
+import json
 import math
 import sys
 from dataclasses import replace
@@ -12,7 +13,9 @@ from slip import ENERGY, slip_apex_map
 
 from baslip.engine.hybrid import HybridMap, Resolution, calibrated_resolution
 from baslip.engine.hybrid_check import IndependentStride
+from baslip.model.catalogue.ba_slip import BA_SLIP
 from baslip.model.catalogue.slip import SLIP
+from baslip.model.dynamics import APEX
 from baslip.model.symbolic import model_functions
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "problems" / "models"))
@@ -139,3 +142,19 @@ def test_the_map_is_the_same_compiled_or_in_the_virtual_machine(slip):
         assert np.array_equal(t_compiled, t_interpreted) and np.array_equal(x_compiled, x_interpreted)
     for a, b in zip(compiled.jacobians(), interpreted.jacobians()):
         np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-13)
+
+
+def test_a_stride_along_closed_form_flows_is_the_stride_by_dop853_alone():
+    """The BA-SLIP's description steps its flight along the ballistic flow; without the
+    flow its flight is integrated like any mode, and the strides agree."""
+    result = json.loads((Path(__file__).resolve().parents[1] / "results" / "downward" / "result.json").read_text())
+    functions = model_functions(BA_SLIP, result["hip_law"])
+    X = np.array([result["apex"][n] for n in APEX.names])
+    th = functions.theta({**result["params"], **result["control"]})
+    resolution = Resolution(0.01, 32)
+    along = HybridMap(functions).stride(X, th, resolution, jacobian=True)
+    # In the virtual machine: the comparison is not worth a compile of its own.
+    stepped = HybridMap(replace(functions, flows={}), compiled=False).stride(X, th, resolution, jacobian=True)
+    assert np.max(np.abs(along.section - stepped.section)) <= 1e-12 * np.max(np.abs(X))
+    for a, b in zip(along.jacobians(), stepped.jacobians()):
+        assert np.max(np.abs(a - b)) <= 1e-10 * max(1.0, np.max(np.abs(b)))

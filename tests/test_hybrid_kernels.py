@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from baslip.engine.dop853 import DOP853, step_function
-from baslip.engine.hybrid_kernels import CHUNK, stride_kernels
+from baslip.engine.hybrid_kernels import CHUNK, stride_functions, stride_kernels
+from baslip.model.catalogue.ba_slip import BA_SLIP
 from baslip.model.catalogue.slip import SLIP
 from baslip.model.symbolic import model_functions
 
@@ -46,6 +47,23 @@ def test_a_chunk_takes_the_steps_of_the_step_function_to_the_bit(slip, kernels, 
         x = np.array(step(x, 1e-3, theta)[0]).ravel()
         assert np.array_equal(x, nodes[:, k])
         assert float(guard(x, theta)) == guards[0, k]
+
+
+def test_a_run_in_one_call_is_its_chunks_to_the_bit(kernels, theta):
+    """A mode's run of 32 steps, one call, against four chunks of eight: the same nodes,
+    guards, falls and carried Jacobians."""
+    phase = kernels.phases[STANCE]
+    rng = np.random.default_rng(11)
+    carried = rng.standard_normal((4, 2 + len(theta)))
+    run = phase.steps(32)[1](touchdown_state(), carried, 1e-3, theta)
+    x, chained, pieces = touchdown_state(), carried, []
+    for _ in range(4):
+        piece = phase.chunk_sens(x, chained, 1e-3, theta)
+        pieces.append(piece)
+        x, chained = piece[0][:, -1], piece[1][:, -carried.shape[1]:]
+    for whole, parts in zip(run, zip(*pieces)):
+        assert np.array_equal(whole, np.hstack(parts))
+    assert phase.steps(24) == (phase.chunk, phase.chunk_sens)  # no run of that count: chunks
 
 
 def test_the_carried_jacobian_is_the_chain_rule_through_the_steps(slip, kernels, theta):
@@ -100,3 +118,27 @@ def test_compiled_pieces_give_the_virtual_machines_numbers(slip, kernels, theta)
         for a, b in zip(compiled.event(touchdown_state(), 0.01, theta),
                         interpreted.event(touchdown_state(), 0.01, theta)):
             assert np.array_equal(a, b)
+
+
+def test_a_mode_with_a_closed_form_flow_is_stepped_along_it_and_the_others_by_dop853():
+    """The BA-SLIP's flight gives its ballistic flow; its stance has none."""
+    functions = model_functions(BA_SLIP, "pd")
+    built = {f.name(): f for f in stride_functions(functions)}
+    for i, mode in enumerate(BA_SLIP.order):
+        called = {g.name() for name in (f"chunk_{i}", f"event_{i}") for g in built[name].find_functions()}
+        stepped_by = {"flight_flow_step"} if mode == "flight" else {"DOP853_step"}
+        assert stepped_by <= called and not ({"flight_flow_step", "DOP853_step"} - stepped_by) & called
+
+
+def test_a_flows_steps_land_on_the_flow_at_their_summed_time():
+    """Eight steps of 0.05 s along the flight's flow are the flow at 0.05 k s (the step
+    hands the flow its size as the time, and theta as theta), to rounding."""
+    functions = model_functions(BA_SLIP, "pd")
+    theta = functions.theta({**{q.name: q.default for q in BA_SLIP.parameters},
+                             **{q.name: q.default for q in BA_SLIP.controls_of("pd")}})
+    start = np.array([0.0, 1.2, 0.3, 5.0, 0.5, -1.0])  # y, z, theta_h and their rates
+    nodes, _, _ = stride_kernels(functions).phases[0].chunk(start, 0.05, theta)
+    flow = functions.flows["flight"]
+    for k in range(CHUNK):
+        np.testing.assert_allclose(nodes[:, k], np.array(flow(start, theta, 0.05 * (k + 1))).ravel(),
+                                   rtol=1e-14, atol=1e-14)

@@ -23,11 +23,11 @@ fixed (their own derivative moves the map only by its truncation error). The acc
 set by :func:`calibrated_resolution`, which doubles n until two agree, and checked by
 :mod:`baslip.engine.hybrid_check`, which re-simulates with a different integrator.
 
-The steps run in chunks of generated code, compiled to C
-(:mod:`baslip.engine.hybrid_kernels`): one call takes eight steps, and Python finds the
-first node where the mode fell or crossed its guard, as a loop over single steps would,
-with the same numbers to the bit. A stride costs 0.5 to 3 ms instead of 8 to 43 ms one
-step at a time (``benchmarks/bench_models.py``).
+The steps run in generated code, compiled to C (:mod:`baslip.engine.hybrid_kernels`): one
+call takes a mode's whole run, or eight steps of a scout, and Python finds the first node
+where the mode fell or crossed its guard, as a loop over single steps would, with the same
+numbers to the bit. A stride costs 0.5 to 1.5 ms instead of 8 to 43 ms one step at a time
+(``benchmarks/bench_models.py``).
 """
 
 from __future__ import annotations
@@ -158,11 +158,15 @@ class HybridMap:
         durations: list[float] = []
         visited: list[tuple] = []
         for number, phase in enumerate(self.phases):
-            scouted = self._phase(phase, x, theta, resolution.scout, None, False)
+            g_start = phase.kernels.guard(x, theta)[0].item()
+            if phase.direction * g_start > 0:
+                failure = f"mode {phase.mode} starts past the guard of {phase.event} (it can never cross it)"
+                return Outcome(None, failure, tuple(durations), nodes=tuple(visited))
+            scouted = self._phase(phase, x, g_start, theta, resolution.scout, None, False)
             if isinstance(scouted, str):
                 return Outcome(None, scouted, tuple(durations), nodes=tuple(visited))
             step = scouted[2] / (resolution.steps - 0.5)
-            run = self._phase(phase, x, theta, step, carried, nodes)
+            run = self._phase(phase, x, g_start, theta, step, carried, nodes, resolution.steps)
             if isinstance(run, str):
                 return Outcome(None, run, tuple(durations), nodes=tuple(visited))
             x, carried, duration, trace = run
@@ -182,58 +186,39 @@ class HybridMap:
         rows = carried[f.section_index]
         return Outcome(end, "", tuple(durations), rows[:, :n0], rows[:, n0:], tuple(visited))
 
-    def _phase(self, phase: _Phase, x: np.ndarray, theta: np.ndarray, step: float, carried, nodes: bool):
-        """Integrate ``phase`` from ``x`` to its event: (state, carried Jacobian, duration,
-        (times, states)), or why it failed.
-
-        Each chunk's nodes are searched for the first step whose start fell, whose end left
-        the finite numbers or whose guard crossed zero in the mode's direction, in that
-        order: the outcome of a step-by-step loop."""
+    def _phase(self, phase: _Phase, x: np.ndarray, g_start: float, theta: np.ndarray, step: float, carried,
+               nodes: bool, count: int = CHUNK):
+        """Integrate ``phase`` from ``x`` (its guard there ``g_start``) to its event: (state,
+        carried Jacobian, duration, (times, states)), or why it failed. ``carried`` is
+        d x / d(section coordinates, theta), or None for no Jacobian. The first call takes
+        ``count`` steps if the library has a kernel for that many (a run's n), the others
+        a chunk each."""
         kernels, direction = phase.kernels, phase.direction
-        g_old = kernels.guard(x, theta)[0].item()
-        if direction * g_old > 0:
-            return f"mode {phase.mode} starts past the guard of {phase.event} (it can never cross it)"
         times, states = [0.0], [x]
-        for taken in range(0, MAX_STEPS, CHUNK):
+        taken = 0
+        while taken < MAX_STEPS:
+            values, with_jacobian = kernels.steps(count) if taken == 0 else (kernels.chunk, kernels.chunk_sens)
             if carried is None:
-                chunk, guards, falls = kernels.chunk(x, step, theta)
-                carried_at = None
+                chunk = _Chunk.of(x, None, g_start, values(x, step, theta))
             else:
-                chunk, carried_at, guards, falls = kernels.chunk_sens(x, carried, step, theta)
-            g = np.concatenate([[g_old], guards.ravel()])
-            fell = np.any(falls < 0, axis=0) if falls.size else np.zeros(CHUNK, dtype=bool)
-            lost = ~np.all(np.isfinite(chunk), axis=0)
-            crossed = (direction * g[1:] >= 0) & (direction * g[:-1] < 0)
-            stops = np.flatnonzero(fell | lost | crossed)
-            last = stops[0] if len(stops) else CHUNK
+                chunk = _Chunk.of(x, carried, g_start, with_jacobian(x, carried, step, theta))
+            length, last = chunk.length, chunk.first_stop(direction)
             if nodes:
                 times.extend((taken + np.arange(1, last + 1)) * step)
-                states.extend(chunk[:, :last].T)
-            if last < CHUNK:
-                return self._stop(phase, x, theta, step, taken, last, (chunk, carried_at, carried, g, falls),
-                                  (fell, lost), times, states)
-            x, g_old = chunk[:, -1], g[-1]
-            if carried_at is not None:
-                carried = carried_at[:, -carried.shape[1]:]
+                states.extend(chunk.nodes[:, :last].T)
+            if last < length:
+                if chunk.fell[last]:
+                    broken = [name for name, v in zip(phase.fall_names, chunk.falls[:, last]) if v < 0]
+                    return f"fell: {broken[0]} (mode {phase.mode})"
+                if chunk.lost[last]:
+                    return f"the state left the finite numbers in mode {phase.mode}"
+                x, carried = chunk.start_of(last)
+                return self._event(phase, x, theta, step, chunk.guards[last], chunk.guards[last + 1], carried,
+                                   taken + last, times, states)
+            x, carried = chunk.start_of(length)
+            g_start, taken = chunk.guards[-1], taken + length
         return (f"the guard of {phase.event} never fired in {MAX_STEPS} steps ({MAX_STEPS * step:.3g} s) "
                 f"of mode {phase.mode}")
-
-    def _stop(self, phase: _Phase, x, theta, step, taken: int, last: int, chunk, why, times, states):
-        """What ended a chunk at its step ``last``: a fall, a state lost to the infinite,
-        or the event (then integrated to the guard)."""
-        nodes, carried_at, carried, g, falls = chunk
-        fell, lost = why
-        if fell[last]:
-            broken = [name for name, v in zip(phase.fall_names, falls[:, last]) if v < 0]
-            return f"fell: {broken[0]} (mode {phase.mode})"
-        if lost[last]:
-            return f"the state left the finite numbers in mode {phase.mode}"
-        if last > 0:
-            x = nodes[:, last - 1]
-            if carried is not None:
-                width = carried.shape[1]
-                carried = carried_at[:, (last - 1) * width:last * width]
-        return self._event(phase, x, theta, step, g[last], g[last + 1], carried, taken + last, times, states)
 
     def _event(self, phase: _Phase, x, theta, step, g_old, g_new, carried, count, times, states):
         guess = step * g_old / (g_old - g_new)
@@ -248,6 +233,59 @@ class HybridMap:
         times.append(duration)
         states.append(x_end)
         return x_end, carried, duration, (np.array(times), np.array(states))
+
+
+@dataclass(frozen=True)
+class _Chunk:
+    """Steps from ``start``, as one call of a chunk (or run) kernel returned them.
+
+    ``nodes`` holds the state after each step (columns), ``carried`` the Jacobian there
+    (side by side; None without), ``guards`` the guard at the start and at each node,
+    ``falls`` the mode's falls at each step's start. Step k (from 0) *fell* if a fall is
+    negative at its start, is *lost* if its end is not finite, and *crossed* if the guard
+    passed zero in the mode's direction over it."""
+
+    start: np.ndarray
+    start_carried: np.ndarray | None
+    nodes: np.ndarray
+    carried: np.ndarray | None
+    guards: np.ndarray
+    falls: np.ndarray
+
+    @classmethod
+    def of(cls, start, start_carried, g_start: float, outputs: tuple) -> _Chunk:
+        """From a chunk kernel's outputs: (nodes, [carried,] guards, falls)."""
+        nodes, *jacobian, guards, falls = outputs
+        return cls(start, start_carried, nodes, jacobian[0] if jacobian else None,
+                   np.concatenate([[g_start], guards.ravel()]), falls)
+
+    @property
+    def length(self) -> int:
+        return self.nodes.shape[1]
+
+    @property
+    def fell(self) -> np.ndarray:
+        return np.any(self.falls < 0, axis=0) if self.falls.size else np.zeros(self.length, dtype=bool)
+
+    @property
+    def lost(self) -> np.ndarray:
+        return ~np.all(np.isfinite(self.nodes), axis=0)
+
+    def first_stop(self, direction: int) -> int:
+        """The first step that fell, was lost or crossed the guard; the length if none did."""
+        g = direction * self.guards
+        crossed = (g[1:] >= 0) & (g[:-1] < 0)
+        stops = np.flatnonzero(self.fell | self.lost | crossed)
+        return int(stops[0]) if len(stops) else self.length
+
+    def start_of(self, k: int) -> tuple[np.ndarray, np.ndarray | None]:
+        """The state step ``k`` starts from and its carried Jacobian (k = the length: the end)."""
+        if k == 0:
+            return self.start, self.start_carried
+        if self.carried is None or self.start_carried is None:
+            return self.nodes[:, k - 1], None
+        width = self.start_carried.shape[1]
+        return self.nodes[:, k - 1], self.carried[:, (k - 1) * width:k * width]
 
 
 def calibrated_resolution(hybrid: HybridMap, section: np.ndarray, theta: np.ndarray, tolerance: float,

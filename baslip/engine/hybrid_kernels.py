@@ -8,13 +8,17 @@ returns every node's state, the guard at every node and the mode's falls at ever
 step starts from. Python then finds the first node at which the mode fell, left the
 finite numbers or crossed its guard, exactly as a step-by-step loop would.
 
-Per mode ``i`` of the stride order the library holds:
+A mode that gives its closed-form flow (``Mode(flow=...)``, such as the BA-SLIP's
+ballistic flight) is stepped along it, exactly, instead of by DOP853. Per mode ``i`` of
+the stride order the library holds:
 
 * ``guard_i(x, theta)``: the guard that ends the mode;
 * ``chunk_i(x, h, theta)``: CHUNK steps of size ``h``, as above;
 * ``chunk_sens_i(x, J, h, theta)``: the same, carrying ``J = d x / d(X0, theta)`` (X0 the
-  section coordinates at the stride's start) through
-  the steps (each step's own derivatives, its size held fixed), with J at every node;
+  section coordinates at the stride's start) through the steps (each step's own
+  derivatives, its size held fixed), with J at every node;
+* ``run_i_n``, ``run_sens_i_n``: the same for the n steps of a mode's run, n in
+  :data:`RUN_STEPS`, in one call;
 * ``event_i(x, s0, theta)``: the last step, its size ``s`` solved by Newton from ``s0`` so
   that it ends on the guard (:func:`baslip.engine.dop853.event_step`);
 * ``event_sens_i(x, J, s, theta)``: J carried through that step, the step's size moving
@@ -34,6 +38,7 @@ from __future__ import annotations
 import hashlib
 import re
 import sys
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import casadi as ca
@@ -51,6 +56,13 @@ CHUNK = 8
 DIRECTIONS = 4
 #: Newton iterations of an event step (unrolled in its graph).
 EVENT_ITERATIONS = 8
+#: Step counts a mode's run takes in one call (``run_i_n``): those beyond one chunk that
+#: :func:`baslip.engine.hybrid.calibrated_resolution` chooses but for the stiffest laws
+#: (128 and 256 steps run in chunks: their call sites would cost every model's compile).
+RUN_STEPS = (16, 32, 64)
+#: The library's entry points per mode of the stride and per transition, by their prefix.
+PHASE_PARTS = ("guard", "chunk", "chunk_sens", "event", "event_sens")
+RESET_PARTS = ("reset", "reset_sens")
 
 
 @dataclass(frozen=True)
@@ -62,6 +74,12 @@ class PhaseKernels:
     chunk_sens: Kernel
     event: Kernel
     event_sens: Kernel
+    runs: Mapping[int, tuple[Kernel, Kernel]]
+
+    def steps(self, count: int) -> tuple[Kernel, Kernel]:
+        """The kernels (without, with J) that take ``count`` steps in one call, if the
+        library has them, else the chunk's."""
+        return self.runs.get(count, (self.chunk, self.chunk_sens))
 
 
 @dataclass(frozen=True)
@@ -83,22 +101,22 @@ class StrideKernels:
 def stride_kernels(functions: ModelFunctions, *, enabled: bool | None = None) -> StrideKernels:
     """The stride's kernels of ``functions``, compiled and cached (see the module's
     docstring); ``enabled`` as in :func:`baslip.engine.codegen.compile_kernels`."""
-    kernels = compile_kernels(_library_name(functions), _names(functions), lambda: _stride_functions(functions),
+    kernels = compile_kernels(_library_name(functions), _names(functions), lambda: stride_functions(functions),
                               module_files(sys.modules[__name__], dop853), enabled=enabled,
                               settings=_description_key(functions))
-    phases = tuple(PhaseKernels(*(kernels[f"{part}_{i}"] for part in ("guard", "chunk", "chunk_sens", "event",
-                                                                         "event_sens")))
+    phases = tuple(PhaseKernels(**{part: kernels[f"{part}_{i}"] for part in PHASE_PARTS},
+                                runs={n: (kernels[f"run_{i}_{n}"], kernels[f"run_sens_{i}_{n}"]) for n in RUN_STEPS})
                    for i in range(len(functions.model.order)))
-    resets = tuple(ResetKernels(kernels[f"reset_{i}"], kernels[f"reset_sens_{i}"])
-                   for i in range(len(functions.resets)))
+    resets = tuple(ResetKernels(*(kernels[f"{part}_{i}"] for part in RESET_PARTS)) for i in range(len(functions.resets)))
     return StrideKernels(phases, resets)
 
 
 def _names(functions: ModelFunctions) -> list[str]:
-    """The library's entry points, as :func:`_stride_functions` names them."""
-    phases = [f"{part}_{i}" for i in range(len(functions.model.order))
-              for part in ("guard", "chunk", "chunk_sens", "event", "event_sens")]
-    return phases + [f"{part}_{i}" for i in range(len(functions.resets)) for part in ("reset", "reset_sens")]
+    """The library's entry points, as :func:`stride_functions` names them."""
+    phases = [f"{part}_{i}" for i in range(len(functions.model.order)) for part in PHASE_PARTS]
+    phases += [f"{part}_{i}_{n}" for i in range(len(functions.model.order)) for n in RUN_STEPS
+               for part in ("run", "run_sens")]
+    return phases + [f"{part}_{i}" for i in range(len(functions.resets)) for part in RESET_PARTS]
 
 
 def _description_key(functions: ModelFunctions) -> str:
@@ -108,6 +126,7 @@ def _description_key(functions: ModelFunctions) -> str:
     model = functions.model
     parts = [functions.rhs[m] for m in model.order] + [*functions.guards, functions.section_guard, *functions.resets]
     parts += [functions.falls[m] for m in model.order if m in functions.falls]
+    parts += [functions.flows[m] for m in model.order if m in functions.flows]
     digest = hashlib.sha256()
     for function in parts:
         digest.update(function.serialize().encode())
@@ -115,31 +134,47 @@ def _description_key(functions: ModelFunctions) -> str:
 
 
 def _library_name(functions: ModelFunctions) -> str:
-    """A C identifier naming the model and its law (the key is the C text itself)."""
+    """A C identifier naming the model and its law (the cache key tells versions apart)."""
     return "hybrid_" + re.sub(r"[^A-Za-z0-9_]", "_", f"{functions.model.name}_{functions.law}")
 
 
-def _stride_functions(functions: ModelFunctions) -> list[ca.Function]:
-    """Every Function of the library, in the order of the stride."""
+def stride_functions(functions: ModelFunctions) -> list[ca.Function]:
+    """Every Function of the stride's library, in the order of the stride, by the names
+    the module's docstring gives (before compiling: to read or to generate)."""
     model = functions.model
     guards = [*functions.guards, functions.section_guard]
     state_columns = len(functions.model.section.coordinates)
     # One step per mode, so that a mode the stride visits twice is generated once.
-    steps = {mode: step_function(functions.rhs[mode], tableau=DOP853) for mode in model.order}
+    steps = {mode: _flow_step(functions.flows[mode]) if mode in functions.flows
+             else step_function(functions.rhs[mode], tableau=DOP853) for mode in model.order}
     built: list[ca.Function] = []
     for i, (mode, guard) in enumerate(zip(model.order, guards)):
         rhs, step = functions.rhs[mode], steps[mode]
         falls = functions.falls.get(mode)
+        block = _block(f"block_{i}", _one_step(f"step_{i}", step, guard, falls, None))
+        block_sens = _block(f"block_sens_{i}", _one_step(f"step_sens_{i}", step, guard, falls, state_columns))
         built += [
             _renamed(f"guard_{i}", guard),
-            _chunk(f"chunk_{i}", step, guard, falls, None),
-            _chunk(f"chunk_sens_{i}", step, guard, falls, state_columns),
+            _chunk(f"chunk_{i}", block),
+            _chunk(f"chunk_sens_{i}", block_sens),
             _renamed(f"event_{i}", event_step(step, rhs, guard, EVENT_ITERATIONS)),
             _event_sens(f"event_sens_{i}", step, guard, state_columns),
         ]
+        for n in RUN_STEPS:
+            built += [_chunk(f"run_{i}_{n}", block, n), _chunk(f"run_sens_{i}_{n}", block_sens, n)]
     for i, reset in enumerate(functions.resets):
         built += [_renamed(f"reset_{i}", reset), _reset_sens(f"reset_sens_{i}", reset, state_columns)]
     return built
+
+
+def _flow_step(flow: ca.Function) -> ca.Function:
+    """A step of size ``h`` along a mode's closed-form flow, exact at any size, with the
+    DOP853 step's signature: (x, h, theta) -> (x_next, error), its error zero."""
+    x = ca.SX.sym("x", flow.size1_in(0))
+    h = ca.SX.sym("h")
+    theta = ca.SX.sym("theta", flow.size1_in(1))
+    return ca.Function(f"{flow.name()}_step", [x, h, theta], [flow(x, theta, h), ca.SX(1, 1)],
+                       ["x", "h", "theta"], ["x_next", "error"], {"max_num_dir": DIRECTIONS})
 
 
 def _renamed(name: str, function: ca.Function) -> ca.Function:
@@ -148,11 +183,11 @@ def _renamed(name: str, function: ca.Function) -> ca.Function:
     return ca.Function(name, inputs, function.call(inputs), function.name_in(), function.name_out())
 
 
-def _chunk(name: str, step: ca.Function, guard: ca.Function, falls: ca.Function | None,
-           state_columns: int | None) -> ca.Function:
-    """CHUNK steps of one size: nodes, J at the nodes (when ``state_columns`` is given, the
-    number of J's columns that belong to the start's state), the guard at the nodes and the
-    falls at the nodes each step starts from (see the module's docstring)."""
+def _one_step(name: str, step: ca.Function, guard: ca.Function, falls: ca.Function | None,
+              state_columns: int | None) -> ca.Function:
+    """One step of a chunk: (x, [J,] h, theta) -> (x_next, [J_next,] the guard at x_next,
+    the falls at x). J is carried when ``state_columns`` (how many of its columns belong to
+    the start's section coordinates) is given."""
     x = ca.MX.sym("x", step.size1_in(0))
     h = ca.MX.sym("h")
     theta = ca.MX.sym("theta", step.size1_in(2))
@@ -163,15 +198,38 @@ def _chunk(name: str, step: ca.Function, guard: ca.Function, falls: ca.Function 
         carried = ca.MX.sym("J", x.numel(), state_columns + theta.numel())
         carried_in = [carried]
         carried_out = [_moved(step, [x, h, theta], carried, state_columns)]
-    one = ca.Function(f"{name}_step", [x, *carried_in, h, theta], [x_next, *carried_out, guard(x_next, theta), fallen])
-    accumulated = list(range(1 + len(carried_in)))
+    return ca.Function(name, [x, *carried_in, h, theta], [x_next, *carried_out, guard(x_next, theta), fallen])
+
+
+def _block(name: str, one: ca.Function) -> ca.Function:
+    """CHUNK steps of ``one`` (:func:`_one_step`): (x, [J,] h, theta) -> (the last node, [J
+    there,] the nodes, [J at the nodes,] the guards, the falls)."""
+    carries = one.n_in() == 4
+    accumulated = [0, 1] if carries else [0]
     looped = one.mapaccum(f"{name}_loop", CHUNK, accumulated, accumulated)
-    start = [ca.MX.sym("x", x.numel())] + [ca.MX.sym("J", *c.shape) for c in carried_in]
-    size, parameters = ca.MX.sym("h"), ca.MX.sym("theta", theta.numel())
+    start = [ca.MX.sym("x", one.size1_in(0))] + ([ca.MX.sym("J", one.sparsity_in(1))] if carries else [])
+    size, parameters = ca.MX.sym("h"), ca.MX.sym("theta", one.size1_in(one.n_in() - 1))
     outputs = looped(*start, ca.repmat(size, 1, CHUNK), ca.repmat(parameters, 1, CHUNK))
-    names = ["nodes", *(["carried"] if carried_in else []), "guards", "falls"]
+    width = [start[1].size2()] if carries else []
+    ends = [outputs[0][:, -1]] + ([outputs[1][:, -width[0]:]] if carries else [])
+    return ca.Function(name, [*start, size, parameters], [*ends, *outputs])
+
+
+def _chunk(name: str, block: ca.Function, count: int = CHUNK) -> ca.Function:
+    """``count`` steps of one size (a multiple of CHUNK, in blocks of :func:`_block`): the
+    nodes, J at the nodes if the block carries it, the guard at the nodes and the falls at
+    the nodes each step starts from (see the module's docstring). The generated code calls
+    the block count / CHUNK times in a row, so a long run costs the compiler little."""
+    carries = block.n_in() == 4
+    accumulated = [0, 1] if carries else [0]
+    blocks = count // CHUNK
+    looped = block.mapaccum(f"{name}_loop", blocks, accumulated, accumulated)
+    start = [ca.MX.sym("x", block.size1_in(0))] + ([ca.MX.sym("J", block.sparsity_in(1))] if carries else [])
+    size, parameters = ca.MX.sym("h"), ca.MX.sym("theta", block.size1_in(block.n_in() - 1))
+    outputs = looped(*start, ca.repmat(size, 1, blocks), ca.repmat(parameters, 1, blocks))[len(accumulated):]
+    names = ["nodes", *(["carried"] if carries else []), "guards", "falls"]
     return ca.Function(name, [*start, size, parameters], list(outputs),
-                       ["x", *(["J"] if carried_in else []), "h", "theta"], names)
+                       ["x", *(["J"] if carries else []), "h", "theta"], names)
 
 
 def _moved(function: ca.Function, inputs: list[ca.MX], carried: ca.MX, state_columns: int,
