@@ -87,8 +87,8 @@ def test_the_events_jacobian_is_the_derivative_of_the_state_on_the_guard(slip, k
     columns, the step's size re-solved each time."""
     phase = kernels.phases[STANCE]
     start = touchdown_state()
-    nodes, _, _ = phase.chunk(start, 0.05, theta)  # stance ends within the chunk (0.4 s)
-    guards = np.concatenate([[phase.guard(start, theta)[0].item()], phase.chunk(start, 0.05, theta)[1].ravel()])
+    nodes, at_nodes, _ = phase.chunk(start, 0.05, theta)  # stance ends within the chunk (0.4 s)
+    guards = np.concatenate([[phase.guard(start, theta)[0].item()], at_nodes.ravel()])
     last = int(np.flatnonzero(guards[1:] >= 0)[0])
     x = start if last == 0 else nodes[:, last - 1]
     s = phase.event(x, 0.01, theta)[0].item()

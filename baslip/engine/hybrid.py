@@ -150,11 +150,12 @@ class HybridMap:
         f = self.functions
         x = f.lift(section)
         theta = np.asarray(theta, dtype=float)
-        n0 = len(f.section_index)
+        index = f.section_index
+        n0 = len(index)
         carried = None
         if jacobian:  # d x / d(section coordinates, theta) at the start
             carried = np.zeros((len(x), n0 + len(theta)))
-            carried[f.section_index, np.arange(n0)] = 1.0
+            carried[index, np.arange(n0)] = 1.0
         durations: list[float] = []
         visited: list[tuple] = []
         for number, phase in enumerate(self.phases):
@@ -180,10 +181,10 @@ class HybridMap:
                 else:
                     after, carried = reset.reset_sens(x, carried, theta)
                     x = after.ravel()
-        end = f.project(x)
+        end = x[index]
         if carried is None:
             return Outcome(end, "", tuple(durations), nodes=tuple(visited))
-        rows = carried[f.section_index]
+        rows = carried[index]
         return Outcome(end, "", tuple(durations), rows[:, :n0], rows[:, n0:], tuple(visited))
 
     def _phase(self, phase: _Phase, x: np.ndarray, g_start: float, theta: np.ndarray, step: float, carried,

@@ -204,16 +204,11 @@ def _one_step(name: str, step: ca.Function, guard: ca.Function, falls: ca.Functi
 def _block(name: str, one: ca.Function) -> ca.Function:
     """CHUNK steps of ``one`` (:func:`_one_step`): (x, [J,] h, theta) -> (the last node, [J
     there,] the nodes, [J at the nodes,] the guards, the falls)."""
-    carries = one.n_in() == 4
-    accumulated = [0, 1] if carries else [0]
-    looped = one.mapaccum(f"{name}_loop", CHUNK, accumulated, accumulated)
-    start = [ca.MX.sym("x", one.size1_in(0))] + ([ca.MX.sym("J", one.sparsity_in(1))] if carries else [])
-    size, parameters = ca.MX.sym("h"), ca.MX.sym("theta", one.size1_in(one.n_in() - 1))
-    outputs = looped(*start, ca.repmat(size, 1, CHUNK), ca.repmat(parameters, 1, CHUNK))
+    inputs, outputs = _looped(name, one, CHUNK)
     ends = [outputs[0][:, -1]]
-    if carries:  # J at the last node: the last of the side-by-side blocks
-        ends.append(outputs[1][:, -start[1].size2():])
-    return ca.Function(name, [*start, size, parameters], [*ends, *outputs])
+    if len(inputs) == 4:  # J at the last node: the last of the side-by-side blocks
+        ends.append(outputs[1][:, -inputs[1].size2():])
+    return ca.Function(name, inputs, [*ends, *outputs])
 
 
 def _chunk(name: str, block: ca.Function, count: int = CHUNK) -> ca.Function:
@@ -221,16 +216,23 @@ def _chunk(name: str, block: ca.Function, count: int = CHUNK) -> ca.Function:
     nodes, J at the nodes if the block carries it, the guard at the nodes and the falls at
     the nodes each step starts from (see the module's docstring). The generated code calls
     the block count / CHUNK times in a row, so a long run costs the compiler little."""
-    carries = block.n_in() == 4
-    accumulated = [0, 1] if carries else [0]
-    blocks = count // CHUNK
-    looped = block.mapaccum(f"{name}_loop", blocks, accumulated, accumulated)
-    start = [ca.MX.sym("x", block.size1_in(0))] + ([ca.MX.sym("J", block.sparsity_in(1))] if carries else [])
-    size, parameters = ca.MX.sym("h"), ca.MX.sym("theta", block.size1_in(block.n_in() - 1))
-    outputs = looped(*start, ca.repmat(size, 1, blocks), ca.repmat(parameters, 1, blocks))[len(accumulated):]
+    inputs, outputs = _looped(name, block, count // CHUNK)
+    carries = len(inputs) == 4
     names = ["nodes", *(["carried"] if carries else []), "guards", "falls"]
-    return ca.Function(name, [*start, size, parameters], list(outputs),
-                       ["x", *(["J"] if carries else []), "h", "theta"], names)
+    return ca.Function(name, inputs, outputs[1 + carries:], ["x", *(["J"] if carries else []), "h", "theta"], names)
+
+
+def _looped(name: str, function: ca.Function, count: int) -> tuple[list[ca.MX], list[ca.MX]]:
+    """``function`` of (x, [J,] h, theta) called ``count`` times in a row, x (and J) handed
+    on: its inputs (x, [J,] h, theta) and ``mapaccum``'s outputs (the handed-on values
+    after each call, then the other outputs side by side)."""
+    carries = function.n_in() == 4
+    accumulated = [0, 1] if carries else [0]
+    looped = function.mapaccum(f"{name}_loop", count, accumulated, accumulated)
+    start = [ca.MX.sym("x", function.size1_in(0))] + ([ca.MX.sym("J", function.sparsity_in(1))] if carries else [])
+    size, parameters = ca.MX.sym("h"), ca.MX.sym("theta", function.size1_in(function.n_in() - 1))
+    outputs = looped(*start, ca.repmat(size, 1, count), ca.repmat(parameters, 1, count))
+    return [*start, size, parameters], list(outputs)
 
 
 def _moved(function: ca.Function, inputs: list[ca.MX], carried: ca.MX, state_columns: int,
