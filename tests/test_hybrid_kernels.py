@@ -1,6 +1,7 @@
 """The generated pieces of a described stride: a chunk is its steps to the bit, the
-carried Jacobian is the chain rule through them and the event's is the implicit-function
-theorem's; compiled and in the virtual machine they are the same numbers."""
+adjoint sweep is the chain rule through them transposed and the event's adjoint the
+implicit-function theorem's; compiled and in the virtual machine they are the same
+numbers."""
 
 import math
 
@@ -51,40 +52,74 @@ def test_a_chunk_takes_the_steps_of_the_step_function_to_the_bit(slip, kernels, 
 
 def test_a_run_in_one_call_is_its_chunks_to_the_bit(kernels, theta):
     """A mode's run of 32 steps, one call, against four chunks of eight: the same nodes,
-    guards, falls and carried Jacobians."""
+    guards and falls."""
     phase = kernels.phases[STANCE]
-    rng = np.random.default_rng(11)
-    carried = rng.standard_normal((4, 2 + len(theta)))
-    run = phase.steps(32)[1](touchdown_state(), carried, 1e-3, theta)
-    x, chained, pieces = touchdown_state(), carried, []
+    run = phase.steps(32)(touchdown_state(), 1e-3, theta)
+    x, pieces = touchdown_state(), []
     for _ in range(4):
-        piece = phase.chunk_sens(x, chained, 1e-3, theta)
+        piece = phase.chunk(x, 1e-3, theta)
         pieces.append(piece)
-        x, chained = piece[0][:, -1], piece[1][:, -carried.shape[1]:]
+        x = piece[0][:, -1]
     for whole, parts in zip(run, zip(*pieces)):
         assert np.array_equal(whole, np.hstack(parts))
-    assert phase.steps(24) == (phase.chunk, phase.chunk_sens)  # no run of that count: chunks
+    assert phase.steps(24) is phase.chunk  # no run of that count: chunks
 
 
-def test_the_carried_jacobian_is_the_chain_rule_through_the_steps(slip, kernels, theta):
+def stance_steps(slip, theta, count: int) -> np.ndarray:
+    """The start states of ``count`` stance steps of 1 ms from the touchdown state (rows)."""
+    step = step_function(slip.rhs["stance"], tableau=DOP853)
+    states = [touchdown_state()]
+    for _ in range(count - 1):
+        states.append(np.array(step(states[-1], 1e-3, theta)[0]).ravel())
+    return np.array(states)
+
+
+def sweep(phase, adjoint, gathered, x, s, event, starts, width, theta):
+    """One call of the adjoint kernel of ``width`` columns, ``starts`` (rows, last step
+    first) filling the first of them, the others skipped."""
+    columns = np.repeat(np.reshape(x, (-1, 1)), width, axis=1)
+    columns[:, :len(starts)] = starts.T
+    active = (np.arange(width) < len(starts)).astype(float)
+    return phase.adjoints[width](adjoint, gathered, x, s, event, columns, active, 1e-3, theta)
+
+
+def test_a_long_sweep_in_one_call_is_its_blocks_to_the_bit(slip, kernels, theta):
+    """Back through 32 steps in one call, against four calls of eight (the event's step in
+    the first only): the same adjoints."""
+    phase = kernels.phases[STANCE]
+    rng = np.random.default_rng(11)
+    adjoint, gathered = rng.standard_normal((4, 2)), rng.standard_normal((len(theta), 2))
+    starts = stance_steps(slip, theta, 33)[::-1]
+    x_event, starts = starts[0], starts[1:]
+    whole = sweep(phase, adjoint, gathered, x_event, 4e-4, 1.0, starts, 32, theta)
+    event = 1.0
+    for k in range(4):
+        adjoint, gathered = sweep(phase, adjoint, gathered, x_event, 4e-4, event, starts[8 * k:8 * k + 8], 8, theta)
+        event = 0.0
+    assert np.array_equal(whole[0], adjoint) and np.array_equal(whole[1], gathered)
+
+
+def test_the_adjoint_is_the_chain_rule_through_the_steps_transposed(slip, kernels, theta):
+    """Five steps in a kernel of eight columns (three skipped, the event's step left out):
+    A^T times the product of the steps' SX Jacobians, and G gathers each step's theta
+    Jacobian, to rounding."""
     x_sym, h, p = ca.SX.sym("x", 4), ca.SX.sym("h"), ca.SX.sym("theta", len(theta))
     x_next = step_function(slip.rhs["stance"], tableau=DOP853)(x_sym, h, p)[0]
     by_state = ca.Function("a", [x_sym, h, p], [ca.jacobian(x_next, x_sym), ca.jacobian(x_next, p)])
     rng = np.random.default_rng(7)
-    carried = rng.standard_normal((4, 2 + len(theta)))  # d x / d(two section coordinates, theta)
-    nodes, chained, _, _ = kernels.phases[STANCE].chunk_sens(touchdown_state(), carried, 1e-3, theta)
-    x, expected = touchdown_state(), carried
-    for k in range(CHUNK):
+    adjoint, gathered = rng.standard_normal((4, 2)), rng.standard_normal((len(theta), 2))
+    starts = stance_steps(slip, theta, 5)[::-1]
+    swept = sweep(kernels.phases[STANCE], adjoint, gathered, starts[0], 1e-3, 0.0, starts, 8, theta)
+    for x in starts:  # the last step first
         a, b = (np.array(v) for v in by_state(x, 1e-3, theta))
-        expected = a @ expected + np.hstack([np.zeros((4, 2)), b])
-        x = nodes[:, k]
-        width = expected.shape[1]
-        np.testing.assert_allclose(chained[:, k * width:(k + 1) * width], expected, rtol=1e-13, atol=1e-13)
+        adjoint, gathered = a.T @ adjoint, gathered + b.T @ adjoint
+    np.testing.assert_allclose(swept[0], adjoint, rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(swept[1], gathered, rtol=1e-13, atol=1e-13)
 
 
-def test_the_events_jacobian_is_the_derivative_of_the_state_on_the_guard(slip, kernels, theta):
-    """Central differences of (start -> the state where the guard is zero) along J's
-    columns, the step's size re-solved each time."""
+def test_the_events_adjoint_is_the_derivative_of_the_state_on_the_guard(slip, kernels, theta):
+    """Central differences of (start, theta -> the state where the guard is zero), the
+    step's size re-solved each time, against the event's adjoint alone (no step swept)."""
     phase = kernels.phases[STANCE]
     start = touchdown_state()
     nodes, at_nodes, _ = phase.chunk(start, 0.05, theta)  # stance ends within the chunk (0.4 s)
@@ -92,32 +127,35 @@ def test_the_events_jacobian_is_the_derivative_of_the_state_on_the_guard(slip, k
     last = int(np.flatnonzero(guards[1:] >= 0)[0])
     x = start if last == 0 else nodes[:, last - 1]
     s = phase.event(x, 0.01, theta)[0].item()
-    carried = np.hstack([np.eye(4)[:, :2], np.zeros((4, len(theta)))])
-    analytic = phase.event_sens(x, carried, s, theta)[0]
+    adjoint = np.random.default_rng(5).standard_normal((4, 2))
+    by_state, by_theta = sweep(phase, adjoint, np.zeros((len(theta), 2)), x, s, 1.0, np.empty((0, 4)), 8, theta)
 
-    def on_guard(y):
-        return phase.event(y, s, theta)[1].ravel()
+    def on_guard(y, th):
+        return phase.event(y, s, th)[1].ravel()
 
-    for column in range(2):
-        shift = 1e-6 * carried[:, column]
-        numeric = (on_guard(x + shift) - on_guard(x - shift)) / 2e-6
-        np.testing.assert_allclose(analytic[:, column], numeric, rtol=1e-6, atol=1e-7)
+    for column in range(4):
+        shift = 1e-6 * np.eye(4)[column]
+        numeric = (on_guard(x + shift, theta) - on_guard(x - shift, theta)) / 2e-6
+        np.testing.assert_allclose(by_state[column], adjoint.T @ numeric, rtol=1e-6, atol=1e-7)
+    for column in range(len(theta)):
+        shift = 1e-6 * max(1.0, abs(theta[column])) * np.eye(len(theta))[column]
+        numeric = (on_guard(x, theta + shift) - on_guard(x, theta - shift)) / (2 * shift[column])
+        np.testing.assert_allclose(by_theta[column], adjoint.T @ numeric, rtol=1e-6, atol=1e-7)
 
 
 def test_compiled_pieces_give_the_virtual_machines_numbers(slip, kernels, theta):
     machine = stride_kernels(slip, enabled=False)
     rng = np.random.default_rng(3)
-    carried = rng.standard_normal((4, 2 + len(theta)))
-    for compiled, interpreted in ((kernels.phases[STANCE], machine.phases[STANCE]),):
-        for a, b in zip(compiled.chunk(touchdown_state(), 1e-3, theta),
-                        interpreted.chunk(touchdown_state(), 1e-3, theta)):
-            assert np.array_equal(a, b)
-        for a, b in zip(compiled.chunk_sens(touchdown_state(), carried, 1e-3, theta),
-                        interpreted.chunk_sens(touchdown_state(), carried, 1e-3, theta)):
-            np.testing.assert_allclose(a, b, rtol=1e-14, atol=1e-14)
-        for a, b in zip(compiled.event(touchdown_state(), 0.01, theta),
-                        interpreted.event(touchdown_state(), 0.01, theta)):
-            assert np.array_equal(a, b)
+    adjoint, gathered = rng.standard_normal((4, 2)), rng.standard_normal((len(theta), 2))
+    starts = stance_steps(slip, theta, 6)[::-1]
+    compiled, interpreted = kernels.phases[STANCE], machine.phases[STANCE]
+    for a, b in zip(compiled.chunk(touchdown_state(), 1e-3, theta), interpreted.chunk(touchdown_state(), 1e-3, theta)):
+        assert np.array_equal(a, b)
+    for a, b in zip(compiled.event(touchdown_state(), 0.01, theta), interpreted.event(touchdown_state(), 0.01, theta)):
+        assert np.array_equal(a, b)
+    for a, b in zip(sweep(compiled, adjoint, gathered, starts[0], 4e-4, 1.0, starts[1:], 8, theta),
+                    sweep(interpreted, adjoint, gathered, starts[0], 4e-4, 1.0, starts[1:], 8, theta)):
+        np.testing.assert_allclose(a, b, rtol=1e-14, atol=1e-14)
 
 
 def test_a_mode_with_a_closed_form_flow_is_stepped_along_it_and_the_others_by_dop853():

@@ -13,9 +13,10 @@ stance gets steps as short as its own time scale asks. The resolution
 (:class:`Resolution`: the scout's step and n) is the caller's.
 
 The Jacobian of the map in the section coordinates and in ``theta`` (parameters, then
-controls) is that of the discrete map itself, carried through the steps: a fixed step by
-its state and theta derivatives, an event step by the implicit-function theorem (the
-step size moves with the state so that the guard stays at zero), a reset by its own.
+controls) is that of the discrete map itself, swept back from the stride's end to its
+start once the stride is run (an adjoint per section coordinate): through a fixed step by
+its state and theta derivatives, an event step by the implicit-function theorem (the step
+size moves with the state so that the guard stays at zero), a reset by its own.
 
 Because the step size follows the scout's duration, which is smooth in the arguments, so
 is the map, and Newton's method sees a smooth function; the Jacobian holds the step sizes
@@ -150,62 +151,69 @@ class HybridMap:
         f = self.functions
         x = f.lift(section)
         theta = np.asarray(theta, dtype=float)
-        index = f.section_index
-        n0 = len(index)
-        carried = None
-        if jacobian:  # d x / d(section coordinates, theta) at the start
-            carried = np.zeros((len(x), n0 + len(theta)))
-            carried[index, np.arange(n0)] = 1.0
         durations: list[float] = []
-        visited: list[tuple] = []
+        passages: list[_Passage] = []
         for number, phase in enumerate(self.phases):
             g_start = phase.kernels.guard(x, theta)[0].item()
             if phase.direction * g_start > 0:
                 failure = f"mode {phase.mode} starts past the guard of {phase.event} (it can never cross it)"
-                return Outcome(None, failure, tuple(durations), nodes=tuple(visited))
-            scouted = self._phase(phase, x, g_start, theta, resolution.scout, None, False)
+                return Outcome(None, failure, tuple(durations), nodes=_visited(passages, nodes))
+            scouted = self._phase(phase, x, g_start, theta, resolution.scout, record=False)
             if isinstance(scouted, str):
-                return Outcome(None, scouted, tuple(durations), nodes=tuple(visited))
-            step = scouted[2] / (resolution.steps - 0.5)
-            run = self._phase(phase, x, g_start, theta, step, carried, nodes, resolution.steps)
-            if isinstance(run, str):
-                return Outcome(None, run, tuple(durations), nodes=tuple(visited))
-            x, carried, duration, trace = run
-            durations.append(duration)
-            if nodes:
-                visited.append((phase.mode, *trace))
+                return Outcome(None, scouted, tuple(durations), nodes=_visited(passages, nodes))
+            step = scouted.duration / (resolution.steps - 0.5)
+            passage = self._phase(phase, x, g_start, theta, step, jacobian or nodes, resolution.steps)
+            if isinstance(passage, str):
+                return Outcome(None, passage, tuple(durations), nodes=_visited(passages, nodes))
+            durations.append(passage.duration)
+            passages.append(passage)
+            x = passage.end
             if number < len(self.kernels.resets):
-                reset = self.kernels.resets[number]
-                if carried is None:
-                    x = reset.reset(x, theta)[0].ravel()
-                else:
-                    after, carried = reset.reset_sens(x, carried, theta)
-                    x = after.ravel()
-        end = x[index]
-        if carried is None:
-            return Outcome(end, "", tuple(durations), nodes=tuple(visited))
-        rows = carried[index]
-        return Outcome(end, "", tuple(durations), rows[:, :n0], rows[:, n0:], tuple(visited))
+                x = self.kernels.resets[number].reset(x, theta)[0].ravel()
+        end = x[f.section_index]
+        visited = _visited(passages, nodes)
+        if not jacobian:
+            return Outcome(end, "", tuple(durations), nodes=visited)
+        by_section, by_theta = self._swept_back(passages, theta)
+        return Outcome(end, "", tuple(durations), by_section, by_theta, visited)
 
-    def _phase(self, phase: _Phase, x: np.ndarray, g_start: float, theta: np.ndarray, step: float, carried,
-               nodes: bool, count: int = CHUNK):
-        """Integrate ``phase`` from ``x`` (its guard there ``g_start``) to its event: (state,
-        carried Jacobian, duration, (times, states)), or why it failed. ``carried`` is
-        d x / d(section coordinates, theta), or None for no Jacobian. The first call takes
-        ``count`` steps if the library has a kernel for that many (a run's n), the others
-        a chunk each."""
+    def _swept_back(self, passages: list[_Passage], theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """d(section at the end) / d(section coordinates, theta) of the stride that took
+        ``passages``, by the adjoint sweep from its end back to its start: A holds one column
+        per section coordinate at the end, G gathers A^T d x_end / d theta."""
+        index = self.functions.section_index
+        adjoint = np.zeros((len(passages[-1].end), len(index)))
+        adjoint[index, np.arange(len(index))] = 1.0
+        gathered = np.zeros((len(theta), len(index)))
+        for number in reversed(range(len(passages))):
+            passage, kernels = passages[number], self.phases[number].kernels
+            if number < len(self.kernels.resets):
+                adjoint, added = self.kernels.resets[number].reset_adjoint(passage.end, adjoint, theta)
+                gathered = gathered + added
+            event = 1.0  # the first call goes through the event's step too
+            starts = passage.states[-3::-1]  # the fixed steps' start states, the last step first
+            for kernel, width, count in kernels.adjoint_calls(len(starts)):
+                columns = np.repeat(passage.states[:1].T, width, axis=1)  # skipped columns: a finite state
+                columns[:, :count] = starts[:count].T
+                active = (np.arange(width) < count).astype(float)
+                adjoint, gathered = kernel(adjoint, gathered, passage.states[-2], passage.last_step, event, columns,
+                                           active, passage.step, theta)
+                starts, event = starts[count:], 0.0
+        return adjoint[index].T, gathered.T
+
+    def _phase(self, phase: _Phase, x: np.ndarray, g_start: float, theta: np.ndarray, step: float,
+               record: bool, count: int = CHUNK) -> _Passage | str:
+        """Integrate ``phase`` from ``x`` (its guard there ``g_start``) in steps of ``step`` to
+        its event: the passage, with every node's state if ``record``, or why it failed. The
+        first call takes ``count`` steps if the library has a kernel for that many (a run's
+        n), the others a chunk each."""
         kernels, direction = phase.kernels, phase.direction
-        times, states = [0.0], [x]
+        states = [x] if record else []
         taken = 0
         while taken < MAX_STEPS:
-            values, with_jacobian = kernels.steps(count) if taken == 0 else (kernels.chunk, kernels.chunk_sens)
-            if carried is None:
-                chunk = _Chunk.of(x, None, g_start, values(x, step, theta))
-            else:
-                chunk = _Chunk.of(x, carried, g_start, with_jacobian(x, carried, step, theta))
+            chunk = _Chunk.of(x, g_start, (kernels.steps(count) if taken == 0 else kernels.chunk)(x, step, theta))
             length, last = chunk.length, chunk.first_stop(direction)
-            if nodes:
-                times.extend((taken + np.arange(1, last + 1)) * step)
+            if record:
                 states.extend(chunk.nodes[:, :last].T)
             if last < length:
                 if chunk.fell[last]:
@@ -213,52 +221,74 @@ class HybridMap:
                     return f"fell: {broken[0]} (mode {phase.mode})"
                 if chunk.lost[last]:
                     return f"the state left the finite numbers in mode {phase.mode}"
-                x, carried = chunk.start_of(last)
-                return self._event(phase, x, theta, step, chunk.guards[last], chunk.guards[last + 1], carried,
-                                   taken + last, times, states)
-            x, carried = chunk.start_of(length)
-            g_start, taken = chunk.guards[-1], taken + length
+                return self._event(phase, chunk.start_of(last), theta, step, chunk.guards[last],
+                                   chunk.guards[last + 1], taken + last, states)
+            x, g_start, taken = chunk.start_of(length), chunk.guards[-1], taken + length
         return (f"the guard of {phase.event} never fired in {MAX_STEPS} steps ({MAX_STEPS * step:.3g} s) "
                 f"of mode {phase.mode}")
 
-    def _event(self, phase: _Phase, x, theta, step, g_old, g_new, carried, count, times, states):
+    def _event(self, phase: _Phase, x, theta, step, g_old, g_new, count, states) -> _Passage | str:
         guess = step * g_old / (g_old - g_new)
         s, x_end, residual = (v for v in phase.kernels.event(x, guess, theta)[:3])
         s = s.item()
         if not (0.0 <= s <= 1.5 * step) or abs(residual.item()) > 1e-9 * max(1.0, abs(g_old)):
             return f"the event {phase.event} could not be located in mode {phase.mode}"
-        x_end = x_end.ravel()
-        duration = count * step + s
-        if carried is not None:
-            carried = phase.kernels.event_sens(x, carried, s, theta)[0]
-        times.append(duration)
-        states.append(x_end)
-        return x_end, carried, duration, (np.array(times), np.array(states))
+        states.append(x_end.ravel())
+        return _Passage(phase.mode, step, count, s, np.array(states))
+
+
+@dataclass(frozen=True)
+class _Passage:
+    """How a stride passed through one mode: its steps' size ``step`` [s], the count of
+    them, the last step's size ``last_step`` [s] (the one that ends on the guard, after
+    ``count``) and the states at every node from the mode's start to its end (rows), or the
+    end's alone where they were not recorded."""
+
+    mode: str
+    step: float
+    count: int
+    last_step: float
+    states: np.ndarray
+
+    @property
+    def end(self) -> np.ndarray:
+        return self.states[-1]
+
+    @property
+    def duration(self) -> float:
+        return self.count * self.step + self.last_step
+
+    @property
+    def times(self) -> np.ndarray:
+        """The time [s] at each recorded node, from the mode's start."""
+        return np.append(np.arange(self.count + 1) * self.step, self.duration)
+
+
+def _visited(passages: list[_Passage], asked: bool) -> tuple:
+    """The nodes of the modes passed, if ``asked``: (mode, times, states) each, as
+    :class:`Outcome` holds them."""
+    return tuple((p.mode, p.times, p.states) for p in passages) if asked else ()
 
 
 @dataclass(frozen=True)
 class _Chunk:
     """Steps from ``start``, as one call of a chunk (or run) kernel returned them.
 
-    ``nodes`` holds the state after each step (columns), ``carried`` the Jacobian there
-    (side by side; None without), ``guards`` the guard at the start and at each node,
-    ``falls`` the mode's falls at each step's start. Step k (from 0) *fell* if a fall is
-    negative at its start, is *lost* if its end is not finite, and *crossed* if the guard
-    passed zero in the mode's direction over it."""
+    ``nodes`` holds the state after each step (columns), ``guards`` the guard at the start
+    and at each node, ``falls`` the mode's falls at each step's start. Step k (from 0)
+    *fell* if a fall is negative at its start, is *lost* if its end is not finite, and
+    *crossed* if the guard passed zero in the mode's direction over it."""
 
     start: np.ndarray
-    start_carried: np.ndarray | None
     nodes: np.ndarray
-    carried: np.ndarray | None
     guards: np.ndarray
     falls: np.ndarray
 
     @classmethod
-    def of(cls, start, start_carried, g_start: float, outputs: tuple) -> _Chunk:
-        """From a chunk kernel's outputs: (nodes, [carried,] guards, falls)."""
-        nodes, *jacobian, guards, falls = outputs
-        return cls(start, start_carried, nodes, jacobian[0] if jacobian else None,
-                   np.concatenate([[g_start], guards.ravel()]), falls)
+    def of(cls, start, g_start: float, outputs: tuple) -> _Chunk:
+        """From a chunk kernel's outputs: (nodes, guards, falls)."""
+        nodes, guards, falls = outputs
+        return cls(start, nodes, np.concatenate([[g_start], guards.ravel()]), falls)
 
     @property
     def length(self) -> int:
@@ -279,14 +309,9 @@ class _Chunk:
         stops = np.flatnonzero(self.fell | self.lost | crossed)
         return int(stops[0]) if len(stops) else self.length
 
-    def start_of(self, k: int) -> tuple[np.ndarray, np.ndarray | None]:
-        """The state step ``k`` starts from and its carried Jacobian (k = the length: the end)."""
-        if k == 0:
-            return self.start, self.start_carried
-        if self.carried is None or self.start_carried is None:
-            return self.nodes[:, k - 1], None
-        width = self.start_carried.shape[1]
-        return self.nodes[:, k - 1], self.carried[:, (k - 1) * width:k * width]
+    def start_of(self, k: int) -> np.ndarray:
+        """The state step ``k`` starts from (k = the length: the end)."""
+        return self.start if k == 0 else self.nodes[:, k - 1]
 
 
 def calibrated_resolution(hybrid: HybridMap, section: np.ndarray, theta: np.ndarray, tolerance: float,

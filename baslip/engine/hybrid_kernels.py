@@ -14,19 +14,27 @@ the stride order the library holds:
 
 * ``guard_i(x, theta)``: the guard that ends the mode;
 * ``chunk_i(x, h, theta)``: CHUNK steps of size ``h``, as above;
-* ``chunk_sens_i(x, J, h, theta)``: the same, carrying ``J = d x / d(X0, theta)`` (X0 the
-  section coordinates at the stride's start) through the steps (each step's own
-  derivatives, its size held fixed), with J at every node;
-* ``run_i_n``, ``run_sens_i_n``: the same for the n steps of a mode's run, n in
-  :data:`RUN_STEPS`, in one call;
+* ``run_i_n``: the same for the n steps of a mode's run, n in :data:`RUN_STEPS`, in one
+  call;
 * ``event_i(x, s0, theta)``: the last step, its size ``s`` solved by Newton from ``s0`` so
   that it ends on the guard (:func:`baslip.engine.dop853.event_step`);
-* ``event_sens_i(x, J, s, theta)``: J carried through that step, the step's size moving
-  with the state so that the guard stays at zero (the implicit-function theorem);
+* ``adjoint_i_n(A, G, x, s, event, starts, active, h, theta)``, n in
+  :data:`ADJOINT_STEPS`: the Jacobian's adjoint sweep back through a mode. ``A`` (one
+  column per row of the Jacobian) becomes A^T d x_end / d x_start and ``G`` gains A^T d
+  x_end / d theta: first through the step of size ``s`` from ``x`` that ends on the guard,
+  ``s`` moving with the state and theta so that the guard stays at zero (the
+  implicit-function theorem), unless ``event`` is 0; then back through n steps of size
+  ``h`` (their start states, last step first, as the columns of ``starts``), each step's
+  size held fixed. A column whose ``active`` is 0 is skipped exactly, so that any count of
+  steps up to n takes one call;
 
-and per transition ``i`` the reset and the reset carrying J (``reset_i``,
-``reset_sens_i``). The values are those of the same step, guard and reset Functions in
-CasADi's virtual machine; only the Jacobian's sums may round differently.
+and per transition ``i`` the reset and its adjoint (``reset_i``, ``reset_adjoint_i``). The
+values are those of the same step, guard and reset Functions in CasADi's virtual machine.
+
+The Jacobian is swept backwards because it has as many rows as the section has
+coordinates (4 for the BA-SLIP) and far more columns (those and theta: 15): one reverse
+derivative of a step with 4 directions costs about what one forward derivative with 4
+costs, and carrying the 15 columns forwards took four of those.
 
 The library's cache key holds the description's Functions, serialised, so a user's model
 file needs no other key. Without a compiler the same Functions run in CasADi's virtual
@@ -51,18 +59,18 @@ from baslip.model.symbolic import ModelFunctions
 
 #: Steps a chunk takes in one call.
 CHUNK = 8
-#: Forward directions a step's generated derivative takes at once (the step Function's
-#: ``max_num_dir``, :func:`baslip.engine.dop853.step_function`).
-DIRECTIONS = 4
 #: Newton iterations of an event step (unrolled in its graph).
 EVENT_ITERATIONS = 8
 #: Step counts a mode's run takes in one call (``run_i_n``): those beyond one chunk that
 #: :func:`baslip.engine.hybrid.calibrated_resolution` chooses but for the stiffest laws
 #: (128 and 256 steps run in chunks: their call sites would cost every model's compile).
 RUN_STEPS = (16, 32, 64)
+#: Step counts an adjoint sweep takes in one call (``adjoint_i_n``), at most: a mode's
+#: fixed steps (its run's, less the event's) are swept in as few calls as these allow.
+ADJOINT_STEPS = (CHUNK, *RUN_STEPS)
 #: The library's entry points per mode of the stride and per transition, by their prefix.
-PHASE_PARTS = ("guard", "chunk", "chunk_sens", "event", "event_sens")
-RESET_PARTS = ("reset", "reset_sens")
+PHASE_PARTS = ("guard", "chunk", "event")
+RESET_PARTS = ("reset", "reset_adjoint")
 
 
 @dataclass(frozen=True)
@@ -71,23 +79,33 @@ class PhaseKernels:
 
     guard: Kernel
     chunk: Kernel
-    chunk_sens: Kernel
     event: Kernel
-    event_sens: Kernel
-    runs: Mapping[int, tuple[Kernel, Kernel]]
+    runs: Mapping[int, Kernel]
+    adjoints: Mapping[int, Kernel]
 
-    def steps(self, count: int) -> tuple[Kernel, Kernel]:
-        """The kernels (without, with J) that take ``count`` steps in one call, if the
-        library has them, else the chunk's."""
-        return self.runs.get(count, (self.chunk, self.chunk_sens))
+    def steps(self, count: int) -> Kernel:
+        """The kernel that takes ``count`` steps in one call, if the library has one, else
+        the chunk."""
+        return self.runs.get(count, self.chunk)
+
+    def adjoint_calls(self, count: int) -> list[tuple[Kernel, int, int]]:
+        """The adjoint kernels that sweep back through a mode's event step and ``count``
+        steps, each with its columns and how many of them are steps (the rest are
+        skipped): one call up to the longest."""
+        calls: list[tuple[Kernel, int, int]] = []
+        while count > 0 or not calls:  # a mode's event step alone takes a call too
+            n = next((n for n in ADJOINT_STEPS if n >= count), ADJOINT_STEPS[-1])
+            calls.append((self.adjoints[n], n, min(n, count)))
+            count -= n
+        return calls
 
 
 @dataclass(frozen=True)
 class ResetKernels:
-    """The compiled reset of one transition, alone and carrying the Jacobian."""
+    """The compiled reset of one transition and its adjoint."""
 
     reset: Kernel
-    reset_sens: Kernel
+    reset_adjoint: Kernel
 
 
 @dataclass(frozen=True)
@@ -105,7 +123,8 @@ def stride_kernels(functions: ModelFunctions, *, enabled: bool | None = None) ->
                               module_files(sys.modules[__name__], dop853), enabled=enabled,
                               settings=_description_key(functions))
     phases = tuple(PhaseKernels(**{part: kernels[f"{part}_{i}"] for part in PHASE_PARTS},
-                                runs={n: (kernels[f"run_{i}_{n}"], kernels[f"run_sens_{i}_{n}"]) for n in RUN_STEPS})
+                                runs={n: kernels[f"run_{i}_{n}"] for n in RUN_STEPS},
+                                adjoints={n: kernels[f"adjoint_{i}_{n}"] for n in ADJOINT_STEPS})
                    for i in range(len(functions.model.order)))
     resets = tuple(ResetKernels(*(kernels[f"{part}_{i}"] for part in RESET_PARTS)) for i in range(len(functions.resets)))
     return StrideKernels(phases, resets)
@@ -113,10 +132,11 @@ def stride_kernels(functions: ModelFunctions, *, enabled: bool | None = None) ->
 
 def _names(functions: ModelFunctions) -> list[str]:
     """The library's entry points, as :func:`stride_functions` names them."""
-    phases = [f"{part}_{i}" for i in range(len(functions.model.order)) for part in PHASE_PARTS]
-    phases += [f"{part}_{i}_{n}" for i in range(len(functions.model.order)) for n in RUN_STEPS
-               for part in ("run", "run_sens")]
-    return phases + [f"{part}_{i}" for i in range(len(functions.resets)) for part in RESET_PARTS]
+    modes = range(len(functions.model.order))
+    names = [f"{part}_{i}" for i in modes for part in PHASE_PARTS]
+    names += [f"run_{i}_{n}" for i in modes for n in RUN_STEPS]
+    names += [f"adjoint_{i}_{n}" for i in modes for n in ADJOINT_STEPS]
+    return names + [f"{part}_{i}" for i in range(len(functions.resets)) for part in RESET_PARTS]
 
 
 def _description_key(functions: ModelFunctions) -> str:
@@ -143,7 +163,7 @@ def stride_functions(functions: ModelFunctions) -> list[ca.Function]:
     the module's docstring gives (before compiling: to read or to generate)."""
     model = functions.model
     guards = [*functions.guards, functions.section_guard]
-    state_columns = len(functions.model.section.coordinates)
+    rows = len(functions.model.section.coordinates)  # the Jacobian's rows: the adjoint's directions
     # One step per mode, so that a mode the stride visits twice is generated once.
     steps = {mode: _flow_step(functions.flows[mode]) if mode in functions.flows
              else step_function(functions.rhs[mode], tableau=DOP853) for mode in model.order}
@@ -151,19 +171,19 @@ def stride_functions(functions: ModelFunctions) -> list[ca.Function]:
     for i, (mode, guard) in enumerate(zip(model.order, guards)):
         rhs, step = functions.rhs[mode], steps[mode]
         falls = functions.falls.get(mode)
-        block = _block(f"block_{i}", _one_step(f"step_{i}", step, guard, falls, None))
-        block_sens = _block(f"block_sens_{i}", _one_step(f"step_sens_{i}", step, guard, falls, state_columns))
+        block = _block(f"block_{i}", _one_step(f"step_{i}", step, guard, falls))
+        adjoint_block = _block(f"adjoint_block_{i}", _adjoint_step(f"adjoint_step_{i}", step, rows),
+                               accumulated=2, mapped=2)
+        event_adjoint = _event_adjoint(f"event_adjoint_{i}", step, guard, rows)
         built += [
             _renamed(f"guard_{i}", guard),
             _chunk(f"chunk_{i}", block),
-            _chunk(f"chunk_sens_{i}", block_sens),
             _renamed(f"event_{i}", event_step(step, rhs, guard, EVENT_ITERATIONS)),
-            _event_sens(f"event_sens_{i}", step, guard, state_columns),
         ]
-        for n in RUN_STEPS:
-            built += [_chunk(f"run_{i}_{n}", block, n), _chunk(f"run_sens_{i}_{n}", block_sens, n)]
+        built += [_chunk(f"run_{i}_{n}", block, n) for n in RUN_STEPS]
+        built += [_adjoint_sweep(f"adjoint_{i}_{n}", event_adjoint, adjoint_block, n) for n in ADJOINT_STEPS]
     for i, reset in enumerate(functions.resets):
-        built += [_renamed(f"reset_{i}", reset), _reset_sens(f"reset_sens_{i}", reset, state_columns)]
+        built += [_renamed(f"reset_{i}", reset), _reset_adjoint(f"reset_adjoint_{i}", reset, rows)]
     return built
 
 
@@ -174,7 +194,7 @@ def _flow_step(flow: ca.Function) -> ca.Function:
     h = ca.SX.sym("h")
     theta = ca.SX.sym("theta", flow.size1_in(1))
     return ca.Function(f"{flow.name()}_step", [x, h, theta], [flow(x, theta, h), ca.SX(1, 1)],
-                       ["x", "h", "theta"], ["x_next", "error"], {"max_num_dir": DIRECTIONS})
+                       ["x", "h", "theta"], ["x_next", "error"])
 
 
 def _renamed(name: str, function: ca.Function) -> ca.Function:
@@ -183,116 +203,120 @@ def _renamed(name: str, function: ca.Function) -> ca.Function:
     return ca.Function(name, inputs, function.call(inputs), function.name_in(), function.name_out())
 
 
-def _one_step(name: str, step: ca.Function, guard: ca.Function, falls: ca.Function | None,
-              state_columns: int | None) -> ca.Function:
-    """One step of a chunk: (x, [J,] h, theta) -> (x_next, [J_next,] the guard at x_next,
-    the falls at x). J is carried when ``state_columns`` (how many of its columns belong to
-    the start's section coordinates) is given."""
+def _one_step(name: str, step: ca.Function, guard: ca.Function, falls: ca.Function | None) -> ca.Function:
+    """One step of a chunk: (x, h, theta) -> (x_next, the guard at x_next, the falls at x)."""
     x = ca.MX.sym("x", step.size1_in(0))
     h = ca.MX.sym("h")
     theta = ca.MX.sym("theta", step.size1_in(2))
     x_next = step(x, h, theta)[0]
     fallen = falls(x, theta) if falls is not None else ca.MX(0, 1)
-    carried_in, carried_out = [], []
-    if state_columns is not None:
-        carried = ca.MX.sym("J", x.numel(), state_columns + theta.numel())
-        carried_in = [carried]
-        carried_out = [_moved(step, [x, h, theta], carried, state_columns)]
-    return ca.Function(name, [x, *carried_in, h, theta], [x_next, *carried_out, guard(x_next, theta), fallen])
+    return ca.Function(name, [x, h, theta], [x_next, guard(x_next, theta), fallen])
 
 
-def _block(name: str, one: ca.Function) -> ca.Function:
-    """CHUNK steps of ``one`` (:func:`_one_step`): (x, [J,] h, theta) -> (the last node, [J
-    there,] the nodes, [J at the nodes,] the guards, the falls)."""
-    inputs, outputs = _looped(name, one, CHUNK)
-    ends = [outputs[0][:, -1]]
-    if len(inputs) == 4:  # J at the last node: the last of the side-by-side blocks
-        ends.append(outputs[1][:, -inputs[1].size2():])
+def _block(name: str, one: ca.Function, accumulated: int = 1, mapped: int = 0) -> ca.Function:
+    """CHUNK calls of ``one`` in a row, as :func:`_looped` makes them: (the handed-on
+    values after the last call, then ``mapaccum``'s outputs)."""
+    inputs, outputs = _looped(name, one, CHUNK, accumulated, mapped)
+    ends = [outputs[k][:, -inputs[k].size2():] for k in range(accumulated)]
     return ca.Function(name, inputs, [*ends, *outputs])
 
 
 def _chunk(name: str, block: ca.Function, count: int = CHUNK) -> ca.Function:
     """``count`` steps of one size (a multiple of CHUNK, in blocks of :func:`_block`): the
-    nodes, J at the nodes if the block carries it, the guard at the nodes and the falls at
-    the nodes each step starts from (see the module's docstring). The generated code calls
-    the block count / CHUNK times in a row, so a long run costs the compiler little."""
+    nodes, the guard at the nodes and the falls at the nodes each step starts from (see the
+    module's docstring). The generated code calls the block count / CHUNK times in a row,
+    so a long run costs the compiler little."""
     inputs, outputs = _looped(name, block, count // CHUNK)
-    carries = len(inputs) == 4
-    names = ["nodes", *(["carried"] if carries else []), "guards", "falls"]
-    return ca.Function(name, inputs, outputs[1 + carries:], ["x", *(["J"] if carries else []), "h", "theta"], names)
+    return ca.Function(name, inputs, outputs[1:], ["x", "h", "theta"], ["nodes", "guards", "falls"])
 
 
-def _looped(name: str, function: ca.Function, count: int) -> tuple[list[ca.MX], list[ca.MX]]:
-    """``function`` of (x, [J,] h, theta) called ``count`` times in a row, x (and J) handed
-    on: its inputs (x, [J,] h, theta) and ``mapaccum``'s outputs (the handed-on values
-    after each call, then the other outputs side by side)."""
-    carries = function.n_in() == 4
-    accumulated = [0, 1] if carries else [0]
-    looped = function.mapaccum(f"{name}_loop", count, accumulated, accumulated)
-    start = [ca.MX.sym("x", function.size1_in(0))] + ([ca.MX.sym("J", function.sparsity_in(1))] if carries else [])
-    size, parameters = ca.MX.sym("h"), ca.MX.sym("theta", function.size1_in(function.n_in() - 1))
-    outputs = looped(*start, ca.repmat(size, 1, count), ca.repmat(parameters, 1, count))
-    return [*start, size, parameters], list(outputs)
+def _adjoint_sweep(name: str, event_adjoint: ca.Function, block: ca.Function, count: int) -> ca.Function:
+    """The adjoint back through a mode's event step (unless ``event`` is 0), then through
+    ``count`` steps (a multiple of CHUNK, in blocks of CHUNK): (A, G, x, s, event, starts,
+    active, h, theta) -> (A, G) at the first step's start (see the module's docstring)."""
+    adjoint, gathered = ca.MX.sym("A", block.sparsity_in(0)), ca.MX.sym("G", block.sparsity_in(1))
+    x, s, event = ca.MX.sym("x", block.size1_in(2)), ca.MX.sym("s"), ca.MX.sym("event")
+    inputs, outputs = _looped(name, block, count // CHUNK, accumulated=2, mapped=2)
+    theta = inputs[-1]
+    through_event, added = event_adjoint(x, s, adjoint, theta)
+    start = [ca.if_else(event, through_event, adjoint), ca.if_else(event, gathered + added, gathered)]
+    swept = ca.Function(f"{name}_steps", inputs, [outputs[k][:, -inputs[k].size2():] for k in range(2)])
+    return ca.Function(name, [adjoint, gathered, x, s, event, *inputs[2:]], swept.call([*start, *inputs[2:]]),
+                       ["A", "G", "x", "s", "event", "starts", "active", "h", "theta"], ["A_before", "G_after"])
 
 
-def _moved(function: ca.Function, inputs: list[ca.MX], carried: ca.MX, state_columns: int,
-           along_size: int | None = None) -> ca.MX:
-    """d out / d(X0, theta), ``out`` the first output of ``function(x, ..., theta)`` (the
-    state first, theta last among ``inputs``), from J = d x / d(X0, theta); with
-    ``along_size`` (the index of an input), a last column along that input too.
-
-    The columns are taken by the Function's forward derivative in batches of
-    :data:`DIRECTIONS`, the last padded with zeros, so that the generated code holds the
-    derivative once (a smaller last batch would add another, as large). Expanding the
-    Jacobian in SX instead made the BA-SLIP's library take 309 s to compile, not 20 s."""
-    # Called explicitly, not through jtimes: jtimes with a seed whose padding columns are
-    # zero returned zeros in every direction (CasADi 3.8.2).
-    x, theta = inputs[0], inputs[-1]
-    columns = state_columns + theta.numel() + (along_size is not None)
-    seeds = [ca.MX.zeros(value.sparsity().size1(), columns) for value in inputs]
-    seeds[0] = ca.horzcat(carried, ca.MX.zeros(x.numel(), columns - carried.size2()))
-    seeds[-1] = ca.horzcat(ca.MX.zeros(theta.numel(), state_columns), ca.MX.eye(theta.numel()),
-                           ca.MX.zeros(theta.numel(), columns - state_columns - theta.numel()))
-    if along_size is not None:
-        seeds[along_size] = ca.horzcat(ca.MX.zeros(1, columns - 1), ca.MX.ones(1, 1))
-    batch = min(DIRECTIONS, columns)
-    forward = function.forward(batch)
-    nominal = [ca.MX(function.sparsity_out(k).size1(), function.sparsity_out(k).size2())
-               for k in range(function.n_out())]
-    blocks = []
-    for first in range(0, columns, batch):
-        taken = min(batch, columns - first)
-        block = [ca.horzcat(seed[:, first:first + taken], ca.MX.zeros(seed.size1(), batch - taken)) for seed in seeds]
-        blocks.append(forward.call([*inputs, *nominal, *block])[0][:, :taken])
-    return ca.horzcat(*blocks)
+def _looped(name: str, function: ca.Function, count: int, accumulated: int = 1,
+            mapped: int = 0) -> tuple[list[ca.MX], list[ca.MX]]:
+    """``function`` called ``count`` times in a row: its first ``accumulated`` inputs handed
+    on from each call's first outputs, its next ``mapped`` inputs given ``count`` times as
+    wide (each call its share of the columns), the others the same in every call. Returns
+    the inputs and ``mapaccum``'s outputs (the handed-on values after each call, then the
+    other outputs, side by side)."""
+    handed = list(range(accumulated))
+    looped = function.mapaccum(f"{name}_loop", count, handed, handed)
+    inputs = [ca.MX.sym(f"i{k}", function.size1_in(k), function.size2_in(k) * (count if k in range(
+        accumulated, accumulated + mapped) else 1)) for k in range(function.n_in())]
+    outputs = looped(*inputs[:accumulated + mapped], *(ca.repmat(v, 1, count) for v in inputs[accumulated + mapped:]))
+    return inputs, list(outputs)
 
 
-def _event_sens(name: str, step: ca.Function, guard: ca.Function, state_columns: int) -> ca.Function:
-    """J through the step of size ``s`` that ends on the guard, ``s`` moving with (X0,
-    theta) so that the guard stays at zero."""
+def _pulled(function: ca.Function, inputs: list[ca.MX], adjoint: ca.MX) -> list[ca.MX]:
+    """A^T d out / d(each input), ``out`` the first output of ``function``, one column of
+    ``adjoint`` (A) per direction: the Function's reverse derivative, its other outputs'
+    seeds zero."""
+    directions = adjoint.size2()
+    reverse = function.reverse(directions)
+    nominal = [ca.MX(function.size1_out(k), function.size2_out(k)) for k in range(function.n_out())]
+    seeds = [adjoint] + [ca.MX(function.size1_out(k), function.size2_out(k) * directions)
+                         for k in range(1, function.n_out())]
+    return reverse.call([*inputs, *nominal, *seeds])
+
+
+def _adjoint_step(name: str, step: ca.Function, rows: int) -> ca.Function:
+    """One step of the adjoint sweep: (A, G, x, active, h, theta) -> (A^T d x_next / d x,
+    G + A^T d x_next / d theta) at the step from ``x``, or (A, G) where ``active`` is 0."""
+    x = ca.MX.sym("x", step.size1_in(0))
+    h = ca.MX.sym("h")
+    theta = ca.MX.sym("theta", step.size1_in(2))
+    adjoint = ca.MX.sym("A", x.numel(), rows)
+    gathered = ca.MX.sym("G", theta.numel(), rows)
+    active = ca.MX.sym("active")
+    by_state, _, by_theta = _pulled(step, [x, h, theta], adjoint)
+    return ca.Function(name, [adjoint, gathered, x, active, h, theta],
+                       [ca.if_else(active, by_state, adjoint), ca.if_else(active, gathered + by_theta, gathered)])
+
+
+def _event_adjoint(name: str, step: ca.Function, guard: ca.Function, rows: int) -> ca.Function:
+    """The adjoint through the step of size ``s`` that ends on the guard, ``s`` moving with
+    the state and theta so that the guard stays at zero: (x, s, A, theta) -> (A', G').
+
+    With x_end = step(x, s), f = d x_end / d s and the guard's slopes g_x, g_theta at x_end,
+    ds = -(g_x d x_end + g_theta d theta) / (g_x f) along the guard, so A^T d x_end is
+    M^T (d step / d(x, theta)) with M = A - g_x^T (f^T A) / (g_x f), less (f^T A) / (g_x f)
+    g_theta for theta."""
     x = ca.MX.sym("x", step.size1_in(0))
     s = ca.MX.sym("s")
     theta = ca.MX.sym("theta", step.size1_in(2))
-    carried = ca.MX.sym("J", x.numel(), state_columns + theta.numel())
+    adjoint = ca.MX.sym("A", x.numel(), rows)
     x_end = step(x, s, theta)[0]
-    both = _moved(step, [x, s, theta], carried, state_columns, along_size=1)
-    moved, by_size = both[:, :-1], both[:, -1]
+    nominal = [ca.MX(step.size1_out(k), step.size2_out(k)) for k in range(step.n_out())]
+    along_size = step.forward(1).call([x, s, theta, *nominal, ca.MX(x.numel(), 1), ca.MX.ones(1, 1),
+                                       ca.MX(theta.numel(), 1)])[0]
     y = ca.SX.sym("y", x.numel())
     theta_sx = ca.SX.sym("theta", theta.numel())
     g = guard(y, theta_sx)
     slopes = ca.Function(f"{name}_guard", [y, theta_sx], [ca.jacobian(g, y), ca.jacobian(g, theta_sx)])
     g_state, g_theta = slopes(x_end, theta)
-    rate = ca.mtimes(g_state, by_size)
-    shift = -(ca.mtimes(g_state, moved) + ca.horzcat(ca.MX(1, state_columns), g_theta)) / rate
-    return ca.Function(name, [x, carried, s, theta], [moved + ca.mtimes(by_size, shift)], ["x", "J", "s", "theta"],
-                       ["carried"])
+    shares = ca.mtimes(along_size.T, adjoint) / ca.mtimes(g_state, along_size)  # (f^T A) / (g_x f), a row
+    by_state, _, by_theta = _pulled(step, [x, s, theta], adjoint - ca.mtimes(g_state.T, shares))
+    return ca.Function(name, [x, s, adjoint, theta], [by_state, by_theta - ca.mtimes(g_theta.T, shares)],
+                       ["x", "s", "A", "theta"], ["A_before", "G"])
 
 
-def _reset_sens(name: str, reset: ca.Function, state_columns: int) -> ca.Function:
-    """The reset and J carried through it."""
+def _reset_adjoint(name: str, reset: ca.Function, rows: int) -> ca.Function:
+    """The adjoint through the reset: (x, A, theta) -> (A^T d reset / d x, A^T d reset / d theta)."""
     x = ca.MX.sym("x", reset.size1_in(0))
     theta = ca.MX.sym("theta", reset.size1_in(1))
-    carried = ca.MX.sym("J", x.numel(), state_columns + theta.numel())
-    after = reset(x, theta)
-    return ca.Function(name, [x, carried, theta], [after, _moved(reset, [x, theta], carried, state_columns)],
-                       ["x", "J", "theta"], ["after", "carried"])
+    adjoint = ca.MX.sym("A", reset.size1_out(0), rows)
+    by_state, by_theta = _pulled(reset, [x, theta], adjoint)
+    return ca.Function(name, [x, adjoint, theta], [by_state, by_theta], ["x", "A", "theta"], ["A_before", "G"])
