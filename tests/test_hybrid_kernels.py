@@ -41,7 +41,8 @@ def touchdown_state() -> np.ndarray:
 def test_a_chunk_takes_the_steps_of_the_step_function_to_the_bit(slip, kernels, theta):
     step = step_function(slip.rhs["stance"], tableau=DOP853)
     falls, guard = slip.falls["stance"], slip.guards[STANCE]
-    nodes, guards, fallen = kernels.phases[STANCE].chunk(touchdown_state(), 1e-3, theta)
+    nodes, guards, fallen, at_start, _ = kernels.phases[STANCE].chunk(touchdown_state(), 1e-3, theta)
+    assert float(guard(touchdown_state(), theta)) == at_start.item()
     x = touchdown_state()
     for k in range(CHUNK):
         assert np.array_equal(np.array(falls(x, theta)).ravel(), fallen[:, k])
@@ -60,9 +61,38 @@ def test_a_run_in_one_call_is_its_chunks_to_the_bit(kernels, theta):
         piece = phase.chunk(x, 1e-3, theta)
         pieces.append(piece)
         x = piece[0][:, -1]
-    for whole, parts in zip(run, zip(*pieces)):
+    for whole, parts in zip(run[:3], zip(*pieces)):  # nodes, guards, falls
         assert np.array_equal(whole, np.hstack(parts))
+    assert run[4].item() == 32 and all(piece[4].item() == CHUNK for piece in pieces)  # none stopped
     assert phase.steps(24) is phase.chunk  # no run of that count: chunks
+
+
+def first_stop(nodes, guards, falls, direction: int) -> int:
+    """The first step that fell (a fall negative at its start), was lost (its end not
+    finite) or crossed the guard in ``direction``, found in numpy; the length if none."""
+    fell = np.any(falls < 0, axis=0)
+    lost = ~np.all(np.isfinite(nodes), axis=0)
+    g = direction * guards
+    crossed = (g[1:] >= 0) & (g[:-1] < 0)
+    stops = np.flatnonzero(fell | lost | crossed)
+    return int(stops[0]) if len(stops) else nodes.shape[1]
+
+
+def test_a_chunk_stops_at_the_first_step_that_fell_was_lost_or_crossed_the_guard(slip, kernels, theta):
+    """Stance chunks from random touchdowns in steps from 1 ms (no event) to 0.3 s (the
+    leg collapses or lifts off at once), and from a state that is not a number."""
+    phase = kernels.phases[STANCE]
+    direction = slip.directions[STANCE]
+    rng = np.random.default_rng(13)
+    found = set()
+    starts = [touchdown_state() * (1 + 0.3 * rng.standard_normal(4)) for _ in range(40)]
+    for start, h in zip([*starts, np.full(4, np.nan)], [*np.geomspace(1e-3, 0.3, 40), 1e-3]):
+        nodes, guards, falls, at_start, stop = phase.steps(16)(start, h, theta)
+        expected = first_stop(nodes, np.concatenate([at_start.ravel(), guards.ravel()]), falls, direction)
+        assert stop.item() == expected
+        found.add("none" if expected == 16 else "fell" if np.any(falls[:, expected] < 0)
+                  else "lost" if not np.all(np.isfinite(nodes[:, expected])) else "crossed")
+    assert found == {"none", "fell", "lost", "crossed"}  # every kind of stop was met
 
 
 def stance_steps(slip, theta, count: int) -> np.ndarray:
@@ -122,7 +152,7 @@ def test_the_events_adjoint_is_the_derivative_of_the_state_on_the_guard(slip, ke
     step's size re-solved each time, against the event's adjoint alone (no step swept)."""
     phase = kernels.phases[STANCE]
     start = touchdown_state()
-    nodes, at_nodes, _ = phase.chunk(start, 0.05, theta)  # stance ends within the chunk (0.4 s)
+    nodes, at_nodes, *_ = phase.chunk(start, 0.05, theta)  # stance ends within the chunk (0.4 s)
     guards = np.concatenate([[phase.guard(start, theta)[0].item()], at_nodes.ravel()])
     last = int(np.flatnonzero(guards[1:] >= 0)[0])
     x = start if last == 0 else nodes[:, last - 1]
@@ -175,7 +205,7 @@ def test_a_flows_steps_land_on_the_flow_at_their_summed_time():
     theta = functions.theta({**{q.name: q.default for q in BA_SLIP.parameters},
                              **{q.name: q.default for q in BA_SLIP.controls_of("pd")}})
     start = np.array([0.0, 1.2, 0.3, 5.0, 0.5, -1.0])  # y, z, theta_h and their rates
-    nodes, _, _ = stride_kernels(functions).phases[0].chunk(start, 0.05, theta)
+    nodes, *_ = stride_kernels(functions).phases[0].chunk(start, 0.05, theta)
     flow = functions.flows["flight"]
     for k in range(CHUNK):
         np.testing.assert_allclose(nodes[:, k], np.array(flow(start, theta, 0.05 * (k + 1))).ravel(),

@@ -25,10 +25,10 @@ set by :func:`calibrated_resolution`, which doubles n until two agree, and check
 :mod:`baslip.engine.hybrid_check`, which re-simulates with a different integrator.
 
 The steps run in generated code, compiled to C (:mod:`baslip.engine.hybrid_kernels`): one
-call takes a mode's whole run, or eight steps of a scout, and Python finds the first node
-where the mode fell or crossed its guard, as a loop over single steps would, with the same
-numbers to the bit. A stride costs 0.5 to 1.5 ms instead of 8 to 43 ms one step at a time
-(``benchmarks/bench_models.py``).
+call takes a mode's whole run, or eight steps of a scout (a whole scout along a flow), and
+finds the first step where the mode fell, was lost or crossed its guard, as a loop over
+single steps would, with the same numbers to the bit. A stride costs 0.2 to 0.4 ms instead
+of 8 to 43 ms one step at a time (``benchmarks/bench_models.py``).
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ from functools import cached_property
 
 import numpy as np
 
-from baslip.engine.hybrid_kernels import CHUNK, PhaseKernels, StrideKernels, stride_kernels
+from baslip.engine.hybrid_kernels import CHUNK, RUN_STEPS, PhaseKernels, StrideKernels, stride_kernels
 from baslip.model.symbolic import ModelFunctions, fall_names
 
 #: The share of the tolerance two step counts must agree to for the coarser to be used.
@@ -110,6 +110,14 @@ class _Phase:
     fall_names: tuple[str, ...]
     event: str
     kernels: PhaseKernels
+    flows: bool  # the mode has a closed-form flow, whose steps cost next to nothing
+
+    @property
+    def scout_steps(self) -> int:
+        """Steps the scout's first call takes: for a mode with a flow the longest run, as
+        its steps cost next to nothing (the scout's step is at most a quarter of the
+        shortest mode, so a long mode takes many), for the others a chunk."""
+        return RUN_STEPS[-1] if self.flows else CHUNK
 
 
 class HybridMap:
@@ -141,7 +149,7 @@ class HybridMap:
         model = self.functions.model
         directions = [*self.functions.directions, model.section.direction]
         events = [t.label for t in model.stride_transitions()] + ["section"]
-        return tuple(_Phase(mode, direction, fall_names(model, mode), event, kernels)
+        return tuple(_Phase(mode, direction, fall_names(model, mode), event, kernels, mode in self.functions.flows)
                      for mode, direction, event, kernels in zip(model.order, directions, events, self.kernels.phases))
 
     def stride(self, section: np.ndarray, theta: np.ndarray, resolution: Resolution, jacobian: bool = False,
@@ -153,23 +161,17 @@ class HybridMap:
         theta = np.asarray(theta, dtype=float)
         durations: list[float] = []
         passages: list[_Passage] = []
-        for number, phase in enumerate(self.phases):
-            g_start = phase.kernels.guard(x, theta)[0].item()
-            if phase.direction * g_start > 0:
-                failure = f"mode {phase.mode} starts past the guard of {phase.event} (it can never cross it)"
-                return Outcome(None, failure, tuple(durations), nodes=_visited(passages, nodes))
-            scouted = self._phase(phase, x, g_start, theta, resolution.scout, record=False)
+        for phase in self.phases:
+            scouted = self._phase(phase, x, theta, resolution.scout, False, phase.scout_steps)
             if isinstance(scouted, str):
                 return Outcome(None, scouted, tuple(durations), nodes=_visited(passages, nodes))
             step = scouted.duration / (resolution.steps - 0.5)
-            passage = self._phase(phase, x, g_start, theta, step, jacobian or nodes, resolution.steps)
+            passage = self._phase(phase, x, theta, step, jacobian or nodes, resolution.steps)
             if isinstance(passage, str):
                 return Outcome(None, passage, tuple(durations), nodes=_visited(passages, nodes))
             durations.append(passage.duration)
             passages.append(passage)
-            x = passage.end
-            if number < len(self.kernels.resets):
-                x = self.kernels.resets[number].reset(x, theta)[0].ravel()
+            x = passage.after
         end = x[f.section_index]
         visited = _visited(passages, nodes)
         if not jacobian:
@@ -201,40 +203,42 @@ class HybridMap:
                 starts, event = starts[count:], 0.0
         return adjoint[index].T, gathered.T
 
-    def _phase(self, phase: _Phase, x: np.ndarray, g_start: float, theta: np.ndarray, step: float,
-               record: bool, count: int = CHUNK) -> _Passage | str:
-        """Integrate ``phase`` from ``x`` (its guard there ``g_start``) in steps of ``step`` to
-        its event: the passage, with every node's state if ``record``, or why it failed. The
-        first call takes ``count`` steps if the library has a kernel for that many (a run's
-        n), the others a chunk each."""
-        kernels, direction = phase.kernels, phase.direction
+    def _phase(self, phase: _Phase, x: np.ndarray, theta: np.ndarray, step: float, record: bool,
+               count: int) -> _Passage | str:
+        """Integrate ``phase`` from ``x`` in steps of ``step`` to its event: the passage, with
+        every node's state if ``record``, or why it failed. The first call takes ``count``
+        steps if the library has a kernel for that many (a run's n), the others a chunk
+        each."""
+        kernels = phase.kernels
         states = [x] if record else []
         taken = 0
         while taken < MAX_STEPS:
-            chunk = _Chunk.of(x, g_start, (kernels.steps(count) if taken == 0 else kernels.chunk)(x, step, theta))
-            length, last = chunk.length, chunk.first_stop(direction)
+            chunk = _Chunk.of(x, (kernels.steps(count) if taken == 0 else kernels.chunk)(x, step, theta))
+            if taken == 0 and phase.direction * chunk.guards[0] > 0:
+                return f"mode {phase.mode} starts past the guard of {phase.event} (it can never cross it)"
+            length, last = chunk.length, chunk.stop
             if record:
                 states.extend(chunk.nodes[:, :last].T)
             if last < length:
-                if chunk.fell[last]:
-                    broken = [name for name, v in zip(phase.fall_names, chunk.falls[:, last]) if v < 0]
+                broken = [name for name, v in zip(phase.fall_names, chunk.falls[:, last]) if v < 0]
+                if broken:
                     return f"fell: {broken[0]} (mode {phase.mode})"
-                if chunk.lost[last]:
+                if not np.all(np.isfinite(chunk.nodes[:, last])):
                     return f"the state left the finite numbers in mode {phase.mode}"
                 return self._event(phase, chunk.start_of(last), theta, step, chunk.guards[last],
                                    chunk.guards[last + 1], taken + last, states)
-            x, g_start, taken = chunk.start_of(length), chunk.guards[-1], taken + length
+            x, taken = chunk.start_of(length), taken + length
         return (f"the guard of {phase.event} never fired in {MAX_STEPS} steps ({MAX_STEPS * step:.3g} s) "
                 f"of mode {phase.mode}")
 
     def _event(self, phase: _Phase, x, theta, step, g_old, g_new, count, states) -> _Passage | str:
         guess = step * g_old / (g_old - g_new)
-        s, x_end, residual = (v for v in phase.kernels.event(x, guess, theta)[:3])
+        s, x_end, residual, *_, after = phase.kernels.event(x, guess, theta)
         s = s.item()
         if not (0.0 <= s <= 1.5 * step) or abs(residual.item()) > 1e-9 * max(1.0, abs(g_old)):
             return f"the event {phase.event} could not be located in mode {phase.mode}"
         states.append(x_end.ravel())
-        return _Passage(phase.mode, step, count, s, np.array(states))
+        return _Passage(phase.mode, step, count, s, np.array(states), after.ravel())
 
 
 @dataclass(frozen=True)
@@ -242,13 +246,15 @@ class _Passage:
     """How a stride passed through one mode: its steps' size ``step`` [s], the count of
     them, the last step's size ``last_step`` [s] (the one that ends on the guard, after
     ``count``) and the states at every node from the mode's start to its end (rows), or the
-    end's alone where they were not recorded."""
+    end's alone where they were not recorded; ``after``, the state after the transition's
+    reset (the end itself after the stride's last mode)."""
 
     mode: str
     step: float
     count: int
     last_step: float
     states: np.ndarray
+    after: np.ndarray
 
     @property
     def end(self) -> np.ndarray:
@@ -275,39 +281,26 @@ class _Chunk:
     """Steps from ``start``, as one call of a chunk (or run) kernel returned them.
 
     ``nodes`` holds the state after each step (columns), ``guards`` the guard at the start
-    and at each node, ``falls`` the mode's falls at each step's start. Step k (from 0)
-    *fell* if a fall is negative at its start, is *lost* if its end is not finite, and
-    *crossed* if the guard passed zero in the mode's direction over it."""
+    and at each node, ``falls`` the mode's falls at each step's start, ``stop`` the first
+    step that stopped the mode (the length if none did): step k (from 0) stops it if it
+    *fell* (a fall negative at its start), is *lost* (its end not finite) or *crossed* the
+    guard (passed zero in the mode's direction), which the kernel finds."""
 
     start: np.ndarray
     nodes: np.ndarray
     guards: np.ndarray
     falls: np.ndarray
+    stop: int
 
     @classmethod
-    def of(cls, start, g_start: float, outputs: tuple) -> _Chunk:
-        """From a chunk kernel's outputs: (nodes, guards, falls)."""
-        nodes, guards, falls = outputs
-        return cls(start, nodes, np.concatenate([[g_start], guards.ravel()]), falls)
+    def of(cls, start, outputs: tuple) -> _Chunk:
+        """From a chunk kernel's outputs: (nodes, guards, falls, the guard at the start, stop)."""
+        nodes, guards, falls, g_start, stop = outputs
+        return cls(start, nodes, np.concatenate([g_start.ravel(), guards.ravel()]), falls, int(stop.item()))
 
     @property
     def length(self) -> int:
         return self.nodes.shape[1]
-
-    @property
-    def fell(self) -> np.ndarray:
-        return np.any(self.falls < 0, axis=0) if self.falls.size else np.zeros(self.length, dtype=bool)
-
-    @property
-    def lost(self) -> np.ndarray:
-        return ~np.all(np.isfinite(self.nodes), axis=0)
-
-    def first_stop(self, direction: int) -> int:
-        """The first step that fell, was lost or crossed the guard; the length if none did."""
-        g = direction * self.guards
-        crossed = (g[1:] >= 0) & (g[:-1] < 0)
-        stops = np.flatnonzero(self.fell | self.lost | crossed)
-        return int(stops[0]) if len(stops) else self.length
 
     def start_of(self, k: int) -> np.ndarray:
         """The state step ``k`` starts from (k = the length: the end)."""

@@ -5,19 +5,20 @@ and ends it on its guard. Calling the step once per step from Python costs more 
 step itself, so the steps are taken in *chunks* of :data:`CHUNK`: one call integrates
 CHUNK steps of one size (a ``mapaccum`` loop, so the generated code holds one step) and
 returns every node's state, the guard at every node and the mode's falls at every node a
-step starts from. Python then finds the first node at which the mode fell, left the
-finite numbers or crossed its guard, exactly as a step-by-step loop would.
+step starts from, and the first step that stopped the mode: one that fell, left the
+finite numbers or crossed its guard, exactly as a step-by-step loop would find it.
 
 A mode that gives its closed-form flow (``Mode(flow=...)``, such as the BA-SLIP's
 ballistic flight) is stepped along it, exactly, instead of by DOP853. Per mode ``i`` of
 the stride order the library holds:
 
 * ``guard_i(x, theta)``: the guard that ends the mode;
-* ``chunk_i(x, h, theta)``: CHUNK steps of size ``h``, as above;
+* ``chunk_i(x, h, theta)``: CHUNK steps of size ``h``, as above, and the guard at x;
 * ``run_i_n``: the same for the n steps of a mode's run, n in :data:`RUN_STEPS`, in one
   call;
 * ``event_i(x, s0, theta)``: the last step, its size ``s`` solved by Newton from ``s0`` so
-  that it ends on the guard (:func:`baslip.engine.dop853.event_step`);
+  that it ends on the guard (:func:`baslip.engine.dop853.event_step`), and the state after
+  the reset of the transition that follows;
 * ``adjoint_i_n(A, G, x, s, event, starts, active, h, theta)``, n in
   :data:`ADJOINT_STEPS`: the Jacobian's adjoint sweep back through a mode. ``A`` (one
   column per row of the Jacobian) becomes A^T d x_end / d x_start and ``G`` gains A^T d
@@ -163,6 +164,7 @@ def stride_functions(functions: ModelFunctions) -> list[ca.Function]:
     the module's docstring gives (before compiling: to read or to generate)."""
     model = functions.model
     guards = [*functions.guards, functions.section_guard]
+    directions = [*functions.directions, model.section.direction]
     rows = len(functions.model.section.coordinates)  # the Jacobian's rows: the adjoint's directions
     # One step per mode, so that a mode the stride visits twice is generated once.
     steps = {mode: _flow_step(functions.flows[mode]) if mode in functions.flows
@@ -171,20 +173,30 @@ def stride_functions(functions: ModelFunctions) -> list[ca.Function]:
     for i, (mode, guard) in enumerate(zip(model.order, guards)):
         rhs, step = functions.rhs[mode], steps[mode]
         falls = functions.falls.get(mode)
-        block = _block(f"block_{i}", _one_step(f"step_{i}", step, guard, falls))
+        block = _block(f"block_{i}", _one_step(f"step_{i}", step, guard, falls, directions[i]), accumulated=2)
         adjoint_block = _block(f"adjoint_block_{i}", _adjoint_step(f"adjoint_step_{i}", step, rows),
                                accumulated=2, mapped=2)
         event_adjoint = _event_adjoint(f"event_adjoint_{i}", step, guard, rows)
         built += [
             _renamed(f"guard_{i}", guard),
-            _chunk(f"chunk_{i}", block),
-            _renamed(f"event_{i}", event_step(step, rhs, guard, EVENT_ITERATIONS)),
+            _chunk(f"chunk_{i}", block, guard),
+            _event_then_reset(f"event_{i}", event_step(step, rhs, guard, EVENT_ITERATIONS),
+                              functions.resets[i] if i < len(functions.resets) else None),
         ]
-        built += [_chunk(f"run_{i}_{n}", block, n) for n in RUN_STEPS]
+        built += [_chunk(f"run_{i}_{n}", block, guard, n) for n in RUN_STEPS]
         built += [_adjoint_sweep(f"adjoint_{i}_{n}", event_adjoint, adjoint_block, n) for n in ADJOINT_STEPS]
     for i, reset in enumerate(functions.resets):
         built += [_renamed(f"reset_{i}", reset), _reset_adjoint(f"reset_adjoint_{i}", reset, rows)]
     return built
+
+
+def _event_then_reset(name: str, event: ca.Function, reset: ca.Function | None) -> ca.Function:
+    """The event step's outputs (:func:`baslip.engine.dop853.event_step`) and the state
+    after the transition's reset (the state on the guard itself where none follows)."""
+    inputs = [event.mx_in(k) for k in range(event.n_in())]
+    outputs = event.call(inputs)
+    after = reset(outputs[1], inputs[2]) if reset is not None else outputs[1]
+    return ca.Function(name, inputs, [*outputs, after], event.name_in(), [*event.name_out(), "after"])
 
 
 def _flow_step(flow: ca.Function) -> ca.Function:
@@ -203,14 +215,23 @@ def _renamed(name: str, function: ca.Function) -> ca.Function:
     return ca.Function(name, inputs, function.call(inputs), function.name_in(), function.name_out())
 
 
-def _one_step(name: str, step: ca.Function, guard: ca.Function, falls: ca.Function | None) -> ca.Function:
-    """One step of a chunk: (x, h, theta) -> (x_next, the guard at x_next, the falls at x)."""
+def _one_step(name: str, step: ca.Function, guard: ca.Function, falls: ca.Function | None,
+              direction: int) -> ca.Function:
+    """One step of a chunk: (x, g, h, theta) -> (x_next, the guard g_next at x_next, the
+    falls at x, whether the step stops the mode), g the guard at x. A step stops the mode
+    if it fell (a fall negative at x), was lost (x_next not finite) or crossed the guard in
+    ``direction`` (direction * g < 0 <= direction * g_next): 1.0 or 0.0."""
     x = ca.MX.sym("x", step.size1_in(0))
+    g = ca.MX.sym("g")
     h = ca.MX.sym("h")
     theta = ca.MX.sym("theta", step.size1_in(2))
     x_next = step(x, h, theta)[0]
+    g_next = guard(x_next, theta)
     fallen = falls(x, theta) if falls is not None else ca.MX(0, 1)
-    return ca.Function(name, [x, h, theta], [x_next, guard(x_next, theta), fallen])
+    fell = ca.mmin(fallen) < 0 if falls is not None else ca.MX.zeros(1, 1)
+    lost = 1 - ca.mmin(ca.fabs(x_next) < ca.inf)  # inf and nan fail the comparison
+    crossed = ca.logic_and(direction * g < 0, direction * g_next >= 0)
+    return ca.Function(name, [x, g, h, theta], [x_next, g_next, fallen, ca.fmax(fell, ca.fmax(lost, crossed))])
 
 
 def _block(name: str, one: ca.Function, accumulated: int = 1, mapped: int = 0) -> ca.Function:
@@ -221,13 +242,20 @@ def _block(name: str, one: ca.Function, accumulated: int = 1, mapped: int = 0) -
     return ca.Function(name, inputs, [*ends, *outputs])
 
 
-def _chunk(name: str, block: ca.Function, count: int = CHUNK) -> ca.Function:
-    """``count`` steps of one size (a multiple of CHUNK, in blocks of :func:`_block`): the
-    nodes, the guard at the nodes and the falls at the nodes each step starts from (see the
-    module's docstring). The generated code calls the block count / CHUNK times in a row,
-    so a long run costs the compiler little."""
-    inputs, outputs = _looped(name, block, count // CHUNK)
-    return ca.Function(name, inputs, outputs[1:], ["x", "h", "theta"], ["nodes", "guards", "falls"])
+def _chunk(name: str, block: ca.Function, guard: ca.Function, count: int = CHUNK) -> ca.Function:
+    """``count`` steps of one size (a multiple of CHUNK, in blocks of :func:`_block`) from
+    x: the nodes, the guard at the nodes, the falls at the nodes each step starts from, the
+    guard at x and the first step that stopped the mode (:func:`_one_step`; ``count`` if
+    none did). The generated code calls the block count / CHUNK times in a row, so a long
+    run costs the compiler little."""
+    x, h, theta = ca.MX.sym("x", block.size1_in(0)), ca.MX.sym("h"), ca.MX.sym("theta", block.size1_in(3))
+    g_start = guard(x, theta)
+    inputs, outputs = _looped(name, block, count // CHUNK, accumulated=2)
+    nodes, guards, falls, stops = ca.Function(f"{name}_steps", inputs, outputs[2:]).call([x, g_start, h, theta])
+    # The first stopping step k is count - max over stopping steps of (count - k).
+    first = count - ca.mmax(stops * ca.DM(range(count, 0, -1)).T)
+    return ca.Function(name, [x, h, theta], [nodes, guards, falls, g_start, first],
+                       ["x", "h", "theta"], ["nodes", "guards", "falls", "g_start", "stop"])
 
 
 def _adjoint_sweep(name: str, event_adjoint: ca.Function, block: ca.Function, count: int) -> ca.Function:
