@@ -12,7 +12,6 @@ A mode that gives its closed-form flow (``Mode(flow=...)``, such as the BA-SLIP'
 ballistic flight) is stepped along it, exactly, instead of by DOP853. Per mode ``i`` of
 the stride order the library holds:
 
-* ``guard_i(x, theta)``: the guard that ends the mode;
 * ``chunk_i(x, h, theta)``: CHUNK steps of size ``h``, as above, and the guard at x;
 * ``run_i_n``: the same for the n steps of a mode's run, n in :data:`RUN_STEPS`, in one
   call;
@@ -29,7 +28,7 @@ the stride order the library holds:
   size held fixed. A column whose ``active`` is 0 is skipped exactly, so that any count of
   steps up to n takes one call;
 
-and per transition ``i`` the reset and its adjoint (``reset_i``, ``reset_adjoint_i``). The
+and per transition ``i`` the reset's adjoint, ``reset_adjoint_i(x, A, theta)``. The
 values are those of the same step, guard and reset Functions in CasADi's virtual machine.
 
 The Jacobian is swept backwards because it has as many rows as the section has
@@ -70,15 +69,14 @@ RUN_STEPS = (16, 32, 64)
 #: fixed steps (its run's, less the event's) are swept in as few calls as these allow.
 ADJOINT_STEPS = (CHUNK, *RUN_STEPS)
 #: The library's entry points per mode of the stride and per transition, by their prefix.
-PHASE_PARTS = ("guard", "chunk", "event")
-RESET_PARTS = ("reset", "reset_adjoint")
+PHASE_PARTS = ("chunk", "event")
+RESET_PARTS = ("reset_adjoint",)
 
 
 @dataclass(frozen=True)
 class PhaseKernels:
     """The compiled pieces of one mode of the stride (see the module's docstring)."""
 
-    guard: Kernel
     chunk: Kernel
     event: Kernel
     runs: Mapping[int, Kernel]
@@ -103,9 +101,9 @@ class PhaseKernels:
 
 @dataclass(frozen=True)
 class ResetKernels:
-    """The compiled reset of one transition and its adjoint."""
+    """The compiled adjoint of one transition's reset (the reset itself ends its mode's
+    event)."""
 
-    reset: Kernel
     reset_adjoint: Kernel
 
 
@@ -178,7 +176,6 @@ def stride_functions(functions: ModelFunctions) -> list[ca.Function]:
                                accumulated=2, mapped=2)
         event_adjoint = _event_adjoint(f"event_adjoint_{i}", step, guard, rows)
         built += [
-            _renamed(f"guard_{i}", guard),
             _chunk(f"chunk_{i}", block, guard),
             _event_then_reset(f"event_{i}", event_step(step, rhs, guard, EVENT_ITERATIONS),
                               functions.resets[i] if i < len(functions.resets) else None),
@@ -186,7 +183,7 @@ def stride_functions(functions: ModelFunctions) -> list[ca.Function]:
         built += [_chunk(f"run_{i}_{n}", block, guard, n) for n in RUN_STEPS]
         built += [_adjoint_sweep(f"adjoint_{i}_{n}", event_adjoint, adjoint_block, n) for n in ADJOINT_STEPS]
     for i, reset in enumerate(functions.resets):
-        built += [_renamed(f"reset_{i}", reset), _reset_adjoint(f"reset_adjoint_{i}", reset, rows)]
+        built.append(_reset_adjoint(f"reset_adjoint_{i}", reset, rows))
     return built
 
 
@@ -207,12 +204,6 @@ def _flow_step(flow: ca.Function) -> ca.Function:
     theta = ca.SX.sym("theta", flow.size1_in(1))
     return ca.Function(f"{flow.name()}_step", [x, h, theta], [flow(x, theta, h), ca.SX(1, 1)],
                        ["x", "h", "theta"], ["x_next", "error"])
-
-
-def _renamed(name: str, function: ca.Function) -> ca.Function:
-    """``function`` under ``name``, called (not inlined), with its inputs and outputs."""
-    inputs = [function.mx_in(k) for k in range(function.n_in())]
-    return ca.Function(name, inputs, function.call(inputs), function.name_in(), function.name_out())
 
 
 def _one_step(name: str, step: ca.Function, guard: ca.Function, falls: ca.Function | None,
