@@ -144,6 +144,42 @@ def test_the_map_is_the_same_compiled_or_in_the_virtual_machine(slip):
         np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-13)
 
 
+def stepwise(hybrid: HybridMap) -> HybridMap:
+    """``hybrid`` without its whole-mode calls: every mode takes its scout's and its run's
+    calls, as a mode too long for the whole-mode call does."""
+    kernels = hybrid.kernels
+    stepping = HybridMap(hybrid.functions)
+    stepping.__dict__["kernels"] = replace(kernels, phases=tuple(replace(p, modes={}) for p in kernels.phases))
+    return stepping
+
+
+@pytest.mark.parametrize("model", ["slip", "ba-slip"])
+def test_a_whole_mode_in_one_call_is_its_scout_and_run_to_the_bit(model, slip):
+    """Strides, durations, nodes and Jacobians from perturbed starts: one call a mode, and
+    the calls of each scout, run and event, give the same numbers; so does a scout too
+    fine for the whole-mode call (over 64 of its steps), which takes the calls instead."""
+    if model == "slip":
+        functions, start, th = slip, np.array([0.95, 5.1]), theta(slip)
+    else:  # the downward gait
+        result = json.loads((Path(__file__).resolve().parents[1] / "results" / "downward" / "result.json").read_text())
+        functions = model_functions(BA_SLIP, result["hip_law"])
+        start = np.array([result["apex"][n] for n in APEX.names])
+        th = functions.theta({**result["params"], **result["control"]})
+    whole = HybridMap(functions)
+    rng = np.random.default_rng(17)
+    for resolution in (Resolution(0.01, 16), Resolution(0.001, 8)):
+        for _ in range(5):
+            x = start * (1 + 1e-3 * rng.standard_normal(len(start)))
+            one = whole.stride(x, th, resolution, jacobian=True, nodes=True)
+            calls = stepwise(whole).stride(x, th, resolution, jacobian=True, nodes=True)
+            assert one.failure == calls.failure and one.durations == calls.durations
+            if one.ok:
+                assert np.array_equal(one.section, calls.section)
+                assert all(np.array_equal(a, b) for a, b in zip(one.jacobians(), calls.jacobians()))
+                for (_, t_one, x_one), (_, t_calls, x_calls) in zip(one.nodes, calls.nodes):
+                    assert np.array_equal(t_one, t_calls) and np.array_equal(x_one, x_calls)
+
+
 def test_a_stride_along_closed_form_flows_is_the_stride_by_dop853_alone():
     """The BA-SLIP's description steps its flight along the ballistic flow; without the
     flow its flight is integrated like any mode, and the strides agree."""

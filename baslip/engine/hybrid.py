@@ -24,11 +24,13 @@ fixed (their own derivative moves the map only by its truncation error). The acc
 set by :func:`calibrated_resolution`, which doubles n until two agree, and checked by
 :mod:`baslip.engine.hybrid_check`, which re-simulates with a different integrator.
 
-The steps run in generated code, compiled to C (:mod:`baslip.engine.hybrid_kernels`): one
-call takes a mode's whole run, or eight steps of a scout (a whole scout along a flow), and
-finds the first step where the mode fell, was lost or crossed its guard, as a loop over
-single steps would, with the same numbers to the bit. A stride costs 0.2 to 0.4 ms instead
-of 8 to 43 ms one step at a time (``benchmarks/bench_models.py``).
+The steps run in generated code, compiled to C (:mod:`baslip.engine.hybrid_kernels`). One
+call takes a whole mode: its scout, its run and their events, each loop stopping at the
+first step where the mode fell, was lost or crossed its guard, as a loop over single
+steps would, with the same numbers to the bit. A mode too long for that call (its scout
+over 64 steps) takes a call for its run and one for every eight steps of its scout
+instead. A stride costs 0.1 to 0.3 ms instead of 8 to 43 ms one
+step at a time (``benchmarks/bench_models.py``).
 """
 
 from __future__ import annotations
@@ -162,11 +164,7 @@ class HybridMap:
         durations: list[float] = []
         passages: list[_Passage] = []
         for phase in self.phases:
-            scouted = self._phase(phase, x, theta, resolution.scout, False, phase.scout_steps)
-            if isinstance(scouted, str):
-                return Outcome(None, scouted, tuple(durations), nodes=_visited(passages, nodes))
-            step = scouted.duration / (resolution.steps - 0.5)
-            passage = self._phase(phase, x, theta, step, jacobian or nodes, resolution.steps)
+            passage = self._mode(phase, x, theta, resolution, jacobian or nodes)
             if isinstance(passage, str):
                 return Outcome(None, passage, tuple(durations), nodes=_visited(passages, nodes))
             durations.append(passage.duration)
@@ -203,6 +201,39 @@ class HybridMap:
                 starts, event = starts[count:], 0.0
         return adjoint[index].T, gathered.T
 
+    def _mode(self, phase: _Phase, x: np.ndarray, theta: np.ndarray, resolution: Resolution,
+              record: bool) -> _Passage | str:
+        """Integrate ``phase`` from ``x``: its scout, then its run of ``resolution.steps``
+        steps (see the module's docstring), in one call of the library's whole mode where
+        the mode is short enough for it, else in the calls of each."""
+        whole = phase.kernels.modes.get(resolution.steps)
+        if whole is not None:
+            passage = self._whole(phase, whole(x, resolution.scout, theta), x, resolution.scout, record)
+            if passage is not None:
+                return passage
+        scouted = self._phase(phase, x, theta, resolution.scout, False, phase.scout_steps)
+        if isinstance(scouted, str):
+            return scouted
+        return self._phase(phase, x, theta, scouted.duration / (resolution.steps - 0.5), record, resolution.steps)
+
+    def _whole(self, phase: _Phase, outputs: tuple, x: np.ndarray, scout: float, record: bool) -> _Passage | str | None:
+        """The passage through ``phase`` from a whole mode's call (its ``outputs``), or why
+        it failed, or None where its scout or run did not stop within the call's steps."""
+        g_start, *stopping, step, x_end, after, nodes = outputs
+        if phase.direction * g_start.item() > 0:
+            return f"mode {phase.mode} starts past the guard of {phase.event} (it can never cross it)"
+        scouted, run = stopping[:7], stopping[7:]  # each: stopped, count, falls, end, s, residual, g_old
+        for (stopped, _, falls, end, s, residual, g_old), size in ((scouted, scout), (run, step.item())):
+            if not stopped.item():
+                return None
+            why = _stopped_why(phase, falls.ravel(), end.ravel()) or _unlocated(phase, s.item(), size, residual.item(),
+                                                                                g_old.item())
+            if why:
+                return why
+        count = int(run[1].item())
+        states = np.vstack([x, nodes[:, :count].T, x_end.T]) if record else x_end.T
+        return _Passage(phase.mode, step.item(), count, run[4].item(), states, after.ravel())
+
     def _phase(self, phase: _Phase, x: np.ndarray, theta: np.ndarray, step: float, record: bool,
                count: int) -> _Passage | str:
         """Integrate ``phase`` from ``x`` in steps of ``step`` to its event: the passage, with
@@ -220,11 +251,9 @@ class HybridMap:
             if record:
                 states.extend(chunk.nodes[:, :last].T)
             if last < length:
-                broken = [name for name, v in zip(phase.fall_names, chunk.falls[:, last]) if v < 0]
-                if broken:
-                    return f"fell: {broken[0]} (mode {phase.mode})"
-                if not np.all(np.isfinite(chunk.nodes[:, last])):
-                    return f"the state left the finite numbers in mode {phase.mode}"
+                why = _stopped_why(phase, chunk.falls[:, last], chunk.nodes[:, last])
+                if why:
+                    return why
                 return self._event(phase, chunk.start_of(last), theta, step, chunk.guards[last],
                                    chunk.guards[last + 1], taken + last, states)
             x, taken = chunk.start_of(length), taken + length
@@ -235,10 +264,30 @@ class HybridMap:
         guess = step * g_old / (g_old - g_new)
         s, x_end, residual, *_, after = phase.kernels.event(x, guess, theta)
         s = s.item()
-        if not (0.0 <= s <= 1.5 * step) or abs(residual.item()) > 1e-9 * max(1.0, abs(g_old)):
-            return f"the event {phase.event} could not be located in mode {phase.mode}"
+        why = _unlocated(phase, s, step, residual.item(), g_old)
+        if why:
+            return why
         states.append(x_end.ravel())
         return _Passage(phase.mode, step, count, s, np.array(states), after.ravel())
+
+
+def _stopped_why(phase: _Phase, falls: np.ndarray, end: np.ndarray) -> str:
+    """Why the step that stopped ``phase`` failed, the falls at its start and its end given:
+    it fell, or it left the finite numbers; "" if it crossed the guard."""
+    broken = [name for name, v in zip(phase.fall_names, falls) if v < 0]
+    if broken:
+        return f"fell: {broken[0]} (mode {phase.mode})"
+    if not np.all(np.isfinite(end)):
+        return f"the state left the finite numbers in mode {phase.mode}"
+    return ""
+
+
+def _unlocated(phase: _Phase, s: float, step: float, residual: float, g_old: float) -> str:
+    """Why the event step of size ``s`` (the steps' size ``step``), whose guard ended at
+    ``residual`` from ``g_old`` at its start, does not locate the event; "" if it does."""
+    if not (0.0 <= s <= 1.5 * step) or abs(residual) > 1e-9 * max(1.0, abs(g_old)):
+        return f"the event {phase.event} could not be located in mode {phase.mode}"
+    return ""
 
 
 @dataclass(frozen=True)

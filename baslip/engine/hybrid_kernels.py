@@ -18,6 +18,11 @@ the stride order the library holds:
 * ``event_i(x, s0, theta)``: the last step, its size ``s`` solved by Newton from ``s0`` so
   that it ends on the guard (:func:`baslip.engine.dop853.event_step`), and the state after
   the reset of the transition that follows;
+* ``mode_i_n(x, h_scout, theta)``, n in :data:`MODE_STEPS`: the whole mode in one call,
+  its scout, the scout's event, its run of n steps and the run's event and reset, each
+  loop stopping at its first stopping step (a short-circuit switch skips the steps after
+  it): the same numbers as the calls above, where the scout needs at most
+  :data:`SCOUT_STEPS` steps and the run n + :data:`RUN_MARGIN`;
 * ``adjoint_i_n(A, G, x, s, event, starts, active, h, theta)``, n in
   :data:`ADJOINT_STEPS`: the Jacobian's adjoint sweep back through a mode. ``A`` (one
   column per row of the Jacobian) becomes A^T d x_end / d x_start and ``G`` gains A^T d
@@ -65,6 +70,14 @@ EVENT_ITERATIONS = 8
 #: :func:`baslip.engine.hybrid.calibrated_resolution` chooses but for the stiffest laws
 #: (128 and 256 steps run in chunks: their call sites would cost every model's compile).
 RUN_STEPS = (16, 32, 64)
+#: A whole mode in one call (``mode_i_n``): its scout takes at most this many steps, and
+#: its run of n steps this many more than n (the scout's duration is off by its own
+#: error); a mode that needs more takes the scout's and the run's calls instead.
+SCOUT_STEPS = 64
+RUN_MARGIN = CHUNK
+#: The step counts n of a mode's run for which the library holds the whole mode's call:
+#: every count :func:`baslip.engine.hybrid.calibrated_resolution` chooses but the stiffest.
+MODE_STEPS = (CHUNK, *RUN_STEPS)
 #: Step counts an adjoint sweep takes in one call (``adjoint_i_n``), at most: a mode's
 #: fixed steps (its run's, less the event's) are swept in as few calls as these allow.
 ADJOINT_STEPS = (CHUNK, *RUN_STEPS)
@@ -81,6 +94,7 @@ class PhaseKernels:
     event: Kernel
     runs: Mapping[int, Kernel]
     adjoints: Mapping[int, Kernel]
+    modes: Mapping[int, Kernel]
 
     def steps(self, count: int) -> Kernel:
         """The kernel that takes ``count`` steps in one call, if the library has one, else
@@ -123,7 +137,8 @@ def stride_kernels(functions: ModelFunctions, *, enabled: bool | None = None) ->
                               settings=_description_key(functions))
     phases = tuple(PhaseKernels(**{part: kernels[f"{part}_{i}"] for part in PHASE_PARTS},
                                 runs={n: kernels[f"run_{i}_{n}"] for n in RUN_STEPS},
-                                adjoints={n: kernels[f"adjoint_{i}_{n}"] for n in ADJOINT_STEPS})
+                                adjoints={n: kernels[f"adjoint_{i}_{n}"] for n in ADJOINT_STEPS},
+                                modes={n: kernels[f"mode_{i}_{n}"] for n in MODE_STEPS})
                    for i in range(len(functions.model.order)))
     resets = tuple(ResetKernels(*(kernels[f"{part}_{i}"] for part in RESET_PARTS)) for i in range(len(functions.resets)))
     return StrideKernels(phases, resets)
@@ -135,6 +150,7 @@ def _names(functions: ModelFunctions) -> list[str]:
     names = [f"{part}_{i}" for i in modes for part in PHASE_PARTS]
     names += [f"run_{i}_{n}" for i in modes for n in RUN_STEPS]
     names += [f"adjoint_{i}_{n}" for i in modes for n in ADJOINT_STEPS]
+    names += [f"mode_{i}_{n}" for i in modes for n in MODE_STEPS]
     return names + [f"{part}_{i}" for i in range(len(functions.resets)) for part in RESET_PARTS]
 
 
@@ -175,12 +191,12 @@ def stride_functions(functions: ModelFunctions) -> list[ca.Function]:
         adjoint_block = _block(f"adjoint_block_{i}", _adjoint_step(f"adjoint_step_{i}", step, rows),
                                accumulated=2, mapped=2)
         event_adjoint = _event_adjoint(f"event_adjoint_{i}", step, guard, rows)
-        built += [
-            _chunk(f"chunk_{i}", block, guard),
-            _event_then_reset(f"event_{i}", event_step(step, rhs, guard, EVENT_ITERATIONS),
-                              functions.resets[i] if i < len(functions.resets) else None),
-        ]
+        event = _event_then_reset(f"event_{i}", event_step(step, rhs, guard, EVENT_ITERATIONS),
+                                  functions.resets[i] if i < len(functions.resets) else None)
+        stepping = _stepping(f"stepping_{i}", step, guard, falls, directions[i])
+        built += [_chunk(f"chunk_{i}", block, guard), event]
         built += [_chunk(f"run_{i}_{n}", block, guard, n) for n in RUN_STEPS]
+        built += [_whole_mode(f"mode_{i}_{n}", stepping, event, guard, falls, n) for n in MODE_STEPS]
         built += [_adjoint_sweep(f"adjoint_{i}_{n}", event_adjoint, adjoint_block, n) for n in ADJOINT_STEPS]
     for i, reset in enumerate(functions.resets):
         built.append(_reset_adjoint(f"reset_adjoint_{i}", reset, rows))
@@ -219,10 +235,73 @@ def _one_step(name: str, step: ca.Function, guard: ca.Function, falls: ca.Functi
     x_next = step(x, h, theta)[0]
     g_next = guard(x_next, theta)
     fallen = falls(x, theta) if falls is not None else ca.MX(0, 1)
-    fell = ca.mmin(fallen) < 0 if falls is not None else ca.MX.zeros(1, 1)
+    return ca.Function(name, [x, g, h, theta], [x_next, g_next, fallen, _stops(fallen, x_next, g, g_next, direction)])
+
+
+def _stops(fallen: ca.MX, x_next: ca.MX, g: ca.MX, g_next: ca.MX, direction: int) -> ca.MX:
+    """1.0 where a step stops its mode, else 0.0: it fell (``fallen``, the falls at its
+    start, has a negative entry), was lost (``x_next`` is not finite) or crossed the guard
+    in ``direction`` (``g`` to ``g_next``)."""
+    fell = ca.mmin(fallen) < 0 if fallen.numel() else ca.MX.zeros(1, 1)
     lost = 1 - ca.mmin(ca.fabs(x_next) < ca.inf)  # inf and nan fail the comparison
     crossed = ca.logic_and(direction * g < 0, direction * g_next >= 0)
-    return ca.Function(name, [x, g, h, theta], [x_next, g_next, fallen, ca.fmax(fell, ca.fmax(lost, crossed))])
+    return ca.fmax(fell, ca.fmax(lost, crossed))
+
+
+def _stepping(name: str, step: ca.Function, guard: ca.Function, falls: ca.Function | None,
+              direction: int) -> ca.Function:
+    """One step of a whole mode's loop: (x_before, x, g_before, g, stopped, count, h,
+    theta) -> the same after the step from x, g the guard at x. The step taken hands on
+    (x, x_next, g, g_next), whether it stopped the mode (:func:`_stops`) and the count of
+    steps before the stopping one; once stopped, the loop holds its values and takes no
+    more steps (a short-circuit switch), so that (x_before, x) end as the stopping step's
+    start and end, and the count as its index."""
+    x_before, x = ca.MX.sym("x_before", step.size1_in(0)), ca.MX.sym("x", step.size1_in(0))
+    g_before, g, stopped, count, h = (ca.MX.sym(n) for n in ("g_before", "g", "stopped", "count", "h"))
+    theta = ca.MX.sym("theta", step.size1_in(2))
+    x_next = step(x, h, theta)[0]
+    g_next = guard(x_next, theta)
+    fallen = falls(x, theta) if falls is not None else ca.MX(0, 1)
+    stop = _stops(fallen, x_next, g, g_next, direction)
+    taken = ca.vertcat(x, x_next, g, g_next, stop, count + 1 - stop)
+    held = ca.vertcat(x_before, x, g_before, g, stopped, count)
+    after = ca.vertsplit(ca.if_else(stopped, held, taken, True), [0, x.numel(), 2 * x.numel(), *(
+        2 * x.numel() + k for k in range(1, 5))])
+    return ca.Function(name, [x_before, x, g_before, g, stopped, count, h, theta], after)
+
+
+def _whole_mode(name: str, stepping: ca.Function, event: ca.Function, guard: ca.Function,
+                falls: ca.Function | None, steps: int) -> ca.Function:
+    """A mode in one call, as :class:`baslip.engine.hybrid.HybridMap` takes it in several:
+    from x, a scout of up to SCOUT_STEPS steps of ``h_scout`` to its stopping step and its
+    event, the duration T; then a run in steps of T / (steps - 1/2), up to RUN_MARGIN steps
+    more, to its stopping step and its event and reset.
+
+    Outputs the guard at x, then for the scout and the run in turn: whether it stopped, the
+    count of steps before the stopping one, the falls at that step's start, its end, the
+    event's step and residual and the guard at the step's start; then the run's step, the
+    state on the guard, the state after the reset and the state after each step."""
+    x, h_scout, theta = ca.MX.sym("x", stepping.size1_in(0)), ca.MX.sym("h_scout"), ca.MX.sym(
+        "theta", stepping.size1_in(7))
+    g_start = guard(x, theta)
+    outputs: list[ca.MX] = [g_start]
+
+    def stopping(h: ca.MX, count: int) -> tuple[list[ca.MX], list[ca.MX]]:
+        loop = stepping.mapaccum(f"{name}_{count}", count, range(6), range(6))
+        history = loop.call([x, x, g_start, g_start, ca.MX(0.0), ca.MX(0.0), ca.repmat(h, 1, count),
+                             ca.repmat(theta, 1, count)])
+        return [v[:, -1] for v in history], history
+
+    (before, end, g_before, g, stopped, count), _ = stopping(h_scout, SCOUT_STEPS)
+    s, _, residual, *_ = event(before, h_scout * g_before / (g_before - g), theta)
+    fallen = falls(before, theta) if falls is not None else ca.MX(0, 1)
+    outputs += [stopped, count, fallen, end, s, residual, g_before]
+    h_run = (count * h_scout + s) / (steps - 0.5)
+    (before, end, g_before, g, stopped, count), history = stopping(h_run, steps + RUN_MARGIN)
+    s, x_end, residual, *_, after = event(before, h_run * g_before / (g_before - g), theta)
+    fallen = falls(before, theta) if falls is not None else ca.MX(0, 1)
+    outputs += [stopped, count, fallen, end, s, residual, g_before, h_run, x_end, after, history[1]]
+    return ca.Function(name, [x, h_scout, theta], outputs)
 
 
 def _block(name: str, one: ca.Function, accumulated: int = 1, mapped: int = 0) -> ca.Function:
