@@ -180,9 +180,17 @@ def stride_functions(functions: ModelFunctions) -> list[ca.Function]:
     guards = [*functions.guards, functions.section_guard]
     directions = [*functions.directions, model.section.direction]
     rows = len(functions.model.section.coordinates)  # the Jacobian's rows: the adjoint's directions
-    # One step per mode, so that a mode the stride visits twice is generated once.
-    steps = {mode: _flow_step(functions.flows[mode]) if mode in functions.flows
-             else step_function(functions.rhs[mode], tableau=DOP853) for mode in model.order}
+    # One step per dynamics, so that a mode the stride visits twice, or two modes with the
+    # same equations (the BA-SLIP's compression and decompression), are generated once.
+    by_dynamics: dict[str, ca.Function] = {}
+    steps = {}
+    for mode in model.order:
+        flows = mode in functions.flows
+        dynamics = functions.flows[mode] if flows else functions.rhs[mode]
+        key = ("flow" if flows else "rhs") + _canonical(dynamics)
+        if key not in by_dynamics:
+            by_dynamics[key] = _flow_step(dynamics) if flows else step_function(dynamics, tableau=DOP853)
+        steps[mode] = by_dynamics[key]
     built: list[ca.Function] = []
     for i, (mode, guard) in enumerate(zip(model.order, guards)):
         rhs, step = functions.rhs[mode], steps[mode]
@@ -193,14 +201,23 @@ def stride_functions(functions: ModelFunctions) -> list[ca.Function]:
         event_adjoint = _event_adjoint(f"event_adjoint_{i}", step, guard, rows)
         event = _event_then_reset(f"event_{i}", event_step(step, rhs, guard, EVENT_ITERATIONS),
                                   functions.resets[i] if i < len(functions.resets) else None)
-        stepping = _stepping(f"stepping_{i}", step, guard, falls, directions[i])
+        stepping = _block(f"stepping_block_{i}", _stepping(f"stepping_{i}", step, guard, falls, directions[i]),
+                          accumulated=6)
+        scout = _stopping_loop(f"scout_{i}", stepping, SCOUT_STEPS)
         built += [_chunk(f"chunk_{i}", block, guard), event]
         built += [_chunk(f"run_{i}_{n}", block, guard, n) for n in RUN_STEPS]
-        built += [_whole_mode(f"mode_{i}_{n}", stepping, event, guard, falls, n) for n in MODE_STEPS]
+        built += [_whole_mode(f"mode_{i}_{n}", scout, stepping, event, guard, falls, n) for n in MODE_STEPS]
         built += [_adjoint_sweep(f"adjoint_{i}_{n}", event_adjoint, adjoint_block, n) for n in ADJOINT_STEPS]
     for i, reset in enumerate(functions.resets):
         built.append(_reset_adjoint(f"reset_adjoint_{i}", reset, rows))
     return built
+
+
+def _canonical(function: ca.Function) -> str:
+    """``function``'s expressions, serialised under fixed names: equal for two Functions
+    that compute the same graph whatever they are called."""
+    inputs = [ca.SX.sym(f"i{k}", function.sparsity_in(k)) for k in range(function.n_in())]
+    return ca.Function("dynamics", inputs, function.call(inputs)).serialize()
 
 
 def _event_then_reset(name: str, event: ca.Function, reset: ca.Function | None) -> ca.Function:
@@ -270,37 +287,43 @@ def _stepping(name: str, step: ca.Function, guard: ca.Function, falls: ca.Functi
     return ca.Function(name, [x_before, x, g_before, g, stopped, count, h, theta], after)
 
 
-def _whole_mode(name: str, stepping: ca.Function, event: ca.Function, guard: ca.Function,
+def _stopping_loop(name: str, block: ca.Function, count: int) -> ca.Function:
+    """``count`` steps (a multiple of CHUNK) of :func:`_stepping`, in blocks of CHUNK
+    (``block``, from :func:`_block`), so that the generated code holds count / CHUNK call
+    sites: (x, g, h, theta) -> (x_before, x, g_before, g, stopped, count) after the loop,
+    and the state after each step (frozen once stopped)."""
+    x, g, h = ca.MX.sym("x", block.size1_in(0)), ca.MX.sym("g"), ca.MX.sym("h")
+    theta = ca.MX.sym("theta", block.size1_in(7))
+    inputs, outputs = _looped(name, block, count // CHUNK, accumulated=6)
+    ends = [v[:, -inputs[k].size2():] for k, v in enumerate(outputs[:6])]
+    loop = ca.Function(f"{name}_blocks", inputs, [*ends, outputs[6 + 1]])
+    return ca.Function(name, [x, g, h, theta], loop.call([x, x, g, g, ca.MX(0.0), ca.MX(0.0), h, theta]))
+
+
+def _whole_mode(name: str, scout: ca.Function, block: ca.Function, event: ca.Function, guard: ca.Function,
                 falls: ca.Function | None, steps: int) -> ca.Function:
     """A mode in one call, as :class:`baslip.engine.hybrid.HybridMap` takes it in several:
-    from x, a scout of up to SCOUT_STEPS steps of ``h_scout`` to its stopping step and its
-    event, the duration T; then a run in steps of T / (steps - 1/2), up to RUN_MARGIN steps
-    more, to its stopping step and its event and reset.
+    from x, the ``scout`` (:func:`_stopping_loop`, SCOUT_STEPS steps of ``h_scout``) to its
+    stopping step and its event, the duration T; then a run in steps of T / (steps - 1/2),
+    up to RUN_MARGIN steps more, to its stopping step and its event and reset.
 
     Outputs the guard at x, then for the scout and the run in turn: whether it stopped, the
     count of steps before the stopping one, the falls at that step's start, its end, the
     event's step and residual and the guard at the step's start; then the run's step, the
     state on the guard, the state after the reset and the state after each step."""
-    x, h_scout, theta = ca.MX.sym("x", stepping.size1_in(0)), ca.MX.sym("h_scout"), ca.MX.sym(
-        "theta", stepping.size1_in(7))
+    x, h_scout, theta = ca.MX.sym("x", block.size1_in(0)), ca.MX.sym("h_scout"), ca.MX.sym("theta", block.size1_in(7))
     g_start = guard(x, theta)
     outputs: list[ca.MX] = [g_start]
-
-    def stopping(h: ca.MX, count: int) -> tuple[list[ca.MX], list[ca.MX]]:
-        loop = stepping.mapaccum(f"{name}_{count}", count, range(6), range(6))
-        history = loop.call([x, x, g_start, g_start, ca.MX(0.0), ca.MX(0.0), ca.repmat(h, 1, count),
-                             ca.repmat(theta, 1, count)])
-        return [v[:, -1] for v in history], history
-
-    (before, end, g_before, g, stopped, count), _ = stopping(h_scout, SCOUT_STEPS)
+    before, end, g_before, g, stopped, count, _ = scout.call([x, g_start, h_scout, theta])
     s, _, residual, *_ = event(before, h_scout * g_before / (g_before - g), theta)
     fallen = falls(before, theta) if falls is not None else ca.MX(0, 1)
     outputs += [stopped, count, fallen, end, s, residual, g_before]
     h_run = (count * h_scout + s) / (steps - 0.5)
-    (before, end, g_before, g, stopped, count), history = stopping(h_run, steps + RUN_MARGIN)
+    run = _stopping_loop(f"{name}_run", block, steps + RUN_MARGIN)
+    before, end, g_before, g, stopped, count, nodes = run.call([x, g_start, h_run, theta])
     s, x_end, residual, *_, after = event(before, h_run * g_before / (g_before - g), theta)
     fallen = falls(before, theta) if falls is not None else ca.MX(0, 1)
-    outputs += [stopped, count, fallen, end, s, residual, g_before, h_run, x_end, after, history[1]]
+    outputs += [stopped, count, fallen, end, s, residual, g_before, h_run, x_end, after, nodes]
     return ca.Function(name, [x, h_scout, theta], outputs)
 
 
