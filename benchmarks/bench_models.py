@@ -9,8 +9,11 @@ Prints, in one process:
    in CasADi's virtual machine, beside the BA-SLIP's own compiled engine on the same
    BA-SLIP strides: medians over ``--repeats`` calls at new points (each call perturbs
    the start, so no memo answers), and the time to build or load the generated code.
-2. A gait solve, a branch and an atlas of the hopper, timed.
-3. BA-SLIP as a description against the compiled engine on a sample of ``--sample``
+2. The BA-SLIP at each committed single gait: its description on the generic engine
+   (at the steps :func:`calibrated_resolution` gives for 1e-10) against its own compiled
+   engine at 1e-10, a stride and a stride with its Jacobians, medians of new starts.
+3. A gait solve, a branch and an atlas of the hopper, timed.
+4. BA-SLIP as a description against the compiled engine on a sample of ``--sample``
    points around the committed single gaits (each a random perturbation of a gait's apex
    and controls by up to 1 %): the largest difference of the stride and of its
    Jacobians, and how many strides either engine refused.
@@ -99,8 +102,33 @@ def strides(repeats: int, rng: np.random.Generator) -> None:
     print(f"  {'ba-slip':<22}{'its own engine':<18}{'':>8}{value:>10.2f}{both:>20.2f}   (1e-10)")
 
 
+def ba_slip_gaits(repeats: int, rng: np.random.Generator) -> None:
+    print("2. the BA-SLIP at each committed gait: its description on the generic engine against its own engine, "
+          "median of new starts [ms], 1e-10")
+    print(f"  {'gait':<20}{'law':<6}{'steps':>6}{'described':>11}{'own':>7}{'ratio':>7}"
+          f"{'described + J':>15}{'own + J':>9}{'ratio':>7}")
+    maps = {law: HybridMap(model_functions(BA_SLIP, law)) for law in HIP_LAWS}
+    for gait in committed_gaits():
+        law = HIP_LAWS[gait["hip_law"]]
+        X = np.array([gait["apex"][n] for n in APEX.names])
+        hybrid = maps[law.name]
+        theta = hybrid.functions.theta({**gait["params"], **gait["control"]})
+        resolution = calibrated_resolution(hybrid, X, theta, 1e-10)
+        engine = ReturnMap(Tolerances(1e-10, 1e-10), law=law)
+        params, u = Params(**gait["params"]), np.array([gait["control"][n] for n in law.controls.names])
+        engine.stride(X, u, params)
+        starts = [X * (1 + 1e-4 * rng.standard_normal(4)) for _ in range(repeats)]
+        described = median_ms(lambda s: hybrid.stride(s, theta, resolution), starts)
+        own = median_ms(lambda s: engine.stride(s, u, params), starts)
+        starts = [X * (1 + 1e-4 * rng.standard_normal(4)) for _ in range(repeats)]
+        described_j = median_ms(lambda s: hybrid.stride(s, theta, resolution, jacobian=True), starts)
+        own_j = median_ms(lambda s: engine.jacobians(s, u, params), starts)
+        print(f"  {gait['provenance']['problem']['name']:<20}{law.name:<6}{resolution.steps:>6}{described:>11.2f}"
+              f"{own:>7.2f}{described / own:>7.2f}{described_j:>15.2f}{own_j:>9.2f}{described_j / own_j:>7.2f}")
+
+
 def families() -> None:
-    print("2. the hopper's gait, branch and atlas [s]")
+    print("3. the hopper's gait, branch and atlas [s]")
     hopper = load_model("models/hopper.py:HOPPER", ROOT / "problems")
     spec = ModelSpec(hopper, fixed={"z": 1.0, "ydot": 5.0}, guess={"theta_td": 0.38, "push": 0.01})
     begin = time.perf_counter()
@@ -122,7 +150,7 @@ def families() -> None:
 
 
 def agreement(sample: int, rng: np.random.Generator) -> None:
-    print(f"3. BA-SLIP as a description against the compiled engine, {sample} points near the committed gaits")
+    print(f"4. BA-SLIP as a description against the compiled engine, {sample} points near the committed gaits")
     gaits = committed_gaits()
     worst = {"stride": 0.0, "dX": 0.0, "du": 0.0}
     refused = {"generic": 0, "compiled": 0}
@@ -170,6 +198,7 @@ def main(argv: list[str]) -> None:
     args = parser.parse_args(argv)
     rng = np.random.default_rng(59)
     strides(args.repeats, rng)
+    ba_slip_gaits(args.repeats, rng)
     families()
     agreement(args.sample, rng)
 
