@@ -145,19 +145,18 @@ def test_the_map_is_the_same_compiled_or_in_the_virtual_machine(slip):
 
 
 def stepwise(hybrid: HybridMap) -> HybridMap:
-    """``hybrid`` without its whole-mode calls: every mode takes its scout's and its run's
-    calls, as a mode too long for the whole-mode call does."""
-    kernels = hybrid.kernels
+    """``hybrid`` without its whole-stride calls: every mode takes its scout's and its run's
+    calls, as a mode too long for the whole-stride call (and every mode after it) does."""
     stepping = HybridMap(hybrid.functions)
-    stepping.__dict__["kernels"] = replace(kernels, phases=tuple(replace(p, modes={}) for p in kernels.phases))
+    stepping.__dict__["kernels"] = replace(hybrid.kernels, strides={})
     return stepping
 
 
 @pytest.mark.parametrize("model", ["slip", "ba-slip"])
-def test_a_whole_mode_in_one_call_is_its_scout_and_run_to_the_bit(model, slip):
-    """Strides, durations, nodes and Jacobians from perturbed starts: one call a mode, and
-    the calls of each scout, run and event, give the same numbers; so does a scout too
-    fine for the whole-mode call (over 64 of its steps), which takes the calls instead."""
+def test_a_stride_in_one_call_is_its_scouts_and_runs_to_the_bit(model, slip):
+    """Strides, durations, nodes and Jacobians from perturbed starts: one call a stride,
+    and the calls of each scout, run and event, give the same numbers; so does a scout too
+    fine for the whole-stride call (over 64 of its steps), which takes the calls instead."""
     if model == "slip":
         functions, start, th = slip, np.array([0.95, 5.1]), theta(slip)
     else:  # the downward gait

@@ -25,11 +25,11 @@ set by :func:`calibrated_resolution`, which doubles n until two agree, and check
 :mod:`baslip.engine.hybrid_check`, which re-simulates with a different integrator.
 
 The steps run in generated code, compiled to C (:mod:`baslip.engine.hybrid_kernels`). One
-call takes a whole mode: its scout, its run and their events, each loop stopping at the
-first step where the mode fell, was lost or crossed its guard, as a loop over single
-steps would, with the same numbers to the bit. A mode too long for that call (its scout
-over 64 steps) takes a call for its run and one for every eight steps of its scout
-instead. A stride costs 0.1 to 0.3 ms instead of 8 to 43 ms one
+call takes the whole stride: each mode's scout, its run and their events, each loop
+stopping at the first step where the mode fell, was lost or crossed its guard, as a loop
+over single steps would, with the same numbers to the bit. From a mode too long for that
+call (its scout over 64 steps) on, each mode takes a call for its run and one for every
+eight steps of its scout instead. A stride costs 0.1 to 0.3 ms instead of 8 to 43 ms one
 step at a time (``benchmarks/bench_models.py``).
 """
 
@@ -163,8 +163,17 @@ class HybridMap:
         theta = np.asarray(theta, dtype=float)
         durations: list[float] = []
         passages: list[_Passage] = []
-        for phase in self.phases:
-            passage = self._mode(phase, x, theta, resolution, jacobian or nodes)
+        whole = self.kernels.strides.get(resolution.steps)
+        outputs = whole(x, resolution.scout, theta) if whole is not None else None
+        for number, phase in enumerate(self.phases):
+            passage = None
+            if outputs is not None:
+                per_mode = len(outputs) // len(self.phases)
+                passage = self._whole(phase, outputs[number * per_mode:(number + 1) * per_mode], x, resolution.scout,
+                                      jacobian or nodes)
+            if passage is None:  # this mode, and so those after it, did not fit the call's steps
+                outputs = None
+                passage = self._by_calls(phase, x, theta, resolution, jacobian or nodes)
             if isinstance(passage, str):
                 return Outcome(None, passage, tuple(durations), nodes=_visited(passages, nodes))
             durations.append(passage.duration)
@@ -201,24 +210,19 @@ class HybridMap:
                 starts, event = starts[count:], 0.0
         return adjoint[index].T, gathered.T
 
-    def _mode(self, phase: _Phase, x: np.ndarray, theta: np.ndarray, resolution: Resolution,
-              record: bool) -> _Passage | str:
+    def _by_calls(self, phase: _Phase, x: np.ndarray, theta: np.ndarray, resolution: Resolution,
+                  record: bool) -> _Passage | str:
         """Integrate ``phase`` from ``x``: its scout, then its run of ``resolution.steps``
-        steps (see the module's docstring), in one call of the library's whole mode where
-        the mode is short enough for it, else in the calls of each."""
-        whole = phase.kernels.modes.get(resolution.steps)
-        if whole is not None:
-            passage = self._whole(phase, whole(x, resolution.scout, theta), x, resolution.scout, record)
-            if passage is not None:
-                return passage
+        steps (see the module's docstring), in calls of eight steps, or of a run."""
         scouted = self._phase(phase, x, theta, resolution.scout, False, phase.scout_steps)
         if isinstance(scouted, str):
             return scouted
         return self._phase(phase, x, theta, scouted.duration / (resolution.steps - 0.5), record, resolution.steps)
 
     def _whole(self, phase: _Phase, outputs: tuple, x: np.ndarray, scout: float, record: bool) -> _Passage | str | None:
-        """The passage through ``phase`` from a whole mode's call (its ``outputs``), or why
-        it failed, or None where its scout or run did not stop within the call's steps."""
+        """The passage through ``phase`` from ``x``, as the whole stride's call gave it (the
+        mode's ``outputs``), or why it failed, or None where the mode's scout or run did not
+        stop within the call's steps."""
         g_start, *stopping, step, x_end, after, nodes = outputs
         if phase.direction * g_start.item() > 0:
             return f"mode {phase.mode} starts past the guard of {phase.event} (it can never cross it)"

@@ -18,11 +18,6 @@ the stride order the library holds:
 * ``event_i(x, s0, theta)``: the last step, its size ``s`` solved by Newton from ``s0`` so
   that it ends on the guard (:func:`baslip.engine.dop853.event_step`), and the state after
   the reset of the transition that follows;
-* ``mode_i_n(x, h_scout, theta)``, n in :data:`MODE_STEPS`: the whole mode in one call,
-  its scout, the scout's event, its run of n steps and the run's event and reset, each
-  loop stopping at its first stopping step (a short-circuit switch skips the steps after
-  it): the same numbers as the calls above, where the scout needs at most
-  :data:`SCOUT_STEPS` steps and the run n + :data:`RUN_MARGIN`;
 * ``adjoint_i_n(A, G, x, s, event, starts, active, h, theta)``, n in
   :data:`ADJOINT_STEPS`: the Jacobian's adjoint sweep back through a mode. ``A`` (one
   column per row of the Jacobian) becomes A^T d x_end / d x_start and ``G`` gains A^T d
@@ -33,7 +28,12 @@ the stride order the library holds:
   size held fixed. A column whose ``active`` is 0 is skipped exactly, so that any count of
   steps up to n takes one call;
 
-and per transition ``i`` the reset's adjoint, ``reset_adjoint_i(x, A, theta)``. The
+per transition ``i`` the reset's adjoint, ``reset_adjoint_i(x, A, theta)``; and the whole
+stride in one call, ``stride_n(x, h_scout, theta)`` for n in :data:`MODE_STEPS`: each
+mode's scout, the scout's event, its run of n steps and the run's event and reset, each
+loop stopping at its first stopping step (a short-circuit switch skips the steps after
+it), the modes one after the other. Its numbers are those of the calls above wherever each
+scout needs at most :data:`SCOUT_STEPS` steps and each run n + :data:`RUN_MARGIN`. The
 values are those of the same step, guard and reset Functions in CasADi's virtual machine.
 
 The Jacobian is swept backwards because it has as many rows as the section has
@@ -94,7 +94,6 @@ class PhaseKernels:
     event: Kernel
     runs: Mapping[int, Kernel]
     adjoints: Mapping[int, Kernel]
-    modes: Mapping[int, Kernel]
 
     def steps(self, count: int) -> Kernel:
         """The kernel that takes ``count`` steps in one call, if the library has one, else
@@ -123,10 +122,12 @@ class ResetKernels:
 
 @dataclass(frozen=True)
 class StrideKernels:
-    """The compiled pieces of a whole stride: a phase per mode, a reset per transition."""
+    """The compiled pieces of a whole stride: a phase per mode, a reset per transition, and
+    the stride in one call per step count of its modes' runs."""
 
     phases: tuple[PhaseKernels, ...]
     resets: tuple[ResetKernels, ...]
+    strides: Mapping[int, Kernel]
 
 
 def stride_kernels(functions: ModelFunctions, *, enabled: bool | None = None) -> StrideKernels:
@@ -137,11 +138,10 @@ def stride_kernels(functions: ModelFunctions, *, enabled: bool | None = None) ->
                               settings=_description_key(functions))
     phases = tuple(PhaseKernels(**{part: kernels[f"{part}_{i}"] for part in PHASE_PARTS},
                                 runs={n: kernels[f"run_{i}_{n}"] for n in RUN_STEPS},
-                                adjoints={n: kernels[f"adjoint_{i}_{n}"] for n in ADJOINT_STEPS},
-                                modes={n: kernels[f"mode_{i}_{n}"] for n in MODE_STEPS})
+                                adjoints={n: kernels[f"adjoint_{i}_{n}"] for n in ADJOINT_STEPS})
                    for i in range(len(functions.model.order)))
     resets = tuple(ResetKernels(*(kernels[f"{part}_{i}"] for part in RESET_PARTS)) for i in range(len(functions.resets)))
-    return StrideKernels(phases, resets)
+    return StrideKernels(phases, resets, {n: kernels[f"stride_{n}"] for n in MODE_STEPS})
 
 
 def _names(functions: ModelFunctions) -> list[str]:
@@ -150,7 +150,7 @@ def _names(functions: ModelFunctions) -> list[str]:
     names = [f"{part}_{i}" for i in modes for part in PHASE_PARTS]
     names += [f"run_{i}_{n}" for i in modes for n in RUN_STEPS]
     names += [f"adjoint_{i}_{n}" for i in modes for n in ADJOINT_STEPS]
-    names += [f"mode_{i}_{n}" for i in modes for n in MODE_STEPS]
+    names += [f"stride_{n}" for n in MODE_STEPS]
     return names + [f"{part}_{i}" for i in range(len(functions.resets)) for part in RESET_PARTS]
 
 
@@ -192,6 +192,7 @@ def stride_functions(functions: ModelFunctions) -> list[ca.Function]:
             by_dynamics[key] = _flow_step(dynamics) if flows else step_function(dynamics, tableau=DOP853)
         steps[mode] = by_dynamics[key]
     built: list[ca.Function] = []
+    whole_modes: dict[int, list[ca.Function]] = {n: [] for n in MODE_STEPS}
     for i, (mode, guard) in enumerate(zip(model.order, guards)):
         rhs, step = functions.rhs[mode], steps[mode]
         falls = functions.falls.get(mode)
@@ -206,11 +207,12 @@ def stride_functions(functions: ModelFunctions) -> list[ca.Function]:
         scout = _stopping_loop(f"scout_{i}", stepping, SCOUT_STEPS)
         built += [_chunk(f"chunk_{i}", block, guard), event]
         built += [_chunk(f"run_{i}_{n}", block, guard, n) for n in RUN_STEPS]
-        built += [_whole_mode(f"mode_{i}_{n}", scout, stepping, event, guard, falls, n) for n in MODE_STEPS]
+        for n in MODE_STEPS:
+            whole_modes[n].append(_whole_mode(f"mode_{i}_{n}", scout, stepping, event, guard, falls, n))
         built += [_adjoint_sweep(f"adjoint_{i}_{n}", event_adjoint, adjoint_block, n) for n in ADJOINT_STEPS]
     for i, reset in enumerate(functions.resets):
         built.append(_reset_adjoint(f"reset_adjoint_{i}", reset, rows))
-    return built
+    return built + [_whole_stride(f"stride_{n}", whole_modes[n]) for n in MODE_STEPS]
 
 
 def _canonical(function: ca.Function) -> str:
@@ -364,6 +366,19 @@ def _adjoint_sweep(name: str, event_adjoint: ca.Function, block: ca.Function, co
     swept = ca.Function(f"{name}_steps", inputs, [outputs[k][:, -inputs[k].size2():] for k in range(2)])
     return ca.Function(name, [adjoint, gathered, x, s, event, *inputs[2:]], swept.call([*start, *inputs[2:]]),
                        ["A", "G", "x", "s", "event", "starts", "active", "h", "theta"], ["A_before", "G_after"])
+
+
+def _whole_stride(name: str, modes: list[ca.Function]) -> ca.Function:
+    """The stride in one call: (x, h_scout, theta) -> each mode's outputs (:func:`_whole_mode`)
+    in the stride's order, a mode starting from the state after the reset that ended the
+    one before it."""
+    x, h_scout, theta = modes[0].mx_in()
+    outputs: list[ca.MX] = []
+    start = x
+    for mode in modes:
+        outputs += mode.call([start, h_scout, theta])
+        start = outputs[-2]  # the state after the reset
+    return ca.Function(name, [x, h_scout, theta], outputs)
 
 
 def _looped(name: str, function: ca.Function, count: int, accumulated: int = 1,
