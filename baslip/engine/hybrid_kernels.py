@@ -70,13 +70,14 @@ EVENT_ITERATIONS = 8
 #: :func:`baslip.engine.hybrid.calibrated_resolution` chooses but for the stiffest laws
 #: (128 and 256 steps run in chunks: their call sites would cost every model's compile).
 RUN_STEPS = (16, 32, 64)
-#: A whole mode in one call (``mode_i_n``): its scout takes at most this many steps, and
-#: its run of n steps this many more than n (the scout's duration is off by its own
-#: error); a mode that needs more takes the scout's and the run's calls instead.
+#: Each mode in the whole stride's call (``stride_n``): its scout takes at most this many
+#: steps, and its run of n steps this many more than n (the scout's duration is off by its
+#: own error); from a mode that needs more on, the modes take their separate calls.
 SCOUT_STEPS = 64
 RUN_MARGIN = CHUNK
-#: The step counts n of a mode's run for which the library holds the whole mode's call:
-#: every count :func:`baslip.engine.hybrid.calibrated_resolution` chooses but the stiffest.
+#: The step counts n of the modes' runs for which the library holds the whole stride's
+#: call: every count :func:`baslip.engine.hybrid.calibrated_resolution` chooses but the
+#: stiffest.
 MODE_STEPS = (CHUNK, *RUN_STEPS)
 #: Step counts an adjoint sweep takes in one call (``adjoint_i_n``), at most: a mode's
 #: fixed steps (its run's, less the event's) are swept in as few calls as these allow.
@@ -284,8 +285,8 @@ def _stepping(name: str, step: ca.Function, guard: ca.Function, falls: ca.Functi
     stop = _stops(fallen, x_next, g, g_next, direction)
     taken = ca.vertcat(x, x_next, g, g_next, stop, count + 1 - stop)
     held = ca.vertcat(x_before, x, g_before, g, stopped, count)
-    after = ca.vertsplit(ca.if_else(stopped, held, taken, True), [0, x.numel(), 2 * x.numel(), *(
-        2 * x.numel() + k for k in range(1, 5))])
+    n = x.numel()
+    after = ca.vertsplit(ca.if_else(stopped, held, taken, True), [0, n, 2 * n, 2 * n + 1, 2 * n + 2, 2 * n + 3, 2 * n + 4])
     return ca.Function(name, [x_before, x, g_before, g, stopped, count, h, theta], after)
 
 
@@ -298,7 +299,8 @@ def _stopping_loop(name: str, block: ca.Function, count: int) -> ca.Function:
     theta = ca.MX.sym("theta", block.size1_in(7))
     inputs, outputs = _looped(name, block, count // CHUNK, accumulated=6)
     ends = [v[:, -inputs[k].size2():] for k, v in enumerate(outputs[:6])]
-    loop = ca.Function(f"{name}_blocks", inputs, [*ends, outputs[6 + 1]])
+    states = outputs[6 + 1]  # of the blocks' per-step outputs, the second: x after each step
+    loop = ca.Function(f"{name}_blocks", inputs, [*ends, states])
     return ca.Function(name, [x, g, h, theta], loop.call([x, x, g, g, ca.MX(0.0), ca.MX(0.0), h, theta]))
 
 
@@ -388,11 +390,12 @@ def _looped(name: str, function: ca.Function, count: int, accumulated: int = 1,
     wide (each call its share of the columns), the others the same in every call. Returns
     the inputs and ``mapaccum``'s outputs (the handed-on values after each call, then the
     other outputs, side by side)."""
-    handed = list(range(accumulated))
+    handed, split = list(range(accumulated)), range(accumulated, accumulated + mapped)
     looped = function.mapaccum(f"{name}_loop", count, handed, handed)
-    inputs = [ca.MX.sym(f"i{k}", function.size1_in(k), function.size2_in(k) * (count if k in range(
-        accumulated, accumulated + mapped) else 1)) for k in range(function.n_in())]
-    outputs = looped(*inputs[:accumulated + mapped], *(ca.repmat(v, 1, count) for v in inputs[accumulated + mapped:]))
+    inputs = [ca.MX.sym(f"i{k}", function.size1_in(k), function.size2_in(k) * (count if k in split else 1))
+              for k in range(function.n_in())]
+    same = inputs[accumulated + mapped:]
+    outputs = looped(*inputs[:accumulated + mapped], *(ca.repmat(v, 1, count) for v in same))
     return inputs, list(outputs)
 
 
