@@ -73,6 +73,24 @@ def test_the_calibrated_resolution_agrees_with_the_independent_stride(slip):
     assert np.max(np.abs(hybrid.stride(x, th, resolution).section - independent)) < 1e-11
 
 
+def test_at_its_rounding_the_calibration_returns_its_most_accurate_count():
+    """The BA-SLIP's upward gait asked for 1e-12: the strides' differences between n and
+    2n steps reach their rounding and then grow with the steps, so no count agrees to a
+    tenth of the tolerance. The calibration returns the count with the least difference,
+    not the most steps it may try (256, whose stride is further off)."""
+    result = json.loads((Path(__file__).resolve().parents[1] / "results" / "upward" / "result.json").read_text())
+    functions = model_functions(BA_SLIP, result["hip_law"])
+    X = np.array([result["apex"][n] for n in APEX.names])
+    th = functions.theta({**result["params"], **result["control"]})
+    hybrid = HybridMap(functions)
+    chosen = calibrated_resolution(hybrid, X, th, 1e-12)
+    ends = {n: hybrid.stride(X, th, Resolution(chosen.scout, n)).end() for n in (8, 16, 32, 64, 128, 256, 512)}
+    differences = {n: float(np.max(np.abs(ends[n] - ends[2 * n]))) for n in (8, 16, 32, 64, 128, 256)}
+    assert min(differences.values()) > 0.1 * 1e-12 * np.max(np.abs(X))  # no count agrees: the rounding
+    assert differences[256] > 3 * min(differences.values())  # which grows with the steps
+    assert chosen.steps == min(differences, key=differences.get) < 256
+
+
 def test_every_mode_takes_the_same_count_of_steps_whatever_its_length(slip):
     """The event falls in the middle of the last of n steps: n + 1 nodes, the last at T."""
     outcome = HybridMap(slip).stride(np.array([0.95, 5.1]), theta(slip), Resolution(0.01, 8), nodes=True)
