@@ -197,14 +197,14 @@ def stride_functions(functions: ModelFunctions) -> list[ca.Function]:
     for i, (mode, guard) in enumerate(zip(model.order, guards)):
         rhs, step = functions.rhs[mode], steps[mode]
         falls = functions.falls.get(mode)
-        block = _block(f"block_{i}", _one_step(f"step_{i}", step, guard, falls, directions[i]), accumulated=2)
+        one = _one_step(f"step_{i}", step, guard, falls, directions[i])
+        block = _block(f"block_{i}", one, accumulated=2)
         adjoint_block = _block(f"adjoint_block_{i}", _adjoint_step(f"adjoint_step_{i}", step, rows),
                                accumulated=2, mapped=2)
         event_adjoint = _event_adjoint(f"event_adjoint_{i}", step, guard, rows)
         event = _event_then_reset(f"event_{i}", event_step(step, rhs, guard, EVENT_ITERATIONS),
                                   functions.resets[i] if i < len(functions.resets) else None)
-        stepping = _block(f"stepping_block_{i}", _stepping(f"stepping_{i}", step, guard, falls, directions[i]),
-                          accumulated=6)
+        stepping = _block(f"stepping_block_{i}", _stepping(f"stepping_{i}", one), accumulated=6)
         scout = _stopping_loop(f"scout_{i}", stepping, SCOUT_STEPS)
         built += [_chunk(f"chunk_{i}", block, guard), event]
         built += [_chunk(f"run_{i}_{n}", block, guard, n) for n in RUN_STEPS]
@@ -268,21 +268,17 @@ def _stops(fallen: ca.MX, x_next: ca.MX, g: ca.MX, g_next: ca.MX, direction: int
     return ca.fmax(fell, ca.fmax(lost, crossed))
 
 
-def _stepping(name: str, step: ca.Function, guard: ca.Function, falls: ca.Function | None,
-              direction: int) -> ca.Function:
+def _stepping(name: str, one: ca.Function) -> ca.Function:
     """One step of a whole mode's loop: (x_before, x, g_before, g, stopped, count, h,
-    theta) -> the same after the step from x, g the guard at x. The step taken hands on
-    (x, x_next, g, g_next), whether it stopped the mode (:func:`_stops`) and the count of
-    steps before the stopping one; once stopped, the loop holds its values and takes no
-    more steps (a short-circuit switch), so that (x_before, x) end as the stopping step's
-    start and end, and the count as its index."""
-    x_before, x = ca.MX.sym("x_before", step.size1_in(0)), ca.MX.sym("x", step.size1_in(0))
+    theta) -> the same after the step from x, g the guard at x. The step taken (``one``,
+    :func:`_one_step`) hands on (x, x_next, g, g_next), whether it stopped the mode and the
+    count of steps before the stopping one; once stopped, the loop holds its values and
+    takes no more steps (a short-circuit switch), so that (x_before, x) end as the
+    stopping step's start and end, and the count as its index."""
+    x_before, x = ca.MX.sym("x_before", one.size1_in(0)), ca.MX.sym("x", one.size1_in(0))
     g_before, g, stopped, count, h = (ca.MX.sym(n) for n in ("g_before", "g", "stopped", "count", "h"))
-    theta = ca.MX.sym("theta", step.size1_in(2))
-    x_next = step(x, h, theta)[0]
-    g_next = guard(x_next, theta)
-    fallen = falls(x, theta) if falls is not None else ca.MX(0, 1)
-    stop = _stops(fallen, x_next, g, g_next, direction)
+    theta = ca.MX.sym("theta", one.size1_in(3))
+    x_next, g_next, _, stop = one(x, g, h, theta)
     taken = ca.vertcat(x, x_next, g, g_next, stop, count + 1 - stop)
     held = ca.vertcat(x_before, x, g_before, g, stopped, count)
     n = x.numel()
